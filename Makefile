@@ -1,0 +1,32 @@
+# Two entry points: `make demo` and `make test`. Both build .venv when missing.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test test-all bench venv clean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	# The local CPU build of torch must come first; an unpinned torch pulls CUDA wheels.
+	$(PY) -m pip install --quiet torch==2.13.0
+	$(PY) -m pip install --quiet -e '.[all]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/sensorless demo --out demo_output
+
+test: $(STAMP)
+	$(PY) -m pytest -q -n 2 tests || [ $$? -eq 5 ]
+
+test-all: $(STAMP)
+	$(PY) -m pytest -q -m '' tests
+
+bench: $(STAMP)
+	$(VENV)/bin/sensorless benchmark identify --out benchmarks/results
+
+clean:
+	rm -rf $(VENV) demo_output

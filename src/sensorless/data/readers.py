@@ -1,0 +1,491 @@
+"""Read logs (CSV/TXT, NPZ, Parquet, HDF5) into a validated :class:`Trajectory`.
+
+Fields are ``t, q, v, a, tau`` (plus ``current``, ``command`` → ``extras`` and
+``base_q, base_v, base_a``). ``columns`` maps a field to where it is stored:
+
+* NPZ / HDF5: an array key (HDF5: dataset name or path). Defaults: :data:`ALIASES`.
+* CSV / Parquet: a list of column names (or 0-based indices), a pattern with
+  ``"{joint}"`` (``"pos_{joint}"``) expanded over the joint names, or an index range
+  ``"0:7"`` (the only option for a header-less CSV). With a header and no ``columns``
+  the defaults are a time column ``t|time|times|timestamp`` and ``q_{joint}``,
+  ``v_{joint}``, ``a_{joint}``, ``tau_{joint}``; the joint names come from the
+  ``q_`` columns.
+
+Joint names: ``joint_names``, else names stored in the file (NPZ/HDF5 ``joint_names``
+or the ``{joint}`` pattern), else ``robot.joint_names`` if the column count matches,
+else ``joint_0..joint_{n-1}``. Time is kept as read (converted to seconds when
+``time_unit`` is given); without a time field, ``t = arange(N) / rate``.
+"""
+
+from __future__ import annotations
+
+import re
+import zipfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import DataError, ShapeMismatchError
+from .trajectory import Trajectory
+from .validation import JOINT_EXTRAS, validate_trajectory
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ..robot import Robot
+
+__all__ = ["read_trajectory", "write_npz", "SUPPORTED_EXTENSIONS", "ALIASES", "FIELDS"]
+
+SUPPORTED_EXTENSIONS = {
+    ".csv": "csv",
+    ".txt": "csv",
+    ".npz": "npz",
+    ".parquet": "parquet",
+    ".pq": "parquet",
+    ".h5": "hdf5",
+    ".hdf5": "hdf5",
+}
+FIELDS = ("t", "q", "v", "a", "tau", "current", "command", "base_q", "base_v", "base_a")
+#: Default NPZ/HDF5 keys per field, first match wins.
+ALIASES: dict[str, tuple[str, ...]] = {
+    "t": ("times", "time", "t", "timestamp"),
+    "q": ("positions", "q", "position", "joint_positions"),
+    "v": ("velocities", "v", "qd", "velocity"),
+    "a": ("accelerations", "a", "qdd", "acceleration"),
+    "tau": ("torques", "tau", "effort", "efforts", "torque"),
+    "current": ("current", "currents"),
+    "command": ("command", "commands"),
+    "base_q": ("base_q",),
+    "base_v": ("base_v",),
+    "base_a": ("base_a",),
+}
+_TIME_COLUMNS = ("t", "time", "times", "timestamp")
+_DEFAULT_PATTERNS = {f: f"{f}_{{joint}}" for f in ("q", "v", "a", "tau", "current", "command")}
+_TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
+_NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
+
+Columns = Mapping[str, "str | int | Sequence[str | int]"]
+
+
+def read_trajectory(
+    path: str | Path,
+    *,
+    joint_names: Sequence[str] | None = None,
+    columns: Columns | None = None,
+    rate: float | None = None,
+    robot: "Robot | None" = None,
+    time_unit: str | None = None,
+) -> Trajectory:
+    """Read a log and return it validated (and reordered to ``robot.joint_names``).
+
+    ``rate`` [Hz] builds the time axis when the file has none. ``time_unit`` (one of
+    s, ms, us, ns) converts a stored time column to seconds. Every problem raises a
+    :class:`~sensorless.errors.DataError` subclass naming the file, column and row.
+    """
+    path = Path(path)
+    src = str(path)
+    if not path.exists():
+        raise DataError("no such file", src)
+    if not path.is_file():
+        raise DataError("not a regular file", src)
+    kind = SUPPORTED_EXTENSIONS.get(path.suffix.lower())
+    if kind is None:
+        raise DataError(
+            f"unsupported file type '{path.suffix}'; supported: {', '.join(SUPPORTED_EXTENSIONS)}", src
+        )
+    if columns is not None:
+        unknown = [k for k in columns if k not in FIELDS]
+        if unknown:
+            raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {list(FIELDS)}", src)
+    if time_unit is not None and time_unit not in _TIME_SCALE:
+        raise DataError(f"time_unit must be one of {list(_TIME_SCALE)}, got {time_unit!r}", src)
+
+    if kind == "npz":
+        raw, file_names = _read_npz(path, columns)
+    elif kind == "hdf5":
+        raw, file_names = _read_hdf5(path, columns)
+    else:
+        df, header = _read_csv(path) if kind == "csv" else (_read_parquet(path), True)
+        raw, file_names = _fields_from_frame(df, src, columns, joint_names, header)
+    traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
+    return validate_trajectory(traj, robot)
+
+
+def write_npz(traj: Trajectory, path: str | Path) -> Path:
+    """Write ``traj`` with the default keys (times, positions, velocities, accelerations,
+    torques, joint_names, plus base_* and current/command when present)."""
+    path = Path(path)
+    data: dict[str, np.ndarray] = {"joint_names": np.array(traj.joint_names, dtype=str)}
+    for field, key in _NPZ_KEYS.items():
+        val = getattr(traj, field)
+        if val is not None:
+            data[key] = np.asarray(val, dtype=float)
+    for field in ("base_q", "base_v", "base_a"):
+        if getattr(traj, field) is not None:
+            data[field] = getattr(traj, field)
+    for key in JOINT_EXTRAS:
+        if key in traj.extras:
+            data[key] = np.asarray(traj.extras[key], dtype=float)
+    try:
+        with open(path, "wb") as fh:  # file handle: np.savez would append ".npz"
+            np.savez(fh, **data)
+    except OSError as exc:
+        raise DataError(f"cannot write NPZ: {exc.strerror or exc}", str(path)) from None
+    return path
+
+
+# ---- NPZ / HDF5 ------------------------------------------------------------------
+def _pick_key(field: str, keys: list[str], columns: Columns | None, src: str, base=lambda k: k) -> str | None:
+    """The stored key for ``field``: the ``columns`` override, else the first alias present."""
+    if columns is not None and field in columns:
+        key = columns[field]
+        if not isinstance(key, str):
+            raise DataError(f"columns['{field}'] must be an array key (str) for this format, got {key!r}", src)
+        key = key.lstrip("/")
+        if key in keys:
+            return key
+        hits = [k for k in keys if base(k) == key]
+        if len(hits) == 1:
+            return hits[0]
+        raise DataError(f"no array '{key}' (for '{field}'); available: {_short(keys)}", src)
+    for alias in ALIASES[field]:
+        for match in (lambda k: k == alias, lambda k: k.lower() == alias):
+            hits = [k for k in keys if match(base(k))]
+            if hits:
+                depth = min(h.count("/") for h in hits)
+                top = [h for h in hits if h.count("/") == depth]
+                if len(top) > 1:
+                    raise DataError(
+                        f"ambiguous '{field}': several arrays named '{alias}' ({top}); "
+                        f"pass columns={{'{field}': <path>}}",
+                        src,
+                    )
+                return top[0]
+    return None
+
+
+def _as_float(arr: Any, src: str, key: str) -> np.ndarray:
+    try:
+        out = np.asarray(arr, dtype=float)
+    except (TypeError, ValueError):
+        dtype = getattr(arr, "dtype", type(arr).__name__)
+        raise DataError(f"array '{key}' is not numeric (dtype {dtype})", src) from None
+    if out.ndim > 2:
+        raise ShapeMismatchError(f"array '{key}' has shape {out.shape}; expected 1-D or 2-D", src)
+    return out
+
+
+def _missing_q(keys: list[str], src: str) -> DataError:
+    return DataError(
+        f"no joint positions found (looked for {list(ALIASES['q'])}); available: {_short(keys)}; "
+        "pass columns={'q': <key>}",
+        src,
+    )
+
+
+def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    src = str(path)
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise DataError(f"not a readable NPZ archive ({exc})", src) from None
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise DataError("holds a single array (.npy), not an NPZ archive of named arrays", src)
+    with archive as z:
+        keys = list(z.files)
+        raw: dict[str, np.ndarray] = {}
+        try:
+            for field in FIELDS:
+                key = _pick_key(field, keys, columns, src)
+                if key is not None:
+                    raw[field] = _as_float(z[key], src, key)
+            names = [str(n) for n in np.atleast_1d(z["joint_names"])] if "joint_names" in keys else None
+        except (ValueError, OSError, zipfile.BadZipFile) as exc:  # pickled/object or corrupt member
+            raise DataError(f"cannot read an array from the NPZ archive ({exc})", src) from None
+    if "q" not in raw:
+        raise _missing_q(keys, src)
+    return raw, names
+
+
+def _read_hdf5(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    import h5py
+
+    src = str(path)
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise DataError(f"not a readable HDF5 file ({exc})", src) from None
+    with f:
+        keys: list[str] = []
+        f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
+        base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
+        raw: dict[str, np.ndarray] = {}
+        for field in FIELDS:
+            key = _pick_key(field, keys, columns, src, base)
+            if key is not None:
+                raw[field] = _as_float(f[key][()], src, key)
+        names = None
+        if "joint_names" in keys:
+            names = f["joint_names"][()]
+        elif "joint_names" in f.attrs:
+            names = f.attrs["joint_names"]
+        if names is not None:
+            names = [n.decode() if isinstance(n, bytes) else str(n) for n in np.atleast_1d(names)]
+    if "q" not in raw:
+        raise _missing_q(keys, src)
+    return raw, names
+
+
+# ---- CSV / Parquet ------------------------------------------------------------------
+def _is_number(tok: str) -> bool:
+    try:
+        float(tok)
+        return True
+    except ValueError:
+        return False
+
+
+def _read_csv(path: Path) -> tuple["pd.DataFrame", bool]:
+    """The table and whether it has a header (no header if the first row is all numbers)."""
+    import pandas as pd
+
+    src = str(path)
+    first = None
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
+            for line in fh:
+                if line.strip() and not line.lstrip().startswith("#"):
+                    first = line
+                    break
+    except OSError as exc:
+        raise DataError(f"cannot open: {exc.strerror or exc}", src) from None
+    if first is None:
+        raise DataError("file is empty", src)
+    sep = next((s for s in (",", ";", "\t") if s in first), r"\s+")
+    tokens = [tok.strip().strip("\"'") for tok in (first.split(sep) if sep != r"\s+" else first.split())]
+    header = any(tok and not _is_number(tok) for tok in tokens)
+    try:
+        df = pd.read_csv(
+            path, sep=sep, header=0 if header else None, comment="#", skipinitialspace=True, encoding="utf-8-sig"
+        )
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError) as exc:
+        raise DataError(f"cannot parse as CSV: {str(exc).strip()}", src) from None
+    if header:
+        df.columns = [str(c).strip() for c in df.columns]
+    return df, header
+
+
+def _read_parquet(path: Path) -> "pd.DataFrame":
+    import pandas as pd
+
+    try:
+        df = pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises ArrowInvalid/OSError/... for a bad file
+        raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(path)) from None
+    df.columns = [str(c) for c in df.columns]
+    return df.reset_index() if df.index.name is not None else df.reset_index(drop=True)
+
+
+def _short(items: Sequence[Any], limit: int = 40) -> str:
+    items = list(items)
+    return str(items if len(items) <= limit else items[:limit] + [f"... ({len(items) - limit} more)"])
+
+
+def _names_from_pattern(pattern: str, avail: list) -> list[str]:
+    pre, post = pattern.split("{joint}", 1)
+    rx = re.compile(re.escape(pre) + "(.+)" + re.escape(post) + "$")
+    return [m.group(1) for c in avail if (m := rx.match(str(c)))]
+
+
+def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header: bool, src: str) -> list:
+    """Column labels of ``field`` for one ``columns`` entry."""
+
+    def by_index(i: int) -> Any:
+        if not 0 <= i < len(avail):
+            raise DataError(f"column index {i} (for '{field}') is out of range; the file has {len(avail)} columns", src)
+        return avail[i]
+
+    def one(item: Any) -> Any:
+        if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+            return by_index(int(item))
+        if isinstance(item, str):
+            if not header and item.strip().isdigit():
+                return by_index(int(item))
+            return item
+        raise DataError(f"columns['{field}'] entries must be column names or indices, got {item!r}", src)
+
+    if isinstance(spec, str) and "{joint}" in spec:
+        if not header:
+            raise DataError(f"pattern {spec!r} for '{field}' needs a header row; use an index range like '0:7'", src)
+        if not names:
+            raise DataError(f"pattern {spec!r} for '{field}' needs joint names; pass joint_names=[...]", src)
+        labels = [spec.replace("{joint}", j) for j in names]
+    elif isinstance(spec, str) and (m := _RANGE.match(spec)):
+        start = int(m.group(1) or 0)
+        stop = int(m.group(2) or len(avail))
+        if not 0 <= start < stop <= len(avail):
+            raise DataError(f"column range '{spec}' (for '{field}') does not fit the {len(avail)} columns", src)
+        labels = list(avail[start:stop])
+    elif isinstance(spec, (str, int, np.integer)):
+        labels = [one(spec)]
+    elif isinstance(spec, Sequence):
+        labels = [one(item) for item in spec]
+    else:
+        raise DataError(f"columns['{field}'] must be a list, a '{{joint}}' pattern or a range 'a:b', got {spec!r}", src)
+    missing = [c for c in labels if c not in avail]
+    if missing:
+        raise DataError(f"no column(s) {missing} (for '{field}'); available columns: {_short(avail)}", src)
+    return labels
+
+
+def _numeric(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarray:
+    import pandas as pd
+
+    cols = []
+    for c in labels:
+        s = df[c]
+        if field == "t" and pd.api.types.is_datetime64_any_dtype(s):
+            if s.isna().any():
+                i = int(np.flatnonzero(s.isna().to_numpy())[0])
+                raise DataError(f"missing timestamp in column '{c}' at row {i}", src)
+            cols.append((s - pd.Timestamp(0, tz=getattr(s.dt, "tz", None))).dt.total_seconds().to_numpy(float))
+            continue
+        if pd.api.types.is_numeric_dtype(s):
+            cols.append(s.to_numpy(dtype=float, na_value=np.nan))
+            continue
+        num = pd.to_numeric(s, errors="coerce")
+        text = s.astype(str).str.strip()
+        bad = (num.isna() & s.notna() & (text != "")).to_numpy()
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataError(
+                f"non-numeric value {s.iloc[i]!r} in column '{c}' (for '{field}') at row {i} "
+                f"(0-based data row; {int(bad.sum())} bad cell(s) in this column)",
+                src,
+            )
+        cols.append(num.to_numpy(dtype=float, na_value=np.nan))
+    return np.column_stack(cols) if cols else np.empty((len(df), 0))
+
+
+def _fields_from_frame(
+    df: "pd.DataFrame",
+    src: str,
+    columns: Columns | None,
+    joint_names: Sequence[str] | None,
+    header: bool,
+) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    avail = list(df.columns)
+    if columns is None and not header:
+        raise DataError(
+            "has no header row; say which columns hold what, e.g. "
+            "columns={'q': '0:7', 'v': '7:14', 'tau': '14:21'} (and rate=... Hz if there is no time column)",
+            src,
+        )
+    optional: set[str] = set()
+    if columns is None:
+        spec: dict[str, Any] = dict(_DEFAULT_PATTERNS)
+        optional = set(_DEFAULT_PATTERNS) - {"q"}
+    else:
+        spec = dict(columns)
+        if "q" not in spec:
+            raise DataError("columns has no 'q' entry (joint positions)", src)
+    if header and "t" not in spec:
+        lower = {str(c).lower(): c for c in avail}
+        tcol = next((lower[n] for n in _TIME_COLUMNS if n in lower), None)
+        if tcol is not None:
+            spec["t"] = tcol
+
+    names = list(joint_names) if joint_names is not None else None
+    if names is None:
+        patterns = [f for f in ("q", *spec) if isinstance(spec.get(f), str) and "{joint}" in spec[f]]
+        if patterns and header:
+            names = _names_from_pattern(spec[patterns[0]], avail)
+            if not names:
+                raise DataError(
+                    f"no column matches {spec[patterns[0]]!r} (for '{patterns[0]}'); "
+                    f"available columns: {_short(avail)}; pass columns={{'q': [...], ...}}",
+                    src,
+                )
+
+    raw: dict[str, np.ndarray] = {}
+    for field, entry in spec.items():
+        if field in optional:
+            present = [entry.replace("{joint}", j) in avail for j in names or []]
+            if not any(present):
+                continue
+            if not all(present):
+                absent = [entry.replace("{joint}", j) for j, p in zip(names, present) if not p]
+                raise DataError(f"'{field}' columns incomplete: no column(s) {absent}; available columns: {_short(avail)}", src)
+        labels = _labels(field, entry, avail, names, header, src)
+        if field == "t" and len(labels) != 1:
+            raise DataError(f"'t' must be one column, got {labels}", src)
+        values = _numeric(df, labels, field, src)
+        raw[field] = values[:, 0] if field == "t" else values
+    return raw, names
+
+
+# ---- assembly ----------------------------------------------------------------------
+def _assemble(
+    raw: dict[str, np.ndarray],
+    file_names: list[str] | None,
+    src: str,
+    joint_names: Sequence[str] | None,
+    rate: float | None,
+    robot: "Robot | None",
+    time_unit: str | None,
+) -> Trajectory:
+    q = raw["q"]
+    if q.ndim == 1:
+        q = q[:, None]
+    n = q.shape[1]
+    if joint_names is not None:
+        names = list(joint_names)
+        if len(names) != n:
+            raise ShapeMismatchError(f"joint_names has {len(names)} names but 'q' has {n} columns", src)
+    elif file_names is not None and len(file_names) == n:
+        names = list(file_names)
+    elif robot is not None:
+        if len(robot.joint_names) != n:
+            raise ShapeMismatchError(
+                f"'q' has {n} columns but robot '{robot.name}' has {len(robot.joint_names)} joints "
+                f"{list(robot.joint_names)}; pass joint_names=[...] in column order",
+                src,
+            )
+        names = list(robot.joint_names)
+    else:
+        names = [f"joint_{i}" for i in range(n)]
+
+    units: dict[str, str] = {}
+    if "t" in raw:
+        t = raw["t"]
+        if t.ndim == 2 and t.shape[1] == 1:
+            t = t[:, 0]
+        if t.ndim != 1:
+            raise ShapeMismatchError(f"time must be 1-D, got shape {t.shape}", src)
+        if time_unit is not None:
+            t = t * _TIME_SCALE[time_unit]
+        units["t"] = "s" if time_unit in (None, "s") else f"s (converted from {time_unit})"
+    else:
+        if rate is None:
+            raise DataError(f"no time column in {src}; pass rate=... (Hz)", src)
+        if not (np.isfinite(rate) and rate > 0):
+            raise DataError(f"rate must be a positive number of Hz, got {rate!r}", src)
+        t = np.arange(q.shape[0]) / float(rate)
+        units["t"] = f"s (built from rate={rate:g} Hz)"
+    extras = {k: raw[k] for k in JOINT_EXTRAS if k in raw}
+    return Trajectory(
+        t=t,
+        q=q,
+        joint_names=tuple(names),
+        v=raw.get("v"),
+        a=raw.get("a"),
+        tau=raw.get("tau"),
+        base_q=raw.get("base_q"),
+        base_v=raw.get("base_v"),
+        base_a=raw.get("base_a"),
+        extras=extras,
+        units=units,
+        source=src,
+    )

@@ -1,0 +1,95 @@
+"""Trajectory: one logged (or simulated) run of a robot.
+
+Arrays are sample-major: ``q[i, j]`` is joint ``joint_names[j]`` at time ``t[i]``.
+Units are SI (rad, m, rad/s, N·m, N); ``units`` records what the file said.
+The base of a floating-base robot is optional: pose ``[x y z qx qy qz qw]``,
+twist and its derivative in the base frame (Pinocchio's LOCAL convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Iterator
+
+import numpy as np
+
+__all__ = ["Trajectory"]
+
+_PER_SAMPLE = ("q", "v", "a", "tau", "base_q", "base_v", "base_a")
+
+
+@dataclass
+class Trajectory:
+    t: np.ndarray
+    q: np.ndarray
+    joint_names: tuple[str, ...]
+    v: np.ndarray | None = None
+    a: np.ndarray | None = None
+    tau: np.ndarray | None = None
+    base_q: np.ndarray | None = None
+    base_v: np.ndarray | None = None
+    base_a: np.ndarray | None = None
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    source: str = "<array>"
+
+    def __post_init__(self) -> None:
+        self.joint_names = tuple(self.joint_names)
+        self.t = np.asarray(self.t, dtype=float)
+        for name in _PER_SAMPLE:
+            val = getattr(self, name)
+            if val is not None:
+                setattr(self, name, np.asarray(val, dtype=float))
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def dt(self) -> float:
+        """Median sample period [s]."""
+        return float(np.median(np.diff(self.t))) if len(self) > 1 else float("nan")
+
+    @property
+    def rate(self) -> float:
+        """Median sample rate [Hz]."""
+        return 1.0 / self.dt
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self) else 0.0
+
+    def take(self, index: slice | np.ndarray) -> "Trajectory":
+        """Samples selected by a slice, an index array or a boolean mask."""
+        kw = {n: (None if getattr(self, n) is None else getattr(self, n)[index]) for n in _PER_SAMPLE}
+        extras = {k: v[index] for k, v in self.extras.items()}
+        return replace(self, t=self.t[index], extras=extras, **kw)
+
+    def chunks(self, size: int) -> Iterator["Trajectory"]:
+        """Consecutive pieces of at most ``size`` samples (views, no copy)."""
+        for start in range(0, len(self), size):
+            yield self.take(slice(start, start + size))
+
+    def with_(self, **changes) -> "Trajectory":
+        """A copy with some fields replaced (dataclasses.replace)."""
+        return replace(self, **changes)
+
+    def select_joints(self, names: tuple[str, ...] | list[str]) -> "Trajectory":
+        """The same samples with joint columns reordered/subset to ``names``."""
+        idx = [self.joint_names.index(n) for n in names]
+        kw = {n: (None if getattr(self, n) is None else getattr(self, n)[:, idx]) for n in ("q", "v", "a", "tau")}
+        return replace(self, joint_names=tuple(names), **kw)
+
+    @staticmethod
+    def concatenate(parts: list["Trajectory"]) -> "Trajectory":
+        """Join trajectories with the same joints (time is kept as is)."""
+        first = parts[0]
+        kw = {}
+        for n in _PER_SAMPLE:
+            vals = [getattr(p, n) for p in parts]
+            kw[n] = None if any(v is None for v in vals) else np.concatenate(vals)
+        extras = {k: np.concatenate([p.extras[k] for p in parts]) for k in first.extras if all(k in p.extras for p in parts)}
+        return replace(first, t=np.concatenate([p.t for p in parts]), extras=extras, **kw)

@@ -1,0 +1,175 @@
+"""Checks that turn a raw :class:`Trajectory` into one identification can trust.
+
+:func:`validate_trajectory` checks shapes, finiteness, strictly increasing time and
+the sample count. Given a robot, it also reorders the joints to ``robot.joint_names``
+and checks for values that look like degrees or encoder counts. Every failure is a
+typed :mod:`sensorless.errors` exception that names the field, the joint column and
+the first bad sample.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import (
+    DataError,
+    ExcitationError,
+    JointNameError,
+    NonFiniteError,
+    ShapeMismatchError,
+    TimestampError,
+    UnitsError,
+)
+from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from ..robot import Robot
+
+__all__ = ["validate_trajectory", "TooFewSamplesError", "JOINT_EXTRAS"]
+
+#: ``extras`` keys holding one column per joint; they are reordered with the joints.
+JOINT_EXTRAS = ("current", "command")
+
+_JOINT_FIELDS = ("q", "v", "a", "tau")
+_BASE_COLS = {"base_q": 7, "base_v": 6, "base_a": 6}
+_LIMIT_MARGIN = 0.5  # rad: slack beyond the model limits before values look like degrees
+_MAX_REVOLUTE_Q = 100.0  # rad: no revolute joint travels ~16 turns in one log
+_MAX_REVOLUTE_V = 100.0  # rad/s
+
+
+class TooFewSamplesError(DataError, ExcitationError):
+    """Fewer samples than required (both a DataError and an ExcitationError)."""
+
+
+def validate_trajectory(
+    traj: Trajectory,
+    robot: "Robot | None" = None,
+    *,
+    check_units: bool = True,
+    min_samples: int = 2,
+) -> Trajectory:
+    """Check ``traj`` and return it (reordered to ``robot.joint_names`` if a robot is given).
+
+    Raises ShapeMismatchError, NonFiniteError, TimestampError, JointNameError,
+    UnitsError or TooFewSamplesError. The input is never modified.
+    """
+    src = traj.source
+    t = np.asarray(traj.t, dtype=float)
+    if t.ndim != 1:
+        raise ShapeMismatchError(f"'t' must be 1-D, got shape {t.shape}", src)
+    n = t.shape[0]
+    if n < min_samples:
+        raise TooFewSamplesError(f"only {n} sample(s); at least {min_samples} are needed", src)
+
+    names = list(traj.joint_names)
+    dup = sorted({j for j in names if names.count(j) > 1})
+    if dup:
+        raise JointNameError(f"duplicate joint name(s) {dup} in {names}", src)
+
+    arrays: dict[str, np.ndarray] = {}
+    for name in _JOINT_FIELDS + tuple(_BASE_COLS):
+        val = getattr(traj, name)
+        if val is None:
+            if name == "q":
+                raise ShapeMismatchError("'q' (joint positions) is missing", src)
+            continue
+        arr = np.asarray(val, dtype=float)
+        cols = _BASE_COLS.get(name, len(names))
+        if arr.ndim == 1 and cols == 1:
+            arr = arr[:, None]
+        if arr.ndim != 2:
+            raise ShapeMismatchError(f"'{name}' must be 2-D (samples x columns), got shape {arr.shape}", src)
+        if arr.shape[0] != n:
+            raise ShapeMismatchError(f"row count of '{name}' is {arr.shape[0]} but 't' has {n} samples", src)
+        if arr.shape[1] != cols:
+            what = f"there are {cols} joint names" if name in _JOINT_FIELDS else f"'{name}' needs {cols}"
+            raise ShapeMismatchError(f"column count of '{name}' is {arr.shape[1]} but {what}", src)
+        arrays[name] = arr
+    for key, val in traj.extras.items():
+        arr = np.asarray(val)
+        if arr.ndim == 0 or arr.shape[0] != n:
+            raise ShapeMismatchError(f"extras['{key}'] has shape {arr.shape} but 't' has {n} samples", src)
+
+    _check_finite("t", t[:, None], ["t"], t, src)
+    for name, arr in arrays.items():
+        labels = names if name in _JOINT_FIELDS else [f"{name}[{k}]" for k in range(arr.shape[1])]
+        _check_finite(name, arr, labels, t, src)
+    _check_time(t, src)
+
+    out = traj.with_(t=t, **arrays)
+    if robot is None:
+        return out
+    perm = robot.joint_order(names, src)  # JointNameError for unknown / missing / duplicates
+    if not np.array_equal(perm, np.arange(len(names))):
+        extras = {
+            k: (np.asarray(v)[:, perm] if k in JOINT_EXTRAS and np.ndim(v) == 2 else v)
+            for k, v in out.extras.items()
+        }
+        out = out.select_joints(list(robot.joint_names)).with_(extras=extras)
+    if check_units:
+        _check_units(out, robot)
+    return out
+
+
+def _check_finite(name: str, arr: np.ndarray, labels: list[str], t: np.ndarray, src: str) -> None:
+    bad = ~np.isfinite(arr)
+    if not bad.any():
+        return
+    i = int(np.argmax(bad.any(axis=1)))  # earliest bad sample, then its first bad column
+    col = int(np.argmax(bad[i]))
+    rows = np.flatnonzero(bad[:, col])
+    where = f"sample {i}" + (f" (t={t[i]:.3f} s)" if np.isfinite(t[i]) and name != "t" else "")
+    what = f"'{name}'" if name == "t" else f"'{name}' column '{labels[col]}'"
+    others = int(bad.any(axis=0).sum()) - 1
+    more = f"; {others} other column(s) too" if others else ""
+    raise NonFiniteError(f"{what} has {rows.size} non-finite values (NaN/inf), first at {where}{more}", src)
+
+
+def _check_time(t: np.ndarray, src: str) -> None:
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size == 0:
+        return
+    i = int(bad[0]) + 1
+    kind = "duplicate timestamp" if dt[i - 1] == 0 else "time goes backwards"
+    raise TimestampError(
+        f"{kind} at sample {i}: t[{i}]={t[i]:.6f} s after t[{i - 1}]={t[i - 1]:.6f} s "
+        f"({bad.size} non-increasing step(s) in total); time must be strictly increasing",
+        src,
+    )
+
+
+def _check_units(traj: Trajectory, robot: "Robot") -> None:
+    lo, hi = robot.position_limits()
+    for j, name in enumerate(traj.joint_names):
+        if not robot.is_revolute(name):
+            continue
+        q = traj.q[:, j]
+        k = int(np.argmax(np.abs(q)))
+        qmax = abs(q[k])
+        bound = max(abs(lo[j]), abs(hi[j]))
+        if not robot.is_continuous(name) and np.isfinite(bound) and qmax > bound + _LIMIT_MARGIN:
+            q_rad = np.deg2rad(q)
+            if q_rad.min() >= lo[j] - _LIMIT_MARGIN and q_rad.max() <= hi[j] + _LIMIT_MARGIN:
+                raise UnitsError(
+                    f"joint '{name}' positions reach {q[k]:.1f}, beyond its limits "
+                    f"[{lo[j]:.2f}, {hi[j]:.2f}] rad: they look like degrees; convert to radians (np.deg2rad)",
+                    traj.source,
+                )
+        if qmax > _MAX_REVOLUTE_Q:
+            raise UnitsError(
+                f"joint '{name}' positions reach {q[k]:.1f} rad (> {_MAX_REVOLUTE_Q:.0f} rad): "
+                "they look like degrees or encoder counts; convert to radians",
+                traj.source,
+            )
+        if traj.v is not None:
+            v = traj.v[:, j]
+            k = int(np.argmax(np.abs(v)))
+            if abs(v[k]) > _MAX_REVOLUTE_V:
+                raise UnitsError(
+                    f"joint '{name}' velocities reach {v[k]:.1f} rad/s (> {_MAX_REVOLUTE_V:.0f} rad/s): "
+                    "they look like deg/s or encoder counts per second; convert to rad/s",
+                    traj.source,
+                )

@@ -1,0 +1,69 @@
+"""Typed errors. Every message names the file, column, joint or sample at fault.
+
+All derive from :class:`SensorlessError`, which the CLI turns into one line and a
+non-zero exit code.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "SensorlessError",
+    "RobotModelError",
+    "DataError",
+    "NonFiniteError",
+    "ShapeMismatchError",
+    "JointNameError",
+    "TimestampError",
+    "UnitsError",
+    "ExcitationError",
+    "SolverError",
+    "PhysicalConsistencyError",
+]
+
+
+class SensorlessError(Exception):
+    """Base class of every error this package raises on purpose."""
+
+
+class RobotModelError(SensorlessError):
+    """A robot model cannot be loaded, or a joint/frame/body name is unknown."""
+
+
+class DataError(SensorlessError, ValueError):
+    """A log is unusable. ``source`` is the file (or "<array>") it came from."""
+
+    def __init__(self, message: str, source: str | None = None) -> None:
+        self.source = source
+        super().__init__(f"{source}: {message}" if source else message)
+
+
+class NonFiniteError(DataError):
+    """NaN or inf values in a signal."""
+
+
+class ShapeMismatchError(DataError):
+    """Arrays whose sample count or column count disagree."""
+
+
+class JointNameError(DataError):
+    """Joint names in a log that the robot does not have (or is missing)."""
+
+
+class TimestampError(DataError):
+    """Time that is not strictly increasing (non-monotonic or duplicate stamps)."""
+
+
+class UnitsError(DataError):
+    """Values whose magnitude suggests the wrong unit (e.g. degrees for radians)."""
+
+
+class ExcitationError(SensorlessError):
+    """Too few samples, or a trajectory that does not excite the parameters (rank)."""
+
+
+class SolverError(SensorlessError):
+    """A numerical solve failed, was infeasible or inaccurate."""
+
+
+class PhysicalConsistencyError(SensorlessError, ValueError):
+    """Inertial parameters that no real body can have (e.g. mass <= 0, indefinite pseudo-inertia)."""

@@ -1,0 +1,181 @@
+"""Export identified parameters: a URDF generated from the Pinocchio model, joint terms as JSON.
+
+The URDF is written from the Pinocchio model, not by editing the source URDF: the
+parser merges fixed links into their parent body, so identified per-body parameters
+do not map to the source's links. One link is written per Pinocchio joint ``j >= 1``,
+named after the first BODY frame attached to ``j`` (else ``"<joint>_link"``), whose link
+frame is the joint frame; its ``<inertial>`` holds the mass, the CoM as origin
+(``rpy = 0``) and the inertia about the CoM (:func:`sensorless.parameters.urdf_inertial`).
+Each joint's origin is ``model.jointPlacements[j]``. Fixed links, visuals, collisions
+and extra frames are not written.
+
+* Fixed base: the root link is the model's root BODY frame name (else ``"base_link"``)
+  and carries no inertial (it does not move).
+* Floating base (free-flyer joint 1): the joint is not written and its body becomes the
+  URDF root link; load the file with ``load_robot(path, floating_base=True)`` /
+  ``pin.buildModelFromUrdf(path, pin.JointModelFreeFlyer())``. (A non-identity
+  free-flyer placement is dropped: it only re-parameterises the base pose.)
+* URDF needs ``mass > 0``: a body with ``mass <= 0`` raises
+  :class:`~sensorless.errors.PhysicalConsistencyError`. Export physically consistent
+  parameters (LMI identification, or the consistent projection closest to a prior)
+  rather than raw least-squares estimates.
+* ``joint_terms`` adds ``<dynamics damping=fv friction=fc>``; offsets and armature have
+  no URDF field, keep them with :func:`write_joint_terms`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import PhysicalConsistencyError, RobotModelError
+from .parameters import JointTerms, as_bodies, is_physically_consistent, urdf_inertial
+from .robot import Robot
+
+__all__ = ["write_urdf", "write_joint_terms", "read_joint_terms"]
+
+_REVOLUTE = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned"}
+_CONTINUOUS = {"JointModelRUBX", "JointModelRUBY", "JointModelRUBZ", "JointModelRevoluteUnboundedUnaligned"}
+_PRISMATIC = {"JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned"}
+_FMAX = np.finfo(float).max
+
+
+def _f(x: float) -> str:
+    return repr(float(x))
+
+
+def _vec(v) -> str:
+    return " ".join(_f(x) for x in v)
+
+
+def _atomic_write(path: str | os.PathLike, text: str) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def _link_names(model: pin.Model, floating: bool) -> list[str]:
+    """URDF link name per joint index (0 = fixed root, "" when floating), unique."""
+    names: list[str] = [""] if floating else []
+    joints = set(model.names)
+    for j in range(len(names), model.njoints):
+        body = [f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == j]
+        body = [b for b in body if b != "universe"]
+        name = body[0] if body else ("base_link" if j == 0 else f"{model.names[j]}_link")
+        while name in names or name in joints:
+            name += "_"
+        names.append(name)
+    return names
+
+
+def _joint_axis(model: pin.Model, j: int) -> np.ndarray:
+    """Axis of a 1-DoF joint from its motion subspace (angular part if revolute, else linear)."""
+    jm = model.joints[j]
+    jd = jm.createData()
+    jm.calc(jd, pin.neutral(model))
+    S = np.asarray(jd.S).reshape(6)
+    return S[:3] if jm.shortname() in _PRISMATIC else S[3:]
+
+
+def write_urdf(robot: Robot, pi: np.ndarray, path: str | os.PathLike, joint_terms: JointTerms | None = None) -> Path:
+    """Write ``robot``'s kinematics with the inertial parameters ``pi`` as a URDF at ``path``.
+
+    ``pi`` is the stacked ``(10 n_bodies,)`` vector (or ``(n_bodies, 10)``). Returns the path.
+    The file is written atomically (temporary file + ``os.replace``).
+    """
+    model = robot.model
+    if np.size(pi) != 10 * robot.n_bodies:
+        raise RobotModelError(f"expected {10 * robot.n_bodies} inertial parameters, got {np.shape(pi)}")
+    P = as_bodies(np.ravel(pi))
+    names = _link_names(model, robot.floating_base)
+    for k in range(robot.n_bodies):
+        if not P[k, 0] > 0.0:
+            raise PhysicalConsistencyError(
+                f"body '{model.names[k + 1]}' (link '{names[k + 1]}') has mass {P[k, 0]:g} <= 0 and "
+                "cannot be written as a URDF inertial; export physically consistent parameters "
+                "(LMI identification or the consistent projection closest to a prior)"
+            )
+    terms = {}
+    if joint_terms is not None:
+        terms = {j: k for k, j in enumerate(joint_terms.joint_names)}
+        unknown = [j for j in terms if j not in model.names]
+        if unknown:
+            raise RobotModelError(f"joint_terms name joint(s) {unknown} the robot does not have")
+
+    root = ET.Element("robot", name=robot.name)
+    floating = robot.floating_base
+    if not floating:
+        ET.SubElement(root, "link", name=names[0])
+    for j in range(1, model.njoints):
+        link = ET.SubElement(root, "link", name=names[j])
+        d = urdf_inertial(P[j - 1])
+        inertial = ET.SubElement(link, "inertial")
+        ET.SubElement(inertial, "origin", xyz=_vec(d["xyz"]), rpy="0 0 0")
+        ET.SubElement(inertial, "mass", value=_f(d["mass"]))
+        ET.SubElement(inertial, "inertia", **{k: _f(d[k]) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")})
+        if floating and j == 1:
+            continue
+        jm = model.joints[j]
+        short = jm.shortname()
+        if short in _REVOLUTE:
+            jtype = "revolute"
+        elif short in _CONTINUOUS:
+            jtype = "continuous"
+        elif short in _PRISMATIC:
+            jtype = "prismatic"
+        else:
+            raise RobotModelError(f"joint '{model.names[j]}' of type {short} cannot be written to URDF")
+        parent = model.parents[j]
+        if floating and parent == 0:
+            raise RobotModelError(f"joint '{model.names[j]}' is attached to the world of a floating-base robot")
+        joint = ET.SubElement(root, "joint", name=model.names[j], type=jtype)
+        M = model.jointPlacements[j]
+        ET.SubElement(joint, "origin", xyz=_vec(M.translation), rpy=_vec(pin.rpy.matrixToRpy(M.rotation)))
+        ET.SubElement(joint, "parent", link=names[parent])
+        ET.SubElement(joint, "child", link=names[j])
+        ET.SubElement(joint, "axis", xyz=_vec(_joint_axis(model, j)))
+        iq, iv = jm.idx_q, jm.idx_v
+        lim = {
+            "effort": _f(np.clip(model.effortLimit[iv], 0.0, _FMAX)),
+            "velocity": _f(np.clip(model.velocityLimit[iv], 0.0, _FMAX)),
+        }
+        if jtype != "continuous":
+            lim = {
+                "lower": _f(np.clip(model.lowerPositionLimit[iq], -_FMAX, _FMAX)),
+                "upper": _f(np.clip(model.upperPositionLimit[iq], -_FMAX, _FMAX)),
+                **lim,
+            }
+        ET.SubElement(joint, "limit", **lim)
+        if model.names[j] in terms:
+            k = terms[model.names[j]]
+            ET.SubElement(joint, "dynamics", damping=_f(joint_terms.fv[k]), friction=_f(joint_terms.fc[k]))
+    ET.indent(root)
+    note = "" if is_physically_consistent(P) else "<!-- WARNING: some bodies are not physically consistent -->\n"
+    text = '<?xml version="1.0"?>\n<!-- generated by sensorless.export.write_urdf -->\n' + note
+    return _atomic_write(path, text + ET.tostring(root, encoding="unicode") + "\n")
+
+
+def write_joint_terms(joint_terms: JointTerms, path: str | os.PathLike) -> Path:
+    """Write ``joint_terms.to_dict()`` as JSON (atomically)."""
+    return _atomic_write(path, json.dumps(joint_terms.to_dict(), indent=2) + "\n")
+
+
+def read_joint_terms(path: str | os.PathLike) -> JointTerms:
+    """Read a file written by :func:`write_joint_terms`."""
+    with open(path, encoding="utf-8") as fh:
+        return JointTerms.from_dict(json.load(fh))

@@ -1,0 +1,127 @@
+"""Ordinary and weighted least squares on compressed normal equations.
+
+With the base regressor W₁ (independent columns), the (weighted) problem
+
+    min_πb Σ_r w_r ‖W₁,r π_b − y_r‖²,   w_r = 1/σ_r²
+
+has normal equations (Σ_r w_r A_r[ind, ind]) π_b = Σ_r w_r b_r[ind]. Columns are
+equilibrated (D = diag(A₁₁)^-½) before the solve; the condition number reported is
+that of the equilibrated base regressor, cond(W₁ D) = sqrt(cond(D A₁₁ D)).
+``weights="auto"`` estimates σ_r from the OLS residual of row r (two-step WLS, no second
+pass over the data thanks to per-row normal equations).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ExcitationError, SolverError
+from ..regressor.compress import NormalEquations
+from .base import BaseParameters
+
+__all__ = ["LeastSquaresSolution", "solve_least_squares", "excitation_check"]
+
+# Below this ratio of smallest to largest singular value of the equilibrated base
+# regressor, a direction of parameter space is considered not excited by the data.
+MIN_SINGULAR_RATIO = 1e-6
+
+
+@dataclass
+class LeastSquaresSolution:
+    base_values: np.ndarray
+    row_weights: np.ndarray
+    sigma: np.ndarray  # per-row residual standard deviation
+    condition_number: float
+    base_covariance_diag: np.ndarray  # σ̂² diag((W₁ᵀ Σ⁻¹ W₁)⁻¹)
+
+
+def _base_system(ne: NormalEquations, base: BaseParameters, w: np.ndarray):
+    A, b, c = ne.total(w)
+    ind = base.independent
+    return A[np.ix_(ind, ind)], b[ind], c
+
+
+def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None) -> float:
+    """Condition number of the equilibrated base regressor; ExcitationError if rank deficient."""
+    w = np.ones(ne.A.shape[0]) if w is None else w
+    n_eq = ne.n_samples * int(np.count_nonzero(w))
+    if n_eq < base.rank:
+        raise ExcitationError(
+            f"{ne.n_samples} samples give {n_eq} equations for {base.rank} base parameters; log more data"
+        )
+    A11, _, _ = _base_system(ne, base, w)
+    d = np.sqrt(np.diag(A11))
+    dead = np.flatnonzero(d <= 1e-12 * max(d.max(), 1e-300))
+    labels = [base.labels[k] for k in base.independent]
+    if dead.size:
+        names = ", ".join(labels[k] for k in dead[:5])
+        raise ExcitationError(
+            f"the data do not excite {dead.size} base parameter(s) at all (e.g. {names}); "
+            "move those joints or remove the term"
+        )
+    S = A11 / np.outer(d, d)
+    evals, evecs = np.linalg.eigh(S)
+    evals = np.maximum(evals, 0.0)
+    sv = np.sqrt(evals)
+    if sv[0] < MIN_SINGULAR_RATIO * sv[-1]:
+        bad = np.argsort(-np.abs(evecs[:, 0]))[:3]
+        names = ", ".join(labels[k] for k in bad)
+        raise ExcitationError(
+            f"rank-deficient excitation: the base regressor's condition number is {sv[-1] / max(sv[0], 1e-300):.3g}; "
+            f"the least-excited direction involves {names}. Use a richer trajectory "
+            "(e.g. `sensorless excite`), more data, or fewer joint terms"
+        )
+    return float(sv[-1] / sv[0])
+
+
+def _solve(A11: np.ndarray, b1: np.ndarray) -> np.ndarray:
+    d = np.sqrt(np.diag(A11))
+    d[d == 0] = 1.0
+    S = A11 / np.outer(d, d)
+    try:
+        z = np.linalg.solve(S, b1 / d)
+    except np.linalg.LinAlgError as exc:
+        raise SolverError(f"least-squares solve failed ({exc}); the excitation is probably too poor") from None
+    if not np.all(np.isfinite(z)):
+        raise SolverError("least-squares solve returned non-finite values; check the data for extreme values")
+    return z / d
+
+
+def solve_least_squares(
+    ne: NormalEquations,
+    base: BaseParameters,
+    weights: str | np.ndarray | None = None,
+) -> LeastSquaresSolution:
+    """OLS (``weights=None``), WLS with given per-row σ (array), or two-step WLS (``"auto"``)."""
+    rows = ne.A.shape[0]
+    w = np.ones(rows)
+    if isinstance(weights, np.ndarray) or (weights is not None and not isinstance(weights, str)):
+        sigma = np.asarray(weights, dtype=float)
+        if sigma.shape != (rows,) or np.any(sigma <= 0):
+            raise SolverError(f"weights must be {rows} positive per-joint noise levels σ, got {sigma}")
+        w = 1.0 / sigma**2
+    cond = excitation_check(ne, base, w)
+    A11, b1, _ = _base_system(ne, base, w)
+    pi_b = _solve(A11, b1)
+    params = np.zeros(ne.A.shape[1])
+    params[base.independent] = pi_b
+    if isinstance(weights, str):
+        if weights != "auto":
+            raise SolverError(f"unknown weights '{weights}'; use None, 'auto' or per-joint σ values")
+        sig = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
+        sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
+        w = 1.0 / sig**2
+        cond = excitation_check(ne, base, w)
+        A11, b1, _ = _base_system(ne, base, w)
+        pi_b = _solve(A11, b1)
+        params[base.independent] = pi_b
+    sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples - base.rank / rows, 1))
+    # covariance of π_b under the weighted model: (W₁ᵀ Σ⁻¹ W₁)⁻¹ with Σ = diag(σ_r²)
+    A11_s, _, _ = _base_system(ne, base, 1.0 / np.maximum(sigma, 1e-12) ** 2)
+    try:
+        cov_diag = np.diag(np.linalg.pinv(A11_s, hermitian=True))
+    except np.linalg.LinAlgError:
+        cov_diag = np.full(base.rank, np.nan)
+    return LeastSquaresSolution(pi_b, w, sigma, cond, cov_diag)

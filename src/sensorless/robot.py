@@ -1,0 +1,298 @@
+"""Robot: a Pinocchio model with the names and options identification needs.
+
+A :class:`Robot` owns one Pinocchio ``Model`` (and a ``Data`` workspace), the ordered
+list of 1-DoF joints, which of them are actuated, and whether the base floats.
+Loaders accept a URDF path, an MJCF path or an example-robot-data name.
+
+Conventions
+-----------
+* Every moving joint other than the root is a 1-DoF joint (revolute, prismatic or
+  continuous). A floating base is Pinocchio's free-flyer (nq = 7, nv = 6): base pose
+  ``[x, y, z, qx, qy, qz, qw]``, base twist expressed in the base frame.
+* "Bodies" are Pinocchio's per-joint inertias ``model.inertias[1:]`` (fixed links
+  are already merged into their parent by the parser). They are named by their joint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import JointNameError, RobotModelError
+
+__all__ = ["Robot", "load_robot"]
+
+
+@dataclass
+class Robot:
+    """Pinocchio model + joint bookkeeping. Build it with :func:`load_robot`."""
+
+    model: pin.Model
+    name: str = "robot"
+    source: str = ""
+    actuated_joints: tuple[str, ...] = ()
+    data: pin.Data = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.data = self.model.createData()
+        m = self.model
+        self.floating_base = m.njoints > 1 and m.joints[1].shortname() == "JointModelFreeFlyer"
+        first = 2 if self.floating_base else 1
+        names = []
+        for j in range(first, m.njoints):
+            if m.joints[j].nv != 1:
+                raise RobotModelError(
+                    f"{self.source or self.name}: joint '{m.names[j]}' has {m.joints[j].nv} DoF; "
+                    "only 1-DoF joints (revolute, prismatic, continuous) are supported below the root"
+                )
+            names.append(m.names[j])
+        self.joint_names: tuple[str, ...] = tuple(names)
+        if not self.actuated_joints:
+            self.actuated_joints = self.joint_names
+        unknown = [j for j in self.actuated_joints if j not in self.joint_names]
+        if unknown:
+            raise JointNameError(
+                f"unknown actuated joint(s) {unknown}; the model has {list(self.joint_names)}",
+                self.source or self.name,
+            )
+        self.actuated_joints = tuple(self.actuated_joints)
+        self._jid = {m.names[j]: j for j in range(1, m.njoints)}
+
+    # ---- sizes and indices -------------------------------------------------
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @property
+    def n_bodies(self) -> int:
+        """Number of Pinocchio bodies with inertial parameters (joints 1..njoints-1)."""
+        return self.model.njoints - 1
+
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        """One name per body: the name of the joint that carries it."""
+        return tuple(self.model.names[1:])
+
+    @property
+    def n_actuated(self) -> int:
+        return len(self.actuated_joints)
+
+    def joint_id(self, name: str) -> int:
+        """Pinocchio joint index of ``name`` (RobotModelError if unknown)."""
+        try:
+            return self._jid[name]
+        except KeyError:
+            raise RobotModelError(
+                f"{self.source or self.name}: unknown joint '{name}'; known joints: {list(self.joint_names)}"
+            ) from None
+
+    def frame_id(self, name: str) -> int:
+        """Pinocchio frame index of ``name`` (RobotModelError if unknown)."""
+        if not self.model.existFrame(name):
+            frames = [f.name for f in self.model.frames]
+            raise RobotModelError(f"{self.source or self.name}: unknown frame '{name}'; known frames: {frames}")
+        return self.model.getFrameId(name)
+
+    def v_index(self, joint: str) -> int:
+        return self.model.joints[self.joint_id(joint)].idx_v
+
+    def q_index(self, joint: str) -> int:
+        return self.model.joints[self.joint_id(joint)].idx_q
+
+    @property
+    def actuated_v_indices(self) -> np.ndarray:
+        """Velocity indices of the actuated joints, in ``actuated_joints`` order."""
+        return np.array([self.v_index(j) for j in self.actuated_joints], dtype=int)
+
+    @property
+    def selection(self) -> np.ndarray:
+        """Actuation selection matrix S (n_actuated x nv): tau_full = S^T tau."""
+        S = np.zeros((self.n_actuated, self.nv))
+        S[np.arange(self.n_actuated), self.actuated_v_indices] = 1.0
+        return S
+
+    @property
+    def armature(self) -> np.ndarray:
+        """Rotor inertia reflected to each actuated joint (from the model)."""
+        return np.asarray(self.model.armature)[self.actuated_v_indices].copy()
+
+    def is_continuous(self, joint: str) -> bool:
+        return self.model.joints[self.joint_id(joint)].nq == 2
+
+    # ---- parameters -----------------------------------------------------------
+    def inertial_parameters(self) -> np.ndarray:
+        """Stacked body parameters pi (10 per body, Pinocchio order) of the model."""
+        return np.concatenate([self.model.inertias[j].toDynamicParameters() for j in range(1, self.model.njoints)])
+
+    def with_inertial_parameters(self, pi: np.ndarray, name: str | None = None) -> "Robot":
+        """A copy of this robot whose body inertias are set from ``pi``."""
+        pi = np.asarray(pi, dtype=float)
+        if pi.shape != (10 * self.n_bodies,):
+            raise RobotModelError(f"expected {10 * self.n_bodies} inertial parameters, got {pi.shape}")
+        model = self.model.copy()
+        for k in range(self.n_bodies):
+            model.inertias[k + 1] = pin.Inertia.FromDynamicParameters(pi[10 * k : 10 * k + 10])
+        return Robot(model, name=name or self.name, source=self.source, actuated_joints=self.actuated_joints)
+
+    # ---- state assembly -----------------------------------------------------
+    def joint_order(self, names: Sequence[str], source: str = "<trajectory>") -> np.ndarray:
+        """Column permutation taking a log's joint order to ``self.joint_names``.
+
+        Raises JointNameError naming the unknown or missing joints.
+        """
+        names = list(names)
+        unknown = [n for n in names if n not in self.joint_names]
+        missing = [n for n in self.joint_names if n not in names]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if unknown or missing or dup:
+            parts = []
+            if unknown:
+                parts.append(f"unknown joint(s) {unknown}")
+            if missing:
+                parts.append(f"missing joint(s) {missing}")
+            if dup:
+                parts.append(f"duplicate joint(s) {dup}")
+            raise JointNameError(
+                "; ".join(parts) + f" (robot '{self.name}' has {list(self.joint_names)})", source
+            )
+        return np.array([names.index(n) for n in self.joint_names], dtype=int)
+
+    def full_configuration(self, q_joints: np.ndarray, base_q: np.ndarray | None = None) -> np.ndarray:
+        """Pinocchio configurations (N, nq) from joint positions in ``joint_names`` order."""
+        q_joints = np.atleast_2d(q_joints)
+        N = q_joints.shape[0]
+        Q = np.zeros((N, self.nq))
+        if self.floating_base:
+            if base_q is None:
+                Q[:, 6] = 1.0
+            else:
+                Q[:, :7] = base_q
+        for i, name in enumerate(self.joint_names):
+            iq = self.q_index(name)
+            if self.is_continuous(name):
+                Q[:, iq] = np.cos(q_joints[:, i])
+                Q[:, iq + 1] = np.sin(q_joints[:, i])
+            else:
+                Q[:, iq] = q_joints[:, i]
+        return Q
+
+    def full_velocity(self, v_joints: np.ndarray, base_v: np.ndarray | None = None) -> np.ndarray:
+        """Pinocchio velocities/accelerations (N, nv) from joint values in ``joint_names`` order."""
+        v_joints = np.atleast_2d(v_joints)
+        V = np.zeros((v_joints.shape[0], self.nv))
+        if self.floating_base and base_v is not None:
+            V[:, :6] = base_v
+        idx = [self.v_index(n) for n in self.joint_names]
+        V[:, idx] = v_joints
+        return V
+
+    def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper position limits of ``joint_names`` (inf where unlimited)."""
+        lo, hi = [], []
+        for n in self.joint_names:
+            iq = self.q_index(n)
+            if self.is_continuous(n):
+                lo.append(-np.inf)
+                hi.append(np.inf)
+            else:
+                lo.append(self.model.lowerPositionLimit[iq])
+                hi.append(self.model.upperPositionLimit[iq])
+        return np.array(lo), np.array(hi)
+
+    def velocity_limits(self) -> np.ndarray:
+        return np.array([self.model.velocityLimit[self.v_index(n)] for n in self.joint_names])
+
+    def is_revolute(self, joint: str) -> bool:
+        short = self.model.joints[self.joint_id(joint)].shortname()
+        return "JointModelR" in short  # RX/RY/RZ, RevoluteUnaligned, RUB* (continuous)
+
+    def summary(self) -> dict:
+        return {
+            "name": self.name,
+            "source": self.source,
+            "floating_base": self.floating_base,
+            "nq": self.nq,
+            "nv": self.nv,
+            "bodies": list(self.body_names),
+            "actuated_joints": list(self.actuated_joints),
+            "total_mass": float(sum(self.model.inertias[j].mass for j in range(1, self.model.njoints))),
+        }
+
+
+def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str]:
+    path = Path(spec)
+    suffix = path.suffix.lower()
+    if suffix in {".urdf", ".xml", ".mjcf"}:
+        if not path.exists():
+            raise RobotModelError(f"{spec}: no such robot model file")
+        try:
+            if suffix == ".urdf":
+                if floating_base:
+                    model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+                else:
+                    model = pin.buildModelFromUrdf(str(path))
+            else:
+                model = pin.buildModelFromMJCF(str(path))
+        except Exception as exc:  # Pinocchio raises bare RuntimeError/ValueError
+            raise RobotModelError(f"{spec}: Pinocchio could not parse the model: {exc}") from None
+        return model, path.stem, str(path)
+    import example_robot_data as erd
+
+    if spec not in erd.robots_loader.ROBOTS:
+        raise RobotModelError(
+            f"'{spec}' is neither a .urdf/.xml file nor an example-robot-data name "
+            f"(known names: {sorted(erd.robots_loader.ROBOTS)})"
+        )
+    wrapper = erd.load(spec)
+    model = wrapper.model
+    if floating_base is False and model.joints[1].shortname() == "JointModelFreeFlyer":
+        model = pin.buildReducedModel(model, [1], pin.neutral(model))
+    return model, spec, f"example-robot-data:{spec}"
+
+
+def load_robot(
+    spec: str | Path,
+    *,
+    floating_base: bool | None = None,
+    lock_joints: Sequence[str] = (),
+    actuated_joints: Sequence[str] | None = None,
+    armature: dict[str, float] | None = None,
+) -> Robot:
+    """Load a robot from a URDF path, an MJCF path or an example-robot-data name.
+
+    ``lock_joints`` are fixed at their neutral position (e.g. a gripper's fingers).
+    ``actuated_joints`` defaults to every 1-DoF joint. ``armature`` sets rotor inertia
+    per joint name when the model file has none.
+    """
+    model, name, source = _build(str(spec), floating_base)
+    if lock_joints:
+        names = list(model.names)
+        bad = [j for j in lock_joints if j not in names]
+        if bad:
+            raise RobotModelError(f"{source}: cannot lock unknown joint(s) {bad}; known: {names[1:]}")
+        ids = [names.index(j) for j in lock_joints]
+        model = pin.buildReducedModel(model, ids, pin.neutral(model))
+    robot = Robot(model, name=name, source=source, actuated_joints=tuple(actuated_joints or ()))
+    robot.urdf_path = source if source.endswith(".urdf") else _erd_urdf(name) if source.startswith("example") else None
+    if armature:
+        for j, val in armature.items():
+            robot.model.armature[robot.v_index(j)] = float(val)
+    return robot
+
+
+def _erd_urdf(name: str) -> str | None:
+    try:
+        import example_robot_data as erd
+
+        loader = erd.robots_loader.ROBOTS[name]
+        return str(getattr(loader(), "df_path", None) or "") or None
+    except Exception:
+        return None
