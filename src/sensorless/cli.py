@@ -15,7 +15,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from .errors import SensorlessError
+from .errors import ExcitationError, SensorlessError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -148,7 +148,10 @@ def identify(
         total = sum(len(t) for t in train)
         with progress_bar() as bar:
             task = bar.add_task("regressor", total=total)
-            result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n))
+            try:
+                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n))
+            except ExcitationError as exc:
+                raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate})

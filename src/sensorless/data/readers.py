@@ -202,6 +202,8 @@ def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray
                 if key is not None:
                     raw[field] = _as_float(z[key], src, key)
             names = [str(n) for n in np.atleast_1d(z["joint_names"])] if "joint_names" in keys else None
+        except DataError:
+            raise
         except (ValueError, OSError, zipfile.BadZipFile) as exc:  # pickled/object or corrupt member
             raise DataError(f"cannot read an array from the NPZ archive ({exc})", src) from None
     if "q" not in raw:

@@ -1,0 +1,46 @@
+"""Shared fixtures: robots, synthetic logs, and the real-data folder (skip when absent)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sensorless.robot import load_robot
+
+REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
+KUKA = REALDATA / "kuka_lwr4_flobaroid"
+PANDA_LOCK = ["panda_finger_joint1", "panda_finger_joint2"]
+
+
+def realdata(path: Path) -> Path:
+    """Return ``path`` or skip the test cleanly when the shared real data is absent."""
+    if not path.exists():
+        pytest.skip(f"real data not available: {path}")
+    return path
+
+
+@pytest.fixture(scope="session")
+def panda():
+    return load_robot("panda", lock_joints=PANDA_LOCK)
+
+
+@pytest.fixture(scope="session")
+def ur5():
+    return load_robot("ur5")
+
+
+@pytest.fixture(scope="session")
+def solo12():
+    return load_robot("solo12")
+
+
+@pytest.fixture(scope="session")
+def kuka():
+    return load_robot(realdata(KUKA / "model" / "kuka_lwr4.urdf"))
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)
