@@ -1,0 +1,75 @@
+"""Robot loading: URDF, MJCF, example-robot-data; names, armature, clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensorless.errors import JointNameError, RobotModelError
+from sensorless.robot import load_robot
+
+MJCF = """<mujoco model="two_link">
+  <worldbody>
+    <body name="link1" pos="0 0 0.1">
+      <joint name="j1" type="hinge" axis="0 0 1" range="-2 2" armature="0.05"/>
+      <inertial pos="0.1 0 0" mass="1.5" diaginertia="0.01 0.02 0.02"/>
+      <body name="link2" pos="0.3 0 0">
+        <joint name="j2" type="hinge" axis="0 1 0" range="-1.5 1.5" armature="0.02"/>
+        <inertial pos="0.15 0 0" mass="0.8" diaginertia="0.005 0.01 0.01"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_mjcf_loads_with_joint_names_and_armature(tmp_path):
+    path = tmp_path / "two_link.xml"
+    path.write_text(MJCF)
+    r = load_robot(path)
+    assert r.joint_names == ("j1", "j2")
+    assert not r.floating_base
+    np.testing.assert_allclose(r.armature, [0.05, 0.02])
+    assert abs(r.summary()["total_mass"] - 2.3) < 1e-12
+
+
+def test_example_robot_data_and_floating_base(solo12, panda):
+    assert solo12.floating_base and solo12.nv == 18 and len(solo12.actuated_joints) == 12
+    assert panda.nv == 7 and panda.joint_names[0] == "panda_joint1"
+    S = solo12.selection
+    assert S.shape == (12, 18) and np.all(S[:, :6] == 0)
+
+
+def test_urdf_floating_base_option(kuka):
+    r = load_robot(kuka.source, floating_base=True)
+    assert r.floating_base and r.nv == 13
+
+
+def test_armature_override_and_locking(panda):
+    r = load_robot("panda", lock_joints=["panda_finger_joint1", "panda_finger_joint2"], armature={"panda_joint3": 0.1})
+    assert r.armature[2] == 0.1
+
+
+def test_clear_errors(panda, tmp_path):
+    with pytest.raises(RobotModelError, match="unknown joint 'elbow'"):
+        panda.joint_id("elbow")
+    with pytest.raises(RobotModelError, match="unknown frame 'tool0'"):
+        panda.frame_id("tool0")
+    with pytest.raises(JointNameError, match="wrist"):
+        load_robot("panda", actuated_joints=["wrist"])
+    with pytest.raises(RobotModelError, match="cannot lock"):
+        load_robot("panda", lock_joints=["nope"])
+    with pytest.raises(RobotModelError, match="no such"):
+        load_robot(tmp_path / "missing.urdf")
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'/><joint name='j' type='revolute'>")
+    with pytest.raises(RobotModelError, match="bad.urdf"):
+        load_robot(bad)
+
+
+def test_with_inertial_parameters_round_trip(panda):
+    pi = panda.inertial_parameters()
+    r2 = panda.with_inertial_parameters(pi * 1.1)
+    np.testing.assert_allclose(r2.inertial_parameters(), pi * 1.1)
+    with pytest.raises(RobotModelError):
+        panda.with_inertial_parameters(pi[:-1])
