@@ -1,0 +1,13 @@
+"""Command-line interface (typer). Every SensorlessError becomes one red line and exit code 2.
+
+Each command group lives in its own module and registers itself on :data:`app`.
+"""
+
+from . import core  # noqa: F401  (registers identify, predict, demo, benchmark identify)
+from .common import app, atomic_outdir, guarded
+
+__all__ = ["app", "atomic_outdir", "guarded", "main"]
+
+
+def main() -> None:  # pragma: no cover
+    app()
