@@ -17,13 +17,13 @@ from ..regressor.compress import NormalEquations, compress
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
 from .base import BaseParameters, base_parameters
-from .least_squares import solve_least_squares
+from .least_squares import solve_least_squares, solve_truncated_svd
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
 
 __all__ = ["identify", "METHODS"]
 
-METHODS = ("ols", "wls")
+METHODS = ("ols", "wls", "svd")
 
 
 def identify(
@@ -35,11 +35,14 @@ def identify(
     joint_terms: Sequence[str] = ("fv", "fc", "offset", "armature"),
     standard: str = "closest_to_prior",
     chunk: int = 2048,
+    svd_rcond: float = 1e-6,
     progress: Callable[[int], None] | None = None,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
-    ``method``: "ols" or "wls" (two-step WLS with per-joint σ unless ``weights`` gives σ).
+    ``method``: "ols" or "wls" (two-step WLS with per-joint σ unless ``weights`` gives σ),
+    or "svd" (minimum-norm truncated SVD over all standard parameters, relative cut-off
+    ``svd_rcond``; the unconstrained baseline for contact identification).
     ``standard``: how to pick standard parameters from the base ones, "closest_to_prior"
     (nearest to the model's own inertials) or "min_norm".
     """
@@ -56,8 +59,18 @@ def identify(
         w = "auto"
     if w is not None and not isinstance(w, str):
         w = np.asarray(w, dtype=float)
-    sol = solve_least_squares(ne, base, w)
-    params = _standard(base, sol.base_values, structure, standard)
+    if method == "svd":
+        params, svd_rank = solve_truncated_svd(ne, rcond=svd_rcond)
+        base_values = base.base(params)
+        sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
+        extra = {"svd_rank": svd_rank, "svd_rcond": svd_rcond}
+        cond, base_std = float("nan"), []
+    else:
+        sol = solve_least_squares(ne, base, w)
+        params = _standard(base, sol.base_values, structure, standard)
+        base_values, sigma, cond = sol.base_values, sol.sigma, sol.condition_number
+        base_std = np.sqrt(np.maximum(sol.base_covariance_diag, 0)).tolist()
+        extra = {}
     t_solve = time.perf_counter() - t1
     train = metrics_from_sums(
         structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
@@ -65,10 +78,11 @@ def identify(
     diagnostics = {
         "rank": base.rank,
         "n_standard": structure.n_params,
-        "condition_number": sol.condition_number,
+        "condition_number": cond,
         "n_samples": ne.n_samples,
-        "residual_sigma": dict(zip(structure.row_names, map(float, sol.sigma))),
-        "base_std": np.sqrt(np.maximum(sol.base_covariance_diag, 0)).tolist(),
+        "residual_sigma": dict(zip(structure.row_names, map(float, sigma))),
+        "base_std": base_std,
+        **extra,
         "compress_seconds": t_compress,
         "solve_seconds": t_solve,
     }
@@ -79,7 +93,7 @@ def identify(
         "chunk": chunk,
         **structure.settings(),
     }
-    return IdentificationResult(method, structure, base, sol.base_values, params, standard, train, diagnostics, settings)
+    return IdentificationResult(method, structure, base, base_values, params, standard if method != "svd" else "min_norm_svd", train, diagnostics, settings)
 
 
 def _standard(base: BaseParameters, pi_b: np.ndarray, structure: ModelStructure, kind: str) -> np.ndarray:

@@ -21,7 +21,7 @@ from ..errors import ExcitationError, SolverError
 from ..regressor.compress import NormalEquations
 from .base import BaseParameters
 
-__all__ = ["LeastSquaresSolution", "solve_least_squares", "excitation_check"]
+__all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd", "excitation_check"]
 
 # Below this ratio of smallest to largest singular value of the equilibrated base
 # regressor, a direction of parameter space is considered not excited by the data.
@@ -125,3 +125,27 @@ def solve_least_squares(
     except np.linalg.LinAlgError:
         cov_diag = np.full(base.rank, np.nan)
     return LeastSquaresSolution(pi_b, w, sigma, cond, cov_diag)
+
+
+def solve_truncated_svd(ne: NormalEquations, rcond: float = 1e-6, row_weights: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Minimum-norm least squares on all standard parameters by truncated SVD.
+
+    With D = diag(A)^-½, S = D A D = U Λ Uᵀ, keep the directions with √λ > rcond·√λ_max:
+    π = D U_r Λ_r⁻¹ U_rᵀ D b. No base-parameter structure and no physical constraint: this
+    is the "SVD" baseline of the contact-identification literature, tolerant of directions a
+    gait leaves unexcited. Returns (π, numerical rank).
+    """
+    A, b, _ = ne.total(row_weights)
+    d = np.sqrt(np.diag(A))
+    live = d > 1e-12 * max(d.max(), 1e-300)
+    d[~live] = 1.0
+    S = A / np.outer(d, d)
+    S[~live, :] = 0.0
+    S[:, ~live] = 0.0
+    lam, U = np.linalg.eigh(S)
+    lam = np.maximum(lam, 0.0)
+    keep = np.sqrt(lam) > rcond * np.sqrt(lam.max())
+    if not keep.any():
+        raise ExcitationError("the data excite no parameter at all")
+    z = U[:, keep] @ ((U[:, keep].T @ (b / d)) / lam[keep])
+    return z / d, int(keep.sum())

@@ -132,6 +132,11 @@ def compress(
     for traj in iter_trajectories(data):
         seen = True
         for part in traj.chunks(chunk):
+            if hasattr(structure, "fold"):  # structures with their own row map (e.g. contacts)
+                structure.fold(ne, part)
+                if progress is not None:
+                    progress(len(part))
+                continue
             Q, V, A = structure.state(part)
             Wb = structure.body_regressor(Q, V, A, out=buf)
             ne.add_blocks(Wb, structure.joint_features(V, A), structure.actuated_rows, structure.target(part))

@@ -1,0 +1,219 @@
+"""Contact maps: floating-base identification without force sensing.
+
+Whole-body dynamics with contact wrenches f at contact frames:
+
+    M(q) v̇ + h(q, v) = Sᵀ τ + Jcᵀ f,        Jc = stacked contact Jacobians.
+
+With P = I − Jc⁺ Jc (the orthogonal projector onto null(Jc)), P Jcᵀ = 0, so the
+unknown f disappears:
+
+    P [Y(q, v, v̇) π + Sᵀ Φ(v, v̇) φ] = P Sᵀ τ,
+
+linear in the inertial parameters π and joint terms φ (friction, armature, offset).
+P is computed batched from an SVD of Jc per sample: P = I − V_r V_rᵀ, with V_r the right
+singular vectors whose singular values exceed ``rcond · σ_max`` — rank-deficient stances
+(e.g. two feet on one line) are handled without a per-sample pinv. A sample with no
+contact (flight) has P = I: the full floating-base equations.
+
+With measured contact wrenches (force plates, foot F/T) the wrench moves to the known
+side instead: Y π + Sᵀ Φ φ = Sᵀ τ + Jcᵀ f (``mode="wrench"``).
+
+Jacobians are Pinocchio ``getFrameJacobian`` in LOCAL_WORLD_ALIGNED; point contacts use
+the 3 linear rows, 6-D (flat-foot) contacts all 6. Measured forces are given in the same
+frame: (N, n_contacts, 3) for point, (N, n_contacts, 6) [f; τ] for 6-D contacts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from ..data.trajectory import Trajectory
+from ..errors import DataError, RobotModelError
+from .compress import NormalEquations
+from .terms import ModelStructure
+
+__all__ = ["ContactStructure", "contact_jacobians", "null_space_projector", "detect_contacts"]
+
+
+def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8) -> np.ndarray:
+    """Batched P = I − Jc⁺Jc for Jc of shape (N, m, nv); rows of zeros are allowed."""
+    N, m, nv = Jc.shape
+    P = np.broadcast_to(np.eye(nv), (N, nv, nv)).copy()
+    if m == 0:
+        return P
+    _, s, Vt = np.linalg.svd(Jc, full_matrices=False)  # s (N, k), Vt (N, k, nv)
+    smax = s[:, :1]
+    keep = s > rcond * np.maximum(smax, 1e-300)
+    keep &= smax > 0
+    Vr = Vt * keep[:, :, None]
+    P -= np.einsum("nki,nkj->nij", Vr, Vr)
+    return P
+
+
+def contact_jacobians(robot, frames: Sequence[int], dims: Sequence[int], Q: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """Stacked contact Jacobians (N, Σ dims, nv); rows of inactive contacts are zero."""
+    model, data = robot.model, robot.data
+    N = Q.shape[0]
+    m = int(sum(dims))
+    J = np.zeros((N, m, robot.nv))
+    offsets = np.concatenate([[0], np.cumsum(dims)])
+    rows_needed = active.any(axis=1)
+    for i in np.flatnonzero(rows_needed):
+        pin.computeJointJacobians(model, data, Q[i])
+        for k, (fid, d) in enumerate(zip(frames, dims)):
+            if active[i, k]:
+                Jk = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+                J[i, offsets[k] : offsets[k + 1]] = Jk[:d] if d == 3 else Jk
+    return J
+
+
+def detect_contacts(
+    robot,
+    traj: Trajectory,
+    frames: Sequence[str],
+    *,
+    height: float = 0.02,
+    speed: float = 0.1,
+    ground: float | None = None,
+) -> np.ndarray:
+    """Contact flags (N, n_frames) from foot height and speed when a log has no flags.
+
+    A frame is in contact when it is within ``height`` of the ground (default: the 2nd
+    percentile of all foot heights, i.e. the floor as seen in the log) and its world
+    velocity is below ``speed``. Needs the base pose and twist (``base_q``, ``base_v``).
+    """
+    if traj.base_q is None or traj.base_v is None:
+        raise DataError("contact detection needs base_q and base_v (base pose and twist)", traj.source)
+    model, data = robot.model, robot.data
+    fids = [robot.frame_id(f) for f in frames]
+    Q = robot.full_configuration(traj.q, traj.base_q)
+    V = robot.full_velocity(traj.v, traj.base_v)
+    z = np.empty((len(traj), len(fids)))
+    sp = np.empty_like(z)
+    for i in range(len(traj)):
+        pin.forwardKinematics(model, data, Q[i], V[i])
+        for k, fid in enumerate(fids):
+            z[i, k] = pin.updateFramePlacement(model, data, fid).translation[2]
+            sp[i, k] = np.linalg.norm(pin.getFrameVelocity(model, data, fid, pin.LOCAL_WORLD_ALIGNED).linear)
+    floor = np.percentile(z, 2) if ground is None else ground
+    return (z - floor < height) & (sp < speed)
+
+
+@dataclass
+class ContactStructure(ModelStructure):
+    """A floating-base :class:`ModelStructure` whose rows are mapped by the contacts.
+
+    ``mode="projected"``: rows P W, target P Sᵀ τ (no force sensing).
+    ``mode="wrench"``: rows W, target Sᵀ τ + Jcᵀ f (measured wrenches in
+    ``traj.extras["contact_forces"]``).
+    Contact flags come from ``traj.extras[contact_key]`` (N, n_contacts) or, when absent,
+    from :func:`detect_contacts`.
+    """
+
+    contact_frames: tuple[str, ...] = ()
+    contact_dims: tuple[int, ...] = ()
+    mode: Literal["projected", "wrench"] = "projected"
+    contact_key: str = "contact"
+    rcond: float = 1e-8
+    _fids: list[int] = field(init=False, default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.rows = "all"
+        super().__post_init__()
+        if not self.robot.floating_base:
+            raise RobotModelError(f"{self.robot.name}: contact projection needs a floating-base robot")
+        if not self.contact_frames:
+            raise RobotModelError("no contact frames given")
+        self.contact_frames = tuple(self.contact_frames)
+        self.contact_dims = tuple(self.contact_dims) or (3,) * len(self.contact_frames)
+        if len(self.contact_dims) != len(self.contact_frames) or any(d not in (3, 6) for d in self.contact_dims):
+            raise RobotModelError("contact_dims must give 3 (point) or 6 (flat foot) per contact frame")
+        if self.mode not in ("projected", "wrench"):
+            raise RobotModelError(f"unknown contact mode '{self.mode}'; use 'projected' or 'wrench'")
+        self._fids = [self.robot.frame_id(f) for f in self.contact_frames]
+
+    # ---- contacts -------------------------------------------------------------------
+    def contacts(self, traj: Trajectory) -> np.ndarray:
+        flags = traj.extras.get(self.contact_key)
+        if flags is None:
+            return detect_contacts(self.robot, traj, self.contact_frames)
+        flags = np.asarray(flags, dtype=bool)
+        if flags.shape != (len(traj), len(self.contact_frames)):
+            raise DataError(
+                f"contact flags '{self.contact_key}' have shape {flags.shape}, expected "
+                f"({len(traj)}, {len(self.contact_frames)}) for frames {list(self.contact_frames)}",
+                traj.source,
+            )
+        return flags
+
+    def jacobians(self, Q: np.ndarray, flags: np.ndarray) -> np.ndarray:
+        return contact_jacobians(self.robot, self._fids, self.contact_dims, Q, flags)
+
+    def projector(self, Q: np.ndarray, flags: np.ndarray) -> np.ndarray:
+        return null_space_projector(self.jacobians(Q, flags), self.rcond)
+
+    # ---- the mapped equations -------------------------------------------------------------
+    def _mapped(self, traj: Trajectory, with_regressor: bool = True):
+        Q, V, A = self.state(traj)
+        y = super().target(traj)  # Sᵀ τ, (N, nv)
+        flags = self.contacts(traj)
+        W = ModelStructure.evaluate(self, Q, V, A) if with_regressor else None
+        if self.mode == "projected":
+            P = self.projector(Q, flags)
+            y = np.einsum("nij,nj->ni", P, y)
+            if W is not None:
+                W = np.matmul(P, W)
+        else:
+            f = traj.extras.get("contact_forces")
+            if f is None:
+                raise DataError("mode 'wrench' needs measured forces in extras['contact_forces']", traj.source)
+            f = np.asarray(f, dtype=float).reshape(len(traj), -1)
+            Jc = self.jacobians(Q, flags)
+            if f.shape[1] != Jc.shape[1]:
+                raise DataError(
+                    f"contact_forces have {f.shape[1]} values per sample, expected {Jc.shape[1]} "
+                    f"({list(self.contact_dims)} for {list(self.contact_frames)})",
+                    traj.source,
+                )
+            y = y + np.einsum("nmi,nm->ni", Jc, f)
+        return W, y
+
+    def target(self, traj: Trajectory) -> np.ndarray:
+        """P Sᵀ τ (projected) or Sᵀ τ + Jcᵀ f (wrench), shape (N, nv)."""
+        return self._mapped(traj, with_regressor=False)[1]
+
+    def fold(self, ne: NormalEquations, traj: Trajectory) -> None:
+        """Add one chunk to the normal equations (used by :func:`compress`)."""
+        W, y = self._mapped(traj)
+        ne.add(W, y)
+
+    def torques(self, params: np.ndarray, traj: Trajectory, chunk: int = 4096) -> np.ndarray:
+        """Predicted mapped effort: P W π (projected) or W π (wrench), shape (N, nv)."""
+        out = np.empty((len(traj), self.n_rows))
+        for s in range(0, len(traj), chunk):
+            part = traj.take(slice(s, s + chunk))
+            W, _ = self._mapped(part)
+            out[s : s + len(part)] = W @ params
+        return out
+
+    def project(self, traj: Trajectory, tau: np.ndarray) -> np.ndarray:
+        """Map actuated torques (N, n_actuated) of any model (e.g. a black-box MLP) to P Sᵀ τ."""
+        Q, _, _ = self.state(traj)
+        full = np.zeros((len(traj), self.robot.nv))
+        full[:, self.robot.actuated_v_indices] = tau
+        if self.mode == "projected":
+            return np.einsum("nij,nj->ni", self.projector(Q, self.contacts(traj)), full)
+        return full
+
+    def settings(self) -> dict:
+        return {
+            **super().settings(),
+            "contact_frames": list(self.contact_frames),
+            "contact_dims": list(self.contact_dims),
+            "contact_mode": self.mode,
+            "rcond": self.rcond,
+        }
