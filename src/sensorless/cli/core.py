@@ -170,3 +170,19 @@ def bench_identify(
     console.print(f"wrote {out}")
 
 
+
+
+@bench_app.command("contact")
+@guarded
+def bench_contact_cmd(
+    samples: int = typer.Option(100_000, help="number of Solo12 stance/trot samples"),
+    out: Path = typer.Option(Path("benchmarks/results/contact.json")),
+) -> None:
+    """Contact-projected identification: end-to-end time and projector cost vs a pinv loop."""
+    from ..bench import bench_contact
+    from ..identification.result import write_json_atomic
+
+    res = bench_contact(samples, console=console)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")

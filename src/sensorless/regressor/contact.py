@@ -10,10 +10,10 @@ unknown f disappears:
     P [Y(q, v, v̇) π + Sᵀ Φ(v, v̇) φ] = P Sᵀ τ,
 
 linear in the inertial parameters π and joint terms φ (friction, armature, offset).
-P is computed batched from an SVD of Jc per sample: P = I − V_r V_rᵀ, with V_r the right
-singular vectors whose singular values exceed ``rcond · σ_max`` — rank-deficient stances
-(e.g. two feet on one line) are handled without a per-sample pinv. A sample with no
-contact (flight) has P = I: the full floating-base equations.
+P is computed batched (see :func:`null_space_projector`), per contact pattern on the
+active contacts' rows only; rank-deficient stances (e.g. dependent foot rows) are handled
+without a per-sample pinv. A sample with no contact (flight) has P = I: the full
+floating-base equations.
 
 With measured contact wrenches (force plates, foot F/T) the wrench moves to the known
 side instead: Y π + Sᵀ Φ φ = Sᵀ τ + Jcᵀ f (``mode="wrench"``).
@@ -39,18 +39,37 @@ from .terms import ModelStructure
 __all__ = ["ContactStructure", "contact_jacobians", "null_space_projector", "detect_contacts"]
 
 
-def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8) -> np.ndarray:
-    """Batched P = I − Jc⁺Jc for Jc of shape (N, m, nv); rows of zeros are allowed."""
+def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8, method: str = "cholesky") -> np.ndarray:
+    """Batched P = I − Jc⁺Jc for Jc of shape (N, m, nv); zero or dependent rows are allowed.
+
+    ``method="cholesky"`` (default, fast): G = Jc Jcᵀ + ε I with ε = rcond²·tr(G), G = L Lᵀ,
+    X = L⁻¹ Jc, P = I − XᵀX. The damping gives each singular direction the weight
+    s²/(s² + ε): exact for s = 0 (dependent rows, inactive feet) and for s² ≫ ε, a smooth
+    blend in between. Vectorised over samples (loop over the m contact rows only).
+    ``method="svd"``: P = I − V_r V_rᵀ with singular values above rcond·σ_max (exact cut-off).
+    """
     N, m, nv = Jc.shape
-    P = np.broadcast_to(np.eye(nv), (N, nv, nv)).copy()
     if m == 0:
-        return P
-    _, s, Vt = np.linalg.svd(Jc, full_matrices=False)  # s (N, k), Vt (N, k, nv)
-    smax = s[:, :1]
-    keep = s > rcond * np.maximum(smax, 1e-300)
-    keep &= smax > 0
-    Vr = Vt * keep[:, :, None]
-    P -= np.einsum("nki,nkj->nij", Vr, Vr)
+        return np.broadcast_to(np.eye(nv), (N, nv, nv)).copy()
+    if method == "svd":
+        _, s, Vt = np.linalg.svd(Jc, full_matrices=False)
+        smax = s[:, :1]
+        keep = (s > rcond * np.maximum(smax, 1e-300)) & (smax > 0)
+        Vr = Vt * keep[:, :, None]
+        return np.eye(nv) - np.einsum("nki,nkj->nij", Vr, Vr)
+    G = np.matmul(Jc, Jc.transpose(0, 2, 1))
+    eps = rcond**2 * np.maximum(np.trace(G, axis1=1, axis2=2), 1e-300)
+    L = np.zeros_like(G)
+    X = np.empty_like(Jc)
+    for j in range(m):  # column-wise Cholesky and forward substitution, vectorised over N
+        Lj = L[:, j, :j]
+        ljj = np.sqrt(np.maximum(G[:, j, j] + eps - np.einsum("nk,nk->n", Lj, Lj), eps))
+        L[:, j, j] = ljj
+        if j + 1 < m:
+            L[:, j + 1 :, j] = (G[:, j + 1 :, j] - np.einsum("nik,nk->ni", L[:, j + 1 :, :j], Lj)) / ljj[:, None]
+        X[:, j] = (Jc[:, j] - np.einsum("nk,nkc->nc", Lj, X[:, :j])) / ljj[:, None]
+    P = -np.matmul(X.transpose(0, 2, 1), X)
+    P[:, np.arange(nv), np.arange(nv)] += 1.0
     return P
 
 
@@ -118,7 +137,7 @@ class ContactStructure(ModelStructure):
     contact_dims: tuple[int, ...] = ()
     mode: Literal["projected", "wrench"] = "projected"
     contact_key: str = "contact"
-    rcond: float = 1e-8
+    rcond: float = 1e-7
     _fids: list[int] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
@@ -154,7 +173,18 @@ class ContactStructure(ModelStructure):
         return contact_jacobians(self.robot, self._fids, self.contact_dims, Q, flags)
 
     def projector(self, Q: np.ndarray, flags: np.ndarray) -> np.ndarray:
-        return null_space_projector(self.jacobians(Q, flags), self.rcond)
+        """P (N, nv, nv), computed per contact pattern on the active rows only."""
+        N = Q.shape[0]
+        P = np.empty((N, self.robot.nv, self.robot.nv))
+        patterns, inverse = np.unique(flags, axis=0, return_inverse=True)
+        for k, pattern in enumerate(patterns):
+            idx = np.flatnonzero(inverse.ravel() == k)
+            on = np.flatnonzero(pattern)
+            fids = [self._fids[i] for i in on]
+            dims = [self.contact_dims[i] for i in on]
+            J = contact_jacobians(self.robot, fids, dims, Q[idx], np.ones((len(idx), len(on)), bool))
+            P[idx] = null_space_projector(J, self.rcond)
+        return P
 
     # ---- the mapped equations -------------------------------------------------------------
     def _mapped(self, traj: Trajectory, with_regressor: bool = True):
