@@ -166,3 +166,22 @@ def test_existing_output_is_not_clobbered(logs, tmp_path):
     out.mkdir()
     r = _run(["identify", *ROBOT, "--data", d / "train.npz", "--out", out])
     assert r.exit_code != 0 and "--force" in r.output
+
+
+def test_identify_lmi_writes_consistent_model(logs, tmp_path):
+    d, _, _ = logs
+    out = tmp_path / "lmi"
+    r = _run(["identify", *ROBOT, "--data", d / "train.npz", "--validate", d / "test.npz", "--method", "lmi",
+              "--gamma", "1e-3", "--out", out])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "result.json").read_text())
+    assert doc["physical_consistency"]["inconsistent_bodies"] == []
+    assert doc["diagnostics"]["lmi"]["status"] == "optimal"
+    val = doc["validation"][str(d / "test.npz")]
+    assert val["lmi"]["mean_rmse"] < 0.12 and "ols" in val
+    assert doc["urdf"] == "model.urdf"
+
+
+def test_bad_gamma_is_one_line_error(logs, tmp_path):
+    d, _, _ = logs
+    _expect_error(["identify", *ROBOT, "--data", d / "train.npz", "--method", "lmi", "--gamma", "big"], tmp_path / "o", "--gamma")

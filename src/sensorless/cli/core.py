@@ -10,7 +10,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from ..errors import ExcitationError
+from ..errors import ExcitationError, SensorlessError
 from .common import (
     ROBOT_HELP,
     app,
@@ -32,7 +32,12 @@ def identify(
     robot: str = typer.Option(..., help=ROBOT_HELP),
     data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on"),
-    method: str = typer.Option("ols", help="ols | wls"),
+    method: str = typer.Option("ols", help="ols | wls | lmi (physically consistent) | svd"),
+    prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
+    regularization: str = typer.Option("pullback", help="lmi: pullback | entropic | euclidean | none"),
+    gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),
+    ellipsoids: str = typer.Option("auto", help="lmi: bounding ellipsoids auto | kinematic | none"),
+    contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain the prior body"),
     out: Path = typer.Option(..., help="output directory (written atomically)"),
     joint_terms: str = typer.Option("fv,fc,offset,armature", help="per-joint terms, comma separated"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
@@ -58,8 +63,9 @@ def identify(
         total = sum(len(t) for t in train)
         with progress_bar() as bar:
             task = bar.add_task("regressor", total=total)
+            lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
             try:
-                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n))
+                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n), **lmi_kw)
             except ExcitationError as exc:
                 raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -67,11 +73,22 @@ def identify(
                                 "columns": columns, "rate": rate})
         doc = result.to_dict()
         cad = CADModel(r)
+        baseline = None
+        if method != "ols" and val:
+            try:  # unconstrained least squares on the same data, for the comparison table
+                baseline = _identify(structure, train, method="ols")
+            except SensorlessError:
+                baseline = None
         doc["validation"] = {}
         for p, traj in zip(validate, val):
             m_id, m_cad = result.evaluate(traj), cad.score(traj)
+            cols = {"CAD": m_cad}
             doc["validation"][str(p)] = {method: m_id.to_dict(), "cad": m_cad.to_dict()}
-            console.print(metrics_table(f"held-out {Path(p).name}", {"CAD": m_cad, method.upper(): m_id}))
+            if baseline is not None:
+                cols["OLS"] = baseline.evaluate(traj)
+                doc["validation"][str(p)]["ols"] = cols["OLS"].to_dict()
+            cols[method.upper()] = m_id
+            console.print(metrics_table(f"held-out {Path(p).name}", cols))
         shown = val[0] if val else train[0]
         plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
                      structure.row_names, tmp / "torques.png", title=f"{r.name}: {'held-out' if val else 'training'} torques")
@@ -79,7 +96,43 @@ def identify(
         from ..identification.result import write_json_atomic
 
         write_json_atomic(doc, tmp / "result.json")
-    console.print(f"rank {result.base.rank}, condition number {result.diagnostics['condition_number']:.1f}; wrote {out}/")
+    d = result.diagnostics
+    extra = (f"γ = {d['gamma']:.3g}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
+             f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
+             else f"condition number {d['condition_number']:.1f}")
+    console.print(f"{len(result.base.independent)} base parameters, {extra}; wrote {out}/")
+
+
+def _lmi_kwargs(robot, structure, method, prior, regularization, gamma, ellipsoids, contain_prior) -> dict:
+    """Options of `identify(method="lmi")` from the command line."""
+    if method != "lmi":
+        return {}
+    from ..identification import auto_ellipsoids
+
+    if gamma != "auto":
+        try:
+            gamma = float(gamma)
+        except ValueError:
+            raise SensorlessError(f"--gamma must be a number or 'auto', got '{gamma}'") from None
+    prior_vec = None
+    if prior is not None:
+        from ..robot import load_robot
+
+        p = load_robot(prior, floating_base=robot.floating_base)
+        missing = [b for b in robot.body_names if b not in p.body_names]
+        if missing:
+            raise SensorlessError(f"{prior}: prior model lacks bodies {missing} of {robot.name}")
+        prior_vec = structure.prior()
+        pi = p.inertial_parameters().reshape(-1, 10)
+        for k, b in enumerate(robot.body_names):
+            prior_vec[10 * k : 10 * k + 10] = pi[p.body_names.index(b)]
+    ell = {"auto": None, "kinematic": "kinematic", "none": False}.get(ellipsoids)
+    if ellipsoids not in ("auto", "kinematic", "none"):
+        raise SensorlessError(f"--ellipsoids must be auto, kinematic or none, got '{ellipsoids}'")
+    if ell is not False and not contain_prior:
+        ell = auto_ellipsoids(robot, geometry=None if ell == "kinematic" else "auto", contain_prior=False)
+    reg = None if regularization == "none" else regularization
+    return {"gamma": gamma, "regularization": reg, "prior": prior_vec, "ellipsoids": ell}
 
 
 def _export(result, tmp: Path, doc: dict) -> None:
@@ -183,6 +236,29 @@ def bench_contact_cmd(
     from ..identification.result import write_json_atomic
 
     res = bench_contact(samples, console=console)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")
+
+
+@bench_app.command("lmi")
+@guarded
+def bench_lmi_cmd(
+    robots: str = typer.Option("solo12,talos", help="comma-separated example-robot-data names"),
+    solvers: str = typer.Option("CLARABEL,SCS", help="comma-separated cvxpy solver names"),
+    out: Path = typer.Option(Path("benchmarks/results/lmi.json")),
+) -> None:
+    """Setup and solve time of the physically consistent (LMI) program from compressed data."""
+    from ..identification.lmi_bench import bench_lmi
+    from ..identification.result import write_json_atomic
+
+    res = bench_lmi(robots=tuple(robots.split(",")), solvers=tuple(solvers.split(",")))
+    for robot, r in res["results"].items():
+        for solver, v in r["solvers"].items():
+            console.print(
+                f"{robot} ({r['n_bodies']} bodies, {r['n_params']} parameters) {solver}: setup {v.get('setup_seconds', float('nan')):.3f} s, "
+                f"solve {v.get('solve_seconds', float('nan')):.3f} s, {v['status']}, consistent {v.get('consistent')}"
+            )
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(res, out)
     console.print(f"wrote {out}")

@@ -3,11 +3,39 @@
 from .base import BaseParameters, base_parameters
 from .identifiability import identifiability_report
 from .identify import METHODS, identify
+from .constraints import (
+    BodyMassBounds,
+    ComInEllipsoid,
+    DensityRealizable,
+    NonNegativeArmature,
+    NonNegativeFriction,
+    PseudoInertiaPSD,
+    TotalMass,
+    default_constraints,
+)
+from .ellipsoids import BoundingEllipsoid, auto_ellipsoids
 from .least_squares import LeastSquaresSolution, excitation_check, solve_least_squares, solve_truncated_svd
+from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
 from .result import IdentificationResult
 
 __all__ = [
+    "BodyMassBounds",
+    "BoundingEllipsoid",
+    "ComInEllipsoid",
+    "DensityRealizable",
+    "GammaSelection",
+    "LmiSolution",
+    "NonNegativeArmature",
+    "NonNegativeFriction",
+    "PseudoInertiaPSD",
+    "TotalMass",
+    "auto_ellipsoids",
+    "build_lmi",
+    "cross_validate_gamma",
+    "default_constraints",
+    "select_gamma",
+    "solve_lmi",
     "BaseParameters",
     "IdentificationResult",
     "LeastSquaresSolution",

@@ -23,7 +23,7 @@ from .result import IdentificationResult
 
 __all__ = ["identify", "METHODS"]
 
-METHODS = ("ols", "wls", "svd")
+METHODS = ("ols", "wls", "svd", "lmi")
 
 
 def identify(
@@ -36,19 +36,32 @@ def identify(
     standard: str = "closest_to_prior",
     chunk: int = 2048,
     svd_rcond: float = 1e-6,
+    gamma: float | str = 1e-3,
+    regularization: str | None = "pullback",
+    prior: np.ndarray | None = None,
+    ellipsoids=None,
+    lmi_options: dict | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
     ``method``: "ols" or "wls" (two-step WLS with per-joint σ unless ``weights`` gives σ),
     or "svd" (minimum-norm truncated SVD over all standard parameters, relative cut-off
-    ``svd_rcond``; the unconstrained baseline for contact identification).
+    ``svd_rcond``; the unconstrained baseline for contact identification), or "lmi"
+    (physically consistent convex program, :func:`~.lmi.solve_lmi`, regularised toward
+    ``prior`` — default the model's own inertials — with ``regularization`` and weight
+    ``gamma``; ``gamma="auto"`` picks it by 5-fold cross-validation on the training data,
+    :func:`~.lmi.cross_validate_gamma`). ``ellipsoids`` and ``lmi_options`` go to the solver.
     ``standard``: how to pick standard parameters from the base ones, "closest_to_prior"
     (nearest to the model's own inertials) or "min_norm".
     """
     if method not in METHODS:
         raise SolverError(f"unknown method '{method}'; choose from {METHODS}")
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
+    if method == "lmi" and gamma == "auto":
+        if isinstance(data, NormalEquations):
+            raise SolverError("gamma='auto' needs the training trajectories, not precompressed equations")
+        data = [data] if isinstance(data, Trajectory) else list(data)
     t0 = time.perf_counter()
     ne = data if isinstance(data, NormalEquations) else compress(structure, data, chunk=chunk, progress=progress)
     t_compress = time.perf_counter() - t0
@@ -65,6 +78,25 @@ def identify(
         sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
         extra = {"svd_rank": svd_rank, "svd_rcond": svd_rcond}
         cond, base_std = float("nan"), []
+    elif method == "lmi":
+        from .lmi import cross_validate_gamma, solve_lmi
+
+        opts = dict(lmi_options or {})
+        row_w = None if w is None or isinstance(w, str) else 1.0 / np.asarray(w) ** 2
+        extra = {}
+        if gamma == "auto":
+            cv = cross_validate_gamma(structure, data, period="auto", prior=prior, regularization=regularization,
+                                      ellipsoids=ellipsoids, row_weights=row_w, **opts)
+            gamma = cv.gamma
+            extra["gamma_selection"] = cv.to_dict()
+        lmi = solve_lmi(ne, structure, base=base, prior=prior, regularization=regularization, gamma=float(gamma),
+                        ellipsoids=ellipsoids, row_weights=row_w, **opts)
+        params = lmi.params
+        base_values = base.base(params)
+        sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
+        cond, base_std = float("nan"), []
+        extra["lmi"] = lmi.summary()
+        extra["gamma"] = float(gamma)
     else:
         sol = solve_least_squares(ne, base, w)
         params = _standard(base, sol.base_values, structure, standard)
@@ -91,9 +123,11 @@ def identify(
         "weights": w.tolist() if isinstance(w, np.ndarray) else w,
         "standard": standard,
         "chunk": chunk,
+        **({"gamma": float(gamma), "regularization": regularization, "prior": "given" if prior is not None else "model"}
+           if method == "lmi" else {}),
         **structure.settings(),
     }
-    return IdentificationResult(method, structure, base, base_values, params, standard if method != "svd" else "min_norm_svd", train, diagnostics, settings)
+    return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings)
 
 
 def _standard(base: BaseParameters, pi_b: np.ndarray, structure: ModelStructure, kind: str) -> np.ndarray:

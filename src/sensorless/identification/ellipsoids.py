@@ -1,0 +1,305 @@
+"""Bounding ellipsoids of the bodies, for density-realisability constraints.
+
+An ellipsoid ``E = {x : (x − c)ᵀ Σ_E⁻¹ (x − c) ≤ 1}`` with ``Σ_E = R diag(s²) Rᵀ``
+(centre ``c``, semi-axes ``s``, principal axes the columns of ``R``), written in the
+body's joint frame, has the homogeneous form
+
+    [x; 1]ᵀ Q [x; 1] = 1 − (x − c)ᵀ Σ_E⁻¹ (x − c),   Q = [[−Σ_E⁻¹, Σ_E⁻¹ c], [cᵀ Σ_E⁻¹, 1 − cᵀ Σ_E⁻¹ c]]
+
+which is ≥ 0 exactly inside ``E``. For a mass density ρ with pseudo-inertia
+``J = ∫ [x; 1][x; 1]ᵀ ρ dV``, ``tr(J Q) = ∫ ρ (1 − (x − c)ᵀ Σ_E⁻¹ (x − c)) dV``; a body
+can be realised by a density supported in ``E`` iff ``J ⪰ 0`` and ``tr(J Q) ≥ 0``
+(Wensing, Kim & Slotine, RA-L 2018). ``tr(J Q) / m = 1 − E_ρ[(x − c)ᵀ Σ_E⁻¹ (x − c)]``
+is the *density margin* reported per body (1 at the centre, 0 on the boundary).
+
+Ellipsoids are built automatically (:func:`auto_ellipsoids`) as the minimum-volume
+ellipsoid enclosing a point cloud per body:
+
+* *kinematic* points: the joint origin, the origins of its child joints, every frame
+  attached to the joint (merged fixed links, tool and sensor frames) and the prior CoM,
+  each inflated by ``margin`` (default 0.06 m) in 14 directions, since links have a
+  radius the kinematic skeleton does not show;
+* *geometry* points, when a Pinocchio ``GeometryModel`` is given or can be loaded
+  from the robot's URDF: the 8 corners of each collision shape's local bounding box,
+  placed in the joint frame, plus the kinematic points (margin default 0.01 m).
+
+With ``contain_prior=True`` an ellipsoid that the prior body does not fit in is
+scaled about its centre by the smallest factor that makes the prior realisable, so
+the prior is always feasible (and so is the identification problem).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import RobotModelError
+from ..parameters import as_bodies, pseudo_inertia
+from ..robot import Robot
+
+__all__ = [
+    "GEOMETRY_MARGIN",
+    "KINEMATIC_MARGIN",
+    "BoundingEllipsoid",
+    "auto_ellipsoids",
+    "body_points",
+    "load_geometry",
+    "resolve_ellipsoids",
+]
+
+KINEMATIC_MARGIN = 0.06  # m, link radius not visible in the kinematic skeleton
+GEOMETRY_MARGIN = 0.01  # m, slack around collision shapes
+
+_DIRS = np.vstack([np.eye(3), -np.eye(3), np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T / np.sqrt(3)])
+
+
+@dataclass(frozen=True, eq=False)
+class BoundingEllipsoid:
+    """``{x : (x − center)ᵀ (R diag(semi_axes²) Rᵀ)⁻¹ (x − center) ≤ 1}`` in the joint frame."""
+
+    center: np.ndarray
+    semi_axes: np.ndarray
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.center, dtype=float).reshape(3)
+        s = np.asarray(self.semi_axes, dtype=float).reshape(3)
+        R = np.asarray(self.rotation, dtype=float).reshape(3, 3)
+        if np.any(~np.isfinite(s)) or np.any(s <= 0):
+            raise ValueError(f"ellipsoid semi-axes must be positive and finite, got {s}")
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6):
+            raise ValueError("ellipsoid rotation must be orthonormal")
+        object.__setattr__(self, "center", c)
+        object.__setattr__(self, "semi_axes", s)
+        object.__setattr__(self, "rotation", R)
+
+    @classmethod
+    def from_spec(cls, spec: BoundingEllipsoid | tuple | Mapping[str, Any]) -> BoundingEllipsoid:
+        """From an ellipsoid, ``(center, semi_axes[, rotation])`` or a dict with those keys."""
+        if isinstance(spec, BoundingEllipsoid):
+            return spec
+        if isinstance(spec, Mapping):
+            return cls(spec["center"], spec["semi_axes"], spec.get("rotation", np.eye(3)))
+        return cls(*spec)
+
+    @classmethod
+    def from_shape_matrix(cls, center: np.ndarray, shape: np.ndarray) -> BoundingEllipsoid:
+        """From ``Σ_E`` (symmetric positive definite)."""
+        lam, R = np.linalg.eigh(0.5 * (shape + shape.T))
+        if np.linalg.det(R) < 0:
+            R[:, 0] = -R[:, 0]
+        return cls(center, np.sqrt(np.maximum(lam, 1e-12)), R)
+
+    @property
+    def shape_matrix(self) -> np.ndarray:
+        """``Σ_E = R diag(s²) Rᵀ``."""
+        return (self.rotation * self.semi_axes**2) @ self.rotation.T
+
+    @property
+    def Q(self) -> np.ndarray:
+        """Homogeneous 4×4 form with ``[x; 1]ᵀ Q [x; 1] = 1 − (x − c)ᵀ Σ_E⁻¹ (x − c)``."""
+        P = (self.rotation / self.semi_axes**2) @ self.rotation.T  # Σ_E⁻¹
+        Pc = P @ self.center
+        Q = np.empty((4, 4))
+        Q[:3, :3] = -P
+        Q[:3, 3] = Q[3, :3] = Pc
+        Q[3, 3] = 1.0 - self.center @ Pc
+        return Q
+
+    def mahalanobis(self, points: np.ndarray) -> np.ndarray:
+        """``(x − c)ᵀ Σ_E⁻¹ (x − c)`` for points ``(..., 3)`` (≤ 1 inside)."""
+        d = (np.asarray(points, dtype=float) - self.center) @ self.rotation / self.semi_axes
+        return np.einsum("...i,...i->...", d, d)
+
+    def contains(self, points: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+        return self.mahalanobis(points) <= 1.0 + tol
+
+    def density_margin(self, pi: np.ndarray) -> float:
+        """``tr(J Q) / m`` of one body ``pi (10,)`` (≥ 0 if realisable inside; nan if m ≤ 0)."""
+        pi = np.asarray(pi, dtype=float)
+        if pi[0] <= 0:
+            return float("nan")
+        return float(np.sum(pseudo_inertia(pi) * self.Q) / pi[0])
+
+    def scaled(self, factor: float) -> BoundingEllipsoid:
+        """Semi-axes multiplied by ``factor`` (same centre and axes)."""
+        return BoundingEllipsoid(self.center, self.semi_axes * factor, self.rotation)
+
+    def to_dict(self) -> dict:
+        return {"center": self.center.tolist(), "semi_axes": self.semi_axes.tolist(), "rotation": self.rotation.tolist()}
+
+
+# ---- point clouds -------------------------------------------------------------
+def _mvee(P: np.ndarray, eps: float = 1e-3, max_iter: int = 20000) -> tuple[np.ndarray, np.ndarray]:
+    """Minimum-volume enclosing ellipsoid (Khachiyan with Todd–Yildirim away steps):
+    centre and Σ_E, within a factor (1 + eps) of optimal, scaled to contain every point."""
+    n, d = P.shape
+    Qh = np.vstack([P.T, np.ones(n)])
+    u = np.full(n, 1.0 / n)
+    for _ in range(max_iter):
+        X = (Qh * u) @ Qh.T
+        M = np.einsum("in,in->n", Qh, np.linalg.solve(X, Qh))
+        j = int(np.argmax(M))
+        act = np.flatnonzero(u > 0)
+        i = act[int(np.argmin(M[act]))]
+        if M[j] <= (d + 1) * (1.0 + eps) and M[i] >= (d + 1) * (1.0 - eps):
+            break
+        if M[j] - (d + 1) >= (d + 1) - M[i]:  # toward the farthest point
+            step = (M[j] - d - 1.0) / ((d + 1.0) * (M[j] - 1.0))
+            u *= 1.0 - step
+            u[j] += step
+        else:  # away from the nearest supporting point
+            step = min((d + 1.0 - M[i]) / ((d + 1.0) * (M[i] - 1.0)), u[i] / (1.0 - u[i]))
+            u *= 1.0 + step
+            u[i] -= step
+            u[i] = max(u[i], 0.0)
+    c = P.T @ u
+    S = d * ((P.T * u) @ P - np.outer(c, c))  # Σ_E of the (approximate) MVEE
+    dev = P - c
+    worst = np.einsum("ni,ni->n", dev, np.linalg.solve(S, dev.T).T).max()
+    return c, S * max(worst, 1.0)
+
+
+def _hull(P: np.ndarray) -> np.ndarray:
+    """Vertices of the convex hull (the MVEE only depends on them)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return P[ConvexHull(P).vertices]
+    except (QhullError, ValueError):
+        return P
+
+
+def _children(model: pin.Model, jid: int) -> list[int]:
+    return [j for j in range(1, model.njoints) if model.parents[j] == jid]
+
+
+def body_points(robot: Robot, geometry: pin.GeometryModel | None = None) -> dict[str, np.ndarray]:
+    """Per body (joint frame): joint origin, child joint origins, attached frames and,
+    with ``geometry``, the corners of each collision shape's local bounding box."""
+    m = robot.model
+    pts: dict[int, list[np.ndarray]] = {j: [np.zeros(3)] for j in range(1, m.njoints)}
+    for j in range(1, m.njoints):
+        pts[j] += [m.jointPlacements[c].translation.copy() for c in _children(m, j)]
+    for f in m.frames:
+        if f.parentJoint >= 1:
+            pts[f.parentJoint].append(f.placement.translation.copy())
+    if geometry is not None:
+        for go in geometry.geometryObjects:
+            j = go.parentJoint
+            if j < 1 or j >= m.njoints:
+                continue
+            geo = go.geometry
+            geo.computeLocalAABB()
+            lo, hi = np.asarray(geo.aabb_local.min_), np.asarray(geo.aabb_local.max_)
+            if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+                continue
+            corners = np.array(np.meshgrid(*zip(lo, hi))).reshape(3, -1).T
+            M = go.placement
+            pts[j] += list(corners @ M.rotation.T + M.translation)
+    names = robot.body_names
+    return {names[j - 1]: np.unique(np.round(np.array(p), 12), axis=0) for j, p in pts.items()}
+
+
+_GEOMETRY_CACHE: dict[tuple, pin.GeometryModel | None] = {}
+
+
+def load_geometry(robot: Robot, kind: str = "collision") -> pin.GeometryModel | None:
+    """The robot's collision (or visual) ``GeometryModel`` from its URDF, or None if the
+    URDF or its meshes cannot be found (e.g. unresolved ``package://`` paths). Cached
+    per (URDF, bodies, kind)."""
+    key = (getattr(robot, "urdf_path", None), robot.source, robot.body_names, kind)
+    if key not in _GEOMETRY_CACHE:
+        _GEOMETRY_CACHE[key] = _load_geometry(robot, kind)
+    return _GEOMETRY_CACHE[key]
+
+
+def _load_geometry(robot: Robot, kind: str) -> pin.GeometryModel | None:
+    urdf = getattr(robot, "urdf_path", None) or (robot.source if str(robot.source).endswith(".urdf") else None)
+    if not urdf or not os.path.exists(urdf):
+        return None
+    path = os.path.normpath(urdf)
+    dirs = [os.path.dirname(os.path.dirname(path)), os.path.dirname(os.path.dirname(os.path.dirname(path)))]
+    if "/example-robot-data/" in path:
+        dirs.insert(0, path.split("/example-robot-data/")[0])
+    gtype = pin.GeometryType.COLLISION if kind == "collision" else pin.GeometryType.VISUAL
+    try:
+        return pin.buildGeomFromUrdf(robot.model, path, gtype, package_dirs=dirs)
+    except Exception:  # noqa: BLE001 - missing meshes, unknown links: fall back to kinematics
+        return None
+
+
+def _prior_scale(E: BoundingEllipsoid, pi: np.ndarray) -> float:
+    """Smallest factor α ≥ 1 with the prior realisable in ``E`` scaled by α: √(E_ρ0[d²])."""
+    if pi[0] <= 0:
+        return 1.0
+    return max(1.0, float(np.sqrt(max(1.0 - E.density_margin(pi), 0.0))) * (1.0 + 1e-6))
+
+
+def auto_ellipsoids(
+    robot: Robot,
+    *,
+    geometry: pin.GeometryModel | str | None = "auto",
+    margin: float | None = None,
+    prior: np.ndarray | None = None,
+    contain_prior: bool = True,
+) -> dict[str, BoundingEllipsoid]:
+    """One bounding ellipsoid per body (see module docstring).
+
+    ``geometry``: a ``GeometryModel``, ``"auto"`` (load the URDF's collision geometry when
+    possible) or None (kinematic points only). ``margin`` defaults to
+    :data:`GEOMETRY_MARGIN` with geometry and :data:`KINEMATIC_MARGIN` without.
+    ``prior`` (10·n_bodies) defaults to the model's inertials.
+    """
+    if isinstance(geometry, str):
+        if geometry != "auto":
+            raise RobotModelError(f"geometry must be a GeometryModel, 'auto' or None, got {geometry!r}")
+        geometry = load_geometry(robot)
+    if margin is None:
+        margin = GEOMETRY_MARGIN if geometry is not None else KINEMATIC_MARGIN
+    if margin <= 0:
+        raise ValueError("ellipsoid margin must be positive (a point cloud can be flat)")
+    P0 = as_bodies(robot.inertial_parameters() if prior is None else np.asarray(prior)[: 10 * robot.n_bodies])
+    out = {}
+    for k, (name, pts) in enumerate(body_points(robot, geometry).items()):
+        if P0[k, 0] > 0:
+            pts = np.vstack([pts, P0[k, 1:4] / P0[k, 0]])
+        cloud = _hull((pts[:, None, :] + margin * _DIRS[None]).reshape(-1, 3))
+        E = BoundingEllipsoid.from_shape_matrix(*_mvee(cloud))
+        if contain_prior:
+            E = E.scaled(_prior_scale(E, P0[k]))
+        out[name] = E
+    return out
+
+
+def resolve_ellipsoids(
+    robot: Robot,
+    spec: Mapping[str, Any] | bool | str | None,
+    prior: np.ndarray | None = None,
+    **auto_kwargs: Any,
+) -> dict[str, BoundingEllipsoid]:
+    """Ellipsoids from the ``ellipsoids`` option of the solver.
+
+    ``None``/``True``/``"auto"``: :func:`auto_ellipsoids`; ``"kinematic"``: automatic
+    without geometry; ``False``: none (no density constraint); a mapping
+    ``{body: BoundingEllipsoid | (center, semi_axes[, rotation])}``: those bodies as given,
+    the others automatic.
+    """
+    if spec is False:
+        return {}
+    if spec is None or spec is True or spec == "auto":
+        return auto_ellipsoids(robot, prior=prior, **auto_kwargs)
+    if spec == "kinematic":
+        return auto_ellipsoids(robot, prior=prior, geometry=None, **auto_kwargs)
+    if isinstance(spec, str):
+        raise RobotModelError(f"ellipsoids must be None, False, 'auto', 'kinematic' or a mapping, got {spec!r}")
+    unknown = [b for b in spec if b not in robot.body_names]
+    if unknown:
+        raise RobotModelError(f"ellipsoids given for unknown bodies {unknown}; bodies are {list(robot.body_names)}")
+    given = {b: BoundingEllipsoid.from_spec(e) for b, e in spec.items()}
+    auto = auto_ellipsoids(robot, prior=prior, **auto_kwargs) if len(given) < robot.n_bodies else {}
+    return {b: given[b] if b in given else auto[b] for b in robot.body_names}

@@ -1,0 +1,615 @@
+"""Physically consistent identification: a convex (LMI) program on compressed data.
+
+    minimise_π   N ‖W π − y‖²_w / ‖y‖²_w  +  γ · R(π; π0)
+    subject to   J_k(π) ⪰ 0,  tr(J_k Q_k) ≥ 0   (every body; see .constraints)
+                 fv, fc, armature ≥ 0           (+ optional mass bounds)
+
+* **Data term.** Only the compressed normal equations are used,
+  ``‖W π − y‖²_w = πᵀAπ − 2bᵀπ + c`` with ``(A, b, c) = ne.total(row_weights)``, so the
+  program's size does not depend on the number of samples. It is measured in units of
+  the mean squared torque of one sample, ``‖y‖²_w / N`` (N samples), i.e. ``N`` times the
+  *relative residual* ``‖W π − y‖²_w / ‖y‖²_w`` (1: explains nothing; reported as
+  ``LmiSolution.relative_residual``).
+  ``A`` is rank deficient (only base parameters are identifiable): after scaling, ``A/c``
+  is reduced to its identifiable directions (through ``B`` of :func:`base_parameters`
+  when ``base`` is given, else directly), Jacobi-equilibrated and eigendecomposed,
+  ``A/c = Σ_i λ_i v_i v_iᵀ`` keeping ``λ_i > rank_tol · λ_max``; the data term is then
+  ``‖R x − z‖² + const`` with ``R = Λ^{1/2} Vᵀ`` (``rank × p``, so cvxpy sees a small
+  convex quadratic). The regulariser fixes the directions the data cannot see.
+* **γ** weighs the (dimensionless) regulariser against that data term. Read as a
+  Gaussian prior (MAP): ``γ ≈ ρ / τ²`` with ``ρ`` the relative noise power
+  (σ²/mean y²; 3 % noise → ρ ≈ 1e-3) and ``τ`` the relative uncertainty of the prior
+  pseudo-inertias; the default ``γ = 1e-3`` is a weak prior (τ ≈ 1 at 3 % noise) that
+  mostly fixes what the data cannot see. Because the data term grows with N, a fixed γ
+  lets more data override the prior. Pick it by held-out residual
+  (:func:`select_gamma`, :func:`cross_validate_gamma`). Internally the solver minimises
+  ``relative residual + (γ/N) R`` (same minimiser, O(1) numbers).
+* **Scaling.** The variable is ``x`` with ``π = scale ⊙ x``: bodies by prior mass and
+  radius of gyration (a congruence of ``J``, see :mod:`.constraints`), joint terms by
+  ``√(c / A_jj)`` (a unit step of one joint term changes the normalised data term by O(1)).
+  The conic solver sees O(1) numbers, so a 33-body humanoid solves as easily as an arm.
+* **Solvers.** MOSEK first if it is installed *and* licensed (checked once with a tiny
+  solve), then Clarabel, then SCS. An inaccurate status moves on to the next solver;
+  infeasibility raises :class:`SolverError` naming the constraints the prior violates.
+* **Consistency.** After the solve each body is checked (``λ_min(J_k) ≥ −1e-8 ‖J_k‖``);
+  a body slightly outside the cone because of solver tolerance is projected onto it
+  (eigenvalues of ``Ĵ_k`` clipped at ``ε``) and listed in ``LmiSolution.projected``.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Iterable, Mapping, Sequence
+
+import cvxpy as cp
+import numpy as np
+
+from ..data.trajectory import Trajectory
+from ..errors import DataError, ExcitationError, SolverError
+from ..parameters import (
+    ConsistencyReport,
+    check_physical_consistency,
+    from_pseudo_inertia,
+    pseudo_inertia,
+)
+from ..regressor.compress import NormalEquations, compress
+from ..regressor.terms import ModelStructure
+from .base import BaseParameters
+from .constraints import (
+    ConstraintBuilder,
+    LmiContext,
+    constraint_violation,
+    default_constraints,
+)
+from .ellipsoids import BoundingEllipsoid, resolve_ellipsoids
+from .regularizers import Regularizer, make_regularizer
+
+__all__ = [
+    "CONSISTENCY_TOL",
+    "DEFAULT_GAMMAS",
+    "BodyReport",
+    "GammaSelection",
+    "LmiProblem",
+    "LmiSolution",
+    "available_solvers",
+    "body_reports",
+    "build_lmi",
+    "cross_validate_gamma",
+    "excitation_period",
+    "mosek_available",
+    "select_gamma",
+    "solve_lmi",
+    "validation_score",
+]
+
+CONSISTENCY_TOL = 1e-8  # λ_min(J_k) ≥ −tol · ‖J_k‖₂ counts as consistent
+DEFAULT_GAMMAS: tuple[float, ...] = tuple(float(g) for g in np.logspace(-5, 1, 13))  # 1e-5 … 10, half decades
+_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
+    "CLARABEL": {},
+    "SCS": {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iters": 20_000},
+    "MOSEK": {},
+}
+
+
+@functools.cache
+def mosek_available() -> bool:
+    """True only if ``import mosek`` works, cvxpy lists MOSEK and a tiny solve succeeds."""
+    try:
+        import mosek  # noqa: F401
+    except ImportError:
+        return False
+    if "MOSEK" not in cp.installed_solvers():
+        return False
+    try:
+        t = cp.Variable()
+        prob = cp.Problem(cp.Minimize(t), [t >= 1])
+        prob.solve(solver="MOSEK")
+        return prob.status == cp.OPTIMAL
+    except Exception:  # noqa: BLE001 - no licence, broken install: MOSEK is simply not used
+        return False
+
+
+def available_solvers() -> list[str]:
+    """Solvers tried by default, in order."""
+    installed = set(cp.installed_solvers())
+    out = ["MOSEK"] if mosek_available() else []
+    return out + [s for s in ("CLARABEL", "SCS") if s in installed]
+
+
+@dataclass
+class BodyReport(ConsistencyReport):
+    """:class:`ConsistencyReport` plus the density margin ``tr(J Q)/m`` in the body's
+    ellipsoid (nan without one), whether the body was projected onto the cone after the
+    solve and by how much (``−λ_min(Ĵ)/‖Ĵ‖₂`` before the projection, 0 if not projected)."""
+
+    ellipsoid_margin: float = float("nan")
+    projected: bool = False
+    projection: float = 0.0
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["com"] = self.com.tolist()
+        d["principal_moments"] = self.principal_moments.tolist()
+        return d
+
+
+@dataclass
+class LmiSolution:
+    """Outcome of :func:`solve_lmi`. ``params`` are standard parameters (``structure.labels``).
+
+    ``objective = N · relative_residual + γ · regularization_term`` with
+    ``relative_residual = ‖W π − y‖²_w / ‖y‖²_w`` on the training data (N samples).
+    """
+
+    params: np.ndarray
+    status: str
+    solver: str
+    objective: float
+    relative_residual: float
+    regularization_term: float
+    setup_seconds: float
+    solve_seconds: float
+    consistency: list[BodyReport]
+    projected: list[str] = field(default_factory=list)
+    attempts: list[tuple[str, str]] = field(default_factory=list)
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def consistent(self) -> bool:
+        return all(r.consistent for r in self.consistency)
+
+    def summary(self) -> dict:
+        return {
+            "status": self.status,
+            "solver": self.solver,
+            "objective": self.objective,
+            "relative_residual": self.relative_residual,
+            "regularization_term": self.regularization_term,
+            "setup_seconds": self.setup_seconds,
+            "solve_seconds": self.solve_seconds,
+            "consistent": self.consistent,
+            "projected": self.projected,
+            "attempts": [list(a) for a in self.attempts],
+            "bodies": [r.to_dict() for r in self.consistency],
+            "settings": self.settings,
+        }
+
+
+def _data_factor(
+    A: np.ndarray, b: np.ndarray, c: float, scale: np.ndarray, base: BaseParameters | None, rank_tol: float
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """``R, z, e0`` with ``(xᵀ Â x − 2 b̂ᵀx + 1) = ‖R x − z‖² + e0`` for ``π = scale ⊙ x``, ``Â = A/c``."""
+    if base is None:  # reduced coordinates y = x
+        Mp = np.eye(len(scale))
+        M, m = scale[:, None] * A * scale[None, :] / c, scale * b / c
+    else:  # reduced coordinates y = π_b = B π = B (scale ⊙ x)
+        ind = base.independent
+        Mp = base.B * scale[None, :]
+        M, m = A[np.ix_(ind, ind)] / c, b[ind] / c
+    diag = np.diag(M).copy()
+    dead = diag <= 1e-14 * max(diag.max(), 1e-300)  # structurally unexcited columns (round-off only)
+    M, m = M.copy(), m.copy()
+    M[dead, :] = M[:, dead] = 0.0
+    m[dead] = 0.0
+    d = np.sqrt(np.where(dead, 1.0, diag))
+    lam, V = np.linalg.eigh(M / np.outer(d, d))
+    keep = lam > rank_tol * max(lam[-1], 1e-300)
+    if lam[-1] <= 0 or not np.any(keep):
+        raise ExcitationError("the data do not excite any parameter (the regressor is zero on every sample)")
+    lam, V = lam[keep], V[:, keep]
+    R = (np.sqrt(lam)[:, None] * (V.T * d[None, :])) @ Mp
+    z = (V.T @ (m / d)) / np.sqrt(lam)
+    return R, z, float(1.0 - z @ z)
+
+
+class LmiProblem:
+    """The compiled program for one training set; :meth:`solve` for any γ (γ is a cvxpy
+    Parameter, so re-solving for another γ skips compilation). Build with :func:`build_lmi`."""
+
+    def __init__(
+        self,
+        ne: NormalEquations,
+        structure: ModelStructure,
+        *,
+        base: BaseParameters | None = None,
+        prior: np.ndarray | None = None,
+        regularization: str | Regularizer | None = "pullback",
+        constraints: Sequence[ConstraintBuilder] | None = None,
+        ellipsoids: Mapping[str, Any] | bool | str | None = None,
+        row_weights: np.ndarray | None = None,
+        eps: float = 0.0,
+        rank_tol: float = 1e-12,
+    ) -> None:
+        t0 = time.perf_counter()
+        self.structure = structure
+        p = structure.n_params
+        if ne.A.shape[1] != p:
+            raise DataError(f"normal equations have {ne.A.shape[1]} parameters, the structure {p}")
+        A, b, c = ne.total(None if row_weights is None else np.asarray(row_weights, dtype=float))
+        if not c > 0:
+            raise DataError("every measured torque is zero (‖y‖² = 0): nothing to identify")
+        prior = structure.prior() if prior is None else np.asarray(prior, dtype=float)
+        ell = resolve_ellipsoids(structure.robot, ellipsoids, prior=prior)
+        nb = structure.n_body_params
+        dA = np.diag(A)[nb:]
+        excited = dA > 1e-14 * c
+        js = np.where(excited, np.sqrt(c / np.where(excited, dA, 1.0)), 1.0)
+        self.ctx = ctx = LmiContext.create(structure, prior, ell, js)
+        self.builders = list(default_constraints(eps, density=bool(ell)) if constraints is None else constraints)
+        self.regularizer = make_regularizer(regularization)
+        R, z, self.e0 = _data_factor(A, b, c, ctx.scale, base, rank_tol)
+        self.x = x = cp.Variable(p, name="x")
+        self.n_samples = max(int(ne.n_samples), 1)
+        self.gamma = cp.Parameter(nonneg=True, name="gamma_over_n", value=1e-3 / self.n_samples)
+        self.data_expr = cp.sum_squares(R @ x - z)
+        self.reg_expr = self.regularizer(x, ctx) if self.regularizer is not None else None
+        obj = self.data_expr if self.reg_expr is None else self.data_expr + self.gamma * self.reg_expr
+        cons = [con for bld in self.builders for con in bld(x, ctx)]
+        self.problem = cp.Problem(cp.Minimize(obj), cons)
+        self.rank = R.shape[0]
+        self.eps = eps
+        self.settings = {
+            "regularization": getattr(self.regularizer, "name", None),
+            "constraints": [bld.name for bld in self.builders],
+            "eps": eps,
+            "row_weights": None if row_weights is None else np.asarray(row_weights, dtype=float).tolist(),
+            "data_rank": self.rank,
+            "rank_tol": rank_tol,
+            "reduced_by": "base_parameters" if base is not None else "eigendecomposition",
+            "ellipsoids": {k: e.to_dict() for k, e in ell.items()},
+            "body_mass_scale": ctx.body_mass.tolist(),
+            "body_length_scale": ctx.body_length.tolist(),
+        }
+        self.build_seconds = time.perf_counter() - t0
+        self._first_solve = True
+
+    # ---- solving ---------------------------------------------------------------------
+    def solve(
+        self, gamma: float = 1e-3, *, solver: str | None = None, accept_inaccurate: bool = False, verbose: bool = False
+    ) -> LmiSolution:
+        """Solve for one γ. ``solver=None`` tries :func:`available_solvers` in order;
+        a name (e.g. "SCS") uses only that solver. If every solver ends "optimal_inaccurate"
+        (reduced accuracy), the first such solution is returned when ``accept_inaccurate``,
+        else :class:`SolverError` is raised."""
+        if gamma < 0:
+            raise SolverError(f"gamma must be >= 0, got {gamma}")
+        self.gamma.value = float(gamma) / self.n_samples
+        order = available_solvers() if solver is None else [solver.upper()]
+        attempts: list[tuple[str, str]] = []
+        t_setup = self.build_seconds if self._first_solve else 0.0  # build + cvxpy compilation
+        self._first_solve = False
+        t_solve = 0.0
+        fallback: tuple[str, np.ndarray] | None = None
+        for name in order:
+            t0 = time.perf_counter()
+            try:
+                self.problem.solve(solver=name, verbose=verbose, **_SOLVER_OPTIONS.get(name, {}))
+                status = self.problem.status
+            except (cp.error.SolverError, ValueError, ArithmeticError) as exc:
+                status = f"error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+            wall = time.perf_counter() - t0
+            comp = 0.0 if status.startswith("error") else min(float(self.problem.compilation_time or 0.0), wall)
+            t_setup += comp
+            t_solve += wall - comp
+            attempts.append((name, status))
+            if status == cp.OPTIMAL and self.x.value is not None:
+                return self._solution(name, status, gamma, t_setup, t_solve, attempts)
+            if status == cp.INFEASIBLE:
+                raise SolverError(self._infeasible_message(name))
+            if status == cp.OPTIMAL_INACCURATE and fallback is None and self.x.value is not None:
+                fallback = (name, np.array(self.x.value))
+        if fallback is not None and accept_inaccurate:
+            self.x.value = fallback[1]
+            return self._solution(fallback[0], cp.OPTIMAL_INACCURATE, gamma, t_setup, t_solve, attempts)
+        if attempts and all(s == cp.INFEASIBLE_INACCURATE for _, s in attempts):
+            raise SolverError(self._infeasible_message("/".join(order)))
+        tried = ", ".join(f"{n}: {s}" for n, s in attempts)
+        raise SolverError(
+            f"the physically consistent solve did not converge ({tried}). Try a larger gamma "
+            f"(now {gamma:g}), regularization='pullback', row weights that bring joints to similar "
+            "torque scales, fewer joint terms, accept_inaccurate=True, or install MOSEK"
+        )
+
+    def _infeasible_message(self, solver: str) -> str:
+        prior = self.ctx.prior
+        bad = []
+        for bld in self.builders:
+            v = constraint_violation(bld, prior, self.ctx)
+            if v > 1e-9:
+                bad.append(f"{bld.name} (prior violates it by {v:.3g}; {bld.hint})")
+        if bad:
+            return f"{solver}: the constraints are infeasible. Relax: " + "; ".join(bad)
+        hints = "; ".join(f"{b.name}: {b.hint}" for b in self.builders)
+        return (
+            f"{solver} reports infeasibility although the prior satisfies every constraint: a numerical "
+            f"failure. Try another solver (solver='SCS'/'CLARABEL'), or relax: {hints}"
+        )
+
+    def _solution(self, solver: str, status: str, gamma: float, t_setup: float, t_solve: float, attempts) -> LmiSolution:
+        ctx = self.ctx
+        x = np.array(self.x.value, dtype=float)
+        params = ctx.params(x)
+        rel = max(float(self.data_expr.value) + self.e0, 0.0)
+        reg = float(self.reg_expr.value) if self.reg_expr is not None else 0.0
+        projected: dict[str, float] = {}
+        names = ctx.body_names
+        for k in range(ctx.n_bodies):
+            Jh = pseudo_inertia(x[ctx.body_slice(k)])
+            lam, V = np.linalg.eigh(Jh)
+            if lam[0] < self.eps:
+                Jh = (V * np.maximum(lam, self.eps)) @ V.T
+                params[ctx.body_slice(k)] = ctx.scale[ctx.body_slice(k)] * from_pseudo_inertia(Jh)
+                projected[names[k]] = float((self.eps - lam[0]) / max(np.abs(lam).max(), 1e-300))
+        reports = body_reports(params[: ctx.structure.n_body_params], names, ctx.ellipsoids, projected)
+        settings = {**self.settings, "gamma": float(gamma), "solver": solver, **self.structure.settings()}
+        return LmiSolution(
+            params, status, solver, self.n_samples * rel + gamma * reg, rel, reg, t_setup, t_solve, reports,
+            list(projected), attempts, settings,
+        )
+
+
+def body_reports(
+    pi: np.ndarray,
+    names: Sequence[str],
+    ellipsoids: Mapping[str, BoundingEllipsoid] | None = None,
+    projected: Mapping[str, float] | None = None,
+    tol: float = CONSISTENCY_TOL,
+) -> list[BodyReport]:
+    """Per-body consistency (``λ_min(J) ≥ −tol ‖J‖₂``), triangle margins and ellipsoid margins;
+    ``projected`` maps projected bodies to the size of their projection."""
+    ellipsoids = ellipsoids or {}
+    projected = projected or {}
+    P = np.asarray(pi, dtype=float).reshape(-1, 10)
+    lam = np.linalg.eigvalsh(pseudo_inertia(P))
+    out = []
+    for k, r in enumerate(check_physical_consistency(P, names)):
+        E = ellipsoids.get(r.name)
+        ok = bool(lam[k, 0] >= -tol * np.abs(lam[k]).max())
+        margin = E.density_margin(P[k]) if E is not None else float("nan")
+        out.append(
+            BodyReport(
+                **{**vars(r), "consistent": ok},
+                ellipsoid_margin=margin,
+                projected=r.name in projected,
+                projection=float(projected.get(r.name, 0.0)),
+            )
+        )
+    return out
+
+
+def build_lmi(ne: NormalEquations, structure: ModelStructure, **kwargs: Any) -> LmiProblem:
+    """:class:`LmiProblem` for the training equations ``ne`` (keywords as :func:`solve_lmi`)."""
+    return LmiProblem(ne, structure, **kwargs)
+
+
+def solve_lmi(
+    ne: NormalEquations,
+    structure: ModelStructure,
+    *,
+    base: BaseParameters | None = None,
+    prior: np.ndarray | None = None,
+    regularization: str | Regularizer | None = "pullback",
+    gamma: float = 1e-3,
+    constraints: Sequence[ConstraintBuilder] | None = None,
+    ellipsoids: Mapping[str, Any] | bool | str | None = None,
+    row_weights: np.ndarray | None = None,
+    solver: str | None = None,
+    eps: float = 0.0,
+    rank_tol: float = 1e-12,
+    accept_inaccurate: bool = False,
+    verbose: bool = False,
+) -> LmiSolution:
+    """Physically consistent parameters from compressed normal equations (module docstring).
+
+    ``prior`` defaults to ``structure.prior()`` (model inertials, zero friction, model
+    armature). ``regularization``: "pullback" (default), "entropic", "euclidean", a
+    regulariser instance or None. ``constraints`` defaults to
+    :func:`~.constraints.default_constraints` (``J ⪰ eps``, density in the ellipsoids,
+    friction and armature ≥ 0). ``ellipsoids``: None (automatic, see
+    :func:`~.ellipsoids.resolve_ellipsoids`), "kinematic", False (none) or
+    ``{body: (center, semi_axes, rotation)}``. ``row_weights`` are per-row weights w_r
+    (= 1/σ_r²). ``eps`` (≥ 0) is the margin of ``Ĵ_k ⪰ eps I`` in the body's scaled units
+    (default constraints and the final projection). ``base`` reduces the data term through
+    the base-parameter map instead of an eigendecomposition (same solution). Raises
+    :class:`SolverError` when infeasible or not solved accurately (``accept_inaccurate``
+    returns a reduced-accuracy solution instead).
+    """
+    prob = LmiProblem(
+        ne, structure, base=base, prior=prior, regularization=regularization, constraints=constraints,
+        ellipsoids=ellipsoids, row_weights=row_weights, eps=eps, rank_tol=rank_tol,
+    )
+    return prob.solve(gamma, solver=solver, accept_inaccurate=accept_inaccurate, verbose=verbose)
+
+
+# ---- choosing γ ----------------------------------------------------------------------
+@dataclass
+class GammaSelection:
+    """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds))."""
+
+    gamma: float
+    gammas: np.ndarray
+    scores: np.ndarray
+    fold_scores: np.ndarray
+    score: str
+    failures: dict[float, str] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "gamma": self.gamma,
+            "gammas": self.gammas.tolist(),
+            "scores": self.scores.tolist(),
+            "fold_scores": self.fold_scores.tolist(),
+            "score": self.score,
+            "failures": {str(k): v for k, v in self.failures.items()},
+        }
+
+
+def validation_score(ne: NormalEquations, params: np.ndarray, score: str = "residual", row_weights=None) -> float:
+    """Held-out error of ``params`` on ``ne``.
+
+    "residual": ``Σ_r w_r ‖W_r π − y_r‖² / Σ_r w_r ‖y_r‖²``; "nrmse": mean over rows with a
+    non-zero measured range of ``RMSE_r / range_r``.
+    """
+    ss = ne.residual_ss(params)
+    if score == "residual":
+        w = np.ones(len(ss)) if row_weights is None else np.asarray(row_weights, dtype=float)
+        return float(w @ ss / max(w @ ne.c, 1e-300))
+    if score == "nrmse":
+        rng = ne.y_max - ne.y_min
+        ok = rng > 0
+        return float(np.mean(np.sqrt(ss[ok] / max(ne.n_samples, 1)) / rng[ok]))
+    raise ValueError(f"unknown score '{score}'; use 'residual' or 'nrmse'")
+
+
+def _scan(
+    problem: LmiProblem, ne_val: NormalEquations, gammas: np.ndarray, score: str, row_weights, solver, failures
+) -> np.ndarray:
+    out = np.full(len(gammas), np.inf)
+    for i, g in enumerate(gammas):
+        try:
+            sol = problem.solve(float(g), solver=solver)
+        except SolverError as exc:
+            failures[float(g)] = str(exc)
+            continue
+        out[i] = validation_score(ne_val, sol.params, score, row_weights)
+    return out
+
+
+def _pick(gammas: np.ndarray, fold_scores: np.ndarray, score: str, failures: dict) -> GammaSelection:
+    scores = fold_scores.mean(axis=1)
+    if not np.any(np.isfinite(scores)):
+        raise SolverError(f"no gamma could be solved: {failures}")
+    return GammaSelection(float(gammas[int(np.argmin(scores))]), gammas, scores, fold_scores, score, failures)
+
+
+def select_gamma(
+    ne_train: NormalEquations,
+    ne_val: NormalEquations,
+    structure: ModelStructure,
+    gammas: Sequence[float] = DEFAULT_GAMMAS,
+    *,
+    score: str = "residual",
+    solver: str | None = None,
+    **build_kwargs: Any,
+) -> GammaSelection:
+    """The γ whose solution on ``ne_train`` has the lowest :func:`validation_score` on ``ne_val``.
+
+    ``build_kwargs`` as :func:`solve_lmi` (regularization, constraints, ellipsoids, ...).
+    The program is compiled once; γ is a parameter.
+    """
+    gammas = np.asarray(gammas, dtype=float)
+    failures: dict[float, str] = {}
+    prob = build_lmi(ne_train, structure, **build_kwargs)
+    sc = _scan(prob, ne_val, gammas, score, build_kwargs.get("row_weights"), solver, failures)
+    return _pick(gammas, sc[:, None], score, failures)
+
+
+def excitation_period(traj: Trajectory, *, min_period: float = 1.0, threshold: float = 0.95) -> float | None:
+    """Period [s] of a repeated excitation: the shortest lag (from ``min_period`` to 60 % of
+    the log) at which the autocorrelation of the joint positions (FFT, mean over joints)
+    peaks above ``threshold``; None if there is none. Assumes a roughly uniform rate."""
+    q = np.asarray(traj.q, dtype=float)
+    n = q.shape[0]
+    dt = traj.dt
+    if n < 8 or not np.isfinite(dt) or dt <= 0:
+        return None
+    x = q - q.mean(axis=0)
+    var = (x**2).mean(axis=0)
+    x, var = x[:, var > 0], var[var > 0]
+    if x.shape[1] == 0:
+        return None
+    f = np.fft.rfft(x, 2 * n, axis=0)
+    ac = np.fft.irfft(np.abs(f) ** 2, axis=0)[:n] / (n - np.arange(n))[:, None] / var
+    lo, hi = max(int(np.ceil(min_period / dt)), 1), int(0.6 * n)
+    if hi <= lo + 1:
+        return None
+    r = ac[lo - 1 : hi + 1].mean(axis=1)
+    peak = (r[1:-1] >= r[:-2]) & (r[1:-1] >= r[2:]) & (r[1:-1] >= threshold)
+    k = np.flatnonzero(peak)
+    return float((lo + k[0]) * dt) if k.size else None  # the shortest period
+
+
+def _split_folds(
+    structure: ModelStructure,
+    data: Trajectory | Iterable[Trajectory] | Sequence[NormalEquations],
+    n_folds: int,
+    chunk: int,
+    period: float | str | None,
+) -> list[NormalEquations]:
+    items = [data] if isinstance(data, Trajectory) else list(data)
+    if items and all(isinstance(i, NormalEquations) for i in items):
+        if len(items) < 2:
+            raise DataError("cross-validation needs at least 2 folds of normal equations")
+        return items  # type: ignore[return-value]
+    trajs: list[Trajectory] = items  # type: ignore[assignment]
+    total = sum(len(t) for t in trajs)
+    if n_folds < 2 or total < 2 * n_folds:
+        raise DataError(f"cannot split {total} samples into {n_folds} folds (need n_folds >= 2)")
+    if period == "auto":
+        period = excitation_period(trajs[0])
+    if period is not None:
+        if not float(period) > 0:  # type: ignore[arg-type]
+            raise DataError(f"period must be positive, got {period}")
+        folds = []
+        for f in range(n_folds):
+            parts = []
+            for t in trajs:
+                block = np.floor(((t.t - t.t[0]) % period) / period * n_folds).astype(int)  # type: ignore[operator]
+                if np.any(block == f):
+                    parts.append(t.take(block == f))
+            if not parts:
+                raise DataError(f"no sample falls in phase block {f} of {n_folds}; is period={period} s right?")
+            folds.append(compress(structure, parts, chunk=chunk))
+        return folds
+    edges = np.linspace(0, total, n_folds + 1).round().astype(int)
+    starts = np.cumsum([0] + [len(t) for t in trajs])
+    folds = []
+    for f in range(n_folds):
+        parts = []
+        for t, s in zip(trajs, starts[:-1]):
+            lo, hi = max(edges[f] - s, 0), min(edges[f + 1] - s, len(t))
+            if hi > lo:
+                parts.append(t.take(slice(lo, hi)))
+        folds.append(compress(structure, parts, chunk=chunk))
+    return folds
+
+
+def cross_validate_gamma(
+    structure: ModelStructure,
+    data: Trajectory | Iterable[Trajectory] | Sequence[NormalEquations],
+    gammas: Sequence[float] = DEFAULT_GAMMAS,
+    *,
+    n_folds: int = 5,
+    score: str = "residual",
+    period: float | str | None = None,
+    solver: str | None = None,
+    chunk: int = 2048,
+    **build_kwargs: Any,
+) -> GammaSelection:
+    """K-fold cross-validation of γ on contiguous folds (what ``--gamma auto`` runs).
+
+    The training samples (one trajectory or several, in order) are cut into ``n_folds``
+    contiguous blocks, each compressed once; fold ``f`` trains on the sum of the other
+    blocks' normal equations (they are additive) and scores on block ``f``
+    (:func:`validation_score`). Contiguous blocks keep neighbouring, correlated samples
+    on one side of the split. A periodic excitation (Fourier series) that was logged for
+    several periods repeats itself, so a time block has a twin in the training folds;
+    give its ``period`` [s] (or "auto": :func:`excitation_period` of the first trajectory;
+    no period found → time blocks) and the blocks are contiguous in phase
+    ``(t − t0) mod period`` instead. Precompressed folds may be passed instead of trajectories. The returned γ
+    minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`.
+    """
+    gammas = np.asarray(gammas, dtype=float)
+    folds = _split_folds(structure, data, n_folds, chunk, period)
+    ellipsoids = build_kwargs.pop("ellipsoids", None)
+    prior = build_kwargs.get("prior")
+    ell = resolve_ellipsoids(structure.robot, ellipsoids, prior=structure.prior() if prior is None else prior)
+    failures: dict[float, str] = {}
+    cols = []
+    for f in range(len(folds)):
+        train = functools.reduce(NormalEquations.merge, [folds[i] for i in range(len(folds)) if i != f])
+        prob = build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs)
+        cols.append(_scan(prob, folds[f], gammas, score, build_kwargs.get("row_weights"), solver, failures))
+    return _pick(gammas, np.stack(cols, axis=1), score, failures)
