@@ -34,7 +34,7 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from .compress import NormalEquations
-from .terms import ModelStructure
+from .terms import ModelStructure, _in_robot_order
 
 __all__ = ["ContactStructure", "contact_jacobians", "null_space_projector", "detect_contacts"]
 
@@ -73,8 +73,17 @@ def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8, method: str = "cho
     return P
 
 
-def contact_jacobians(robot, frames: Sequence[int], dims: Sequence[int], Q: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """Stacked contact Jacobians (N, Σ dims, nv); rows of inactive contacts are zero."""
+_EZ_CROSS = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+
+
+def contact_jacobians(
+    robot, frames: Sequence[int], dims: Sequence[int], Q: np.ndarray, active: np.ndarray, offset: float = 0.0
+) -> np.ndarray:
+    """Stacked contact Jacobians (N, Σ dims, nv); rows of inactive contacts are zero.
+
+    ``offset`` ρ moves a point contact from the frame to ρ below it along world z (the
+    bottom of a spherical foot of radius ρ): v_c = v_f + ω × (−ρ e_z) = v_f + ρ [e_z]× ω.
+    """
     model, data = robot.model, robot.data
     N = Q.shape[0]
     m = int(sum(dims))
@@ -86,7 +95,10 @@ def contact_jacobians(robot, frames: Sequence[int], dims: Sequence[int], Q: np.n
         for k, (fid, d) in enumerate(zip(frames, dims)):
             if active[i, k]:
                 Jk = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-                J[i, offsets[k] : offsets[k + 1]] = Jk[:d] if d == 3 else Jk
+                if d == 3:
+                    J[i, offsets[k] : offsets[k + 1]] = Jk[:3] + offset * (_EZ_CROSS @ Jk[3:]) if offset else Jk[:3]
+                else:
+                    J[i, offsets[k] : offsets[k + 1]] = Jk
     return J
 
 
@@ -130,7 +142,8 @@ class ContactStructure(ModelStructure):
     ``mode="wrench"``: rows W, target Sᵀ τ + Jcᵀ f (measured wrenches in
     ``traj.extras["contact_forces"]``).
     Contact flags come from ``traj.extras[contact_key]`` (N, n_contacts) or, when absent,
-    from :func:`detect_contacts`.
+    from :func:`detect_contacts`. ``contact_offset`` is the radius of spherical feet: point
+    contacts are taken that far below the foot frame (world z), where the ground touches.
     """
 
     contact_frames: tuple[str, ...] = ()
@@ -138,6 +151,7 @@ class ContactStructure(ModelStructure):
     mode: Literal["projected", "wrench"] = "projected"
     contact_key: str = "contact"
     rcond: float = 1e-7
+    contact_offset: float = 0.0
     _fids: list[int] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
@@ -170,7 +184,7 @@ class ContactStructure(ModelStructure):
         return flags
 
     def jacobians(self, Q: np.ndarray, flags: np.ndarray) -> np.ndarray:
-        return contact_jacobians(self.robot, self._fids, self.contact_dims, Q, flags)
+        return contact_jacobians(self.robot, self._fids, self.contact_dims, Q, flags, self.contact_offset)
 
     def projector(self, Q: np.ndarray, flags: np.ndarray) -> np.ndarray:
         """P (N, nv, nv), computed per contact pattern on the active rows only."""
@@ -182,7 +196,7 @@ class ContactStructure(ModelStructure):
             on = np.flatnonzero(pattern)
             fids = [self._fids[i] for i in on]
             dims = [self.contact_dims[i] for i in on]
-            J = contact_jacobians(self.robot, fids, dims, Q[idx], np.ones((len(idx), len(on)), bool))
+            J = contact_jacobians(self.robot, fids, dims, Q[idx], np.ones((len(idx), len(on)), bool), self.contact_offset)
             P[idx] = null_space_projector(J, self.rcond)
         return P
 
@@ -232,7 +246,8 @@ class ContactStructure(ModelStructure):
 
     def project(self, traj: Trajectory, tau: np.ndarray) -> np.ndarray:
         """Map actuated torques (N, n_actuated) of any model (e.g. a black-box MLP) to P Sᵀ τ."""
-        Q, _, _ = self.state(traj)
+        ordered = _in_robot_order(self.robot, traj)
+        Q = self.robot.full_configuration(ordered.q, ordered.base_q)
         full = np.zeros((len(traj), self.robot.nv))
         full[:, self.robot.actuated_v_indices] = tau
         if self.mode == "projected":
@@ -246,4 +261,5 @@ class ContactStructure(ModelStructure):
             "contact_dims": list(self.contact_dims),
             "contact_mode": self.mode,
             "rcond": self.rcond,
+            "contact_offset": self.contact_offset,
         }

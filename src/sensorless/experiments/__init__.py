@@ -1,0 +1,1 @@
+"""Reproductions of the papers' studies: each module has run(out, quick, seed, console) -> dict."""

@@ -1,0 +1,350 @@
+"""Study: floating-base identification in contact without force sensing (Solo12, MuJoCo).
+
+Reproduces and extends the published comparison of three torque models trained on logs
+of a quadruped (q, v at 100 Hz, motor torques, contact flags; no force sensing):
+
+* **LMI**: projected regression P (Y π + Sᵀ Φ φ) = P Sᵀ τ (:class:`ContactStructure`)
+  solved as the physically consistent convex program (:func:`solve_lmi`), regularised
+  toward the nominal (CAD) model with the constant-pullback metric;
+* **SVD**: the same projected regression, unconstrained, minimum-norm truncated SVD;
+* **MLP**: a black-box network from sensor measurements (q, v, base twist, gravity in the
+  base frame, contact flags) to joint torques.
+
+All three are scored on the quantity the paper plots — the *projected* torque residual
+P Sᵀ (τ̂ − τ), which does not need the unknown contact forces — as
+
+    RMSE = sqrt( mean_n ‖P_n Sᵀ (τ̂_n − τ_n)‖² / n_actuated ).
+
+The noise floor is the same quantity for the logged torque against the simulator's
+noiseless torque. Training sets are random subsets (10² … 10⁵ samples) of a pool of wobble,
+trot and crawl logs; validation: five held-out logs of the same kinds; out of distribution:
+a trot at speeds never seen in training, and a jump. Parameter errors are measured against
+the simulation's ground truth (what the paper could not do on hardware).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..data.filtering import SavitzkyGolay
+from ..data.trajectory import Trajectory
+from ..errors import SensorlessError
+from ..identification import identify
+from ..identification.lmi import solve_lmi
+from ..parameters import com_frame
+from ..regressor.compress import compress
+from ..regressor.contact import ContactStructure
+from ..robot import Robot, load_robot
+
+__all__ = ["ContactStudyConfig", "run", "prepare_log", "sensor_features", "projected_rmse"]
+
+FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
+JOINT_TERMS = ("fv", "fc", "armature")
+
+
+@dataclass
+class ContactStudyConfig:
+    """Everything that defines a run (stored in results.json)."""
+
+    quick: bool = False
+    seed: int = 0
+    truth_seed: int = 0
+    train_sizes: tuple[int, ...] = (100, 316, 1000, 3162, 10000, 31623, 100000)
+    train_episodes: tuple[tuple[str, dict], ...] = ()
+    episode_duration: float = 25.0
+    validation: tuple[tuple[str, dict], ...] = (
+        ("wobble", {}), ("trot", {"speed": 0.15}), ("trot", {"speed": 0.3}), ("crawl", {}), ("wobble", {"amplitude": 0.7}),
+    )
+    ood_trot: tuple[tuple[str, dict], ...] = (("trot", {"speed": 0.45, "period": 0.35}),)
+    ood_jump: tuple[tuple[str, dict], ...] = (("jump", {}),)
+    eval_duration: float = 15.0
+    log_rate: float = 100.0
+    savgol_window: int = 9
+    acceleration: str = "savgol"  # "savgol": estimated from logged v (realistic); "simulator": exact (upper bound)
+    gamma: float = 1e-3
+    mlp_hidden: tuple[int, ...] = (2048,) * 5
+    mlp_activation: str = "leakyrelu"
+    mlp_epochs: int = 60
+    mlp_max_samples_hidden_2048: int = 100000
+
+    @classmethod
+    def make(cls, quick: bool, seed: int = 0, **overrides) -> "ContactStudyConfig":
+        trot_speeds = (0.1, 0.2, 0.3)
+        episodes = [("wobble", {}), ("crawl", {})] + [("trot", {"speed": s}) for s in trot_speeds]
+        if quick:
+            return cls(
+                quick=True, seed=seed, train_sizes=(100, 316, 1000, 3162, 10000),
+                train_episodes=tuple(episodes * 4), episode_duration=6.0, eval_duration=8.0,
+                mlp_hidden=(256,) * 3, mlp_epochs=60, **overrides,
+            )
+        return cls(quick=False, seed=seed, train_episodes=tuple(episodes * 8), episode_duration=25.0, **overrides)
+
+
+# ---- preprocessing and features ------------------------------------------------------------
+def prepare_log(traj: Trajectory, window: int = 9) -> Trajectory:
+    """Joint and base accelerations by a Savitzky–Golay derivative of the logged velocities."""
+    sg = SavitzkyGolay(window=window, polyorder=3, dt=traj.dt)
+    return traj.with_(a=sg.apply(traj.v, deriv=1), base_a=sg.apply(traj.base_v, deriv=1))
+
+
+def sensor_features(traj: Trajectory) -> np.ndarray:
+    """What the black-box model sees: q, v, base twist, gravity in the base frame, contact flags."""
+    quat = traj.base_q[:, 3:7]  # x, y, z, w
+    x, y, z, w = quat.T
+    # third row of the base→world rotation = world z axis expressed in the base frame
+    gz = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1)
+    contact = np.asarray(traj.extras["contact"], dtype=float)
+    return np.hstack([traj.q, traj.v, traj.base_v, gz, contact])
+
+
+def projected_rmse(structure: ContactStructure, traj: Trajectory, predicted: np.ndarray, target: np.ndarray) -> float:
+    """sqrt(mean ‖r_n‖² / n_actuated) of a projected residual (N, nv)."""
+    r = predicted - target
+    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)) / structure.robot.n_actuated))
+
+
+# ---- the study ------------------------------------------------------------------------------
+@dataclass
+class _Sets:
+    pool: list[Trajectory]
+    pool_truth: list[Any]
+    evals: dict[str, list[tuple[Trajectory, Any]]] = field(default_factory=dict)
+
+
+def _simulate(cfg: ContactStudyConfig, nominal: Robot, console) -> _Sets:
+    from ..simulation.quadruped import NoiseSpec, make_truth, simulate
+
+    truth = make_truth(nominal, cfg.truth_seed)
+    noise = NoiseSpec()
+    seed = cfg.seed * 1000
+
+    def run(kind: str, spec, duration: float, k: int):
+        name, kw = spec
+        traj, gt = simulate(name, nominal, duration=duration, seed=seed + k, truth=truth, noise=noise,
+                            log_rate=cfg.log_rate, **kw)
+        if gt.fell:
+            raise SensorlessError(f"{kind} episode {name} {kw} fell at t={gt.fall_time:.2f} s")
+        if cfg.acceleration == "simulator":
+            return traj.with_(a=gt.a, base_a=gt.base_a), gt
+        return prepare_log(traj, cfg.savgol_window), gt
+
+    pool, pool_truth = [], []
+    t0 = time.perf_counter()
+    for k, spec in enumerate(cfg.train_episodes):
+        tr, gt = run("training", spec, cfg.episode_duration, k)
+        pool.append(tr)
+        pool_truth.append(gt)
+    sets = _Sets(pool, pool_truth)
+    offset = len(cfg.train_episodes) + 100
+    for group, specs in (("validation", cfg.validation), ("ood_trot", cfg.ood_trot), ("ood_jump", cfg.ood_jump)):
+        sets.evals[group] = []
+        for spec in specs:
+            sets.evals[group].append(run(group, spec, cfg.eval_duration, offset))
+            offset += 1
+    if console is not None:
+        n = sum(len(t) for t in pool)
+        console.print(f"simulated {n} training + {sum(len(t) for g in sets.evals.values() for t, _ in g)} "
+                      f"evaluation samples in {time.perf_counter() - t0:.0f} s")
+    return sets
+
+
+def _subset(pool: list[Trajectory], n: int, rng: np.random.Generator) -> Trajectory:
+    """n samples drawn without replacement from the whole pool (contact flags kept)."""
+    whole = Trajectory.concatenate(pool)
+    idx = np.sort(rng.choice(len(whole), size=min(n, len(whole)), replace=False))
+    return whole.take(idx)
+
+
+def _parameter_errors(structure: ContactStructure, params: np.ndarray, true_params: np.ndarray) -> dict:
+    nb = structure.robot.n_bodies
+    est = params[: 10 * nb].reshape(nb, 10)
+    tru = true_params[: 10 * nb].reshape(nb, 10)
+    m_e, c_e, _ = com_frame(est)
+    m_t, c_t, _ = com_frame(tru)
+    out = {
+        "total_mass_true": float(m_t.sum()),
+        "total_mass_estimated": float(m_e.sum()),
+        "total_mass_relative_error": float(abs(m_e.sum() - m_t.sum()) / m_t.sum()),
+        "link_mass_abs_error_mean": float(np.mean(np.abs(m_e - m_t))),
+        "link_mass_relative_error_median": float(np.median(np.abs(m_e - m_t) / np.maximum(m_t, 1e-9))),
+        "link_com_error_mean_m": float(np.mean(np.linalg.norm(c_e - c_t, axis=1))),
+    }
+    for term in ("fv", "fc", "armature"):
+        if term in structure.joint_terms:
+            idx = [structure.joint_term_index(j, term) for j in structure.robot.actuated_joints]
+            out[f"{term}_abs_error_mean"] = float(np.mean(np.abs(params[idx] - true_params[idx])))
+            out[f"{term}_true_mean"] = float(np.mean(np.abs(true_params[idx])))
+    return out
+
+
+def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: ContactStudyConfig | None = None,
+        **overrides) -> dict:
+    """Run the study; write results.json, sample_efficiency.png and table.md into ``out``."""
+    from ..learning.models import MLPTorqueModel
+
+    cfg = config or ContactStudyConfig.make(quick, seed, **overrides)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    nominal = load_robot("solo12")
+    sets = _simulate(cfg, nominal, console)
+    true_robot = sets.pool_truth[0].robot
+    structure = ContactStructure(nominal, contact_frames=FEET, joint_terms=JOINT_TERMS,
+                                 contact_offset=sets.pool_truth[0].foot_radius)
+    true_params = sets.pool_truth[0].truth.parameters(JOINT_TERMS)
+
+    # targets, projectors and noise floors of the evaluation sets, computed once
+    evals = {}
+    for group, items in sets.evals.items():
+        evals[group] = []
+        for traj, gt in items:
+            target = structure.target(traj)
+            clean = structure.project(traj, gt.tau[:, [true_robot.joint_names.index(j) for j in nominal.actuated_joints]])
+            evals[group].append((traj, target, projected_rmse(structure, traj, clean, target)))
+    floors = {g: float(np.mean([f for _, _, f in v])) for g, v in evals.items()}
+    true_rmse = {
+        g: float(np.mean([projected_rmse(structure, t, structure.torques(true_params, t), y) for t, y, _ in v]))
+        for g, v in evals.items()
+    }
+
+    rng = np.random.default_rng(cfg.seed)
+    rows = []
+    pool_n = sum(len(t) for t in sets.pool)
+    for n in cfg.train_sizes:
+        if n > pool_n:
+            continue
+        train = _subset(sets.pool, n, rng)
+        row: dict[str, Any] = {"n_train": n, "rmse": {}, "seconds": {}}
+        t = time.perf_counter()
+        ne = compress(structure, train, chunk=256)
+        t_compress = time.perf_counter() - t
+        t = time.perf_counter()
+        lmi = solve_lmi(ne, structure, gamma=cfg.gamma, regularization="pullback")
+        row["seconds"]["lmi"] = t_compress + time.perf_counter() - t
+        t = time.perf_counter()
+        svd = identify(structure, ne, method="svd")
+        row["seconds"]["svd"] = t_compress + time.perf_counter() - t
+        hidden = cfg.mlp_hidden
+        mlp = MLPTorqueModel(hidden=hidden, activation=cfg.mlp_activation, features=sensor_features,
+                             epochs=cfg.mlp_epochs, seed=cfg.seed, num_threads=2, batch_size=min(256, max(32, n // 8)))
+        t = time.perf_counter()
+        mlp.fit(train)
+        row["seconds"]["mlp"] = time.perf_counter() - t
+        models = {
+            "LMI": lambda tr: structure.torques(lmi.params, tr),
+            "SVD": lambda tr: structure.torques(svd.parameters, tr),
+            "MLP": lambda tr: structure.project(tr, mlp.predict(tr)),
+        }
+        for name, predict in models.items():
+            row["rmse"][name] = {g: float(np.mean([projected_rmse(structure, tr, predict(tr), y) for tr, y, _ in v]))
+                                 for g, v in evals.items()}
+        row["parameters"] = {"LMI": _parameter_errors(structure, lmi.params, true_params),
+                             "SVD": _parameter_errors(structure, svd.parameters, true_params)}
+        row["lmi_status"] = lmi.status
+        row["lmi_consistent"] = lmi.consistent
+        rows.append(row)
+        if console is not None:
+            r = row["rmse"]
+            console.print(
+                f"n={n:>6d}  validation LMI {r['LMI']['validation']:.4f} SVD {r['SVD']['validation']:.4f} MLP {r['MLP']['validation']:.4f} | "
+                f"jump LMI {r['LMI']['ood_jump']:.4f} SVD {r['SVD']['ood_jump']:.4f} MLP {r['MLP']['ood_jump']:.4f} | "
+                f"mass err {100 * row['parameters']['LMI']['total_mass_relative_error']:.2f} %"
+            )
+
+    residual = _soft_contact_residual(sets)
+    results = {
+        "study": "contact-id",
+        "config": _jsonable(asdict(cfg)),
+        "robot": "solo12",
+        "noise": asdict(sets.pool_truth[0].noise),
+        "noise_floor_rmse": floors,
+        "true_parameters_rmse": true_rmse,
+        "soft_contact_residual": residual,
+        "rows": rows,
+        "checks": _checks(rows, floors, true_rmse),
+        "wall_seconds": time.perf_counter() - t_start,
+    }
+    (out / "results.json").write_text(json.dumps(results, indent=2))
+    (out / "table.md").write_text(_table(results))
+    _figure(results, out / "sample_efficiency.png")
+    return results
+
+
+def _soft_contact_residual(sets: _Sets) -> dict:
+    """‖P(M v̇ + h − Sᵀτ − Sᵀτ_f)‖ on noiseless stance samples of the validation wobble log."""
+    from ..simulation.quadruped import stance_residual
+
+    _, gt = sets.evals["validation"][0]
+    res = stance_residual(gt)
+    return {k: res[k] for k in ("samples", "residual_rms", "residual_median", "residual_max", "reference_rms", "relative")}
+
+
+def _checks(rows: list[dict], floors: dict, true_rmse: dict) -> dict:
+    """The acceptance properties, evaluated on this run."""
+    if not rows:
+        return {}
+    big, small = rows[-1], rows[0]
+    groups = ("validation", "ood_trot", "ood_jump")
+    return {
+        "lmi_beats_svd_everywhere": all(r["rmse"]["LMI"][g] < r["rmse"]["SVD"][g] for r in rows for g in groups),
+        "lmi_beats_mlp_smallest_set": all(small["rmse"]["LMI"][g] < small["rmse"]["MLP"][g] for g in groups),
+        "lmi_beats_mlp_ood_every_size": all(r["rmse"]["LMI"][g] < r["rmse"]["MLP"][g] for r in rows for g in ("ood_trot", "ood_jump")),
+        "jump_lmi_over_mlp_largest": big["rmse"]["LMI"]["ood_jump"] / big["rmse"]["MLP"]["ood_jump"],
+        "jump_lmi_over_svd_largest": big["rmse"]["LMI"]["ood_jump"] / big["rmse"]["SVD"]["ood_jump"],
+        "validation_lmi_over_noise_floor_largest": big["rmse"]["LMI"]["validation"] / floors["validation"],
+        "validation_lmi_over_true_parameters_largest": big["rmse"]["LMI"]["validation"] / true_rmse["validation"],
+        "total_mass_error_largest": big["parameters"]["LMI"]["total_mass_relative_error"],
+        "mlp_wins_in_distribution_largest": big["rmse"]["MLP"]["validation"] < big["rmse"]["LMI"]["validation"],
+    }
+
+
+def _table(res: dict) -> str:
+    """Markdown table in the form of the paper's Table I (projected-torque RMSE, N·m)."""
+    lines = ["| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|"]
+    for r in res["rows"]:
+        for m in ("LMI", "SVD", "MLP"):
+            v = r["rmse"][m]
+            lines.append(f"| {r['n_train']} | {m} | {v['validation']:.4f} | {v['ood_trot']:.4f} | {v['ood_jump']:.4f} |")
+    f = res["noise_floor_rmse"]
+    lines.append(f"| — | noise floor | {f['validation']:.4f} | {f['ood_trot']:.4f} | {f['ood_jump']:.4f} |")
+    t = res["true_parameters_rmse"]
+    lines.append(f"| — | true parameters | {t['validation']:.4f} | {t['ood_trot']:.4f} | {t['ood_jump']:.4f} |")
+    return "\n".join(lines) + "\n"
+
+
+def _figure(res: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = (("validation", "validation (5 logs)"), ("ood_trot", "OOD trot"), ("ood_jump", "OOD jump"))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), sharey=True)
+    n = [r["n_train"] for r in res["rows"]]
+    for ax, (g, title) in zip(axes, groups):
+        for m, style in (("LMI", "o-"), ("SVD", "s--"), ("MLP", "^-.")):
+            ax.loglog(n, [r["rmse"][m][g] for r in res["rows"]], style, label=m)
+        ax.axhline(res["noise_floor_rmse"][g], color="k", lw=0.8, ls=":", label="noise floor")
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("training samples")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("projected torque RMSE [N·m]")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    return x
