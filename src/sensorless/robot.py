@@ -254,6 +254,7 @@ def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str]:
     wrapper = erd.load(spec)
     model = wrapper.model
     if floating_base is False and model.joints[1].shortname() == "JointModelFreeFlyer":
+        model.lowerVelocityLimit = -np.abs(model.upperVelocityLimit)
         model = pin.buildReducedModel(model, [1], pin.neutral(model))
     return model, spec, f"example-robot-data:{spec}"
 
@@ -274,6 +275,8 @@ def load_robot(
     """
     model, name, source = _build(str(spec), floating_base)
     if lock_joints:
+        # some example-robot-data models set lowerVelocityLimit = +max, which buildReducedModel rejects
+        model.lowerVelocityLimit = -np.abs(model.upperVelocityLimit)
         names = list(model.names)
         bad = [j for j in lock_joints if j not in names]
         if bad:
