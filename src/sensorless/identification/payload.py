@@ -21,8 +21,9 @@ frame Jacobian in the LOCAL frame. The payload is then fitted to the residual:
 
 Rows are weighted by the inverse residual variance per joint (two-step, as in WLS).
 Uncertainty: the analytic standard error (Yᵀ Σ⁻¹ Y)⁻¹ assumes white residuals and is
-optimistic for time series; a moving-block bootstrap (blocks of ``block_seconds``,
-re-solving with the same estimator) is reported alongside and used for ``mass_std``.
+optimistic for time series; a block bootstrap (non-overlapping blocks of ``block_seconds``
+resampled with replacement, re-solved with the same estimator) is reported alongside and
+used for ``mass_std``.
 """
 
 from __future__ import annotations
@@ -266,7 +267,7 @@ def identify_payload(
     robot = structure.robot
     if robot.floating_base:
         raise DataError("payload identification supports fixed-base arms only")
-    fid = robot.frame_id(frame)
+    robot.frame_id(frame)  # RobotModelError naming the known frames
     rows = structure.n_rows
     blocks = _Blocks(rows)
     ss_before = np.zeros(rows)
@@ -285,7 +286,6 @@ def identify_payload(
             n_total += len(part)
     if n_total < 10:
         raise ExcitationError(f"only {n_total} samples; a payload needs a longer log")
-    del fid
     A_r, b_r, c_r, n = blocks.total()
     com_arr = np.zeros(3) if com is None else np.asarray(com, dtype=float)
 

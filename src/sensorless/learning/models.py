@@ -332,6 +332,11 @@ class HybridModel(_Network):
         return {"window": self.window, "stride": self.stride, "hidden": list(self.hidden), "activation": self.activation,
                 "per_joint": self.per_joint, "use_model_torque": self.use_model_torque}
 
+    @property
+    def structure_(self) -> ModelStructure:
+        """The physical model's structure (rows of the prediction)."""
+        return self.physical_model.structure_
+
     def _target(self, traj: Trajectory) -> np.ndarray:
         s = getattr(self.physical_model, "structure_", None)
         if s is not None:

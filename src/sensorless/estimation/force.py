@@ -1,0 +1,232 @@
+"""Cartesian force from external joint torque: F = (Jᵀ)⁺ τ_ext, damped near singularities.
+
+External torque: what the dynamic model (and an optional learned residual) does not explain,
+
+    τ_ext = τ_measured − τ_model(q, q̇, q̈) − τ_residual.
+
+A wrench F applied at a frame produces τ_ext = Jᵀ F, with J the frame Jacobian (rows:
+linear then angular, in the chosen reference: ``local``, ``world`` or
+``local_world_aligned``, Pinocchio's conventions; the estimated wrench is expressed in the
+same reference). Per sample we solve the damped least-squares problem
+
+    F = argmin ‖Jᵀ F − τ_ext‖² + λ² ‖F‖²  =  U diag(σ / (σ² + λ²)) Vᵀ τ_ext,   J = U Σ Vᵀ,
+
+with an adaptive damping (Nakamura & Hanafusa; Chiaverini) that is zero away from
+singularities and grows as the smallest singular value σ_min drops below ε:
+
+    λ² = λ_max² (1 − (σ_min / ε)²)  if σ_min < ε,  else 0.
+
+The gain of any direction is then at most 1/(2λ): the estimate stays bounded at a
+singularity instead of blowing up. All samples are solved at once (batched SVD); only the
+Jacobians are computed per sample, by Pinocchio.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from ..data.trajectory import Trajectory
+from ..errors import DataError, RobotModelError, ShapeMismatchError
+from ..robot import Robot
+
+__all__ = [
+    "REFERENCES",
+    "CartesianForceEstimator",
+    "ForceEstimate",
+    "damped_least_squares",
+    "external_torque",
+    "frame_jacobians",
+]
+
+Reference = Literal["local", "world", "local_world_aligned"]
+REFERENCES: dict[str, pin.ReferenceFrame] = {
+    "local": pin.LOCAL,
+    "world": pin.WORLD,
+    "local_world_aligned": pin.LOCAL_WORLD_ALIGNED,
+}
+_COMPONENTS = {"linear": slice(0, 3), "angular": slice(3, 6), "wrench": slice(0, 6)}
+_LABELS = ("fx", "fy", "fz", "mx", "my", "mz")
+
+
+def _reference(name: str) -> pin.ReferenceFrame:
+    try:
+        return REFERENCES[name.lower()]
+    except KeyError:
+        raise RobotModelError(f"unknown reference '{name}'; choose from {sorted(REFERENCES)}") from None
+
+
+def frame_jacobians(robot: Robot, Q: np.ndarray, frame: str, reference: str = "local_world_aligned") -> np.ndarray:
+    """Frame Jacobians (N, 6, nv) at configurations Q (N, nq), one Pinocchio call per sample."""
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    if Q.shape[1] != robot.nq:
+        raise ShapeMismatchError(f"configurations have {Q.shape[1]} columns, robot '{robot.name}' has nq={robot.nq}")
+    fid = robot.frame_id(frame)
+    ref = _reference(reference)
+    model, data = robot.model, robot.data
+    out = np.empty((Q.shape[0], 6, robot.nv))
+    for i in range(Q.shape[0]):
+        out[i] = pin.computeFrameJacobian(model, data, Q[i], fid, ref)
+    return out
+
+
+@dataclass
+class DampedSolution:
+    F: np.ndarray  # (N, m)
+    sigma_min: np.ndarray  # (N,)
+    damping: np.ndarray  # (N,) λ
+
+
+def damped_least_squares(
+    J: np.ndarray, tau: np.ndarray, *, sigma_threshold: float = 0.01, lambda_max: float = 0.02
+) -> DampedSolution:
+    """Batched F = argmin ‖J_iᵀ F − τ_i‖² + λ_i²‖F‖² for J (N, m, n), τ (N, n).
+
+    λ_i is the adaptive damping of the module docstring (``sigma_threshold`` = ε); with
+    ``lambda_max = 0`` this is the plain pseudo-inverse solution.
+    """
+    J = np.asarray(J, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    if J.ndim != 3 or tau.shape != (J.shape[0], J.shape[2]):
+        raise ShapeMismatchError(f"need J (N, m, n) and tau (N, n); got J {J.shape}, tau {tau.shape}")
+    U, s, Vt = np.linalg.svd(J, full_matrices=False)  # (N,m,k) (N,k) (N,k,n)
+    k = s.shape[1]
+    # smallest singular value of the m-row map (0 if J has fewer columns than rows: rank-deficient)
+    smin = s[:, -1] if k == J.shape[1] else np.zeros(J.shape[0])
+    ratio = np.clip(smin / sigma_threshold, 0.0, 1.0) if sigma_threshold > 0 else np.ones_like(smin)
+    lam2 = lambda_max**2 * (1.0 - ratio**2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = s**2 + lam2[:, None]
+        gain = np.where(denom > 0, s / denom, 0.0)
+    F = np.einsum("nmk,nk,nk->nm", U, gain, np.einsum("nkj,nj->nk", Vt, tau))
+    return DampedSolution(F, smin, np.sqrt(lam2))
+
+
+def external_torque(
+    measured: np.ndarray, model: np.ndarray, residual: np.ndarray | None = None
+) -> np.ndarray:
+    """τ_ext = τ_measured − τ_model (− τ_residual), arrays (N, n)."""
+    measured, model = np.asarray(measured, float), np.asarray(model, float)
+    if measured.shape != model.shape:
+        raise ShapeMismatchError(f"measured torque {measured.shape} and model torque {model.shape} differ")
+    out = measured - model
+    if residual is not None:
+        residual = np.asarray(residual, float)
+        if residual.shape != out.shape:
+            raise ShapeMismatchError(f"residual torque {residual.shape} does not match {out.shape}")
+        out = out - residual
+    return out
+
+
+@dataclass
+class ForceEstimate:
+    """Estimated force/wrench per sample with the diagnostics of the damped solve."""
+
+    t: np.ndarray
+    F: np.ndarray  # (N, m)
+    labels: list[str]
+    frame: str
+    reference: str
+    tau_ext: np.ndarray
+    sigma_min: np.ndarray
+    damping: np.ndarray
+    settings: dict = field(default_factory=dict)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Arrays for ``np.savez`` (plain dtypes only, loadable without pickle)."""
+        return {
+            "t": self.t, "force": self.F, "labels": np.array(self.labels), "tau_ext": self.tau_ext,
+            "sigma_min": self.sigma_min, "damping": self.damping,
+            "frame": np.array(self.frame), "reference": np.array(self.reference),
+        }
+
+
+class CartesianForceEstimator:
+    """F = (Jᵀ)⁺ τ_ext at ``frame``, expressed in ``reference``.
+
+    ``components``: "linear" (3 forces: a pure force at the frame origin — the usual choice
+    for a tool tip), "angular" (3 moments) or "wrench" (6). ``joints``: which actuated
+    joints' torques to use (default all; e.g. drop wrist joints whose torques are noisy).
+    ``sigma_threshold`` ε and ``lambda_max`` set the damping (units of the Jacobian rows).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        frame: str,
+        reference: str = "local_world_aligned",
+        *,
+        components: str = "linear",
+        joints: Sequence[str] | None = None,
+        sigma_threshold: float = 0.01,
+        lambda_max: float = 0.02,
+    ) -> None:
+        if robot.floating_base:
+            raise RobotModelError(f"{robot.name}: Cartesian force estimation supports fixed-base arms only")
+        robot.frame_id(frame)
+        _reference(reference)
+        if components not in _COMPONENTS:
+            raise RobotModelError(f"unknown components '{components}'; choose from {sorted(_COMPONENTS)}")
+        self.robot, self.frame, self.reference, self.components = robot, frame, reference.lower(), components
+        self.joints = tuple(joints) if joints is not None else tuple(robot.actuated_joints)
+        bad = [j for j in self.joints if j not in robot.actuated_joints]
+        if bad:
+            raise RobotModelError(f"joints {bad} are not actuated joints of '{robot.name}' ({list(robot.actuated_joints)})")
+        self._cols = np.array([robot.actuated_joints.index(j) for j in self.joints], dtype=int)
+        self._v = robot.actuated_v_indices[self._cols]
+        self.sigma_threshold, self.lambda_max = float(sigma_threshold), float(lambda_max)
+
+    @property
+    def labels(self) -> list[str]:
+        return list(_LABELS[_COMPONENTS[self.components]])
+
+    def jacobians(self, Q: np.ndarray) -> np.ndarray:
+        """Rows of the chosen components, columns of the chosen joints: (N, m, n_joints)."""
+        J = frame_jacobians(self.robot, Q, self.frame, self.reference)
+        return J[:, _COMPONENTS[self.components]][:, :, self._v]
+
+    def from_external_torque(self, Q: np.ndarray, tau_ext: np.ndarray, t: np.ndarray | None = None) -> ForceEstimate:
+        """Force from Pinocchio configurations Q (N, nq) and τ_ext (N, n_actuated)."""
+        tau_ext = np.atleast_2d(np.asarray(tau_ext, dtype=float))
+        Q = np.atleast_2d(Q)
+        if tau_ext.shape != (Q.shape[0], self.robot.n_actuated):
+            raise ShapeMismatchError(
+                f"tau_ext has shape {tau_ext.shape}; expected ({Q.shape[0]}, {self.robot.n_actuated}) "
+                f"(actuated joints {list(self.robot.actuated_joints)})"
+            )
+        if not np.all(np.isfinite(tau_ext)):
+            bad = int(np.argwhere(~np.isfinite(tau_ext))[0, 0])
+            raise DataError(f"tau_ext is not finite at sample {bad}")
+        sol = damped_least_squares(self.jacobians(Q), tau_ext[:, self._cols],
+                                   sigma_threshold=self.sigma_threshold, lambda_max=self.lambda_max)
+        return ForceEstimate(
+            t=np.arange(Q.shape[0], dtype=float) if t is None else np.asarray(t, float),
+            F=sol.F, labels=self.labels, frame=self.frame, reference=self.reference, tau_ext=tau_ext,
+            sigma_min=sol.sigma_min, damping=sol.damping, settings=self.settings(),
+        )
+
+    def estimate(self, traj: Trajectory, model, residual=None) -> ForceEstimate:
+        """τ_ext = τ_measured − model.predict(traj) (− residual.predict_residual(traj)) → F.
+
+        ``model`` is any fitted torque model with ``predict`` (rows = actuated joints), e.g.
+        :class:`~sensorless.estimators.PhysicalModel`, a hybrid or a learned model; ``residual``
+        an optional object with ``predict_residual(traj)`` (a learned correction).
+        """
+        from ..regressor.terms import ModelStructure
+
+        structure = getattr(model, "structure_", None) or ModelStructure(self.robot, joint_terms=())
+        measured = structure.target(traj)
+        tau_ext = external_torque(measured, model.predict(traj),
+                                  None if residual is None else residual.predict_residual(traj))
+        Q = structure.state(traj)[0] if traj.v is not None and traj.a is not None else self.robot.full_configuration(
+            traj.select_joints(list(self.robot.joint_names)).q)
+        return self.from_external_torque(Q, tau_ext, traj.t)
+
+    def settings(self) -> dict:
+        return {
+            "frame": self.frame, "reference": self.reference, "components": self.components,
+            "joints": list(self.joints), "sigma_threshold": self.sigma_threshold, "lambda_max": self.lambda_max,
+        }
