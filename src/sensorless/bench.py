@@ -135,7 +135,7 @@ def _contact_log(robot, structure, n: int, seed: int):
                       extras={"contact": flags}, source="<benchmark>")
 
 
-def bench_contact(n_samples: int = 100_000, seed: int = 0, console=None, methods=("svd",)) -> dict:
+def bench_contact(n_samples: int = 100_000, seed: int = 0, console=None, methods=("svd", "lmi")) -> dict:
     """Contact-projected identification of Solo12 from stance/trot samples.
 
     End-to-end wall time (Jacobians + projection + regressor + compression + solve) per
