@@ -82,7 +82,7 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
         f"LMI {np.round(scores['LMI'].rmse / NOISE_STD, 3).tolist()} (1.0 = noise floor)"
     )
     console.print(
-        f"physically inconsistent bodies: "
+        "physically inconsistent bodies: "
         + ", ".join(f"{m.upper()} {len(b)}/{robot.n_bodies}" for m, b in doc["physical_consistency"].items())
         + f"; OLS base-parameter relative error (norm) {rel_err:.2e}; model.urdf from LMI (γ = {doc['lmi']['gamma']:.3g})"
     )

@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from ..data.filtering import SavitzkyGolay
 from ..data.trajectory import Trajectory
