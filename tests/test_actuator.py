@@ -181,3 +181,29 @@ def test_errors():
         fit_least_squares(tau, np.zeros_like(dq), y)
     with pytest.raises(ExcitationError):
         fit_two_stage(tau, dq, y, v_threshold=100.0)
+
+
+def test_saturated_samples_are_excluded_from_the_fits():
+    """Where the drive saturates Δq keeps growing at constant torque; the ``valid`` mask from
+    :func:`unsaturated` removes those samples and the fits recover the true model."""
+    from sensorless.actuator import fit_asymmetric, fit_least_squares, unsaturated
+
+    rng = np.random.default_rng(3)
+    n, k_tau, k_v, limit = 20000, 2e-4, 5e-3, 100.0
+    tau = rng.uniform(-150, 150, n)
+    dq = rng.normal(0, 0.5, n)
+    current = np.clip(tau, -limit, limit) / 10.0  # measured motor current [A], 10 Nm/A
+    y = k_tau * tau + k_v * dq + rng.normal(0, 1e-5, n)
+    sat = np.abs(tau) > limit
+    y[sat] += 3e-3 * np.sign(tau[sat])  # position error runs away while the current is clipped
+    ok = unsaturated(current[:, None] + rng.normal(0, 0.01, (n, 1)), limit / 10.0)
+    assert ok[sat].sum() == 0 and ok[~sat].mean() > 0.95
+    biased = fit_least_squares(tau, dq, y)
+    clean = fit_least_squares(tau, dq, y, valid=ok)
+    assert abs(biased.k_tau[0] / k_tau - 1) > 0.05
+    assert abs(clean.k_tau[0] / k_tau - 1) < 1e-3 and abs(clean.k_v[0] / k_v - 1) < 1e-2
+    asym = fit_asymmetric(tau, dq, y, 100.0, valid=ok)
+    assert asym.info["n_valid"]["joint0"] == int(ok.sum())
+    assert asym.info["over_estimation_fraction"]["joint0"] < 0.15
+    with pytest.raises(ShapeMismatchError, match="valid mask"):
+        fit_least_squares(tau, dq, y, valid=ok[:10])

@@ -147,3 +147,45 @@ def test_identifiability_report_all_feet_in_contact_loses_directions(solo12):
     assert mixed["n_base_excited"] == base.rank
     assert only["n_base_excited"] < mixed["n_base_excited"]
     assert len(only["not_excited"]) == base.rank - only["n_base_excited"]
+
+
+def test_cli_identifies_a_legged_robot_from_npz_logs_with_contact_flags(solo12, tmp_path):
+    """`sensorless identify --contact-frames …` on simulated Solo12 logs (q, v at 100 Hz, τ,
+    contact flags in the NPZ): the projected LMI model is physically consistent, beats the CAD
+    model on a held-out log, recovers the total mass, and `predict` rebuilds the projection."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+    from sensorless.data import read_trajectory, write_npz
+    from sensorless.estimators import load_parameters
+    from sensorless.experiments.contact_id import prepare_log
+    from sensorless.simulation.quadruped import make_truth, simulate
+
+    truth = make_truth(solo12, 0)
+    paths = {}
+    for name, (scen, kw, seed) in {"train": ("trot", {"speed": 0.2}, 1), "val": ("wobble", {}, 2)}.items():
+        traj, gt = simulate(scen, solo12, duration=6.0, seed=seed, truth=truth, **kw)
+        paths[name] = write_npz(prepare_log(traj), tmp_path / f"{name}.npz")
+    back = read_trajectory(paths["val"], robot=solo12)
+    assert back.extras["contact"].dtype == bool and back.extras["contact"].shape == (len(back), 4)
+    out = tmp_path / "id"
+    args = ["identify", "--robot", "solo12", "--data", paths["train"], "--validate", paths["val"], "--out", out,
+            "--contact-frames", ",".join(FEET), "--contact-offset", gt.foot_radius, "--method", "lmi",
+            "--gamma", "1e-3", "--joint-terms", "fv,fc,armature", "--coulomb-smoothing", "0.02"]
+    r = CliRunner().invoke(app, [str(a) for a in args])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "result.json").read_text())
+    assert doc["settings"]["contact_frames"] == list(FEET)
+    assert doc["physical_consistency"]["inconsistent_bodies"] == []
+    val = doc["validation"][str(paths["val"])]
+    assert val["lmi"]["mean_rmse"] < 0.9 * val["cad"]["mean_rmse"]  # measured 0.049 vs 0.060 (SG accelerations)
+    structure, params = load_parameters(out / "result.json", solo12)
+    assert isinstance(structure, ContactStructure) and structure.contact_offset == gt.foot_radius
+    m_true = truth.parameters(())[0::10].sum()
+    # 600 trot samples, accelerations from 100 Hz velocities: measured 6.4 % (prior 2.6 %)
+    assert abs(params[: 10 * solo12.n_bodies][0::10].sum() / m_true - 1) < 0.1
+    # a contact frame that does not exist is a one-line error, and no output is left behind
+    bad = CliRunner().invoke(app, [str(a) for a in args[:-14]] + ["--out", str(tmp_path / "bad"), "--contact-frames", "FL_FOOT,NOPE"])
+    assert bad.exit_code != 0 and "NOPE" in bad.output and not (tmp_path / "bad").exists()

@@ -8,6 +8,8 @@ Hyper-parameters go in ``__init__``; learned state in attributes ending in ``_``
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 from pathlib import Path
 from typing import Iterable, Protocol, Sequence
@@ -73,9 +75,11 @@ class PhysicalModel(_Scored):
 class CADModel(_Scored):
     """The robot model file as it is (its inertials and armature, no friction): the baseline."""
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: Robot, like: ModelStructure | None = None) -> None:
+        """``like``: score on the same equations as this structure (e.g. a contact projection)."""
         self.robot = robot
-        self.structure_ = ModelStructure(robot, joint_terms=("armature",))
+        self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
+                           else dataclasses.replace(like, joint_terms=("armature",)))
         self.parameters_ = self.structure_.prior()
 
     def fit(self, data=None) -> "CADModel":
@@ -94,12 +98,17 @@ def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructu
         values = doc["parameters"]
     except (OSError, ValueError, KeyError) as exc:
         raise SensorlessError(f"{path}: not a sensorless result file ({exc})") from None
-    structure = ModelStructure(
-        robot,
-        joint_terms=tuple(settings["joint_terms"]),
-        coulomb_smoothing=settings.get("coulomb_smoothing", 0.0),
-        rows=settings.get("rows"),
-    )
+    common = {"joint_terms": tuple(settings["joint_terms"]), "coulomb_smoothing": settings.get("coulomb_smoothing", 0.0)}
+    if settings.get("contact_frames"):
+        from .regressor.contact import ContactStructure
+
+        structure = ContactStructure(
+            robot, **common, contact_frames=tuple(settings["contact_frames"]),
+            contact_dims=tuple(settings.get("contact_dims", ())), mode=settings.get("contact_mode", "projected"),
+            rcond=settings.get("rcond", 1e-7), contact_offset=settings.get("contact_offset", 0.0),
+        )
+    else:
+        structure = ModelStructure(robot, **common, rows=settings.get("rows"))
     missing = [lab for lab in structure.labels if lab not in values]
     if missing:
         raise SensorlessError(

@@ -9,6 +9,7 @@ from .fits import (
     fit_least_squares,
     fit_piecewise_linear,
     fit_two_stage,
+    unsaturated,
 )
 from .model import (
     CurrentModel,
@@ -30,6 +31,7 @@ __all__ = [
     "fit_least_squares",
     "fit_piecewise_linear",
     "fit_two_stage",
+    "unsaturated",
     "over_estimation",
     "over_estimation_fraction",
 ]

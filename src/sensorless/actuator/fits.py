@@ -30,11 +30,12 @@ from .model import (
     CurrentModel,
     MotorModel,
     PiecewiseLinearModel,
-    over_estimation_fraction,
+    over_estimation,
 )
 
 __all__ = [
     "AsymmetricSolution",
+    "unsaturated",
     "asymmetric_least_squares",
     "benchmark_asymmetric_fit",
     "fit_asymmetric",
@@ -46,7 +47,10 @@ __all__ = [
 
 
 # ---- input checks ------------------------------------------------------------------
-def _prepare(arrays: dict[str, np.ndarray], joint_names: Sequence[str]) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
+def _prepare(arrays: dict[str, np.ndarray], joint_names: Sequence[str],
+             valid=None) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
+    """Check shapes and finiteness; ``out["valid"]`` is the (N, n) mask of samples to fit
+    (``valid``: None = all, (N,) or (N, n) bool, e.g. from :func:`unsaturated`)."""
     out = {}
     shape = None
     for name, a in arrays.items():
@@ -68,7 +72,26 @@ def _prepare(arrays: dict[str, np.ndarray], joint_names: Sequence[str]) -> tuple
     names = tuple(joint_names) or tuple(f"joint{j}" for j in range(n))
     if len(names) != n:
         raise ShapeMismatchError(f"{len(names)} joint names for {n} columns")
+    if valid is None:
+        out["valid"] = np.ones(shape, bool)
+    else:
+        v = np.asarray(valid, dtype=bool)
+        v = np.broadcast_to(v[:, None] if v.ndim == 1 else v, shape) if v.shape[0] == shape[0] else None
+        if v is None:
+            raise ShapeMismatchError(f"valid mask has shape {np.shape(valid)}, expected ({shape[0]},) or {shape}")
+        out["valid"] = np.ascontiguousarray(v)
     return out, names
+
+
+def unsaturated(command, limit, margin: float = 0.98) -> np.ndarray:
+    """(N, n) mask of samples whose drive command (current or motor torque) is below
+    ``margin`` × its ``limit`` in magnitude. Saturated samples break Δq = Kτ τ + …: the
+    position error keeps growing while the torque does not, so fits should drop them."""
+    c = np.atleast_2d(np.asarray(command, dtype=float))
+    lim = np.broadcast_to(np.asarray(limit, dtype=float), c.shape[1:])
+    if np.any(lim <= 0):
+        raise ShapeMismatchError(f"saturation limits must be positive, got {lim}")
+    return np.abs(c) < margin * lim
 
 
 def _check_rank(X: np.ndarray, joint: str, what: str) -> None:
@@ -226,12 +249,20 @@ def _line_search(r: np.ndarray, d: np.ndarray, pos: np.ndarray, wm1: float) -> f
 
 
 # ---- fits -------------------------------------------------------------------------------
-def _finish(model: MotorModel, tau, dq, y, coulomb: bool, extra: list[dict]) -> MotorModel:
+def _masked_metrics(pred, y, valid) -> tuple[np.ndarray, np.ndarray]:
+    """Per-column over-estimation fraction and RMSE over the ``valid`` samples."""
+    cnt = np.maximum(valid.sum(axis=0), 1)
+    over = (over_estimation(pred, y) & valid).sum(axis=0) / cnt
+    rmse = np.sqrt((np.where(valid, pred - y, 0.0) ** 2).sum(axis=0) / cnt)
+    return over, rmse
+
+
+def _finish(model: MotorModel, tau, dq, y, coulomb: bool, extra: list[dict], valid) -> MotorModel:
     pred = model.delta_q(tau, dq, coulomb=coulomb)
-    over = over_estimation_fraction(pred, y)
-    rmse = np.sqrt(((pred - y) ** 2).mean(axis=0))
+    over, rmse = _masked_metrics(pred, y, valid)
     model.info = {
         "n_samples": int(tau.shape[0]),
+        "n_valid": dict(zip(model.joint_names, valid.sum(axis=0).tolist())),
         "coulomb": coulomb,
         "over_estimation_fraction": dict(zip(model.joint_names, over.tolist())),
         "rmse": dict(zip(model.joint_names, rmse.tolist())),
@@ -245,37 +276,40 @@ def _unpack(theta: np.ndarray, coulomb: bool) -> tuple[float, float, float]:
     return float(theta[0]), float(theta[1]), float(theta[2]) if coulomb else 0.0
 
 
-def fit_least_squares(tau, dq, delta_q, coulomb: bool = False, joint_names: Sequence[str] = ()) -> MotorModel:
-    """Ordinary least squares of Δq on [τ, q̇ (, sgn q̇)] per joint."""
-    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names)
+def fit_least_squares(tau, dq, delta_q, coulomb: bool = False, joint_names: Sequence[str] = (),
+                      valid=None) -> MotorModel:
+    """Ordinary least squares of Δq on [τ, q̇ (, sgn q̇)] per joint (``valid``: see :func:`_prepare`)."""
+    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names, valid)
     n = len(names)
     P = np.zeros((n, 3))
     for j in range(n):
-        X = _features(a["tau"][:, j], a["dq"][:, j], coulomb)
+        m = a["valid"][:, j]
+        X = _features(a["tau"][m, j], a["dq"][m, j], coulomb)
         _check_rank(X, names[j], "Δq = Kτ τ + Kv q̇" + (" + Kc sgn q̇" if coulomb else ""))
-        P[j] = _unpack(_scaled_lstsq(X, a["delta_q"][:, j]), coulomb)
+        P[j] = _unpack(_scaled_lstsq(X, a["delta_q"][m, j]), coulomb)
     model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method="least_squares")
-    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, [])
+    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, [], a["valid"])
 
 
 def fit_asymmetric(
-    tau, dq, delta_q, weight: float = 100.0, coulomb: bool = False, joint_names: Sequence[str] = ()
+    tau, dq, delta_q, weight: float = 100.0, coulomb: bool = False, joint_names: Sequence[str] = (), valid=None
 ) -> MotorModel:
     """Asymmetric-penalty fit (over-estimation of |Δq| weighted ``weight`` times), per joint."""
-    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names)
+    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names, valid)
     n = len(names)
     P = np.zeros((n, 3))
     extra = []
     for j in range(n):
-        X = _features(a["tau"][:, j], a["dq"][:, j], coulomb)
+        m = a["valid"][:, j]
+        X = _features(a["tau"][m, j], a["dq"][m, j], coulomb)
         _check_rank(X, names[j], "the asymmetric motor model")
-        sol = asymmetric_least_squares(X, a["delta_q"][:, j], weight)
+        sol = asymmetric_least_squares(X, a["delta_q"][m, j], weight)
         if not sol.converged:
             raise SolverError(f"joint '{names[j]}': asymmetric fit did not converge in {sol.iterations} Newton steps")
         P[j] = _unpack(sol.theta, coulomb)
         extra.append({"iterations": sol.iterations, "seconds": sol.seconds})
     model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method=f"asymmetric(w={weight:g})", info={"weight": weight})
-    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, extra)
+    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, extra, a["valid"])
 
 
 def fit_two_stage(
@@ -286,18 +320,20 @@ def fit_two_stage(
     coulomb: bool = True,
     weight: float = 1.0,
     joint_names: Sequence[str] = (),
+    valid=None,
 ) -> MotorModel:
     """Stage 1: Δq = Kτ τ on samples with |q̇| < v_threshold. Stage 2: Δq − Kτ τ = Kv q̇
     (+ Kc sgn q̇) on the others. ``weight`` > 1 uses the asymmetric penalty in both
     stages. Default threshold: 5 % of the joint's max |q̇|."""
-    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names)
+    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names, valid)
     n = len(names)
-    vmax = np.abs(a["dq"]).max(axis=0)
+    vmax = np.abs(np.where(a["valid"], a["dq"], 0.0)).max(axis=0)
     thr = 0.05 * vmax if v_threshold is None else np.broadcast_to(np.asarray(v_threshold, float), (n,))
     P = np.zeros((n, 3))
     extra = []
     for j in range(n):
-        t, v, y = a["tau"][:, j], a["dq"][:, j], a["delta_q"][:, j]
+        m = a["valid"][:, j]
+        t, v, y = a["tau"][m, j], a["dq"][m, j], a["delta_q"][m, j]
         slow = np.abs(v) < thr[j]
         if slow.sum() < 10 or (~slow).sum() < 10:
             raise ExcitationError(
@@ -313,7 +349,7 @@ def fit_two_stage(
         P[j] = (k_tau, th2[0], th2[1] if coulomb else 0.0)
         extra.append({"v_threshold": float(thr[j]), "n_slow": int(slow.sum()), "n_moving": int((~slow).sum())})
     model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method="two_stage" + (f"(w={weight:g})" if weight != 1 else ""))
-    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, extra)
+    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, extra, a["valid"])
 
 
 def _solve(X: np.ndarray, y: np.ndarray, weight: float) -> np.ndarray:
@@ -323,14 +359,16 @@ def _solve(X: np.ndarray, y: np.ndarray, weight: float) -> np.ndarray:
     return sol.theta
 
 
-def fit_current_model(current, dq, tau, coulomb: bool = True, joint_names: Sequence[str] = ()) -> CurrentModel:
+def fit_current_model(current, dq, tau, coulomb: bool = True, joint_names: Sequence[str] = (),
+                      valid=None) -> CurrentModel:
     """τ = K1 i − Fv q̇ − Fc sgn(q̇) by least squares, per joint."""
-    a, names = _prepare({"current": current, "dq": dq, "tau": tau}, joint_names)
+    a, names = _prepare({"current": current, "dq": dq, "tau": tau}, joint_names, valid)
     n = len(names)
     P = np.zeros((n, 3))
     rmse = []
     for j in range(n):
-        i, v, t = a["current"][:, j], a["dq"][:, j], a["tau"][:, j]
+        m = a["valid"][:, j]
+        i, v, t = a["current"][m, j], a["dq"][m, j], a["tau"][m, j]
         X = np.column_stack([i, -v] + ([-np.sign(v)] if coulomb else []))
         _check_rank(X, names[j], "τ = K1 i − Fv q̇" + (" − Fc sgn q̇" if coulomb else ""))
         th = _scaled_lstsq(X, t)
@@ -350,6 +388,7 @@ def fit_piecewise_linear(
     max_iter: int = 50,
     tol: float = 1e-4,
     joint_names: Sequence[str] = (),
+    valid=None,
 ) -> PiecewiseLinearModel:
     """Per joint and sign of q̇: Δq = f(τ) + Kv q̇ with f continuous, three linear segments.
 
@@ -361,13 +400,14 @@ def fit_piecewise_linear(
     least-squares problem the optimum is either the unconstrained one or lies on the
     violated bound, so the constraint is enforced exactly.
     """
-    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names)
+    a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names, valid)
     n = len(names)
     shp = (n, 2)
     out = {k: np.zeros(shp) for k in ("c", "s_left", "s_mid", "s_right", "b1", "b2", "k_v")}
     extra = []
     for j in range(n):
-        t, v, y = a["tau"][:, j], a["dq"][:, j], a["delta_q"][:, j]
+        m = a["valid"][:, j]
+        t, v, y = a["tau"][m, j], a["dq"][m, j], a["delta_q"][m, j]
         if central_slope is None:
             k_ls = _scaled_lstsq(np.column_stack([t, v]), y)[0]
             lo, hi = 0.0, 3.0 * abs(k_ls)
@@ -386,8 +426,7 @@ def fit_piecewise_linear(
         extra.append(info_j)
     model = PiecewiseLinearModel(**out, joint_names=names, info={"central_slope_bounds": central_slope})
     pred = model.delta_q(a["tau"], a["dq"])
-    over = over_estimation_fraction(pred, a["delta_q"])
-    rmse = np.sqrt(((pred - a["delta_q"]) ** 2).mean(axis=0))
+    over, rmse = _masked_metrics(pred, a["delta_q"], a["valid"])
     model.info.update({"n_samples": int(a["tau"].shape[0]), "over_estimation_fraction": dict(zip(names, over.tolist())),
                        "rmse": dict(zip(names, rmse.tolist())), "per_joint": dict(zip(names, extra))})
     return model

@@ -47,6 +47,13 @@ def identify(
     decimate: int = typer.Option(1, help="keep every n-th sample (after anti-alias filtering)"),
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
+    contact_frames: Optional[str] = typer.Option(
+        None, help="legged robots: comma-separated contact frames (feet); projects out the unknown contact "
+                   "forces, flags from the log's 'contact' columns or detected from foot height/speed"),
+    contact_dims: Optional[str] = typer.Option(None, help="per contact frame 3 (point foot) or 6 (flat foot); default 3"),
+    contact_offset: float = typer.Option(0.0, help="radius [m] of spherical feet (contact point below the frame)"),
+    contact_mode: str = typer.Option("projected", help="projected (no force sensing) | wrench (log has contact_forces)"),
+    coulomb_smoothing: float = typer.Option(0.0, help="ε [rad/s]: Coulomb term tanh(v/ε) instead of sgn(v); ≈ 2× velocity noise"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
     """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png."""
@@ -59,7 +66,8 @@ def identify(
     with atomic_outdir(out, force) as tmp:
         train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate)
         val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate)
-        structure = ModelStructure(r, joint_terms=tuple(t for t in joint_terms.split(",") if t))
+        structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
+                               contact_mode)
         total = sum(len(t) for t in train)
         with progress_bar() as bar:
             task = bar.add_task("regressor", total=total)
@@ -72,7 +80,7 @@ def identify(
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate})
         doc = result.to_dict()
-        cad = CADModel(r)
+        cad = CADModel(r, like=structure)
         baseline = None
         if method != "ols" and val:
             try:  # unconstrained least squares on the same data, for the comparison table
@@ -101,6 +109,29 @@ def identify(
              f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
              else f"condition number {d['condition_number']:.1f}")
     console.print(f"{len(result.base.independent)} base parameters, {extra}; wrote {out}/")
+
+
+def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames, contact_dims, contact_offset,
+               contact_mode):
+    """ModelStructure, or ContactStructure when contact frames are given."""
+    from ..regressor import ModelStructure
+
+    terms = tuple(t for t in joint_terms.split(",") if t)
+    if coulomb_smoothing < 0:
+        raise SensorlessError(f"--coulomb-smoothing must be ≥ 0, got {coulomb_smoothing}")
+    if not contact_frames:
+        if contact_dims:
+            raise SensorlessError("--contact-dims needs --contact-frames")
+        return ModelStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing)
+    from ..regressor.contact import ContactStructure
+
+    frames = tuple(f.strip() for f in contact_frames.split(",") if f.strip())
+    try:
+        dims = tuple(int(d) for d in contact_dims.split(",")) if contact_dims else ()
+    except ValueError:
+        raise SensorlessError(f"--contact-dims must be comma-separated 3 or 6, got '{contact_dims}'") from None
+    return ContactStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing, contact_frames=frames,
+                            contact_dims=dims, contact_offset=contact_offset, mode=contact_mode)
 
 
 def _lmi_kwargs(robot, structure, method, prior, regularization, gamma, ellipsoids, contain_prior) -> dict:

@@ -110,7 +110,46 @@ def read_trajectory(
         df, header = _read_csv(path) if kind == "csv" else (_read_parquet(path), True)
         raw, file_names = _fields_from_frame(df, src, columns, joint_names, header)
     traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
-    return validate_trajectory(traj, robot)
+    traj = validate_trajectory(traj, robot)
+    if kind in ("npz", "hdf5"):
+        extras = _contact_extras(path, kind, len(traj))
+        if extras:
+            traj = traj.with_(extras={**traj.extras, **extras})
+    return traj
+
+
+#: Per-sample contact data of legged-robot logs (NPZ/HDF5 keys): flags (N, n_feet) and
+#: measured contact forces (N, n_feet, 3 or 6), both in the order of the contact frames.
+CONTACT_KEYS = ("contact", "contact_forces")
+
+
+def _contact_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
+    """Read :data:`CONTACT_KEYS` if present, checked (finite, N rows, flags 0/1)."""
+    src = str(path)
+    out: dict[str, np.ndarray] = {}
+    if kind == "npz":
+        with np.load(path, allow_pickle=False) as z:
+            found = {k: z[k] for k in CONTACT_KEYS if k in z.files}
+    else:
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            found = {k: f[k][()] for k in CONTACT_KEYS if k in f}
+    for key, val in found.items():
+        arr = _as_float(val, src, key)
+        if arr.ndim < 2 or arr.shape[0] != n:
+            raise DataError(f"'{key}' has shape {arr.shape}; expected ({n}, n_feet{', 3' if key != 'contact' else ''})"
+                            " — one row per sample", src)
+        bad = np.argwhere(~np.isfinite(arr.reshape(n, -1)))
+        if bad.size:
+            raise DataError(f"'{key}' has a non-finite value at sample {bad[0][0]}", src)
+        if key == "contact":
+            odd = np.argwhere((arr != 0) & (arr != 1))
+            if odd.size:
+                raise DataError(f"'contact' flags must be 0 or 1; sample {odd[0][0]} has {arr[tuple(odd[0])]}", src)
+            arr = arr.astype(bool)
+        out[key] = arr
+    return out
 
 
 def write_npz(traj: Trajectory, path: str | Path) -> Path:
@@ -125,7 +164,7 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
     for field in ("base_q", "base_v", "base_a"):
         if getattr(traj, field) is not None:
             data[field] = getattr(traj, field)
-    for key in JOINT_EXTRAS:
+    for key in JOINT_EXTRAS + CONTACT_KEYS:
         if key in traj.extras:
             data[key] = np.asarray(traj.extras[key], dtype=float)
     try:

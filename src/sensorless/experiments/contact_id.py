@@ -68,6 +68,10 @@ class ContactStudyConfig:
     savgol_window: int = 9
     acceleration: str = "savgol"  # "savgol": estimated from logged v (realistic); "simulator": exact (upper bound)
     gamma: float = 1e-3
+    # Coulomb term tanh(v / ε) instead of sgn(v): with velocity noise σ_v the expected
+    # sgn of the true velocity given the measured one is ≈ erf(v / (√2 σ_v)), so ε ≈ 2 σ_v
+    # (0 = sgn). The simulated logs have σ_v = 0.01 rad/s.
+    coulomb_smoothing: float = 0.02
     mlp_hidden: tuple[int, ...] = (2048,) * 5
     mlp_activation: str = "leakyrelu"
     mlp_epochs: int = 60
@@ -196,7 +200,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
     sets = _simulate(cfg, nominal, console)
     true_robot = sets.pool_truth[0].robot
     structure = ContactStructure(nominal, contact_frames=FEET, joint_terms=JOINT_TERMS,
-                                 contact_offset=sets.pool_truth[0].foot_radius)
+                                 contact_offset=sets.pool_truth[0].foot_radius, coulomb_smoothing=cfg.coulomb_smoothing)
     true_params = sets.pool_truth[0].truth.parameters(JOINT_TERMS)
 
     # targets, projectors and noise floors of the evaluation sets, computed once

@@ -37,6 +37,8 @@ from ..actuator import (
     fit_least_squares,
     fit_piecewise_linear,
     fit_two_stage,
+    over_estimation,
+    unsaturated,
 )
 from ..control import (
     ContactSpec,
@@ -153,36 +155,43 @@ def _rmse(a, b) -> np.ndarray:
     return np.sqrt(((a - b) ** 2).mean(axis=0))
 
 
-def fit_actuators(data: dict[str, dict], weight: float) -> tuple[dict, dict[str, MotorModel]]:
-    """Study (a). ``data``: {protocol: estimate_log_torques(...)}; fits on the union."""
+def fit_actuators(data: dict[str, dict], weight: float,
+                  current_limit: np.ndarray | None = None) -> tuple[dict, dict[str, MotorModel]]:
+    """Study (a). ``data``: {protocol: estimate_log_torques(...)}; fits on the union, without
+    the samples whose measured current is within 2 % of ``current_limit`` (saturated drive)."""
     cat = {k: np.vstack([d[k] for d in data.values()]) for k in ("tau", "dq", "delta_q", "current")}
     tau, dq, y = cat["tau"], cat["dq"], cat["delta_q"]
+    ok = None if current_limit is None else unsaturated(cat["current"], current_limit)
+    kw = {"joint_names": JOINTS, "valid": ok}
     models = {
-        "least_squares": fit_least_squares(tau, dq, y, joint_names=JOINTS),
-        "asymmetric": fit_asymmetric(tau, dq, y, weight, joint_names=JOINTS),
-        "least_squares_coulomb": fit_least_squares(tau, dq, y, coulomb=True, joint_names=JOINTS),
-        "asymmetric_coulomb": fit_asymmetric(tau, dq, y, weight, coulomb=True, joint_names=JOINTS),
-        "two_stage": fit_two_stage(tau, dq, y, joint_names=JOINTS),
+        "least_squares": fit_least_squares(tau, dq, y, **kw),
+        "asymmetric": fit_asymmetric(tau, dq, y, weight, **kw),
+        "least_squares_coulomb": fit_least_squares(tau, dq, y, coulomb=True, **kw),
+        "asymmetric_coulomb": fit_asymmetric(tau, dq, y, weight, coulomb=True, **kw),
+        "two_stage": fit_two_stage(tau, dq, y, **kw),
     }
-    res: dict = {"joints": list(JOINTS), "n_samples": int(tau.shape[0]), "weight": weight, "fits": {}}
+    res: dict = {"joints": list(JOINTS), "n_samples": int(tau.shape[0]), "weight": weight,
+                 "saturated_samples_excluded": _per_joint(0 if ok is None else (~ok).sum(axis=0)), "fits": {}}
     for name, m in models.items():
         res["fits"][name] = {"k_tau": _per_joint(m.k_tau), "k_v": _per_joint(m.k_v), "k_c": _per_joint(m.k_c),
                              "over_estimation_fraction": m.info["over_estimation_fraction"], "rmse_rad": m.info["rmse"]}
-    pwl = fit_piecewise_linear(tau, dq, y, joint_names=JOINTS)
+    pwl = fit_piecewise_linear(tau, dq, y, **kw)
     res["fits"]["piecewise_linear"] = {**{k: v for k, v in pwl.to_dict().items() if k not in ("info",)},
                                        "over_estimation_fraction": pwl.info["over_estimation_fraction"],
                                        "rmse_rad": pwl.info["rmse"]}
-    cur = fit_current_model(cat["current"], dq, tau, joint_names=JOINTS)
+    cur = fit_current_model(cat["current"], dq, tau, **kw)
     res["fits"]["current_model"] = cur.to_dict()
     # over-estimation per protocol (same two models), and the weight needed for ≤ 5 % overall
     by = {}
     for proto, d in data.items():
-        by[proto] = {name: _per_joint(models[name].over_estimation_fraction(d["tau"], d["dq"], d["delta_q"], coulomb=False))
+        m = np.ones(d["tau"].shape, bool) if current_limit is None else unsaturated(d["current"], current_limit)
+        by[proto] = {name: _per_joint((over_estimation(models[name].delta_q(d["tau"], d["dq"], coulomb=False),
+                                                       d["delta_q"]) & m).sum(axis=0) / np.maximum(m.sum(axis=0), 1))
                      for name in ("least_squares", "asymmetric")}
     res["over_estimation_by_protocol"] = by
     sweep = {}
     for w in (100.0, 300.0, 1000.0, 3000.0):
-        m = fit_asymmetric(tau, dq, y, w, joint_names=JOINTS)
+        m = fit_asymmetric(tau, dq, y, w, **kw)
         sweep[f"{w:g}"] = m.info["over_estimation_fraction"]
     res["asymmetric_weight_sweep_over_fraction"] = sweep
     return res, models
@@ -524,7 +533,8 @@ def run(out: Path, quick: bool = False, seed: int = 0, console: Console | None =
     # (a) ------------------------------------------------------------------------------------
     t0 = time.perf_counter()
     trimmed = {k: {f: v[edge:-edge] for f, v in d.items()} for k, d in data.items()}
-    a_res, models = fit_actuators(trimmed, cfg.weight)
+    act = ActuatorParams()
+    a_res, models = fit_actuators(trimmed, cfg.weight, act.torque_limit / (act.gear_ratio * act.torque_constant))
     a_res["truth"] = {k: (_per_joint(v) if isinstance(v, list) else v) for k, v in truth.items()}
     timings["a_fits"] = time.perf_counter() - t0
     motor = models["asymmetric"]
