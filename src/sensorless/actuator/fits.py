@@ -30,7 +30,7 @@ from .model import (
     CurrentModel,
     MotorModel,
     PiecewiseLinearModel,
-    over_estimation,
+    over_estimation_fraction,
 )
 
 __all__ = [
@@ -252,7 +252,7 @@ def _line_search(r: np.ndarray, d: np.ndarray, pos: np.ndarray, wm1: float) -> f
 def _masked_metrics(pred, y, valid) -> tuple[np.ndarray, np.ndarray]:
     """Per-column over-estimation fraction and RMSE over the ``valid`` samples."""
     cnt = np.maximum(valid.sum(axis=0), 1)
-    over = (over_estimation(pred, y) & valid).sum(axis=0) / cnt
+    over = over_estimation_fraction(pred, y, valid)
     rmse = np.sqrt((np.where(valid, pred - y, 0.0) ** 2).sum(axis=0) / cnt)
     return over, rmse
 

@@ -56,9 +56,13 @@ def over_estimation(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
     return s * (predicted - measured) > 0
 
 
-def over_estimation_fraction(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
-    """Per-column fraction of over-estimated samples (see :func:`over_estimation`)."""
-    return over_estimation(np.asarray(predicted, float), np.asarray(measured, float)).mean(axis=0)
+def over_estimation_fraction(predicted: np.ndarray, measured: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+    """Per-column fraction of over-estimated samples (see :func:`over_estimation`), over the
+    ``valid`` samples only when a mask is given."""
+    over = over_estimation(np.asarray(predicted, float), np.asarray(measured, float))
+    if valid is None:
+        return over.mean(axis=0)
+    return (over & valid).sum(axis=0) / np.maximum(valid.sum(axis=0), 1)
 
 
 @dataclass

@@ -37,7 +37,7 @@ from ..actuator import (
     fit_least_squares,
     fit_piecewise_linear,
     fit_two_stage,
-    over_estimation,
+    over_estimation_fraction,
     unsaturated,
 )
 from ..control import (
@@ -185,8 +185,8 @@ def fit_actuators(data: dict[str, dict], weight: float,
     by = {}
     for proto, d in data.items():
         m = np.ones(d["tau"].shape, bool) if current_limit is None else unsaturated(d["current"], current_limit)
-        by[proto] = {name: _per_joint((over_estimation(models[name].delta_q(d["tau"], d["dq"], coulomb=False),
-                                                       d["delta_q"]) & m).sum(axis=0) / np.maximum(m.sum(axis=0), 1))
+        by[proto] = {name: _per_joint(over_estimation_fraction(models[name].delta_q(d["tau"], d["dq"], coulomb=False),
+                                                               d["delta_q"], m))
                      for name in ("least_squares", "asymmetric")}
     res["over_estimation_by_protocol"] = by
     sweep = {}
