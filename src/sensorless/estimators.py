@@ -9,7 +9,6 @@ Hyper-parameters go in ``__init__``; learned state in attributes ending in ``_``
 from __future__ import annotations
 
 import dataclasses
-
 import json
 from pathlib import Path
 from typing import Iterable, Protocol, Sequence
