@@ -140,6 +140,39 @@ def test_friction_and_armature_mapping(scene, truth, rng):
     assert np.allclose(m.dof_frictionloss[scene.dof_adr], truth.fc)
 
 
+def test_smooth_coulomb_friction_is_applied_exactly(truth, rng):
+    """coulomb_velocity ε > 0: no friction loss; the joints receive −fv v − fc tanh(v/ε)
+    (also at low speed, where the friction loss would stick), and MuJoCo's acceleration is
+    Pinocchio's ABA with that torque."""
+    eps = 0.03
+    sc = build_scene(truth.robot, fv=truth.fv, fc=truth.fc, armature=truth.armature, foot_frames=FEET,
+                     coulomb_velocity=eps)
+    m = sc.model
+    assert np.all(m.dof_frictionloss == 0)
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    d = sc.make_data()
+    pm, pd = _pin_model_with_armature(truth)
+    act = truth.robot.actuated_v_indices
+    for speed in ((0.0, 0.05), (0.5, 2.0)):
+        q, v, _ = _random_state(rng, pm, pm.nv, speed=speed)
+        u = rng.uniform(-0.05, 0.05, len(act))
+        qpos, qvel, _ = pin_to_mj_state(sc, q, v)
+        d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[0], qvel[0], u
+        mujoco.mj_step1(m, d)
+        sc.apply_coulomb(d)
+        mujoco.mj_forward(m, d)
+        vj = v[act]
+        expected = -(truth.fv * vj + truth.fc * np.tanh(vj / eps))
+        np.testing.assert_allclose(sc.joint_friction(d), expected, atol=1e-9)
+        tau = np.zeros(pm.nv)
+        tau[act] = u + expected
+        a_pin = pin.aba(pm, pd, q, v, tau)
+        _, _, A = mj_to_pin_state(sc, d.qpos, d.qvel, d.qacc)
+        np.testing.assert_allclose(A[0], a_pin, rtol=1e-8, atol=1e-8 * np.abs(a_pin).max())
+    with pytest.raises(Exception, match="coulomb_velocity"):
+        build_scene(truth.robot, foot_frames=FEET, coulomb_velocity=-1.0)
+
+
 @pytest.fixture(scope="module")
 def runs(solo12, truth):
     """A few seconds of each scenario (default noise), shared by the tests below."""

@@ -15,8 +15,12 @@ def contact_id(
     out: Path = typer.Option(Path("results/contact_id"), help="output directory"),
     quick: bool = typer.Option(False, help="small version (a few minutes): up to 10^4 samples, small MLP"),
     seed: int = typer.Option(0),
-    acceleration: str = typer.Option("savgol", help="savgol (estimated from logged v, realistic) | simulator (exact)"),
-    coulomb_smoothing: float = typer.Option(0.02, help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v)"),
+    training: str = typer.Option("rich", help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
+    acceleration: str = typer.Option("simulator", help="simulator (exact) | savgol (from the logged v)"),
+    log_rate: float = typer.Option(100.0, help="logging rate [Hz] (the simulator runs at 1 kHz)"),
+    savgol_window: int = typer.Option(9, help="Savitzky–Golay window [samples] with --acceleration savgol"),
+    sim_friction: float = typer.Option(0.03, help="simulated Coulomb friction fc·tanh(v/ε): ε [rad/s]; 0 = MuJoCo friction loss (stiction)"),
+    coulomb_smoothing: float = typer.Option(0.03, help="ε [rad/s] of the identified Coulomb term tanh(v/ε); 0 = sgn(v)"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
     """LMI vs SVD vs MLP on simulated Solo12 logs: sample efficiency, OOD trot and jump, parameter errors."""
@@ -25,8 +29,13 @@ def contact_id(
 
     if acceleration not in ("savgol", "simulator"):
         raise SensorlessError(f"--acceleration must be savgol or simulator, got '{acceleration}'")
+    if not (log_rate > 0 and (1000.0 / log_rate).is_integer()):
+        raise SensorlessError(f"--log-rate must divide 1000 Hz (the simulation rate), got {log_rate}")
+    if sim_friction < 0 or coulomb_smoothing < 0:
+        raise SensorlessError("--sim-friction and --coulomb-smoothing must be ≥ 0")
     with atomic_outdir(out, force) as tmp:
-        res = run(tmp, quick=quick, seed=seed, console=console, acceleration=acceleration,
+        res = run(tmp, quick=quick, seed=seed, console=console, training=training, acceleration=acceleration,
+                  log_rate=log_rate, savgol_window=savgol_window, sim_coulomb_velocity=sim_friction,
                   coulomb_smoothing=coulomb_smoothing)
     console.print((out / "table.md").read_text())
     console.print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in res["checks"].items()})

@@ -104,6 +104,7 @@ class MujocoScene:
     foot_geoms: np.ndarray = field(repr=False)  # per foot_frames
     floor_geom: int = 0
     base_body: int = 1
+    coulomb_velocity: float = 0.0  # > 0: Coulomb friction applied as −fc tanh(v/ε) (see build_scene)
 
     @property
     def n_feet(self) -> int:
@@ -144,9 +145,18 @@ class MujocoScene:
             forces[k] += sign * (c.frame.reshape(3, 3).T @ buf[:3])
         return flags, forces
 
+    def apply_coulomb(self, data: mujoco.MjData) -> None:
+        """With ``coulomb_velocity`` ε > 0, write −fc tanh(v/ε) of the current velocities into
+        ``qfrc_applied`` (call after ``mj_step1``, before ``mj_step2``); a no-op otherwise."""
+        if self.coulomb_velocity > 0:
+            v = data.qvel[self.act_dof_adr]
+            data.qfrc_applied[self.act_dof_adr] = -self.fc * np.tanh(v / self.coulomb_velocity)
+
     def joint_friction(self, data: mujoco.MjData) -> np.ndarray:
-        """Friction torque the joints actually receive, −(fv v + friction-loss force), per
+        """Friction torque the joints actually receive, −(fv v + Coulomb/friction-loss force), per
         actuated joint (valid after the acceleration stage: ``mj_step2`` / ``mj_forward``)."""
+        if self.coulomb_velocity > 0:
+            return data.qfrc_damper[self.act_dof_adr] + data.qfrc_applied[self.act_dof_adr]
         fl = np.zeros(self.model.nv)
         rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF
         if np.any(rows):
@@ -174,6 +184,7 @@ def build_scene(
     integrator: str = "euler",
     joint_limits: bool = False,
     friction_timeconst: float | None = None,
+    coulomb_velocity: float = 0.0,
 ) -> MujocoScene:
     """Build and compile a MuJoCo scene whose rigid-body model equals ``robot``'s.
 
@@ -189,7 +200,15 @@ def build_scene(
     exceeds fc, and takes values in [−fc, fc] below that (stiction-like).
     ``friction_timeconst`` T_f defaults to two time steps (the stiffest stable choice);
     for Solo12 at 1 kHz the law is Coulomb's above about 0.1 rad/s.
+
+    ``coulomb_velocity`` ε > 0 replaces the friction loss by the smooth law −fc tanh(v/ε),
+    applied explicitly each step by :meth:`MujocoScene.apply_coulomb` (no stiction): the
+    friction model of the identification (``coulomb_smoothing``), so that a study can
+    separate identification error from friction-model mismatch. Explicit integration needs
+    fc·dt/(ε·I) < 2 for the smallest joint inertia I: ε ≈ 0.03 rad/s for Solo12 at 1 kHz.
     """
+    if coulomb_velocity < 0:
+        raise RobotModelError(f"coulomb_velocity must be ≥ 0, got {coulomb_velocity}")
     if not robot.floating_base:
         raise RobotModelError(f"{robot.source or robot.name}: a MuJoCo quadruped scene needs a floating base")
     pm = robot.model
@@ -266,7 +285,7 @@ def build_scene(
         )
         jnt.armature = float(arm_by_joint.get(name, pm.armature[jm.idx_v]))
         jnt.damping = [float(fv_by_joint.get(name, 0.0)), 0.0, 0.0]  # MuJoCo 4: polynomial damping
-        jnt.frictionloss = float(fc_by_joint.get(name, 0.0))
+        jnt.frictionloss = 0.0 if coulomb_velocity > 0 else float(fc_by_joint.get(name, 0.0))
         jnt.solref_friction = [friction_timeconst or 2.0 * timestep, 1.0]
         jnt.solimp_friction = [0.99, 0.999, 0.001, 0.5, 2.0]
         iq = jm.idx_q
@@ -321,6 +340,7 @@ def build_scene(
         foot_geoms=np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f) for f in feet], dtype=int),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor"),
         base_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, pm.names[1]),
+        coulomb_velocity=float(coulomb_velocity),
     )
 
 

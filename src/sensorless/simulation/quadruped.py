@@ -770,6 +770,7 @@ def simulate(
     settle: float = 0.5,
     ik_stride: int = 5,
     on_fall: str = "truncate",
+    coulomb_velocity: float = 0.0,
     **scenario_kwargs,
 ) -> tuple[Trajectory, SimulationTruth]:
     """Simulate ``scenario`` for ``duration`` s and return (user's log, ground truth).
@@ -781,6 +782,8 @@ def simulate(
     A fall (base below half the standing height or tilted beyond 50°) stops the episode:
     ``on_fall="truncate"`` keeps the samples before it (``truth.fell``, a warning and the
     log's ``source`` say so), ``"raise"`` raises :class:`SimulationError`.
+    ``coulomb_velocity`` ε > 0 simulates joint Coulomb friction as fc tanh(v/ε) instead of
+    MuJoCo's stiction-like friction loss (:func:`~.mujoco_scene.build_scene`).
     Extra keyword arguments go to the scenario planner (see :data:`SCENARIOS`).
     """
     if scenario not in SCENARIOS:
@@ -815,6 +818,7 @@ def simulate(
         torque_limit=prof.torque_limit,
         timestep=dt,
         ground_friction=prof.friction_coefficient,
+        coulomb_velocity=coulomb_velocity,
     )
     n_log = int(np.floor(duration * log_rate + 1e-9))
     n_settle = round(settle * sim_rate)
@@ -857,6 +861,7 @@ def simulate(
     K = t_grid.size
     for k in range(n_steps):
         mujoco.mj_step1(m, d)
+        scene.apply_coulomb(d)
         idx = min(max(k - offset, 0), K - 1)
         if flights:
             idx, offset, held = _retime(idx, offset, held, flights, d.ncon, sim_rate)
@@ -1112,6 +1117,7 @@ def _assemble(
         "settle": settle,
         "torque_limit": float(np.max(scene.torque_limit)),
         "foot_radius": scene.foot_radius,
+        "joint_coulomb": f"tanh(v/{scene.coulomb_velocity:g})" if scene.coulomb_velocity > 0 else "mujoco_frictionloss",
         "ik_error": ref.ik_error,
         "tracking_joint_rms": np.sqrt(np.mean(jerr**2, axis=0)).tolist() if N else [],
         "tracking_base_position_rms": np.sqrt(np.mean(perr**2, axis=0)).tolist() if N else [],
