@@ -109,6 +109,25 @@ def test_inertia_oracle_mass_matrix_and_inverse_dynamics(scene, truth, rng):
     assert worst_f < 1e-8, worst_f
 
 
+def _check_friction_and_aba(scene, d, pm, pd, act, rng, speed, friction_law):
+    """At a random state: the friction MuJoCo applies is −friction_law(v), and its
+    acceleration is Pinocchio's ABA with τ = u − friction_law(v)."""
+    q, v, _ = _random_state(rng, pm, pm.nv, speed=speed)
+    u = rng.uniform(-0.05, 0.05, len(act))
+    qpos, qvel, _ = pin_to_mj_state(scene, q, v)
+    d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[0], qvel[0], u
+    mujoco.mj_step1(scene.model, d)
+    scene.apply_coulomb(d)  # no-op unless the scene has a smooth Coulomb law
+    mujoco.mj_forward(scene.model, d)
+    expected = -friction_law(v[act])
+    np.testing.assert_allclose(scene.joint_friction(d), expected, atol=1e-9)
+    tau = np.zeros(pm.nv)
+    tau[act] = u + expected
+    a_pin = pin.aba(pm, pd, q, v, tau)
+    _, _, A = mj_to_pin_state(scene, d.qpos, d.qvel, d.qacc)
+    np.testing.assert_allclose(A[0], a_pin, rtol=1e-8, atol=1e-8 * np.abs(a_pin).max())
+
+
 def test_friction_and_armature_mapping(scene, truth, rng):
     """With contacts off and joints moving (|v| >= 0.5 rad/s, moderate torques), MuJoCo's
     acceleration is Pinocchio's ABA with τ = u − fv v − fc sgn v and armature on the joints,
@@ -121,19 +140,7 @@ def test_friction_and_armature_mapping(scene, truth, rng):
         pm, pd = _pin_model_with_armature(truth)
         act = truth.robot.actuated_v_indices
         for _ in range(10):
-            q, v, _ = _random_state(rng, pm, pm.nv)
-            u = rng.uniform(-0.05, 0.05, len(act))
-            qpos, qvel, _ = pin_to_mj_state(scene, q, v)
-            d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[0], qvel[0], u
-            mujoco.mj_forward(m, d)
-            vj = v[act]
-            expected_friction = -(truth.fv * vj + truth.fc * np.sign(vj))
-            np.testing.assert_allclose(scene.joint_friction(d), expected_friction, atol=1e-9)
-            tau = np.zeros(pm.nv)
-            tau[act] = u + expected_friction
-            a_pin = pin.aba(pm, pd, q, v, tau)
-            _, _, A = mj_to_pin_state(scene, d.qpos, d.qvel, d.qacc)
-            np.testing.assert_allclose(A[0], a_pin, rtol=1e-8, atol=1e-8 * np.abs(a_pin).max())
+            _check_friction_and_aba(scene, d, pm, pd, act, rng, (0.5, 2.0), lambda vj: truth.fv * vj + truth.fc * np.sign(vj))
     finally:
         m.opt.disableflags = saved
     assert np.allclose(m.dof_armature[scene.dof_adr], truth.armature)
@@ -154,21 +161,7 @@ def test_smooth_coulomb_friction_is_applied_exactly(truth, rng):
     pm, pd = _pin_model_with_armature(truth)
     act = truth.robot.actuated_v_indices
     for speed in ((0.0, 0.05), (0.5, 2.0)):
-        q, v, _ = _random_state(rng, pm, pm.nv, speed=speed)
-        u = rng.uniform(-0.05, 0.05, len(act))
-        qpos, qvel, _ = pin_to_mj_state(sc, q, v)
-        d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[0], qvel[0], u
-        mujoco.mj_step1(m, d)
-        sc.apply_coulomb(d)
-        mujoco.mj_forward(m, d)
-        vj = v[act]
-        expected = -(truth.fv * vj + truth.fc * np.tanh(vj / eps))
-        np.testing.assert_allclose(sc.joint_friction(d), expected, atol=1e-9)
-        tau = np.zeros(pm.nv)
-        tau[act] = u + expected
-        a_pin = pin.aba(pm, pd, q, v, tau)
-        _, _, A = mj_to_pin_state(sc, d.qpos, d.qvel, d.qacc)
-        np.testing.assert_allclose(A[0], a_pin, rtol=1e-8, atol=1e-8 * np.abs(a_pin).max())
+        _check_friction_and_aba(sc, d, pm, pd, act, rng, speed, lambda vj: truth.fv * vj + truth.fc * np.tanh(vj / eps))
     with pytest.raises(Exception, match="coulomb_velocity"):
         build_scene(truth.robot, foot_frames=FEET, coulomb_velocity=-1.0)
 

@@ -21,6 +21,7 @@ def contact_id(
     savgol_window: int = typer.Option(9, help="Savitzky–Golay window [samples] with --acceleration savgol"),
     sim_friction: float = typer.Option(0.03, help="simulated Coulomb friction fc·tanh(v/ε): ε [rad/s]; 0 = MuJoCo friction loss (stiction)"),
     coulomb_smoothing: float = typer.Option(0.03, help="ε [rad/s] of the identified Coulomb term tanh(v/ε); 0 = sgn(v)"),
+    mlp_hidden: str = typer.Option("", help="MLP hidden layers as WIDTHxDEPTH, e.g. 2048x5 (default: 2048x5 full, 256x3 quick)"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
     """LMI vs SVD vs MLP on simulated Solo12 logs: sample efficiency, OOD trot and jump, parameter errors."""
@@ -33,10 +34,19 @@ def contact_id(
         raise SensorlessError(f"--log-rate must divide 1000 Hz (the simulation rate), got {log_rate}")
     if sim_friction < 0 or coulomb_smoothing < 0:
         raise SensorlessError("--sim-friction and --coulomb-smoothing must be ≥ 0")
+    extra = {}
+    if mlp_hidden:
+        try:
+            width, depth = (int(x) for x in mlp_hidden.lower().split("x"))
+        except ValueError:
+            raise SensorlessError(f"--mlp-hidden must look like 2048x5 (width x layers), got '{mlp_hidden}'") from None
+        if width < 1 or depth < 1:
+            raise SensorlessError(f"--mlp-hidden needs positive width and depth, got '{mlp_hidden}'")
+        extra["mlp_hidden"] = (width,) * depth
     with atomic_outdir(out, force) as tmp:
         res = run(tmp, quick=quick, seed=seed, console=console, training=training, acceleration=acceleration,
                   log_rate=log_rate, savgol_window=savgol_window, sim_coulomb_velocity=sim_friction,
-                  coulomb_smoothing=coulomb_smoothing)
+                  coulomb_smoothing=coulomb_smoothing, **extra)
     console.print((out / "table.md").read_text())
     console.print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in res["checks"].items()})
     console.print(f"wrote {out}/")
