@@ -99,7 +99,7 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate):
     """Read, validate and preprocess logs given on the command line."""
     from ..data import decimate as _decimate
     from ..data import lowpass as _lowpass
-    from ..data import read_trajectory, savgol_derivatives
+    from ..data import base_acceleration, read_trajectory, savgol_derivatives
 
     logs = []
     for p in paths:
@@ -108,6 +108,8 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate):
             traj = _lowpass(traj, lowpass)
         if traj.v is None or traj.a is None or savgol_window:
             traj = savgol_derivatives(traj, window=savgol_window or 11)
+        if traj.base_v is not None and traj.base_q is not None and (traj.base_a is None or savgol_window):
+            traj = base_acceleration(traj, window=savgol_window or 11)  # linear part from imu_acc if logged
         if decimate and decimate > 1:
             traj = _decimate(traj, decimate)
         logs.append(traj)

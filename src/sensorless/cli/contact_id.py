@@ -16,7 +16,7 @@ def contact_id(
     quick: bool = typer.Option(False, help="small version (a few minutes): up to 10^4 samples, small MLP"),
     seed: int = typer.Option(0),
     training: str = typer.Option("rich", help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
-    acceleration: str = typer.Option("simulator", help="simulator (exact) | savgol (from the logged v)"),
+    acceleration: str = typer.Option("simulator", help="simulator (exact) | savgol (from the logged v) | savgol_imu (base from the accelerometer)"),
     log_rate: float = typer.Option(100.0, help="logging rate [Hz] (the simulator runs at 1 kHz)"),
     savgol_window: int = typer.Option(9, help="Savitzky–Golay window [samples] with --acceleration savgol"),
     sim_friction: float = typer.Option(0.03, help="simulated Coulomb friction fc·tanh(v/ε): ε [rad/s]; 0 = MuJoCo friction loss (stiction)"),
@@ -28,8 +28,8 @@ def contact_id(
     from ..errors import SensorlessError
     from ..experiments.contact_id import run
 
-    if acceleration not in ("savgol", "simulator"):
-        raise SensorlessError(f"--acceleration must be savgol or simulator, got '{acceleration}'")
+    if acceleration not in ("savgol", "savgol_imu", "simulator"):
+        raise SensorlessError(f"--acceleration must be simulator, savgol or savgol_imu, got '{acceleration}'")
     if not (log_rate > 0 and (1000.0 / log_rate).is_integer()):
         raise SensorlessError(f"--log-rate must divide 1000 Hz (the simulation rate), got {log_rate}")
     if sim_friction < 0 or coulomb_smoothing < 0:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import DataError, ShapeMismatchError
+from .imu import IMU_KEY
 from .trajectory import Trajectory
 from .validation import JOINT_EXTRAS, validate_trajectory
 
@@ -121,25 +122,28 @@ def read_trajectory(
 #: Per-sample contact data of legged-robot logs (NPZ/HDF5 keys): flags (N, n_feet) and
 #: measured contact forces (N, n_feet, 3 or 6), both in the order of the contact frames.
 CONTACT_KEYS = ("contact", "contact_forces")
+#: Base IMU accelerometer reading, specific force in the base frame (N, 3) [m/s²].
+IMU_KEYS = (IMU_KEY,)
+_EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3", "imu_acc": "3"}
 
 
 def _contact_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
-    """Read :data:`CONTACT_KEYS` if present, checked (finite, N rows, flags 0/1)."""
+    """Read :data:`CONTACT_KEYS` and :data:`IMU_KEYS` if present, checked (finite, N rows,
+    flags 0/1, three accelerometer columns)."""
     src = str(path)
     out: dict[str, np.ndarray] = {}
     if kind == "npz":
         with np.load(path, allow_pickle=False) as z:
-            found = {k: z[k] for k in CONTACT_KEYS if k in z.files}
+            found = {k: z[k] for k in CONTACT_KEYS + IMU_KEYS if k in z.files}
     else:
         import h5py
 
         with h5py.File(path, "r") as f:
-            found = {k: f[k][()] for k in CONTACT_KEYS if k in f}
+            found = {k: f[k][()] for k in CONTACT_KEYS + IMU_KEYS if k in f}
     for key, val in found.items():
         arr = _as_float(val, src, key)
-        if arr.ndim < 2 or arr.shape[0] != n:
-            raise DataError(f"'{key}' has shape {arr.shape}; expected ({n}, n_feet{', 3' if key != 'contact' else ''})"
-                            " — one row per sample", src)
+        if arr.ndim < 2 or arr.shape[0] != n or (key in IMU_KEYS and arr.shape != (n, 3)):
+            raise DataError(f"'{key}' has shape {arr.shape}; expected ({n}, {_EXPECTED[key]}) — one row per sample", src)
         bad = np.argwhere(~np.isfinite(arr.reshape(n, -1)))
         if bad.size:
             raise DataError(f"'{key}' has a non-finite value at sample {bad[0][0]}", src)
@@ -164,7 +168,7 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
     for field in ("base_q", "base_v", "base_a"):
         if getattr(traj, field) is not None:
             data[field] = getattr(traj, field)
-    for key in JOINT_EXTRAS + CONTACT_KEYS:
+    for key in JOINT_EXTRAS + CONTACT_KEYS + IMU_KEYS:
         if key in traj.extras:
             data[key] = np.asarray(traj.extras[key], dtype=float)
     try:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..data.filtering import SavitzkyGolay
+from ..data.imu import base_acceleration
 from ..data.trajectory import Trajectory
 from ..errors import SensorlessError
 from ..identification import identify
@@ -68,8 +69,9 @@ class ContactStudyConfig:
     log_rate: float = 100.0
     savgol_window: int = 9
     # "simulator": exact accelerations (the identification's own accuracy); "savgol":
-    # Savitzky–Golay derivative of the logged v (what a user has: at 100 Hz this error
-    # dominates trot and jump for every physical model — see the docs)
+    # Savitzky–Golay derivative of the logged v and base twist (at 100 Hz this error
+    # dominates trot and jump for every physical model — see the docs); "savgol_imu": the
+    # same for the joints and ω̇, the base's linear acceleration from the accelerometer
     acceleration: str = "simulator"
     gamma: float = 1e-3
     # Joint Coulomb friction of the simulated robot: fc tanh(v / ε_sim) (ε_sim > 0, the
@@ -117,10 +119,12 @@ class ContactStudyConfig:
 
 
 # ---- preprocessing and features ------------------------------------------------------------
-def prepare_log(traj: Trajectory, window: int = 9) -> Trajectory:
-    """Joint and base accelerations by a Savitzky–Golay derivative of the logged velocities."""
+def prepare_log(traj: Trajectory, window: int = 9, imu: bool = False) -> Trajectory:
+    """Joint accelerations by a Savitzky–Golay derivative of the logged joint velocities; the
+    base's from its twist, or (``imu``) its linear part from the accelerometer
+    (:func:`~sensorless.data.imu.base_acceleration`)."""
     sg = SavitzkyGolay(window=window, polyorder=3, dt=traj.dt)
-    return traj.with_(a=sg.apply(traj.v, deriv=1), base_a=sg.apply(traj.base_v, deriv=1))
+    return base_acceleration(traj.with_(a=sg.apply(traj.v, deriv=1)), window=window, use_imu=imu)
 
 
 def sensor_features(traj: Trajectory) -> np.ndarray:
@@ -162,7 +166,7 @@ def _simulate(cfg: ContactStudyConfig, nominal: Robot, console) -> _Sets:
             raise SensorlessError(f"{kind} episode {name} {kw} fell at t={gt.fall_time:.2f} s")
         if cfg.acceleration == "simulator":
             return traj.with_(a=gt.a, base_a=gt.base_a), gt
-        return prepare_log(traj, cfg.savgol_window), gt
+        return prepare_log(traj, cfg.savgol_window, imu=cfg.acceleration == "savgol_imu"), gt
 
     pool, pool_truth = [], []
     t0 = time.perf_counter()

@@ -39,7 +39,9 @@ Logging (default 100 Hz, every ``sim_rate / log_rate`` steps; q, v, τ, f of the
     e.g. :func:`~sensorless.data.savgol_derivatives`), ``tau`` = MuJoCo actuator force
     (+ noise; the measured motor torque), ``base_q`` (+ small pose noise), ``base_v``
     (LOCAL twist + noise), ``base_a = None``, ``extras["contact"]`` (N, n_feet) bool,
-    ``extras["foot_height"]`` (N, n_feet) height of each foot sphere's bottom [m].
+    ``extras["foot_height"]`` (N, n_feet) height of each foot sphere's bottom [m],
+    ``extras["imu_acc"]`` (N, 3) accelerometer at the base origin (specific force, base
+    frame, + noise; :func:`sensorless.data.imu.base_acceleration` turns it into ``base_a``).
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from ..data.imu import gravity_in_base
 from ..data.trajectory import Trajectory
 from ..errors import RobotModelError, SensorlessError
 from ..robot import Robot, load_robot
@@ -96,10 +99,11 @@ class NoiseSpec:
     base_orientation: float = 2e-3  # rad (random rotation vector, base frame)
     base_linear_velocity: float = 1e-2  # m/s
     base_angular_velocity: float = 1e-2  # rad/s
+    imu_acc: float = 3e-2  # m/s² (accelerometer at the base origin, base axes)
 
     @classmethod
     def none(cls) -> NoiseSpec:
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -1103,6 +1107,9 @@ def _assemble(
     bv = base_v.copy()
     bv[:, :3] = noisy(base_v[:, :3], noise.base_linear_velocity)
     bv[:, 3:] = noisy(base_v[:, 3:], noise.base_angular_velocity)
+    # accelerometer: specific force Rᵀ(p̈ − g) = a_lin + ω × v_b − Rᵀg (see sensorless.data.imu)
+    specific_force = base_a[:, :3] + np.cross(base_v[:, 3:], base_v[:, :3]) - gravity_in_base(base_q)
+    imu_acc = noisy(specific_force, noise.imu_acc)
 
     jerr = q_true - ref.q[L["idx"]] if N else np.zeros((0, 1))
     perr = base_q[:, :3] - ref.p[L["idx"]] if N else np.zeros((0, 3))
@@ -1135,6 +1142,7 @@ def _assemble(
         "base_q": "m, quaternion xyzw",
         "base_v": "m/s, rad/s (base frame)",
         "foot_height": "m (foot-sphere bottom above the floor)",
+        "imu_acc": "m/s² (specific force at the base origin, base frame; +9.81 z at rest)",
     }
     traj = Trajectory(
         t=t,
@@ -1146,7 +1154,7 @@ def _assemble(
         base_v=bv,
         base_a=None,
         joint_names=r.joint_names,
-        extras={"contact": L["flags"].copy(), "foot_height": L["height"].copy()},
+        extras={"contact": L["flags"].copy(), "foot_height": L["height"].copy(), "imu_acc": imu_acc},
         units=units,
         source=source,
     )
