@@ -16,10 +16,12 @@ P Sᵀ (τ̂ − τ), which does not need the unknown contact forces — as
     RMSE = sqrt( mean_n ‖P_n Sᵀ (τ̂_n − τ_n)‖² / n_actuated ).
 
 The noise floor is the same quantity for the logged torque against the simulator's
-noiseless torque. Training sets are random subsets (10² … 10⁵ samples) of a pool of wobble,
-trot and crawl logs; validation: five held-out logs of the same kinds; out of distribution:
-a trot at speeds never seen in training, and a jump. Parameter errors are measured against
-the simulation's ground truth (what the paper could not do on hardware).
+noiseless torque. Training sets are random subsets (10² … 10⁵ samples) of a pool of logs of
+one training regime (:meth:`ContactStudyConfig.make`: ``stance`` = base wobbles with all
+feet down, ``rich`` = wobble, crawl and trot); validation: five held-out logs of the same
+kinds; out of distribution: a trot at a speed never seen in training, and a jump. Parameter
+errors are measured against the simulation's ground truth (what the paper could not do on
+hardware).
 """
 
 from __future__ import annotations
@@ -101,8 +103,8 @@ class ContactStudyConfig:
         * ``"rich"``: wobble, crawl and trot at 0.1–0.3 m/s — every base parameter is
           excited; validation = five held-out logs of the same kinds.
         * ``"stance"``: base wobbles only, all four feet on the ground (the identification
-          routine that is safe on a real robot) — the projected regressor is rank
-          deficient; validation = five held-out wobbles. Trot and jump are then far out of
+          routine that is safe on a real robot) — the projected regressor is poorly
+          conditioned; validation = five held-out wobbles. Trot and jump are then far out of
           distribution, which is where an unconstrained fit has nothing to fall back on.
         """
         if training == "rich":
