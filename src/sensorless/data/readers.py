@@ -113,7 +113,7 @@ def read_trajectory(
     traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
     traj = validate_trajectory(traj, robot)
     if kind in ("npz", "hdf5"):
-        extras = _contact_extras(path, kind, len(traj))
+        extras = _sample_extras(path, kind, len(traj))
         if extras:
             traj = traj.with_(extras={**traj.extras, **extras})
     return traj
@@ -127,7 +127,7 @@ IMU_KEYS = (IMU_KEY,)
 _EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3", "imu_acc": "3"}
 
 
-def _contact_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
+def _sample_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
     """Read :data:`CONTACT_KEYS` and :data:`IMU_KEYS` if present, checked (finite, N rows,
     flags 0/1, three accelerometer columns)."""
     src = str(path)
