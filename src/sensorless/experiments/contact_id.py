@@ -43,11 +43,11 @@ from ..identification.lmi import solve_lmi
 from ..parameters import com_frame
 from ..regressor.compress import compress
 from ..regressor.contact import ContactStructure
-from ..robot import Robot, load_robot
+from ..robot import Robot
+from ..simulation.quadruped import PROFILES, quadruped_robot
 
 __all__ = ["ContactStudyConfig", "run", "prepare_log", "sensor_features", "projected_rmse"]
 
-FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 JOINT_TERMS = ("fv", "fc", "armature")
 
 
@@ -59,6 +59,7 @@ class ContactStudyConfig:
     seed: int = 0
     truth_seed: int = 0
     training: str = "rich"  # name of the training regime (see make)
+    robot: str = "solo12"  # a quadruped with a simulation profile: "solo12" or "spot"
     train_sizes: tuple[int, ...] = (100, 316, 1000, 3162, 10000, 31623, 100000)
     train_episodes: tuple[tuple[str, dict], ...] = ()
     episode_duration: float = 25.0
@@ -163,7 +164,7 @@ def _simulate(cfg: ContactStudyConfig, nominal: Robot, console) -> _Sets:
     from ..simulation.quadruped import NoiseSpec, make_truth, simulate
 
     truth = make_truth(nominal, cfg.truth_seed)
-    noise = NoiseSpec()
+    noise = NoiseSpec(tau=PROFILES[cfg.robot].torque_noise)
     seed = cfg.seed * 1000
 
     def run(kind: str, spec, duration: float, k: int):
@@ -240,10 +241,11 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    nominal = load_robot("solo12")
+    nominal = quadruped_robot(cfg.robot)
+    feet = PROFILES[cfg.robot].feet
     sets = _simulate(cfg, nominal, console)
     true_robot = sets.pool_truth[0].robot
-    structure = ContactStructure(nominal, contact_frames=FEET, joint_terms=JOINT_TERMS,
+    structure = ContactStructure(nominal, contact_frames=feet, joint_terms=JOINT_TERMS,
                                  contact_offset=sets.pool_truth[0].foot_radius, coulomb_smoothing=cfg.coulomb_smoothing)
     true_params = sets.pool_truth[0].truth.parameters(JOINT_TERMS)
 
@@ -310,7 +312,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
     results = {
         "study": "contact-id",
         "config": _jsonable(asdict(cfg)),
-        "robot": "solo12",
+        "robot": cfg.robot,
         "noise": asdict(sets.pool_truth[0].noise),
         "noise_floor_rmse": floors,
         "true_parameters_rmse": true_rmse,

