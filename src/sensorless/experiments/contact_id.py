@@ -44,7 +44,7 @@ from ..parameters import com_frame
 from ..regressor.compress import compress
 from ..regressor.contact import ContactStructure
 from ..robot import Robot
-from ..simulation.quadruped import PROFILES, quadruped_robot
+from ..simulation.quadruped_profiles import PROFILES, quadruped_robot
 
 __all__ = ["ContactStudyConfig", "run", "prepare_log", "sensor_features", "projected_rmse"]
 

