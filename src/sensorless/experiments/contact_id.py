@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from ..data.filtering import SavitzkyGolay
-from ..data.imu import base_acceleration
+from ..data.imu import base_acceleration, gravity_in_base
 from ..data.trajectory import Trajectory
 from ..errors import SensorlessError
 from ..identification import identify
@@ -138,10 +138,7 @@ def prepare_log(traj: Trajectory, window: int = 9, imu: bool = False) -> Traject
 
 def sensor_features(traj: Trajectory) -> np.ndarray:
     """What the black-box model sees: q, v, base twist, gravity in the base frame, contact flags."""
-    quat = traj.base_q[:, 3:7]  # x, y, z, w
-    x, y, z, w = quat.T
-    # third row of the base→world rotation = world z axis expressed in the base frame
-    gz = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1)
+    gz = -gravity_in_base(traj.base_q, 1.0)  # world z axis in the base frame
     contact = np.asarray(traj.extras["contact"], dtype=float)
     return np.hstack([traj.q, traj.v, traj.base_v, gz, contact])
 
