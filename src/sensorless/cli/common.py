@@ -75,7 +75,12 @@ def progress_bar() -> Progress:
 
 
 def parse_columns(spec: Optional[str]) -> Optional[dict]:
-    """'q=0:7;v=vel_{joint};tau=a|b|c' -> {'q': '0:7', 'v': 'vel_{joint}', 'tau': ['a','b','c']}."""
+    """'q=0:7;v=vel_{joint};tau=a|b|c' -> {'q': '0:7', 'v': 'vel_{joint}', 'tau': ['a','b','c']}.
+
+    A field may carry per-joint drive gains for currents, 'tau=i_{joint}:gain=10,10.7,...'
+    (``i_*`` = ``i_{joint}``); they stay on the entry (the last item of a list) for the
+    reader (:func:`sensorless.data.gains.split_gain_modifiers`).
+    """
     if not spec:
         return None
     out: dict = {}
@@ -89,29 +94,92 @@ def parse_columns(spec: Optional[str]) -> Optional[dict]:
     return out
 
 
+PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap")
+"""Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
+The trim window and decimation belong to one log and are recorded but not reused."""
+
+
+def gains_option():
+    return typer.Option(None, help="per-joint drive gains τ = K·i for logs of motor currents: a .json/.csv file "
+                                   "(joint → gain), 'K1,K2,...' in column order, or 'joint=K,...'; "
+                                   "'off' ignores a model's gains")
+
+
+def trim_option():
+    return typer.Option(None, help="time window START:END in seconds after the first sample (negative: before the last); "
+                                   "open ends ':49.6', '1.9:'; 'abs:T0:T1' uses the log's own stamps")
+
+
+def resample_option(default: Optional[str] = "auto"):
+    return typer.Option(default, help="auto (only if stamps jitter > 5 % or repeat) | off | RATE_HZ: "
+                                      "interpolate onto a uniform grid" + ("" if default else "; default: the model's, else auto"))
+
+
+def velocity_option(default: Optional[str] = "logged"):
+    return typer.Option(default, help="logged (keep a logged v, v̇ = d/dt v) | from-q (v, v̇ from q)"
+                        + ("" if default else "; default: the model's, else logged"))
+
+
+def max_gap_option(default: Optional[float] = None):
+    return typer.Option(default, help="resampling refuses a time step over this many median periods (default 4)")
+
+
+def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
+                           decimate, max_gap) -> dict:
+    """settings.preprocessing for result.json: the options (gains resolved per joint name,
+    column map parsed, gain suffix moved to ``gains``) and each log's provenance."""
+    from ..data.gains import split_gain_modifiers
+
+    cols = parse_columns(columns) if isinstance(columns, str) else columns
+    cols, _, _ = split_gain_modifiers(cols, "--columns")
+    resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
+    return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
+            "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
+            "trim": trim, "decimate": decimate}
+
+
+def model_preprocessing(result_json: Path, **given) -> dict:
+    """Preprocessing options for a log predicted with a model: each option given on the
+    command line (not None) wins, else the model's (result.json settings.preprocessing).
+    ``--columns`` carrying ':gain=' drops the model's gains; ``--gains off`` drops them too."""
+    import json
+
+    try:
+        saved = json.loads(Path(result_json).read_text()).get("settings", {}).get("preprocessing") or {}
+    except (OSError, ValueError):
+        saved = {}
+    out = {k: (given.get(k) if given.get(k) is not None else saved.get(k)) for k in PREPROCESSING_KEYS}
+    if isinstance(given.get("columns"), str) and ":gain=" in given["columns"] and given.get("gains") is None:
+        out["gains"] = None
+    if isinstance(out["gains"], str) and out["gains"].strip().lower() in ("off", "none"):
+        out["gains"] = None
+    return out
+
+
 def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool]):
     from ..robot import load_robot
 
     return load_robot(robot, lock_joints=lock or (), floating_base=floating)
 
 
-def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate):
-    """Read, validate and preprocess logs given on the command line."""
-    from ..data import decimate as _decimate
-    from ..data import lowpass as _lowpass
-    from ..data import base_acceleration, read_trajectory, savgol_derivatives
+def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
+              resample="auto", velocity="logged", max_gap=None):
+    """Read, validate and preprocess logs given on the command line (:func:`sensorless.data.prepare`)."""
+    from ..data import prepare, read_trajectory
+    from ..data.prepare import parse_resample
+    from ..data.resample import DEFAULT_MAX_GAP
 
+    mode = parse_resample(resample)
+    cols = parse_columns(columns) if isinstance(columns, str) else columns
+    if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):
+        gains = None
     logs = []
     for p in paths:
-        traj = read_trajectory(p, columns=parse_columns(columns), rate=rate, robot=robot)
-        if lowpass:
-            traj = _lowpass(traj, lowpass)
-        if traj.v is None or traj.a is None or savgol_window:
-            traj = savgol_derivatives(traj, window=savgol_window or 11)
-        if traj.base_v is not None and traj.base_q is not None and (traj.base_a is None or savgol_window):
-            traj = base_acceleration(traj, window=savgol_window or 11)  # linear part from imu_acc if logged
-        if decimate and decimate > 1:
-            traj = _decimate(traj, decimate)
+        traj = read_trajectory(p, columns=cols, rate=rate, robot=robot, gains=gains,
+                               allow_duplicate_times=mode != "off")
+        traj = prepare(traj, trim=trim, resample=mode, lowpass=lowpass, savgol_window=savgol_window,
+                       velocity=velocity or "logged", decimate=decimate or 1,
+                       max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap)
         logs.append(traj)
     return logs
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -18,10 +19,17 @@ from .common import (
     bench_app,
     console,
     err_console,
+    gains_option,
     guarded,
     load_logs,
     load_robot_arg,
+    max_gap_option,
+    model_preprocessing,
+    preprocessing_settings,
     progress_bar,
+    resample_option,
+    trim_option,
+    velocity_option,
 )
 
 
@@ -43,8 +51,14 @@ def identify(
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
     rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
-    savgol_window: Optional[int] = typer.Option(None, help="recompute v, a from q with this Savitzky-Golay window"),
+    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window: re-derive v̇ from the logged v "
+                                                       "(v and v̇ from q when v is not logged)"),
     decimate: int = typer.Option(1, help="keep every n-th sample (after anti-alias filtering)"),
+    gains: Optional[str] = gains_option(),
+    trim: Optional[str] = trim_option(),
+    resample: str = resample_option(),
+    velocity: str = velocity_option(),
+    max_gap: Optional[float] = max_gap_option(),
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
     contact_frames: Optional[str] = typer.Option(
@@ -64,8 +78,9 @@ def identify(
 
     r = load_robot_arg(robot, lock, floating_base)
     with atomic_outdir(out, force) as tmp:
-        train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate)
-        val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate)
+        prep = dict(gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap)
+        train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate, **prep)
+        val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate, **prep)
         structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode)
         total = sum(len(t) for t in train)
@@ -78,7 +93,12 @@ def identify(
                 raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
-                                "columns": columns, "rate": rate})
+                                "columns": columns, "rate": rate,
+                                "preprocessing": preprocessing_settings(
+                                    train, columns=columns, gains=gains, rate=rate, trim=trim, resample=resample,
+                                    lowpass=lowpass, savgol_window=savgol_window, velocity=velocity,
+                                    decimate=decimate, max_gap=max_gap),
+                                "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}})
         doc = result.to_dict()
         cad = CADModel(r, like=structure)
         baseline = None
@@ -193,13 +213,20 @@ def predict(
     model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
     data: Path = typer.Option(..., help="log to predict"),
     out: Path = typer.Option(..., help="output .npz with t, tau_pred (and tau_measured, metrics if available)"),
-    columns: Optional[str] = typer.Option(None),
-    rate: Optional[float] = typer.Option(None),
-    savgol_window: Optional[int] = typer.Option(None),
+    columns: Optional[str] = typer.Option(None, help="column map (default: the model's)"),
+    rate: Optional[float] = typer.Option(None, help="sample rate (Hz) for logs without a time column (default: the model's)"),
+    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window (default: the model's)"),
+    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off in Hz (default: the model's)"),
+    gains: Optional[str] = gains_option(),
+    trim: Optional[str] = trim_option(),
+    resample: Optional[str] = resample_option(None),
+    velocity: Optional[str] = velocity_option(None),
+    max_gap: Optional[float] = max_gap_option(),
     lock: Optional[List[str]] = typer.Option(None),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
 ) -> None:
-    """Predict joint torques of a log with an identified model."""
+    """Predict joint torques of a log with an identified model. The log is preprocessed as the
+    model's training logs were (result.json settings.preprocessing) unless an option says otherwise."""
     from ..estimators import load_parameters
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
@@ -207,9 +234,14 @@ def predict(
     r = load_robot_arg(robot, lock, floating_base)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
-    (traj,) = load_logs([data], r, columns, rate, None, savgol_window, 1)
+    opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
+                               savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
+    (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
+                        gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
+                        max_gap=opts["max_gap"])
     pred = structure.torques(params, traj)
-    arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(structure.row_names)}
+    arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(structure.row_names),
+              "preprocessing": np.array(json.dumps({**opts, "trim": trim, "signals": traj.provenance}))}
     if traj.tau is not None:
         meas = structure.target(traj)
         arrays["tau_measured"] = meas

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
+from .gains import currents_to_torques, load_gains, resolve_gains
 from .imu import base_acceleration, imu_base_acceleration
+from .prepare import TrimWindow, prepare, trim_window
 from .readers import read_trajectory, write_npz
+from .resample import Timing, resample, timing
 from .trajectory import Trajectory
 from .validation import validate_trajectory
 
@@ -22,4 +25,13 @@ __all__ = [
     "resample_uniform",
     "base_acceleration",
     "imu_base_acceleration",
+    "prepare",
+    "TrimWindow",
+    "trim_window",
+    "resample",
+    "timing",
+    "Timing",
+    "currents_to_torques",
+    "load_gains",
+    "resolve_gains",
 ]

@@ -15,6 +15,10 @@ Joint names: ``joint_names``, else names stored in the file (NPZ/HDF5 ``joint_na
 or the ``{joint}`` pattern), else ``robot.joint_names`` if the column count matches,
 else ``joint_0..joint_{n-1}``. Time is kept as read (converted to seconds when
 ``time_unit`` is given); without a time field, ``t = arange(N) / rate``.
+
+Currents: ``gains`` (or a ``':gain=...'`` suffix on the ``tau``/``current`` entry of
+``columns``, e.g. ``{"tau": "i_{joint}:gain=10,10.7,9.6"}``; ``i_*`` = ``i_{joint}``)
+turn logged motor currents into torques τ = K·i, see :mod:`sensorless.data.gains`.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import DataError, ShapeMismatchError
+from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
 from .trajectory import Trajectory
 from .validation import JOINT_EXTRAS, validate_trajectory
@@ -78,12 +83,18 @@ def read_trajectory(
     rate: float | None = None,
     robot: "Robot | None" = None,
     time_unit: str | None = None,
+    gains: Any = None,
+    allow_duplicate_times: bool = False,
 ) -> Trajectory:
     """Read a log and return it validated (and reordered to ``robot.joint_names``).
 
     ``rate`` [Hz] builds the time axis when the file has none. ``time_unit`` (one of
-    s, ms, us, ns) converts a stored time column to seconds. Every problem raises a
-    :class:`~sensorless.errors.DataError` subclass naming the file, column and row.
+    s, ms, us, ns) converts a stored time column to seconds. ``gains`` are per-joint
+    drive gains K (number, list in the log's column order, ``{joint: K}``, or a .json/.csv
+    file): the logged currents become τ = K·i (:func:`~sensorless.data.gains.currents_to_torques`).
+    ``allow_duplicate_times`` accepts repeated stamps for :func:`sensorless.data.prepare`
+    to merge. Every problem raises a :class:`~sensorless.errors.DataError` subclass
+    naming the file, column and row.
     """
     path = Path(path)
     src = str(path)
@@ -96,6 +107,11 @@ def read_trajectory(
         raise DataError(
             f"unsupported file type '{path.suffix}'; supported: {', '.join(SUPPORTED_EXTENSIONS)}", src
         )
+    columns, column_gains, gain_field = split_gain_modifiers(columns, src)
+    if column_gains is not None:
+        if gains is not None:
+            raise DataError("gains are given twice (in the column map and as gains=...); give them once", src)
+        gains = column_gains
     if columns is not None:
         unknown = [k for k in columns if k not in FIELDS]
         if unknown:
@@ -111,7 +127,9 @@ def read_trajectory(
         df, header = _read_csv(path) if kind == "csv" else (_read_parquet(path), True)
         raw, file_names = _fields_from_frame(df, src, columns, joint_names, header)
     traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
-    traj = validate_trajectory(traj, robot)
+    if gains is not None:
+        traj = currents_to_torques(traj, gains, gain_field)
+    traj = validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times)
     if kind in ("npz", "hdf5"):
         extras = _sample_extras(path, kind, len(traj))
         if extras:

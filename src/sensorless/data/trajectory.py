@@ -4,12 +4,14 @@ Arrays are sample-major: ``q[i, j]`` is joint ``joint_names[j]`` at time ``t[i]`
 Units are SI (rad, m, rad/s, N·m, N); ``units`` records what the file said.
 The base of a floating-base robot is optional: pose ``[x y z qx qy qz qw]``,
 twist and its derivative in the base frame (Pinocchio's LOCAL convention).
+``provenance`` says where each signal came from (``{"v": "logged", "a": "derived: ..."}``,
+drive gains, timing and resampling); :func:`sensorless.data.prepare` fills it in.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Iterator
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -32,6 +34,7 @@ class Trajectory:
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     units: dict[str, str] = field(default_factory=dict)
     source: str = "<array>"
+    provenance: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.joint_names = tuple(self.joint_names)

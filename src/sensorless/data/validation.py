@@ -49,8 +49,12 @@ def validate_trajectory(
     *,
     check_units: bool = True,
     min_samples: int = 2,
+    allow_duplicate_times: bool = False,
 ) -> Trajectory:
     """Check ``traj`` and return it (reordered to ``robot.joint_names`` if a robot is given).
+
+    ``allow_duplicate_times`` accepts repeated time stamps (time must still never go
+    backwards); :func:`sensorless.data.resample` merges them.
 
     Raises ShapeMismatchError, NonFiniteError, TimestampError, JointNameError,
     UnitsError or TooFewSamplesError. The input is never modified.
@@ -96,7 +100,7 @@ def validate_trajectory(
     for name, arr in arrays.items():
         labels = names if name in _JOINT_FIELDS else [f"{name}[{k}]" for k in range(arr.shape[1])]
         _check_finite(name, arr, labels, t, src)
-    _check_time(t, src)
+    _check_time(t, src, allow_duplicate_times)
 
     out = traj.with_(t=t, **arrays)
     if robot is None:
@@ -127,16 +131,19 @@ def _check_finite(name: str, arr: np.ndarray, labels: list[str], t: np.ndarray, 
     raise NonFiniteError(f"{what} has {rows.size} non-finite values (NaN/inf), first at {where}{more}", src)
 
 
-def _check_time(t: np.ndarray, src: str) -> None:
+def _check_time(t: np.ndarray, src: str, allow_duplicates: bool = False) -> None:
     dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
+    bad = np.flatnonzero(dt < 0 if allow_duplicates else dt <= 0)
     if bad.size == 0:
         return
     i = int(bad[0]) + 1
     kind = "duplicate timestamp" if dt[i - 1] == 0 else "time goes backwards"
+    hint = ("; resampling merges duplicate stamps: --resample auto on the command line, or "
+            "read_trajectory(..., allow_duplicate_times=True) then sensorless.data.prepare(traj, resample='auto')"
+            if kind == "duplicate timestamp" else "")
     raise TimestampError(
         f"{kind} at sample {i}: t[{i}]={t[i]:.6f} s after t[{i - 1}]={t[i - 1]:.6f} s "
-        f"({bad.size} non-increasing step(s) in total); time must be strictly increasing",
+        f"({bad.size} non-increasing step(s) in total); time must be strictly increasing{hint}",
         src,
     )
 

@@ -1,0 +1,205 @@
+"""Joint torques from logged motor currents: τ_j = K_j · i_j with per-joint drive gains.
+
+Most arms have no torque sensor; their logs hold motor currents. A drive gain K_j
+[N·m/A, joint side] lumps the motor torque constant, the gear ratio and the
+efficiency. Gains are given as
+
+* a number (the same for every joint),
+* a list, in the log's joint (column) order,
+* a mapping ``{joint name: gain}`` covering every joint,
+* a file: JSON (a list, a mapping, or ``{"gains": ...}``) or CSV (``joint,gain`` rows,
+  header optional, or one row/column of numbers),
+* an inline string: ``"10,10.7,9.6"`` or ``"shoulder=10,elbow=10.7"``.
+
+In a column map the gains ride on the field: ``{"tau": "i_{joint}:gain=10,10.7,..."}``
+(``i_*`` is short for ``i_{joint}``). The current is the log's ``current`` field if it
+has one, else the field mapped to ``tau``. The reader keeps the current in
+``extras["current"]`` and records the gains in ``Trajectory.provenance["gains"]``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import DataError, JointNameError, ShapeMismatchError
+from .trajectory import Trajectory
+
+__all__ = ["split_gain_modifiers", "load_gains", "resolve_gains", "currents_to_torques"]
+
+_MODIFIER = ":gain="
+_GAIN_FIELDS = ("tau", "current")
+
+
+def split_gain_modifiers(columns: Mapping[str, Any] | None, src: str) -> tuple[dict | None, str | None, str | None]:
+    """``columns`` with any ``':gain=...'`` suffix removed and ``*`` patterns turned into
+    ``{joint}``; returns ``(columns, gain_text, field_it_was_on)``.
+
+    A list entry carries the suffix on its last item (``'a|b|c:gain=1,2,3'`` split at ``|``).
+    """
+    if columns is None:
+        return None, None, None
+    out: dict = {}
+    gain, on = None, None
+    for field, entry in columns.items():
+        items = list(entry) if isinstance(entry, (list, tuple)) else [entry]
+        last = items[-1] if items else None
+        if isinstance(last, str) and _MODIFIER in last:
+            head, _, text = last.rpartition(_MODIFIER)
+            if field not in _GAIN_FIELDS:
+                raise DataError(f"columns['{field}']: a gain applies only to 'tau' or 'current' columns (currents)", src)
+            if gain is not None:
+                raise DataError(f"gains are given on both '{on}' and '{field}' columns; give them once", src)
+            if not text.strip():
+                raise DataError(f"columns['{field}']: empty gain list after ':gain='", src)
+            gain, on = text.strip(), field
+            items[-1] = head.strip()
+        items = [_glob(i) for i in items]
+        out[field] = items if isinstance(entry, (list, tuple)) else items[0]
+    return out, gain, on
+
+
+def _glob(item: Any) -> Any:
+    """``'i_*'`` -> ``'i_{joint}'`` (one ``*``, no ``{joint}`` already)."""
+    if isinstance(item, str) and item.count("*") == 1 and "{joint}" not in item:
+        return item.replace("*", "{joint}")
+    return item
+
+
+def load_gains(spec: Any) -> "float | list[float] | dict[str, float]":
+    """Parse a gain specification (module docstring) into a number, a list or a mapping."""
+    if isinstance(spec, (int, float, np.integer, np.floating)) and not isinstance(spec, bool):
+        return float(spec)
+    if isinstance(spec, Mapping):
+        return {str(k): _number(v, str(k), "<gains>") for k, v in spec.items()}
+    if isinstance(spec, Path) or (isinstance(spec, str) and Path(spec).suffix.lower() in (".json", ".csv", ".txt")):
+        return _read_file(Path(spec))
+    if isinstance(spec, str):
+        if Path(spec).is_file():
+            return _read_file(Path(spec))
+        return _parse_inline(spec, "<gains>")
+    if isinstance(spec, (Sequence, np.ndarray)):
+        return [_number(v, f"#{k}", "<gains>") for k, v in enumerate(spec)]
+    raise DataError(f"gains must be a number, a list, a {{joint: gain}} mapping or a file, got {type(spec).__name__}")
+
+
+def _number(val: Any, what: str, src: str) -> float:
+    try:
+        out = float(val)
+    except (TypeError, ValueError):
+        raise DataError(f"gain {what} is not a number: {val!r}", src) from None
+    if not np.isfinite(out) or out == 0:
+        raise DataError(f"gain {what} must be finite and non-zero, got {val!r}", src)
+    return out
+
+
+def _parse_inline(text: str, src: str) -> "list[float] | dict[str, float]":
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+    if not parts:
+        raise DataError("empty gain list", src)
+    if all("=" in p for p in parts):
+        pairs = [p.split("=", 1) for p in parts]
+        return {k.strip(): _number(v, k.strip(), src) for k, v in pairs}
+    if any("=" in p for p in parts):
+        raise DataError(f"gains mix 'joint=gain' and bare numbers: {text!r}", src)
+    return [_number(p, f"#{k}", src) for k, p in enumerate(parts)]
+
+
+def _read_file(path: Path) -> "list[float] | dict[str, float]":
+    src = str(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise DataError(f"cannot read gains file: {exc.strerror or exc}", src) from None
+    if path.suffix.lower() == ".json":
+        try:
+            doc = json.loads(text)
+        except ValueError as exc:
+            raise DataError(f"not valid JSON ({exc})", src) from None
+        if isinstance(doc, dict) and "gains" in doc:
+            doc = doc["gains"]
+        if isinstance(doc, dict):
+            return {str(k): _number(v, str(k), src) for k, v in doc.items()}
+        if isinstance(doc, list):
+            return [_number(v, f"#{k}", src) for k, v in enumerate(doc)]
+        raise DataError("JSON gains must be a list or a {joint: gain} object", src)
+    rows = [[c.strip() for c in row] for row in csv.reader(line for line in text.splitlines() if line.strip())]
+    rows = [[c for c in row if c] for row in rows if any(row)]
+    if not rows:
+        raise DataError("gains file is empty", src)
+    if all(len(r) == 2 for r in rows):  # joint,gain (optional header)
+        body = rows[1:] if not _is_num(rows[0][1]) else rows
+        return {r[0]: _number(r[1], r[0], src) for r in body}
+    flat = [c for r in rows for c in r]
+    if all(len(r) == 1 for r in rows) or len(rows) == 1:
+        return [_number(c, f"#{k}", src) for k, c in enumerate(flat)]
+    raise DataError("CSV gains must be 'joint,gain' rows or one row/column of numbers", src)
+
+
+def _is_num(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+def resolve_gains(gains: Any, joint_names: Sequence[str], src: str = "<gains>") -> np.ndarray:
+    """Per-joint gains (n_joints,) in the order of ``joint_names``; a list is in that order."""
+    g = load_gains(gains)
+    names = list(joint_names)
+    if isinstance(g, float):
+        return np.full(len(names), g)
+    if isinstance(g, list):
+        if len(g) != len(names):
+            raise ShapeMismatchError(
+                f"{len(g)} gains for {len(names)} joints {names}; give one gain per joint in column order "
+                "or a {joint: gain} mapping", src)
+        return np.asarray(g, dtype=float)
+    unknown = [k for k in g if k not in names]
+    missing = [j for j in names if j not in g]
+    if unknown or missing:
+        what = [f"gains name joint(s) {unknown} not in the log"] if unknown else []
+        what += [f"no gain for joint(s) {missing}"] if missing else []
+        raise JointNameError(f"{'; '.join(what)} (log joints: {names})", src)
+    return np.array([g[j] for j in names], dtype=float)
+
+
+def currents_to_torques(traj: Trajectory, gains: Any, current_field: str | None = None) -> Trajectory:
+    """``traj`` with ``tau = K · i`` (per joint) and the current kept in ``extras["current"]``.
+
+    ``current_field`` is ``"current"`` or ``"tau"`` (the columns mapped to ``tau`` hold
+    currents); by default ``"current"`` if the log has one, else ``"tau"``.
+    """
+    src = traj.source
+    if current_field is None:
+        current_field = "current" if "current" in traj.extras else "tau"
+    if current_field == "current":
+        if "current" not in traj.extras:
+            raise DataError("gains given but the log has no 'current' columns", src)
+        if traj.tau is not None:
+            raise DataError(
+                "the log has both torque and current columns; gains would replace the logged torque: "
+                "map only one of them (columns={'tau': ...} or {'current': ...})", src)
+        current = np.asarray(traj.extras["current"], dtype=float)
+    else:
+        if traj.tau is None:
+            raise DataError(
+                "gains given but the log has no current columns; map them, e.g. "
+                "--columns 'q=pos_{joint};tau=i_{joint}:gain=...' or columns={'current': 'i_{joint}'}", src)
+        current = np.asarray(traj.tau, dtype=float)
+    if current.ndim == 1:
+        current = current[:, None]
+    if current.ndim != 2 or current.shape[1] != traj.n_joints:
+        raise ShapeMismatchError(
+            f"current has shape {current.shape}; expected (samples, {traj.n_joints}) for joints {list(traj.joint_names)}",
+            src)
+    K = resolve_gains(gains, traj.joint_names, src)
+    gain_map = {j: float(k) for j, k in zip(traj.joint_names, K)}
+    units = {**traj.units, "tau": "N·m (= drive gain × current)", "current": "as logged"}
+    prov = {**traj.provenance, "tau": f"current × drive gain (from '{current_field}' columns)", "gains": gain_map}
+    return traj.with_(tau=current * K, extras={**traj.extras, "current": current}, units=units, provenance=prov)
