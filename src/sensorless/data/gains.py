@@ -4,7 +4,7 @@ Most arms have no torque sensor; their logs hold motor currents. A drive gain K_
 [N·m/A, joint side] lumps the motor torque constant, the gear ratio and the
 efficiency. Gains are given as
 
-* a number (the same for every joint),
+* a number (the same for every joint; also ``"2.5"``),
 * a list, in the log's joint (column) order,
 * a mapping ``{joint name: gain}`` covering every joint,
 * a file: JSON (a list, a mapping, or ``{"gains": ...}``) or CSV (``joint,gain`` rows,
@@ -88,12 +88,13 @@ def load_gains(spec: Any) -> "float | list[float] | dict[str, float]":
 
 
 def _number(val: Any, what: str, src: str) -> float:
+    what = f" {what}" if what else ""
     try:
         out = float(val)
     except (TypeError, ValueError):
-        raise DataError(f"gain {what} is not a number: {val!r}", src) from None
+        raise DataError(f"gain{what} is not a number: {val!r}", src) from None
     if not np.isfinite(out) or out == 0:
-        raise DataError(f"gain {what} must be finite and non-zero, got {val!r}", src)
+        raise DataError(f"gain{what} must be finite and non-zero, got {val!r}", src)
     return out
 
 
@@ -106,6 +107,8 @@ def _parse_inline(text: str, src: str) -> "list[float] | dict[str, float]":
         return {k.strip(): _number(v, k.strip(), src) for k, v in pairs}
     if any("=" in p for p in parts):
         raise DataError(f"gains mix 'joint=gain' and bare numbers: {text!r}", src)
+    if len(parts) == 1:  # one number: every joint
+        return _number(parts[0], "", src)
     return [_number(p, f"#{k}", src) for k, p in enumerate(parts)]
 
 

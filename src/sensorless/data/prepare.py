@@ -106,8 +106,8 @@ def _seconds(text: Any, spec: Any) -> float:
 
 def trim_window(traj: Trajectory, window: "str | tuple | TrimWindow") -> Trajectory:
     """Samples of ``traj`` inside ``window`` (typed errors if it is empty or outside the log)."""
-    win = TrimWindow.parse(window)
     src = traj.source
+    win = _with_source(TrimWindow.parse, src, window)
     t = traj.t
     lo, hi = win.bounds(t)
     span = f"the log spans {t[0]:.6g}..{t[-1]:.6g} s ({t[-1] - t[0]:.3f} s)"
