@@ -111,8 +111,8 @@ def trim_option():
 
 
 def resample_option(default: Optional[str] = "auto"):
-    return typer.Option(default, help="auto (only if stamps jitter > 5 % or repeat) | off | RATE_HZ: "
-                                      "interpolate onto a uniform grid" + ("" if default else "; default: the model's, else auto"))
+    return typer.Option(default, help="auto (only if a time stamp repeats or a step is > 5 % off the median period) | off | "
+                                      "RATE_HZ: interpolate onto a uniform grid" + ("" if default else "; default: the model's, else auto"))
 
 
 def velocity_option(default: Optional[str] = "logged"):
