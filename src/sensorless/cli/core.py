@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import List, Optional
 
@@ -11,6 +9,7 @@ import numpy as np
 import typer
 
 from ..errors import ExcitationError, SensorlessError
+from ..io import write_npz_atomic
 from .common import (
     ROBOT_HELP,
     app,
@@ -21,6 +20,8 @@ from .common import (
     guarded,
     load_logs,
     load_robot_arg,
+    output_file,
+    path_inputs,
     progress_bar,
 )
 
@@ -63,7 +64,7 @@ def identify(
     from ..report import metrics_table, plot_torques
 
     r = load_robot_arg(robot, lock, floating_base)
-    with atomic_outdir(out, force) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior)) as tmp:
         train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate)
         val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate)
         structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
@@ -204,6 +205,7 @@ def predict(
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
+    output_file(out, path_inputs(robot, model, data))
     r = load_robot_arg(robot, lock, floating_base)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
@@ -214,11 +216,7 @@ def predict(
         meas = structure.target(traj)
         arrays["tau_measured"] = meas
         console.print(metrics_table(Path(data).name, {"model": torque_metrics(meas, pred, structure.row_names)}))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".npz")
-    os.close(fd)
-    np.savez(tmp, **arrays)
-    os.replace(tmp, out)
+    write_npz_atomic(out, **arrays)
     console.print(f"wrote {out}")
 
 

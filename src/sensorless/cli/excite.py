@@ -19,6 +19,7 @@ from .common import (
     experiment_app,
     guarded,
     load_robot_arg,
+    path_inputs,
 )
 
 PSM_NAMES = ("dvrk_psm", "dvrk-psm", "psm")
@@ -81,7 +82,7 @@ def excite(
         structure = ModelStructure(r, joint_terms=tuple(t for t in joint_terms.split(",") if t))
         limits = ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration)
     boxes = [_parse_box(b) for b in box]
-    with atomic_outdir(out, force) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(robot)) as tmp:
         with err_console.status("optimising excitation …") as status:
             design = design_excitation(
                 structure, limits, harmonics=harmonics, base_freq=base_freq, criterion=criterion,
@@ -115,7 +116,7 @@ def psm_identify(
     from ..identification.result import write_json_atomic
     from ..robots.dvrk_psm_study import psm_identification_study
 
-    with atomic_outdir(out, force) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(data)) as tmp:
         with err_console.status("identifying the PSM (smoothing chosen by cross-validation on one_results) …"):
             report = psm_identification_study(
                 data, cutoff_hz=cutoff, lmi={"ellipsoids": False, "regularization": None, "gamma": 0.0} if lmi else None

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import typer
 
 from ..errors import SensorlessError
+from ..io import write_npz_atomic
 from .common import (
     ROBOT_HELP,
     app,
@@ -19,6 +18,8 @@ from .common import (
     guarded,
     load_logs,
     load_robot_arg,
+    output_file,
+    path_inputs,
 )
 
 __all__ = ["estimate_force", "experiment_hybrid_force"]
@@ -66,6 +67,7 @@ def estimate_force(
     from ..estimators import load_parameters
     from ..learning.models import ParameterModel
 
+    output_file(out, path_inputs(robot, model, data, residual))
     r = load_robot_arg(robot, lock, False)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
@@ -84,11 +86,7 @@ def estimate_force(
         sigma_threshold=sigma_threshold, lambda_max=lambda_max,
     )
     res = est.estimate(traj, phys, residual=hybrid)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".npz")
-    os.close(fd)
-    np.savez(tmp, **res.arrays())
-    os.replace(tmp, out)
+    write_npz_atomic(out, **res.arrays())
     damped = float(np.mean(res.damping > 0))
     rms = np.sqrt(np.mean(res.F**2, axis=0))
     console.print(
