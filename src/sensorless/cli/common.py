@@ -8,7 +8,6 @@ import os
 from pathlib import Path
 from typing import Iterable, Iterator, List, Optional
 
-import click
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -55,13 +54,22 @@ def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Pat
     from ..io import atomic_output_dir
 
     command = None
-    ctx = click.get_current_context(silent=True)
+    ctx = _current_context()
     if ctx is not None:
         command = {"name": " ".join(["sensorless", *ctx.command_path.split()[1:]]), "options": {
             k: v if isinstance(v, (str, int, float, bool, list, tuple, Path)) or v is None else str(v)
             for k, v in ctx.params.items()}}
     with atomic_output_dir(out, force, inputs=inputs, command=command) as tmp:
         yield tmp
+
+
+def _current_context():
+    """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
+    try:
+        from typer.main import get_current_context
+    except ImportError:  # pragma: no cover - older typer on plain click
+        from click import get_current_context
+    return get_current_context(silent=True)
 
 
 def output_file(out: Path, inputs: Iterable = ()) -> Path:
