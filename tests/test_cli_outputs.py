@@ -158,26 +158,31 @@ def test_previous_output_is_replaced_with_force_and_kept_without(log, tmp_path):
     assert not list(tmp_path.glob(".run.*"))
 
 
-def test_result_json_is_strict_json(log, tmp_path):
-    out = tmp_path / "run"
-    assert _identify(log, out).exit_code == 0
+@pytest.fixture(scope="module")
+def ran(log, tmp_path_factory):
+    """One successful `identify` under umask 022."""
+    out = tmp_path_factory.mktemp("ran") / "run"
+    old = os.umask(0o022)
+    try:
+        r = _identify(log, out)
+    finally:
+        os.umask(old)
+    assert r.exit_code == 0, r.output
+    return out
 
+
+def test_result_json_is_strict_json(ran):
     def no_constants(name):
         raise AssertionError(f"bare {name} in result.json")
 
-    doc = json.loads((out / "result.json").read_text(), parse_constant=no_constants)
+    doc = json.loads((ran / "result.json").read_text(), parse_constant=no_constants)
     assert np.isfinite(doc["diagnostics"]["condition_number"])
+    json.loads((ran / MANIFEST).read_text(), parse_constant=no_constants)
 
 
-def test_output_permissions_follow_umask(log, tmp_path):
-    old = os.umask(0o022)
-    try:
-        out = tmp_path / "run"
-        assert _identify(log, out).exit_code == 0
-    finally:
-        os.umask(old)
-    assert out.stat().st_mode & 0o777 == 0o755
-    for f in out.iterdir():
+def test_output_permissions_follow_umask(ran):
+    assert ran.stat().st_mode & 0o777 == 0o755
+    for f in ran.iterdir():
         assert f.stat().st_mode & 0o777 == 0o644, f
 
 
@@ -212,15 +217,14 @@ def test_concurrent_run_on_the_same_out_fails_clearly(log, tmp_path):
     assert (out / "result.json").read_text() == "{}"  # the run that reported success is the one on disk
 
 
-def test_predict_out_directory_is_a_clear_error_without_stray_files(log, tmp_path):
-    model = tmp_path / "model"
-    assert _identify(log, model).exit_code == 0
+def test_predict_out_directory_is_a_clear_error_without_stray_files(log, ran, tmp_path):
+    model = ran
     d = tmp_path / "preds"
     canary = _canary(d)
     r = _run("predict", *ROBOT, "--model", model, "--data", log, "--out", d)
     _one_line_error(r, str(d), "directory")
     assert sorted(p.name for p in d.iterdir()) == ["canary.txt"] and canary.exists()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["model", "preds"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["preds"] and not list(ran.parent.glob(".*"))
     # never over the input log
     data = _copy_log(log, tmp_path / "in")
     before = data.read_bytes()
