@@ -14,6 +14,7 @@ import subprocess
 import sys
 import textwrap
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -300,29 +301,38 @@ _WRITER = textwrap.dedent("""
     sys.path.insert(0, {src!r})
     from sensorless.errors import SensorlessError
     from sensorless.io import atomic_output_dir
-    out, tag, hold = Path(sys.argv[1]), sys.argv[2], float(sys.argv[3])
+    out, tag, release = Path(sys.argv[1]), sys.argv[2], Path(sys.argv[3])
     try:
         with atomic_output_dir(out, force=True) as tmp:
             (tmp / "result.txt").write_text(tag)
             print("ready", flush=True)
-            time.sleep(hold)
+            deadline = time.monotonic() + 120
+            while not release.exists() and time.monotonic() < deadline:
+                time.sleep(0.02)
     except SensorlessError as exc:
         print(f"error: {{exc}}", flush=True)
         sys.exit(2)
 """)
 
 
-def _writer(tmp_path: Path, out: Path, tag: str, hold: float) -> subprocess.Popen:
+def _writer(tmp_path: Path, out: Path, tag: str) -> subprocess.Popen:
+    """A process that writes ``out`` and holds it until ``tmp_path/release`` exists."""
     script = tmp_path / "writer.py"
     if not script.exists():
         script.write_text(_WRITER.format(src=SRC))
-    return subprocess.Popen([sys.executable, str(script), str(out), tag, str(hold)], stdout=subprocess.PIPE, text=True)
+    return subprocess.Popen([sys.executable, str(script), str(out), tag, str(tmp_path / "release")],
+                            stdout=subprocess.PIPE, text=True)
 
 
 def test_two_processes_on_one_output_never_both_succeed(tmp_path):
     out = tmp_path / "run"
     _make_output(out, "previous")
-    procs = [_writer(tmp_path, out, tag, 1.5) for tag in ("A", "B")]
+    procs = [_writer(tmp_path, out, tag) for tag in ("A", "B")]
+    deadline = time.monotonic() + 120
+    while all(p.poll() is None for p in procs):  # the loser gives up at once; the winner holds the output
+        assert time.monotonic() < deadline, "neither run gave up"
+        time.sleep(0.05)
+    (tmp_path / "release").touch()
     outputs = [p.communicate(timeout=60)[0] for p in procs]
     codes = [p.returncode for p in procs]
     assert sorted(codes) == [0, 2], (codes, outputs)
@@ -335,7 +345,7 @@ def test_two_processes_on_one_output_never_both_succeed(tmp_path):
 
 def test_sigterm_leaves_no_temporary_directory(tmp_path):
     out = tmp_path / "run"
-    p = _writer(tmp_path, out, "A", 60)
+    p = _writer(tmp_path, out, "A")
     assert p.stdout.readline().strip() == "ready"
     assert list(tmp_path.glob(".run.tmp-*")), "the run should be writing into a hidden temporary directory"
     p.send_signal(signal.SIGTERM)
@@ -348,7 +358,7 @@ def test_sigterm_leaves_no_temporary_directory(tmp_path):
 def test_sigterm_during_replacement_keeps_previous_output(tmp_path):
     out = tmp_path / "run"
     _make_output(out, "previous")
-    p = _writer(tmp_path, out, "A", 60)
+    p = _writer(tmp_path, out, "A")
     assert p.stdout.readline().strip() == "ready"
     p.terminate()
     p.communicate(timeout=30)

@@ -293,7 +293,7 @@ def _terminate_as_exit() -> Iterator[None]:
     previous = {}
     for sig in (signal.SIGTERM, signal.SIGHUP):
         old = signal.getsignal(sig)
-        if old in (signal.SIG_DFL, None) or old is signal.default_int_handler:
+        if old in (signal.SIG_DFL, None):  # never override a handler (or SIG_IGN) someone installed
             previous[sig] = old
             signal.signal(sig, handler)
     try:
@@ -351,6 +351,8 @@ def atomic_output_dir(
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
+        # the swap below is not interrupted half-way (a pending SIGTERM is handled after it)
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM, signal.SIGHUP})
         try:
             _write_manifest(tmp, command)
             _check_replaceable(out, force, inputs)
@@ -371,3 +373,5 @@ def atomic_output_dir(
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
