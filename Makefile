@@ -28,7 +28,7 @@ test-all: $(STAMP)
 	$(PY) -m pytest -q -m '' tests
 
 bench: $(STAMP)
-	$(VENV)/bin/sensorless benchmark identify --out benchmarks/results
+	$(VENV)/bin/sensorless benchmark identify --out benchmarks/results/identify.json
 
 clean:
 	rm -rf $(VENV) demo_output

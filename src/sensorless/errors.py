@@ -18,6 +18,7 @@ __all__ = [
     "ExcitationError",
     "SolverError",
     "PhysicalConsistencyError",
+    "OutputError",
 ]
 
 
@@ -67,3 +68,8 @@ class SolverError(SensorlessError):
 
 class PhysicalConsistencyError(SensorlessError, ValueError):
     """Inertial parameters that no real body can have (e.g. mass <= 0, indefinite pseudo-inertia)."""
+
+
+class OutputError(SensorlessError):
+    """An output path that cannot be written, or must not be replaced (not a sensorless output,
+    the working or home directory, a directory holding the inputs, another run writing it)."""

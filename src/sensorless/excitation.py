@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data.trajectory import Trajectory
+from .errors import ExcitationError
 from .robot import Robot
 
 __all__ = ["FourierTrajectory", "random_fourier"]
@@ -82,7 +83,10 @@ def random_fourier(
     Centred mid-range; the worst-case amplitude bound is scaled to ``position_fraction``
     of each joint's half range (±π for unlimited joints), and velocity/acceleration bounds
     to ``max_velocity`` (capped by the model's velocity limit) and ``max_acceleration``.
+    ``0 < position_fraction ≤ 1``: a larger fraction would leave the joint range.
     """
+    if not (np.isfinite(position_fraction) and 0.0 < position_fraction <= 1.0):
+        raise ExcitationError(f"position_fraction must be in (0, 1], got {position_fraction}")
     rng = np.random.default_rng(rng)
     n = len(robot.joint_names)
     lo, hi = robot.position_limits()

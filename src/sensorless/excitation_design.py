@@ -50,11 +50,16 @@ __all__ = [
     "ExcitationDesign",
     "ExcitationLimits",
     "design_excitation",
+    "check_export",
+    "check_sampled_limits",
     "excitation_metrics",
     "random_excitation",
+    "robot_limits",
 ]
 
 CRITERIA = ("cond", "dopt")
+MAX_RATE_HZ = 100_000.0  # export sample rate bound
+MAX_EXPORT_SAMPLES = 10_000_000  # samples in trajectory.npz
 
 
 @dataclass
@@ -92,7 +97,14 @@ class ExcitationLimits:
     ) -> ExcitationLimits:
         """The limits :func:`~sensorless.excitation.random_fourier` uses: ``position_fraction``
         of each joint's range about mid-range (±π for unlimited joints), velocity capped by
-        the model's limit."""
+        the model's limit. ``0 < position_fraction ≤ 1`` (a fraction above 1 would leave the
+        joint range); the velocity and acceleration limits must be finite and > 0."""
+        if not (np.isfinite(position_fraction) and 0.0 < position_fraction <= 1.0):
+            raise ExcitationError(f"position fraction (--position-fraction) must be in (0, 1], got {position_fraction}")
+        for name, val in (("velocity (--max-velocity)", max_velocity), ("acceleration (--max-acceleration)", max_acceleration)):
+            arr = np.asarray(val, dtype=float)
+            if not (np.all(np.isfinite(arr)) and np.all(arr > 0)):
+                raise ExcitationError(f"maximum {name} must be finite and > 0, got {val}")
         lo, hi = robot.position_limits()
         lo = np.where(np.isfinite(lo), lo, -np.pi)
         hi = np.where(np.isfinite(hi), hi, np.pi)
@@ -118,6 +130,78 @@ class ExcitationLimits:
             "velocity": self.velocity.tolist(),
             "acceleration": self.acceleration.tolist(),
         }
+
+
+def robot_limits(robot) -> dict[str, np.ndarray]:
+    """The model's own position and velocity limits per joint (±inf where it has none)."""
+    lo, hi = robot.position_limits()
+    vel = np.asarray(robot.velocity_limits(), dtype=float)
+    return {
+        "lower": np.where(np.isfinite(lo), lo, -np.inf),
+        "upper": np.where(np.isfinite(hi), hi, np.inf),
+        "velocity": np.where(vel > 0, vel, np.inf),
+    }
+
+
+def check_sampled_limits(
+    traj: Trajectory, limits: ExcitationLimits, hard: dict | None = None, tol: float = 1e-9
+) -> dict[str, float]:
+    """Verify the samples that will be written, not the optimiser's view of them.
+
+    Checks ``lower ≤ q ≤ upper``, ``|v| ≤ v_max`` and ``|v̇| ≤ a_max`` at every sample of
+    ``traj`` against ``hard`` (the robot model's limits, :func:`robot_limits`) and against
+    ``limits``. The worst violation beyond ``tol`` raises :class:`ExcitationError` naming the
+    joint, sample, time, value and limit; otherwise the largest excess per kind (≤ tol) is returned.
+    """
+    names = list(traj.joint_names)
+    if names != list(limits.joint_names):
+        raise ExcitationError(f"trajectory joints {names} do not match the limits' {list(limits.joint_names)}")
+    sets = [] if hard is None else [("the robot model's", hard["lower"], hard["upper"], hard["velocity"], None)]
+    sets.append(("the excitation", limits.lower, limits.upper, limits.velocity, limits.acceleration))
+    excess = {"position": -np.inf, "velocity": -np.inf, "acceleration": -np.inf}
+    for source, lo, hi, vmax, amax in sets:
+        rows = [("position", "upper limit ", traj.q - hi, traj.q, hi), ("position", "lower limit ", lo - traj.q, traj.q, lo)]
+        if traj.v is not None:
+            rows.append(("velocity", "limit ±", np.abs(traj.v) - vmax, traj.v, vmax))
+        if amax is not None and traj.a is not None:
+            rows.append(("acceleration", "limit ±", np.abs(traj.a) - amax, traj.a, amax))
+        for kind, what, exc, val, lim in rows:
+            if exc.size == 0:
+                continue
+            exc = np.where(np.isnan(exc), np.inf, exc)
+            i, j = np.unravel_index(np.argmax(exc), exc.shape)
+            excess[kind] = max(excess[kind], float(exc[i, j]))
+            if exc[i, j] > tol:
+                raise ExcitationError(
+                    f"refusing to write an excitation that leaves {source} limits: joint {names[j]}, sample {i} "
+                    f"(t = {traj.t[i]:.6g} s): {kind} {val[i, j]:.6g} beyond the {what}{lim[j]:.6g}"
+                )
+    return excess
+
+
+def check_export(rate: float, periods: float, harmonics: int, base_freq: float, max_samples: int = MAX_EXPORT_SAMPLES) -> int:
+    """Validate the export options; return the number of samples ``round(periods · rate / f0)``.
+
+    ``rate`` must be finite, above twice the highest harmonic ``H·f0`` (Nyquist) and at
+    most :data:`MAX_RATE_HZ`; ``periods`` an integer ≥ 1; the sample count at most ``max_samples``.
+    """
+    if not (isinstance(rate, (int, float, np.floating, np.integer)) and np.isfinite(rate) and 0 < rate <= MAX_RATE_HZ):
+        raise ExcitationError(f"sample rate (--rate) must be a finite number in (0, {MAX_RATE_HZ:g}] Hz, got {rate}")
+    nyquist = 2.0 * harmonics * base_freq
+    if rate <= nyquist:
+        raise ExcitationError(
+            f"sample rate (--rate) {rate:g} Hz must exceed twice the highest harmonic ({harmonics} × {base_freq:g} Hz), "
+            f"i.e. > {nyquist:g} Hz"
+        )
+    if not (np.isfinite(periods) and float(periods).is_integer() and periods >= 1):
+        raise ExcitationError(f"periods (--periods) must be a whole number ≥ 1, got {periods}")
+    n = int(round(periods * rate / base_freq))
+    if n > max_samples:
+        raise ExcitationError(
+            f"the export would hold {n:,} samples (--periods {periods:g} × --rate {rate:g} Hz × period {1 / base_freq:g} s); "
+            f"at most {max_samples:,}"
+        )
+    return n
 
 
 @dataclass(frozen=True)
@@ -450,6 +534,7 @@ class ExcitationDesign:
     cartesian_violation: float | None = None
     settings: dict = field(default_factory=dict)
     random_trajectory: FourierTrajectory | None = None
+    hard_limits: dict | None = None  # the robot model's own limits (:func:`robot_limits`)
 
     @property
     def improvement(self) -> float:
@@ -475,6 +560,7 @@ class ExcitationDesign:
             "improvement_cond": self.improvement,
             "improvement_cond_median": self.improvement_median,
             "limit_violation": self.limit_violation,
+            "robot_limits": self.hard_limits,
             "cartesian": [c.to_dict() for c in self.cartesian],
             "cartesian_violation": self.cartesian_violation,
             "settings": self.settings,
@@ -483,13 +569,20 @@ class ExcitationDesign:
 
     def save(self, outdir: str | Path, rate: float = 200.0, periods: float = 1.0) -> tuple[Path, Path]:
         """Write ``excitation.json`` (coefficients, limits, criterion, figures) and
-        ``trajectory.npz`` (q, v, a sampled at ``rate`` for ``periods`` periods)."""
+        ``trajectory.npz`` (q, v, a sampled at ``rate`` for ``periods`` periods).
+
+        The samples written are checked first (:func:`check_sampled_limits`, against the
+        excitation limits and the robot model's): a violation raises and nothing is written.
+        """
+        check_export(rate, periods, self.trajectory.a.shape[1], self.trajectory.base_freq)
+        traj = self.sample(rate, periods)
+        excess = check_sampled_limits(traj, self.limits, self.hard_limits)
         outdir = Path(outdir)
         outdir.mkdir(parents=True, exist_ok=True)
         doc = self.to_dict()
-        doc["export"] = {"rate_hz": rate, "periods": periods}
+        doc["export"] = {"rate_hz": rate, "periods": periods, "n_samples": len(traj), "sampled_limit_excess": excess}
         write_json_atomic(doc, outdir / "excitation.json")
-        npz = write_npz(self.sample(rate, periods), outdir / "trajectory.npz")
+        npz = write_npz(traj, outdir / "trajectory.npz")
         return outdir / "excitation.json", npz
 
 
@@ -524,7 +617,7 @@ def design_excitation(
     """
     if criterion not in CRITERIA:
         raise ExcitationError(f"unknown criterion '{criterion}'; choose from {CRITERIA}")
-    if harmonics < 1 or base_freq <= 0 or n_samples < 4:
+    if not (harmonics >= 1 and np.isfinite(base_freq) and base_freq > 0 and n_samples >= 4):
         raise ExcitationError(f"need harmonics >= 1, base_freq > 0 and n_samples >= 4 (got {harmonics}, {base_freq}, {n_samples})")
     robot = structure.robot
     if robot.floating_base:
@@ -532,6 +625,15 @@ def design_excitation(
     limits = ExcitationLimits.from_robot(robot) if limits is None else limits
     if tuple(limits.joint_names) != tuple(robot.joint_names):
         raise ExcitationError(f"limits are for joints {list(limits.joint_names)}, the structure moves {list(robot.joint_names)}")
+    hard = robot_limits(robot)
+    for j, name in enumerate(limits.joint_names):
+        for what, val, lim, bad in (
+            ("lower position", limits.lower[j], hard["lower"][j], limits.lower[j] < hard["lower"][j] - 1e-12),
+            ("upper position", limits.upper[j], hard["upper"][j], limits.upper[j] > hard["upper"][j] + 1e-12),
+            ("velocity", limits.velocity[j], hard["velocity"][j], limits.velocity[j] > hard["velocity"][j] + 1e-12),
+        ):
+            if bad:
+                raise ExcitationError(f"excitation {what} limit {val:.6g} of joint {name} lies outside the robot model's ({lim:.6g})")
     t0 = time.perf_counter()
     prob = _Problem(structure, limits, harmonics, base_freq, n_samples, criterion, cartesian, coulomb_smoothing)
     start = random_excitation(limits, harmonics=harmonics, base_freq=base_freq, rng=seed, start_at_rest=start_at_rest, fill=0.9)
@@ -625,7 +727,8 @@ def design_excitation(
         "structure": structure.settings(),
     }
     settings["n_random"] = len(conds)
-    return ExcitationDesign(opt, limits, criterion, metrics, random_metrics, violation, list(cartesian), cart_v, settings, baseline)
+    return ExcitationDesign(opt, limits, criterion, metrics, random_metrics, violation, list(cartesian), cart_v, settings, baseline,
+                            hard_limits=hard)
 
 
 def _fit_if_needed(traj: FourierTrajectory, limits: ExcitationLimits) -> FourierTrajectory:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -35,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import PhysicalConsistencyError, RobotModelError
+from .io import atomic_write_text
 from .parameters import JointTerms, as_bodies, is_physically_consistent, urdf_inertial
 from .robot import Robot
 
@@ -55,18 +55,7 @@ def _vec(v) -> str:
 
 
 def _atomic_write(path: str | os.PathLike, text: str) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return atomic_write_text(path, text)
 
 
 def _link_names(model: pin.Model, floating: bool) -> list[str]:

@@ -5,10 +5,8 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
-import shutil
-import tempfile
 from pathlib import Path
-from typing import Iterator, List, Optional
+from typing import Iterable, Iterator, List, Optional
 
 import typer
 from rich.console import Console
@@ -50,21 +48,45 @@ def guarded(fn):
 
 
 @contextlib.contextmanager
-def atomic_outdir(out: Path, force: bool) -> Iterator[Path]:
-    """Write into a temporary sibling directory; move it to ``out`` only on success."""
-    out = Path(out)
-    if out.exists() and not force:
-        raise SensorlessError(f"{out}: output directory exists; pass --force to replace it")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Path]:
+    """:func:`sensorless.io.atomic_output_dir` for a command: the manifest records the command
+    and its options; ``inputs`` (files or folders the command reads) are never replaced."""
+    from ..io import atomic_output_dir
+
+    command = None
+    ctx = _current_context()
+    if ctx is not None:
+        command = {"name": " ".join(["sensorless", *ctx.command_path.split()[1:]]), "options": {
+            k: v if isinstance(v, (str, int, float, bool, list, tuple, Path)) or v is None else str(v)
+            for k, v in ctx.params.items()}}
+    with atomic_output_dir(out, force, inputs=inputs, command=command) as tmp:
         yield tmp
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    if out.exists():
-        shutil.rmtree(out)
-    os.replace(tmp, out)
+
+
+def _current_context():
+    """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
+    try:
+        from typer.main import get_current_context
+    except ImportError:  # pragma: no cover - older typer on plain click
+        from click import get_current_context
+    return get_current_context(silent=True)
+
+
+def output_file(out: Path, inputs: Iterable = ()) -> Path:
+    """Check a single-file ``--out`` (not a directory, not an input)."""
+    from ..io import check_output_file
+
+    return check_output_file(out, inputs)
+
+
+def path_inputs(*values) -> list:
+    """The command-line values that are existing paths (logs, URDFs, data folders): never replaced."""
+    out = []
+    for v in values:
+        for x in (v if isinstance(v, (list, tuple)) else [v]):
+            if x is not None and str(x) and os.path.exists(str(x)):
+                out.append(Path(str(x)))
+    return out
 
 
 def progress_bar() -> Progress:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import List, Optional
 
@@ -12,6 +10,7 @@ import numpy as np
 import typer
 
 from ..errors import ExcitationError, SensorlessError
+from ..io import write_npz_atomic
 from .common import (
     ROBOT_HELP,
     app,
@@ -25,6 +24,8 @@ from .common import (
     load_robot_arg,
     max_gap_option,
     model_preprocessing,
+    output_file,
+    path_inputs,
     preprocessing_settings,
     progress_bar,
     resample_option,
@@ -77,7 +78,7 @@ def identify(
     from ..report import metrics_table, plot_torques
 
     r = load_robot_arg(robot, lock, floating_base)
-    with atomic_outdir(out, force) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior)) as tmp:
         prep = dict(gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap)
         train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate, **prep)
         val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate, **prep)
@@ -231,6 +232,7 @@ def predict(
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
+    output_file(out, path_inputs(robot, model, data))
     r = load_robot_arg(robot, lock, floating_base)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
@@ -246,11 +248,7 @@ def predict(
         meas = structure.target(traj)
         arrays["tau_measured"] = meas
         console.print(metrics_table(Path(data).name, {"model": torque_metrics(meas, pred, structure.row_names)}))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".npz")
-    os.close(fd)
-    np.savez(tmp, **arrays)
-    os.replace(tmp, out)
+    write_npz_atomic(out, **arrays)
     console.print(f"wrote {out}")
 
 

@@ -19,6 +19,7 @@ from .common import (
     experiment_app,
     guarded,
     load_robot_arg,
+    path_inputs,
 )
 
 PSM_NAMES = ("dvrk_psm", "dvrk-psm", "psm")
@@ -44,6 +45,22 @@ def _parse_box(spec: str):
     return CartesianBox(parts[0], vec(parts[1], -np.inf), vec(parts[2], np.inf))
 
 
+def _check_options(**opts) -> None:
+    """Numeric options of `excite`: whole numbers in range, finite positive reals."""
+    whole = {"harmonics": (1, 100), "n_samples": (4, 100_000), "maxiter": (1, 100_000), "seed": (0, 2**63 - 1)}
+    for name, (lo, hi) in whole.items():
+        if not lo <= opts[name] <= hi:
+            raise ExcitationError(f"--{name.replace('_', '-')} must be a whole number in [{lo}, {hi}], got {opts[name]}")
+    if not (np.isfinite(opts["base_freq"]) and 0 < opts["base_freq"] <= 1e3):
+        raise ExcitationError(f"--base-freq must be a finite frequency in (0, 1000] Hz, got {opts['base_freq']}")
+    f = opts["position_fraction"]
+    if not (np.isfinite(f) and 0 < f <= 1):
+        raise ExcitationError(f"--position-fraction must be in (0, 1] (a fraction of each joint's range), got {f}")
+    for name in ("max_velocity", "max_acceleration"):
+        if not (np.isfinite(opts[name]) and opts[name] > 0):
+            raise ExcitationError(f"--{name.replace('_', '-')} must be finite and > 0, got {opts[name]}")
+
+
 @app.command()
 @guarded
 def excite(
@@ -53,7 +70,7 @@ def excite(
     base_freq: float = typer.Option(0.1, help="base frequency f0 [Hz] (period 1/f0)"),
     criterion: str = typer.Option("cond", help="cond (condition number of the column-equilibrated base regressor) | dopt (−log det)"),
     rate: float = typer.Option(200.0, help="sample rate [Hz] of the exported trajectory"),
-    periods: float = typer.Option(1.0, help="periods in the exported trajectory"),
+    periods: int = typer.Option(1, help="whole periods in the exported trajectory (≥ 1)"),
     seed: int = typer.Option(0, help="seed of the random start (and of the random baseline)"),
     n_samples: int = typer.Option(200, help="samples per period in the objective"),
     maxiter: int = typer.Option(100, help="SLSQP iterations"),
@@ -66,9 +83,16 @@ def excite(
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
-    """Optimise a Fourier excitation (joint limits as hard constraints); export coefficients and samples."""
-    from ..excitation_design import ExcitationLimits, design_excitation
+    """Optimise a Fourier excitation (joint limits as hard constraints); export coefficients and samples.
+
+    The samples written are checked against the excitation limits and the robot model's own
+    limits; a trajectory that leaves them is refused (exit 2, nothing written)."""
+    from ..excitation_design import ExcitationLimits, check_export, design_excitation
     from ..regressor import ModelStructure
+
+    _check_options(harmonics=harmonics, base_freq=base_freq, n_samples=n_samples, maxiter=maxiter, seed=seed,
+                   position_fraction=position_fraction, max_velocity=max_velocity, max_acceleration=max_acceleration)
+    check_export(rate, periods, harmonics, base_freq)
 
     if robot.lower() in PSM_NAMES:
         from ..robots.dvrk_psm import PSM_LIMITS, psm_structure
@@ -81,7 +105,7 @@ def excite(
         structure = ModelStructure(r, joint_terms=tuple(t for t in joint_terms.split(",") if t))
         limits = ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration)
     boxes = [_parse_box(b) for b in box]
-    with atomic_outdir(out, force) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(robot)) as tmp:
         with err_console.status("optimising excitation …") as status:
             design = design_excitation(
                 structure, limits, harmonics=harmonics, base_freq=base_freq, criterion=criterion,
@@ -96,8 +120,8 @@ def excite(
         f"{b['cond_median']:.4g}) → {design.improvement:.1f}× lower; raw {m['cond_raw']:.4g} vs {b['cond_raw']:.4g}; "
         f"{design.settings['iterations']} iterations, {design.settings['seconds']:.1f} s"
     )
-    worst = max(design.limit_violation.values())
-    console.print(f"limits respected on a dense grid: {'yes' if worst <= 1e-9 else 'NO'} (largest excess {worst:.3g}); wrote {out}")
+    worst = max(design.limit_violation.values())  # save() refused any excess on the written samples
+    console.print(f"limits respected on the written samples and a dense grid (largest excess {worst:.3g}); wrote {out}")
 
 
 @experiment_app.command("psm-identify")
@@ -115,7 +139,7 @@ def psm_identify(
     from ..identification.result import write_json_atomic
     from ..robots.dvrk_psm_study import psm_identification_study
 
-    with atomic_outdir(out, force) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(data)) as tmp:
         with err_console.status("identifying the PSM (smoothing chosen by cross-validation on one_results) …"):
             report = psm_identification_study(
                 data, cutoff_hz=cutoff, lmi={"ellipsoids": False, "regularization": None, "gamma": 0.0} if lmi else None

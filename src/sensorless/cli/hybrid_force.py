@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import typer
 
 from ..errors import SensorlessError
+from ..io import write_npz_atomic
 from .common import (
     ROBOT_HELP,
     app,
@@ -22,6 +21,8 @@ from .common import (
     load_robot_arg,
     max_gap_option,
     model_preprocessing,
+    output_file,
+    path_inputs,
     resample_option,
     trim_option,
     velocity_option,
@@ -78,6 +79,7 @@ def estimate_force(
     from ..estimators import load_parameters
     from ..learning.models import ParameterModel
 
+    output_file(out, path_inputs(robot, model, data, residual))
     r = load_robot_arg(robot, lock, False)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
@@ -100,11 +102,7 @@ def estimate_force(
         sigma_threshold=sigma_threshold, lambda_max=lambda_max,
     )
     res = est.estimate(traj, phys, residual=hybrid)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".npz")
-    os.close(fd)
-    np.savez(tmp, **res.arrays())
-    os.replace(tmp, out)
+    write_npz_atomic(out, **res.arrays())
     damped = float(np.mean(res.damping > 0))
     rms = np.sqrt(np.mean(res.F**2, axis=0))
     console.print(

@@ -2,50 +2,18 @@
 
 from __future__ import annotations
 
-import json
-import os
-import platform
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..data.trajectory import Trajectory
+from ..io import versions, write_json_atomic  # re-exported: the writers live in sensorless.io
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .metrics import TorqueMetrics, torque_metrics
 
 __all__ = ["IdentificationResult", "versions", "write_json_atomic"]
-
-
-def versions() -> dict:
-    import importlib.metadata as md
-
-    out = {"python": platform.python_version()}
-    for pkg in ("sensorless", "pin", "numpy", "scipy", "cvxpy", "clarabel"):
-        try:
-            out[pkg] = md.version(pkg)
-        except md.PackageNotFoundError:
-            pass
-    return out
-
-
-def write_json_atomic(obj: dict, path: str | Path) -> None:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(obj, f, indent=2, default=_jsonable)
-    os.chmod(tmp, 0o644)  # mkstemp creates 0600
-    os.replace(tmp, path)
-
-
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    raise TypeError(f"not JSON serialisable: {type(x)}")
 
 
 @dataclass

@@ -14,14 +14,13 @@ containers, so a tampered file cannot execute code.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import torch
 from torch import nn
 
 from ..errors import DataError
+from ..io import atomic_open, write_json_atomic
 from .mlp import build_network
 
 __all__ = ["META", "WEIGHTS", "load_network", "save_network"]
@@ -37,11 +36,9 @@ def save_network(directory: str | Path, net: nn.Module, meta: dict) -> Path:
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-    for name, writer in ((WEIGHTS, lambda f: torch.save(state, f)), (META, lambda f: f.write(json.dumps(meta, indent=2).encode()))):
-        fd, tmp = tempfile.mkstemp(dir=d, prefix=name, suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
-            writer(f)
-        os.replace(tmp, d / name)
+    with atomic_open(d / WEIGHTS, "wb") as f:
+        torch.save(state, f)
+    write_json_atomic(meta, d / META)
     return d
 
 
