@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
-from .imu import base_acceleration, imu_base_acceleration
+from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
 from .readers import read_trajectory, write_npz
 from .trajectory import Trajectory
 from .validation import validate_trajectory
@@ -22,4 +22,5 @@ __all__ = [
     "resample_uniform",
     "base_acceleration",
     "imu_base_acceleration",
+    "imu_frame_base_acceleration",
 ]
