@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .base_pose import BasePose, clean_base_pose, with_base_pose
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
 from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
 from .readers import read_trajectory, write_npz
@@ -23,4 +24,7 @@ __all__ = [
     "base_acceleration",
     "imu_base_acceleration",
     "imu_frame_base_acceleration",
+    "BasePose",
+    "clean_base_pose",
+    "with_base_pose",
 ]
