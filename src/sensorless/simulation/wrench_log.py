@@ -76,12 +76,14 @@ def wrench_log(
     noise: float = 0.0,
     seed: int = 0,
     q0: np.ndarray | None = None,
+    dims: int = 6,
 ) -> Trajectory:
     """A log of ``truth`` with 6-D contact wrenches at ``frames`` (module docstring).
 
     ``base_amplitude`` = (linear [m/s], angular [rad/s]) peak twist; ``flags`` (N, n_contacts)
     default all in contact; ``noise`` is the std of Gaussian noise on the wrenches [N, N·m].
-    ``extras``: ``contact`` flags and ``contact_forces`` (N, n_contacts, 6).
+    ``dims`` = 3 gives point contacts (forces only). ``extras``: ``contact`` flags and
+    ``contact_forces`` (N, n_contacts, dims).
     """
     rng = np.random.default_rng(seed)
     model = truth.model.copy()
@@ -115,16 +117,16 @@ def wrench_log(
     Q = truth.full_configuration(qj, base_q)
     V = truth.full_velocity(vj, vb)
     A = truth.full_velocity(aj, ab)
-    forces = np.zeros((n, len(frames), 6))
+    forces = np.zeros((n, len(frames), dims))
     tau = np.zeros((n, nj))
     act = np.array([truth.v_index(j) for j in truth.joint_names])
     for i in range(n):
         full = pin.rnea(model, data, Q[i], V[i], A[i])
         pin.computeJointJacobians(model, data, Q[i])
         on = np.flatnonzero(flags[i])
-        J = np.concatenate([pin.getFrameJacobian(model, data, fids[k], pin.LOCAL_WORLD_ALIGNED) for k in on])
+        J = np.concatenate([pin.getFrameJacobian(model, data, fids[k], pin.LOCAL_WORLD_ALIGNED)[:dims] for k in on])
         f = np.linalg.lstsq(J[:, :6].T, full[:6], rcond=None)[0]
-        forces[i, on] = f.reshape(-1, 6)
+        forces[i, on] = f.reshape(-1, dims)
         tau[i] = (full - J.T @ f)[act]
     measured = forces.copy()
     if bias is not None:
