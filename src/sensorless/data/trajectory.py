@@ -4,6 +4,9 @@ Arrays are sample-major: ``q[i, j]`` is joint ``joint_names[j]`` at time ``t[i]`
 Units are SI (rad, m, rad/s, N·m, N); ``units`` records what the file said.
 The base of a floating-base robot is optional: pose ``[x y z qx qy qz qw]``,
 twist and its derivative in the base frame (Pinocchio's LOCAL convention).
+Per-sample ``extras`` of legged robots: ``contact`` flags (N, n_feet) and measured
+``contact_forces`` (N, n_feet, 3 | 6) [f; τ] in world axes at the contact frames, in the
+order of the contact frames (``take``/``concatenate`` slice them along samples).
 """
 
 from __future__ import annotations
