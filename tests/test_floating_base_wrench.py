@@ -200,3 +200,25 @@ def test_cli_identify_from_urdf_without_torques(tmp_path, solo12):
     # an explicit --fixed-base gets the error that names the option
     bad = CliRunner().invoke(app, args[:-2] + ["--fixed-base", "--out", str(tmp_path / "o2")])
     assert bad.exit_code != 0 and "--floating-base" in bad.output
+
+
+def test_cli_imu_frame_option(tmp_path, solo12):
+    """--imu-frame: base_a rebuilt from 'imu_acc' read in a model frame; a log without
+    'imu_acc' is a clear error."""
+    from sensorless.data.imu import gravity_in_base
+
+    feet = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
+    truth = perturbed_truth(solo12, rng=6)
+    lg = wrench_log(truth.robot, feet, duration=3.0, dims=3, seed=4, base_amplitude=(0.2, 0.4))
+    v, w = lg.base_v[:, :3], lg.base_v[:, 3:]
+    imu = lg.base_a[:, :3] + np.cross(w, v) - gravity_in_base(lg.base_q, 9.81)  # accelerometer at base_link
+    m_true = float(truth.robot.inertial_parameters().reshape(-1, 10)[:, 0].sum())
+    path = write_npz(lg.with_(base_a=None, extras={**lg.extras, "imu_acc": imu}), tmp_path / "imu.npz")
+    base = ["identify", "--robot", "solo12", "--data", str(path), "--contact-frames", ",".join(feet),
+            "--contact-mode", "wrench", "--joint-terms", ""]
+    res = CliRunner().invoke(app, base + ["--imu-frame", "base_link", "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "a" / "result.json").read_text())
+    assert doc["mass_properties"]["total_mass"] == pytest.approx(m_true, rel=2e-3)
+    bad = CliRunner().invoke(app, base + ["--imu-frame", "no_such_imu", "--out", str(tmp_path / "b")])
+    assert bad.exit_code != 0 and "no frame 'no_such_imu'" in bad.output and not (tmp_path / "b").exists()
