@@ -82,3 +82,63 @@ def test_bad_imu_data_is_a_clear_error(solo12, wobble, tmp_path):
         base_acceleration(traj.with_(extras={**traj.extras, "imu_acc": nan}))
     with pytest.raises(DataError, match="base_q and base_v"):
         base_acceleration(traj.with_(base_v=None))
+
+
+def _with_imu_frame(robot, parent_joint: int, placement):
+    """A copy of ``robot`` with an 'imu' frame on joint ``parent_joint``."""
+    from sensorless.robot import Robot
+
+    model = robot.model.copy()
+    model.addFrame(pin.Frame("imu", parent_joint, 0, placement, pin.FrameType.OP_FRAME))
+    return Robot(model, name=robot.name, source=robot.source)
+
+
+@pytest.mark.parametrize("parent", [1, 4])  # on the base, and on a leg link (joints in between)
+def test_imu_frame_rotation_and_lever_arm_oracle(solo12, rng, parent):
+    """An accelerometer in a model frame (rotated, offset, possibly on another body) reads
+    R_sᵀ(p̈_s − g); imu_frame_base_acceleration must return the true LOCAL base acceleration."""
+    from sensorless.data import Trajectory
+    from sensorless.data.imu import imu_frame_base_acceleration
+
+    placement = pin.SE3(pin.rpy.rpyToMatrix(0.3, -0.5, 1.2), np.array([0.05, -0.02, 0.03]))
+    robot = _with_imu_frame(solo12, parent, placement)
+    model, data = robot.model, robot.data
+    fid = model.getFrameId("imu")
+    Q, V, A, F = [], [], [], []
+    for _ in range(6):
+        q = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
+        v, a = rng.normal(size=model.nv), rng.normal(size=model.nv)
+        pin.forwardKinematics(model, data, q, v, a)
+        Rs = pin.updateFramePlacement(model, data, fid).rotation
+        acc = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).linear
+        F.append(Rs.T @ (acc - model.gravity.linear))
+        Q.append(q), V.append(v), A.append(a)
+    Q, V, A, F = map(np.array, (Q, V, A, F))
+    idx = [robot.v_index(j) for j in robot.joint_names]
+    traj = Trajectory(t=np.arange(6) * 0.01, q=Q[:, 7:], v=V[:, idx], a=A[:, idx], base_q=Q[:, :7],
+                      base_v=V[:, :6], joint_names=robot.joint_names, extras={"imu_acc": F})
+    got = imu_frame_base_acceleration(robot, traj, "imu", A[:, 3:6], g=-model.gravity.linear[2])
+    np.testing.assert_allclose(got, A[:, :6], atol=1e-9)
+    if parent == 1:  # same as the closed form with R_bs and the lever arm
+        closed = imu_base_acceleration(Q[:, :7], V[:, :6], F, A[:, 3:6], offset=placement.translation,
+                                       g=-model.gravity.linear[2], rotation=placement.rotation)
+        np.testing.assert_allclose(closed, A[:, :6], atol=1e-9)
+    # assuming base axes (the old behaviour) is wrong: the check can fail
+    naive = imu_base_acceleration(Q[:, :7], V[:, :6], F, A[:, 3:6], g=-model.gravity.linear[2])
+    assert np.abs(naive - A[:, :6]).max() > 0.1
+
+
+def test_imu_frame_errors(solo12, panda):
+    from sensorless.data import Trajectory
+    from sensorless.data.imu import imu_frame_base_acceleration
+    from sensorless.errors import RobotModelError
+
+    n = len(solo12.joint_names)
+    traj = Trajectory(t=[0.0, 0.01], q=np.zeros((2, n)), v=np.zeros((2, n)), base_q=np.tile([0, 0, 0, 0, 0, 0, 1.0], (2, 1)),
+                      base_v=np.zeros((2, 6)), joint_names=solo12.joint_names)
+    with pytest.raises(RobotModelError, match="no frame 'imu_nope'"):
+        imu_frame_base_acceleration(solo12, traj.with_(extras={"imu_acc": np.zeros((2, 3))}), "imu_nope", np.zeros((2, 3)))
+    with pytest.raises(DataError, match="no 'imu_acc'"):
+        imu_frame_base_acceleration(solo12, traj, "base_link", np.zeros((2, 3)))
+    with pytest.raises(RobotModelError, match="--floating-base"):
+        imu_frame_base_acceleration(panda, traj, "panda_link0", np.zeros((2, 3)))

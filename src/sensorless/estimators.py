@@ -101,11 +101,7 @@ def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructu
     if settings.get("contact_frames"):
         from .regressor.contact import ContactStructure
 
-        structure = ContactStructure(
-            robot, **common, contact_frames=tuple(settings["contact_frames"]),
-            contact_dims=tuple(settings.get("contact_dims", ())), mode=settings.get("contact_mode", "projected"),
-            rcond=settings.get("rcond", 1e-7), contact_offset=settings.get("contact_offset", 0.0),
-        )
+        structure = ContactStructure.from_settings(robot, settings, **common)
     else:
         structure = ModelStructure(robot, **common, rows=settings.get("rows"))
     missing = [lab for lab in structure.labels if lab not in values]

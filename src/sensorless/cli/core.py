@@ -68,6 +68,14 @@ def identify(
     contact_dims: Optional[str] = typer.Option(None, help="per contact frame 3 (point foot) or 6 (flat foot); default 3"),
     contact_offset: float = typer.Option(0.0, help="radius [m] of spherical feet (contact point below the frame)"),
     contact_mode: str = typer.Option("projected", help="projected (no force sensing) | wrench (log has contact_forces)"),
+    contact_rows: str = typer.Option("auto", help="wrench mode: base (6 floating-base rows; logs without joint "
+                                     "torques) | all (+ torque rows) | auto (base when the logs have no torques)"),
+    wrench_offset: str = typer.Option("none", help="wrench mode: constant wrench bias to identify: none | net | "
+                                      "foot (world axes, per foot) | sole (force in each sole frame)"),
+    offset_axes: str = typer.Option("xy", help="force axes of --wrench-offset (xyz adds the vertical one, "
+                                    "confounded with m·g on standing data)"),
+    imu_frame: Optional[str] = typer.Option(None, help="model frame of the accelerometer ('imu_acc'): rotation and "
+                                            "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: float = typer.Option(0.0, help="ε [rad/s]: Coulomb term tanh(v/ε) instead of sgn(v); ≈ 2× velocity noise"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
@@ -77,13 +85,18 @@ def identify(
     from ..regressor import ModelStructure
     from ..report import metrics_table, plot_torques
 
+    if floating_base is None and contact_frames:
+        floating_base = True  # contact structures need a floating base; a URDF would load fixed
     r = load_robot_arg(robot, lock, floating_base)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior)) as tmp:
         prep = dict(gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap)
         train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate, **prep)
         val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate, **prep)
+        if imu_frame:
+            train, val = (_imu_frame_logs(logs, r, imu_frame, savgol_window) for logs in (train, val))
         structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
-                               contact_mode)
+                               contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
+                               offset_axes=offset_axes, train=train)
         total = sum(len(t) for t in train)
         with progress_bar() as bar:
             task = bar.add_task("regressor", total=total)
@@ -121,6 +134,7 @@ def identify(
         shown = val[0] if val else train[0]
         plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
                      structure.row_names, tmp / "torques.png", title=f"{r.name}: {'held-out' if val else 'training'} torques")
+        _floating_base_checks(structure, result, doc, train, val, validate)
         _export(result, tmp, doc)
         from ..identification.result import write_json_atomic
 
@@ -133,8 +147,10 @@ def identify(
 
 
 def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames, contact_dims, contact_offset,
-               contact_mode):
-    """ModelStructure, or ContactStructure when contact frames are given."""
+               contact_mode, *, contact_rows: str = "auto", wrench_offset: str = "none", offset_axes: str = "xy",
+               train=None):
+    """ModelStructure, or ContactStructure when contact frames are given (wrench mode: rows
+    chosen from the training logs' torques when ``contact_rows="auto"``, with a message)."""
     from ..regressor import ModelStructure
 
     terms = tuple(t for t in joint_terms.split(",") if t)
@@ -143,6 +159,8 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
     if not contact_frames:
         if contact_dims:
             raise SensorlessError("--contact-dims needs --contact-frames")
+        if contact_rows != "auto" or wrench_offset != "none":
+            raise SensorlessError("--contact-rows and --wrench-offset need --contact-frames and --contact-mode wrench")
         return ModelStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing)
     from ..regressor.contact import ContactStructure
 
@@ -151,8 +169,54 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
         dims = tuple(int(d) for d in contact_dims.split(",")) if contact_dims else ()
     except ValueError:
         raise SensorlessError(f"--contact-dims must be comma-separated 3 or 6, got '{contact_dims}'") from None
+    if contact_mode == "wrench" and contact_rows == "auto" and train:
+        from ..regressor.contact import choose_contact_rows
+
+        contact_rows, why = choose_contact_rows(train)
+        console.print(f"contact rows: {contact_rows} — {why}")
     return ContactStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing, contact_frames=frames,
-                            contact_dims=dims, contact_offset=contact_offset, mode=contact_mode)
+                            contact_dims=dims, contact_offset=contact_offset, mode=contact_mode,
+                            contact_rows=contact_rows, wrench_offset=wrench_offset, offset_axes=offset_axes)
+
+
+def _imu_frame_logs(logs, robot, frame: str, savgol_window):
+    """Recompute base_a with the accelerometer in model frame ``frame`` (needs 'imu_acc')."""
+    from ..data import base_acceleration
+
+    return [base_acceleration(t, window=savgol_window or 11, robot=robot, imu_frame=frame) for t in logs]
+
+
+def _floating_base_checks(structure, result, doc: dict, train, val, validate) -> None:
+    """Measured-wrench identification: bias values, world-axis base-wrench RMSE and the
+    CoM-vs-CoP check on standing windows, per log, into ``doc["floating_base"]``."""
+    from ..regressor.contact import ContactStructure
+
+    if not isinstance(structure, ContactStructure) or structure.mode != "wrench":
+        return
+    from ..identification.floating_base import base_wrench_metrics, com_cop_check
+
+    p = result.parameters
+    fb = {"contact_rows": structure.settings()["contact_rows"], "wrench_offset": structure.offset_values(p),
+          "train": [], "validation": {}}
+    for traj in train:
+        fb["train"].append({"base_wrench": base_wrench_metrics(structure, p, traj),
+                            "com_cop": com_cop_check(structure, p, traj)})
+    for path, traj in zip(validate, val):
+        fb["validation"][str(path)] = {"base_wrench": base_wrench_metrics(structure, p, traj),
+                                       "com_cop": com_cop_check(structure, p, traj)}
+    doc["floating_base"] = fb
+    mass = doc.get("mass_properties") or {}
+    bw = fb["train"][0]["base_wrench"]
+    cc = fb["train"][0]["com_cop"]
+    console.print(
+        f"identified total mass {mass.get('total_mass', float('nan')):.3f} kg (model file "
+        f"{mass.get('urdf_total_mass', float('nan')):.3f} kg); base-wrench RMSE (world) {bw['force_rmse_norm']:.3g} N, "
+        f"{bw['moment_rmse_norm']:.3g} N·m"
+        + (f"; CoM–CoP on standing windows {1e3 * cc['distance_mean']:.1f} mm" if cc["n_samples"] else ""))
+    for traj_doc in fb["train"]:
+        if traj_doc["com_cop"]["ok"] is False:
+            err_console.print(f"[yellow]warning:[/] the identified CoM is {1e3 * traj_doc['com_cop']['distance_mean']:.1f} mm "
+                              "from the measured CoP on standing windows (a wrench bias? try --wrench-offset)")
 
 
 def _lmi_kwargs(robot, structure, method, prior, regularization, gamma, ellipsoids, contain_prior) -> dict:

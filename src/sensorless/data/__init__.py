@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from .base_pose import BasePose, clean_base_pose, with_base_pose
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
 from .gains import currents_to_torques, load_gains, resolve_gains
-from .imu import base_acceleration, imu_base_acceleration
 from .prepare import TrimWindow, prepare, trim_window
+from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
 from .readers import read_trajectory, write_npz
 from .resample import Timing, resample, timing
 from .trajectory import Trajectory
@@ -34,4 +35,8 @@ __all__ = [
     "currents_to_torques",
     "load_gains",
     "resolve_gains",
+    "imu_frame_base_acceleration",
+    "BasePose",
+    "clean_base_pose",
+    "with_base_pose",
 ]

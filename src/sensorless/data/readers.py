@@ -142,7 +142,20 @@ def read_trajectory(
 CONTACT_KEYS = ("contact", "contact_forces")
 #: Base IMU accelerometer reading, specific force in the base frame (N, 3) [m/s²].
 IMU_KEYS = (IMU_KEY,)
-_EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3", "imu_acc": "3"}
+_EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3 or 6", "imu_acc": "3"}
+
+
+def _contact_forces(val: Any, src: str, n: int) -> np.ndarray:
+    """Measured contact wrenches as stored: (N, n_feet, 3|6) or flattened (N, n_feet·d)."""
+    try:
+        arr = np.asarray(val, dtype=float)
+    except (TypeError, ValueError):
+        raise DataError(f"array 'contact_forces' is not numeric (dtype {getattr(val, 'dtype', '?')})", src) from None
+    if arr.ndim not in (2, 3) or arr.shape[0] != n or (arr.ndim == 3 and arr.shape[2] not in (3, 6)):
+        raise ShapeMismatchError(
+            f"'contact_forces' has shape {arr.shape}; expected ({n}, n_feet, 3 or 6) or ({n}, n_feet·d) "
+            "— one row per sample", src)
+    return arr
 
 
 def _sample_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
@@ -159,7 +172,7 @@ def _sample_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
         with h5py.File(path, "r") as f:
             found = {k: f[k][()] for k in CONTACT_KEYS + IMU_KEYS if k in f}
     for key, val in found.items():
-        arr = _as_float(val, src, key)
+        arr = _contact_forces(val, src, n) if key == "contact_forces" else _as_float(val, src, key)
         if arr.ndim < 2 or arr.shape[0] != n or (key in IMU_KEYS and arr.shape != (n, 3)):
             raise DataError(f"'{key}' has shape {arr.shape}; expected ({n}, {_EXPECTED[key]}) — one row per sample", src)
         bad = np.argwhere(~np.isfinite(arr.reshape(n, -1)))

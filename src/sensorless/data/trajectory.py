@@ -6,6 +6,9 @@ The base of a floating-base robot is optional: pose ``[x y z qx qy qz qw]``,
 twist and its derivative in the base frame (Pinocchio's LOCAL convention).
 ``provenance`` says where each signal came from (``{"v": "logged", "a": "derived: ..."}``,
 drive gains, timing and resampling); :func:`sensorless.data.prepare` fills it in.
+Per-sample ``extras`` of legged robots: ``contact`` flags (N, n_feet) and measured
+``contact_forces`` (N, n_feet, 3 | 6) [f; τ] in world axes at the contact frames, in the
+order of the contact frames (``take``/``concatenate`` slice them along samples).
 """
 
 from __future__ import annotations

@@ -18,8 +18,13 @@ from .least_squares import LeastSquaresSolution, excitation_check, solve_least_s
 from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
 from .result import IdentificationResult
+from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
 __all__ = [
+    "base_wrench_metrics",
+    "com_cop_check",
+    "com_positions",
+    "standing_mask",
     "BodyMassBounds",
     "BoundingEllipsoid",
     "ComInEllipsoid",

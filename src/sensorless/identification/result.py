@@ -62,10 +62,38 @@ class IdentificationResult:
         """Per-joint metrics of the prediction on a (held-out) trajectory."""
         return torque_metrics(self.structure.target(traj), self.predict(traj), self.structure.row_names)
 
+    def mass_properties(self) -> dict | None:
+        """Identified total mass Σ m_k [kg] and CoM [m] (base frame, neutral configuration) of a
+        floating-base robot, next to the model file's (``urdf_*``); None for a fixed base, whose
+        total mass is not identifiable. Both are functions of base parameters here (the gravity
+        wrench on the base is M g at the CoM), so they do not depend on ``parameters_kind``."""
+        if not getattr(self.robot, "floating_base", False):
+            return None
+        import pinocchio as pin
+
+        model, data = self.robot.model, self.robot.data
+        pin.forwardKinematics(model, data, pin.neutral(model))
+        place = [data.oMi[k + 1] for k in range(self.robot.n_bodies)]
+
+        def mass_com(pi: np.ndarray) -> tuple[float, list[float]]:
+            """M = Σ m_k, c = Σ (m_k p_k + R_k h_k) / M with h_k = m_k c_k (no Inertia objects:
+            the parameters need not be physical)."""
+            pi = np.asarray(pi, float).reshape(-1, 10)
+            M = float(pi[:, 0].sum())
+            first = sum(pi[k, 0] * P.translation + P.rotation @ pi[k, 1:4] for k, P in enumerate(place))
+            return M, [float(x) for x in np.asarray(first) / M] if M != 0 else [float("nan")] * 3
+
+        m, c = mass_com(self.inertial_parameters)
+        m0, c0 = mass_com(self.robot.inertial_parameters())
+        return {"total_mass": m, "com": c, "urdf_total_mass": m0, "urdf_com": c0,
+                "com_frame": "base frame at the neutral configuration"}
+
     def to_dict(self) -> dict:
+        mass = self.mass_properties()
         return {
             "method": self.method,
             "robot": self.robot.summary(),
+            **({"mass_properties": mass} if mass is not None else {}),
             "parameters": dict(zip(self.labels, map(float, self.parameters))),
             "parameters_kind": self.parameters_kind,
             "joint_terms": self.joint_terms(),

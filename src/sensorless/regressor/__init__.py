@@ -1,12 +1,23 @@
 """Regressor terms and streaming compression."""
 
 from .compress import NormalEquations, compress, iter_trajectories
-from .contact import ContactStructure, contact_jacobians, detect_contacts, null_space_projector
+from .contact import (
+    WRENCH_OFFSETS,
+    ContactStructure,
+    choose_contact_rows,
+    contact_jacobians,
+    contact_rotations,
+    detect_contacts,
+    null_space_projector,
+)
 from .terms import JOINT_TERMS, ModelStructure
 
 __all__ = [
     "ContactStructure",
+    "WRENCH_OFFSETS",
+    "choose_contact_rows",
     "contact_jacobians",
+    "contact_rotations",
     "detect_contacts",
     "null_space_projector",
     "JOINT_TERMS",

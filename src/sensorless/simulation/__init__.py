@@ -1,10 +1,12 @@
 """Simulated data with known ground truth.
 
 * :mod:`.synthetic`: fixed-base logs from RNEA + friction (no simulator needed);
+* :mod:`.wrench_log`: floating-base logs with contact wrenches solving the dynamics;
 * :mod:`.mujoco_scene`, :mod:`.quadruped`: MuJoCo quadruped scenes and scenarios
   (imported lazily: ``from sensorless.simulation.quadruped import simulate``).
 """
 
 from .synthetic import TruthModel, perturbed_truth, streamed_fourier_log, synthetic_trajectory
+from .wrench_log import walking_flags, wrench_log
 
-__all__ = ["TruthModel", "perturbed_truth", "streamed_fourier_log", "synthetic_trajectory"]
+__all__ = ["TruthModel", "perturbed_truth", "streamed_fourier_log", "synthetic_trajectory", "walking_flags", "wrench_log"]
