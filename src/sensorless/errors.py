@@ -18,6 +18,12 @@ __all__ = [
     "ExcitationError",
     "SolverError",
     "PhysicalConsistencyError",
+    "ParameterError",
+    "OptionError",
+    "OutlierError",
+    "SensorlessWarning",
+    "IdentifiabilityWarning",
+    "DataWarning",
 ]
 
 
@@ -57,6 +63,10 @@ class UnitsError(DataError):
     """Values whose magnitude suggests the wrong unit (e.g. degrees for radians)."""
 
 
+class OutlierError(DataError):
+    """Gross outliers (glitched samples) in a signal; see :mod:`sensorless.data.outliers`."""
+
+
 class ExcitationError(SensorlessError):
     """Too few samples, or a trajectory that does not excite the parameters (rank)."""
 
@@ -67,3 +77,23 @@ class SolverError(SensorlessError):
 
 class PhysicalConsistencyError(SensorlessError, ValueError):
     """Inertial parameters that no real body can have (e.g. mass <= 0, indefinite pseudo-inertia)."""
+
+
+class ParameterError(SensorlessError, ValueError):
+    """A parameter vector, parameter file or model description with the wrong size, keys or values."""
+
+
+class OptionError(SensorlessError, ValueError):
+    """An option (command line or keyword argument) with an invalid value."""
+
+
+class SensorlessWarning(UserWarning):
+    """Base class of the warnings this package issues (the CLI prints each on one line)."""
+
+
+class IdentifiabilityWarning(SensorlessWarning):
+    """Identified parameters that the data determine poorly (large relative standard deviation)."""
+
+
+class DataWarning(SensorlessWarning):
+    """A log was altered on request (e.g. outlier samples dropped) or looks suspicious."""

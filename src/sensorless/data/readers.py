@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import re
 import zipfile
+import zlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
@@ -28,7 +29,7 @@ import numpy as np
 
 from ..errors import DataError, ShapeMismatchError
 from .imu import IMU_KEY
-from .trajectory import Trajectory
+from .trajectory import Trajectory, as_float_array
 from .validation import JOINT_EXTRAS, validate_trajectory
 
 if TYPE_CHECKING:
@@ -65,6 +66,8 @@ _TIME_COLUMNS = ("t", "time", "times", "timestamp")
 _DEFAULT_PATTERNS = {f: f"{f}_{{joint}}" for f in ("q", "v", "a", "tau", "current", "command")}
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
+#: Accepted sample rates [Hz] for logs without a time column (1 sample per 1000 s .. 10 MHz).
+MIN_RATE, MAX_RATE = 1e-3, 1e7
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
 
 Columns = Mapping[str, "str | int | Sequence[str | int]"]
@@ -78,11 +81,14 @@ def read_trajectory(
     rate: float | None = None,
     robot: "Robot | None" = None,
     time_unit: str | None = None,
+    outliers: str = "error",
 ) -> Trajectory:
     """Read a log and return it validated (and reordered to ``robot.joint_names``).
 
     ``rate`` [Hz] builds the time axis when the file has none. ``time_unit`` (one of
-    s, ms, us, ns) converts a stored time column to seconds. Every problem raises a
+    s, ms, us, ns) converts a stored time column to seconds. ``outliers``: gross outliers
+    (:mod:`~sensorless.data.outliers`) raise an OutlierError ("error", default), are dropped
+    with a warning ("drop") or kept ("keep"). Every problem raises a
     :class:`~sensorless.errors.DataError` subclass naming the file, column and row.
     """
     path = Path(path)
@@ -111,12 +117,11 @@ def read_trajectory(
         df, header = _read_csv(path) if kind == "csv" else (_read_parquet(path), True)
         raw, file_names = _fields_from_frame(df, src, columns, joint_names, header)
     traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
-    traj = validate_trajectory(traj, robot)
     if kind in ("npz", "hdf5"):
         extras = _sample_extras(path, kind, len(traj))
         if extras:
             traj = traj.with_(extras={**traj.extras, **extras})
-    return traj
+    return validate_trajectory(traj, robot, outliers=outliers)
 
 
 #: Per-sample contact data of legged-robot logs (NPZ/HDF5 keys): flags (N, n_feet) and
@@ -132,16 +137,19 @@ def _sample_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
     flags 0/1, three accelerometer columns)."""
     src = str(path)
     out: dict[str, np.ndarray] = {}
-    if kind == "npz":
-        with np.load(path, allow_pickle=False) as z:
-            found = {k: z[k] for k in CONTACT_KEYS + IMU_KEYS if k in z.files}
-    else:
-        import h5py
+    try:
+        if kind == "npz":
+            with np.load(path, allow_pickle=False) as z:
+                found = {k: z[k] for k in CONTACT_KEYS + IMU_KEYS if k in z.files}
+        else:
+            import h5py
 
-        with h5py.File(path, "r") as f:
-            found = {k: f[k][()] for k in CONTACT_KEYS + IMU_KEYS if k in f}
+            with h5py.File(path, "r") as f:
+                found = {k: f[k][()] for k in CONTACT_KEYS + IMU_KEYS if k in f}
+    except _READ_ERRORS as exc:
+        raise DataError(f"cannot read contact/IMU arrays ({_one_line(exc)})", src) from None
     for key, val in found.items():
-        arr = _as_float(val, src, key)
+        arr = _as_float(val, src, key, allow_bool=key == "contact", max_dim=3)
         if arr.ndim < 2 or arr.shape[0] != n or (key in IMU_KEYS and arr.shape != (n, 3)):
             raise DataError(f"'{key}' has shape {arr.shape}; expected ({n}, {_EXPECTED[key]}) — one row per sample", src)
         bad = np.argwhere(~np.isfinite(arr.reshape(n, -1)))
@@ -209,15 +217,31 @@ def _pick_key(field: str, keys: list[str], columns: Columns | None, src: str, ba
     return None
 
 
-def _as_float(arr: Any, src: str, key: str) -> np.ndarray:
-    try:
-        out = np.asarray(arr, dtype=float)
-    except (TypeError, ValueError):
-        dtype = getattr(arr, "dtype", type(arr).__name__)
-        raise DataError(f"array '{key}' is not numeric (dtype {dtype})", src) from None
-    if out.ndim > 2:
+#: What a corrupt NPZ/HDF5 member can raise on read (zlib, zip, h5py/HDF5 and numpy errors).
+_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, RuntimeError, TypeError, zipfile.BadZipFile, zlib.error)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:300]}" if text else type(exc).__name__
+
+
+def _as_float(arr: Any, src: str, key: str, allow_bool: bool = False, max_dim: int = 2) -> np.ndarray:
+    out = as_float_array(arr, key, src, allow_bool=allow_bool)
+    if out.ndim > max_dim:
         raise ShapeMismatchError(f"array '{key}' has shape {out.shape}; expected 1-D or 2-D", src)
     return out
+
+
+def _names(raw: Any, src: str) -> list[str]:
+    """Joint names stored in a file: a 1-D array of strings (bytes are decoded)."""
+    arr = np.atleast_1d(np.asarray(raw))
+    if arr.ndim != 1 or arr.dtype.kind not in "USO":
+        raise DataError(f"'joint_names' must be a 1-D array of strings, got dtype {arr.dtype} shape {arr.shape}", src)
+    try:
+        return [n.decode() if isinstance(n, bytes) else str(n) for n in arr]
+    except UnicodeDecodeError:
+        raise DataError("'joint_names' are not valid UTF-8", src) from None
 
 
 def _missing_q(keys: list[str], src: str) -> DataError:
@@ -232,8 +256,8 @@ def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray
     src = str(path)
     try:
         archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise DataError(f"not a readable NPZ archive ({exc})", src) from None
+    except _READ_ERRORS as exc:
+        raise DataError(f"not a readable NPZ archive ({_one_line(exc)})", src) from None
     if not isinstance(archive, np.lib.npyio.NpzFile):
         raise DataError("holds a single array (.npy), not an NPZ archive of named arrays", src)
     with archive as z:
@@ -244,11 +268,11 @@ def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray
                 key = _pick_key(field, keys, columns, src)
                 if key is not None:
                     raw[field] = _as_float(z[key], src, key)
-            names = [str(n) for n in np.atleast_1d(z["joint_names"])] if "joint_names" in keys else None
+            names = _names(z["joint_names"], src) if "joint_names" in keys else None
         except DataError:
             raise
-        except (ValueError, OSError, zipfile.BadZipFile) as exc:  # pickled/object or corrupt member
-            raise DataError(f"cannot read an array from the NPZ archive ({exc})", src) from None
+        except _READ_ERRORS as exc:  # pickled/object or corrupt member (zlib.error, BadZipFile...)
+            raise DataError(f"cannot read an array from the NPZ archive ({_one_line(exc)})", src) from None
     if "q" not in raw:
         raise _missing_q(keys, src)
     return raw, names
@@ -260,24 +284,36 @@ def _read_hdf5(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarra
     src = str(path)
     try:
         f = h5py.File(path, "r")
-    except OSError as exc:
-        raise DataError(f"not a readable HDF5 file ({exc})", src) from None
-    with f:
-        keys: list[str] = []
-        f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
-        base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
-        raw: dict[str, np.ndarray] = {}
-        for field in FIELDS:
-            key = _pick_key(field, keys, columns, src, base)
-            if key is not None:
-                raw[field] = _as_float(f[key][()], src, key)
-        names = None
-        if "joint_names" in keys:
-            names = f["joint_names"][()]
-        elif "joint_names" in f.attrs:
-            names = f.attrs["joint_names"]
-        if names is not None:
-            names = [n.decode() if isinstance(n, bytes) else str(n) for n in np.atleast_1d(names)]
+    except _READ_ERRORS as exc:
+        raise DataError(f"not a readable HDF5 file ({_one_line(exc)})", src) from None
+    try:
+        return _hdf5_fields(f, src, columns)
+    except DataError:
+        raise
+    except _READ_ERRORS as exc:  # corrupt dataset, bad link, undecodable names...
+        raise DataError(f"cannot read a dataset from the HDF5 file ({_one_line(exc)})", src) from None
+    finally:
+        f.close()
+
+
+def _hdf5_fields(f, src: str, columns: Columns | None) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    import h5py
+
+    keys: list[str] = []
+    f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
+    base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
+    raw: dict[str, np.ndarray] = {}
+    for field in FIELDS:
+        key = _pick_key(field, keys, columns, src, base)
+        if key is not None:
+            raw[field] = _as_float(f[key][()], src, key)
+    names = None
+    if "joint_names" in keys:
+        names = f["joint_names"][()]
+    elif "joint_names" in f.attrs:
+        names = f.attrs["joint_names"]
+    if names is not None:
+        names = _names(names, src)
     if "q" not in raw:
         raise _missing_q(keys, src)
     return raw, names
@@ -397,6 +433,8 @@ def _numeric(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarr
                 raise DataError(f"missing timestamp in column '{c}' at row {i}", src)
             cols.append((s - pd.Timestamp(0, tz=getattr(s.dt, "tz", None))).dt.total_seconds().to_numpy(float))
             continue
+        if pd.api.types.is_bool_dtype(s) or pd.api.types.is_datetime64_any_dtype(s) or pd.api.types.is_complex_dtype(s):
+            raise DataError(f"column '{c}' (for '{field}') holds {s.dtype} values; expected real numbers", src)
         if pd.api.types.is_numeric_dtype(s):
             cols.append(s.to_numpy(dtype=float, na_value=np.nan))
             continue
@@ -489,7 +527,11 @@ def _assemble(
         names = list(joint_names)
         if len(names) != n:
             raise ShapeMismatchError(f"joint_names has {len(names)} names but 'q' has {n} columns", src)
-    elif file_names is not None and len(file_names) == n:
+    elif file_names is not None:
+        if len(file_names) != n:
+            raise ShapeMismatchError(
+                f"the file's joint_names has {len(file_names)} names but 'q' has {n} columns; "
+                "pass joint_names=[...] in column order", src)
         names = list(file_names)
     elif robot is not None:
         if len(robot.joint_names) != n:
@@ -515,8 +557,8 @@ def _assemble(
     else:
         if rate is None:
             raise DataError(f"no time column in {src}; pass rate=... (Hz)", src)
-        if not (np.isfinite(rate) and rate > 0):
-            raise DataError(f"rate must be a positive number of Hz, got {rate!r}", src)
+        if not isinstance(rate, (int, float, np.integer, np.floating)) or not MIN_RATE <= rate <= MAX_RATE:
+            raise DataError(f"rate must be a number of Hz in [{MIN_RATE:g}, {MAX_RATE:g}], got {rate!r}", src)
         t = np.arange(q.shape[0]) / float(rate)
         units["t"] = f"s (built from rate={rate:g} Hz)"
     extras = {k: raw[k] for k in JOINT_EXTRAS if k in raw}
