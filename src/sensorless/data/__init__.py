@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
 from .imu import base_acceleration, imu_base_acceleration
+from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers
 from .readers import read_trajectory, write_npz
 from .trajectory import Trajectory
 from .validation import validate_trajectory
@@ -22,4 +23,8 @@ __all__ = [
     "resample_uniform",
     "base_acceleration",
     "imu_base_acceleration",
+    "find_outliers",
+    "check_outliers",
+    "drop_outliers",
+    "handle_outliers",
 ]
