@@ -95,39 +95,56 @@ def check_joint_motion(motion: JointMotion, robot, joint_terms: tuple[str, ...])
         desc = ", ".join(f"'{j}' (position range {r:.2g} {'rad' if _kind(robot, j) == 'revolute' else 'm'})"
                          for j, r in still.items())
         raise ExcitationError(
-            f"insufficient excitation: joint(s) {desc} do not move over the {motion.n_samples} samples, so their "
+            f"the data do not excite joint(s) {desc}: they do not move over the {motion.n_samples} samples, so their "
             f"{'/'.join(needs)} terms cannot be identified; lock them (--lock JOINT), drop those terms "
             "(--joint-terms), or log a trajectory that moves every joint"
         )
     return {j: r for j, r in ranges.items() if r < LOW_MOTION[_kind(robot, j)]}
 
 
+def _equilibrated(A11: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    d = np.sqrt(np.clip(np.diag(A11), 0.0, None))
+    live = d > 1e-12 * max(d.max(), 1e-300)
+    dd = np.where(live, d, 1.0)
+    S = A11 / np.outer(dd, dd)
+    S[~live, :] = 0.0
+    S[:, ~live] = 0.0
+    return S, dd, live
+
+
 def base_parameter_uncertainty(
     ne: NormalEquations, base: BaseParameters, sigma: np.ndarray, rcond: float = 1e-6
 ) -> np.ndarray:
-    """Standard deviation of each base parameter (∞ where the data leave it unexcited)."""
-    s2 = np.maximum(np.asarray(sigma, dtype=float), 1e-12 * max(float(np.max(sigma)), 1e-300)) ** 2
+    """Standard deviation of each base parameter (∞ where the data leave it unexcited).
+
+    Which directions are excited is decided on the unweighted equations (as
+    :func:`~.least_squares.excitation_check` does); the row weights 1/σ_r² are floored at
+    σ_r ≥ 1e-3 · max σ so a near noise-free row cannot make the weighted matrix singular.
+    """
+    sigma = np.asarray(sigma, dtype=float)
+    ind = base.independent
+    if ind.size == 0:
+        return np.zeros(0)
+    s = np.maximum(sigma, 1e-3 * max(float(np.max(sigma)) if sigma.size else 0.0, 1e-300))
     with np.errstate(all="ignore"):
-        A, _, _ = ne.total(1.0 / s2)
-        ind = base.independent
-        A11 = A[np.ix_(ind, ind)]
-        d = np.sqrt(np.clip(np.diag(A11), 0.0, None))
-        if not np.all(np.isfinite(A11)) or d.size == 0:
+        A, _, _ = ne.total()
+        Aw, _, _ = ne.total(1.0 / s**2)
+        A11, Aw11 = A[np.ix_(ind, ind)], Aw[np.ix_(ind, ind)]
+        if not (np.all(np.isfinite(A11)) and np.all(np.isfinite(Aw11))):
             return np.full(base.rank, np.inf)
-        live = d > 1e-12 * max(d.max(), 1e-300)
-        dd = np.where(live, d, 1.0)
-        S = A11 / np.outer(dd, dd)
-        S[~live, :] = 0.0
-        S[:, ~live] = 0.0
         try:
+            S, _, live = _equilibrated(A11)
             lam, U = np.linalg.eigh(S)
+            sv = np.sqrt(np.maximum(lam, 0.0))
+            weak = sv <= rcond * max(sv.max(), 1e-300)
+            unexcited = (np.abs(U[:, weak]) > 1e-3).any(axis=1) | ~live
+            Sw, dw, _ = _equilibrated(Aw11)
+            lw, Uw = np.linalg.eigh(Sw)
         except np.linalg.LinAlgError:
             return np.full(base.rank, np.inf)
-        sv = np.sqrt(np.maximum(lam, 0.0))
-        keep = sv > rcond * max(sv.max(), 1e-300)
-        var_z = (U[:, keep] ** 2) @ (1.0 / lam[keep]) if keep.any() else np.zeros(len(d))
-        std = np.sqrt(var_z) / dd
-        unexcited = (np.abs(U[:, ~keep]) > 1e-3).any(axis=1) | ~live
+        keep = lw > (rcond * max(np.sqrt(max(lw.max(), 0.0)), 1e-300)) ** 2
+        var_z = (Uw[:, keep] ** 2) @ (1.0 / lw[keep]) if keep.any() else np.zeros(len(dw))
+        std = np.sqrt(var_z) / dw
     std[unexcited] = np.inf
     return std
 
