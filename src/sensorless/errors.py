@@ -24,6 +24,7 @@ __all__ = [
     "SensorlessWarning",
     "IdentifiabilityWarning",
     "DataWarning",
+    "RobotModelWarning",
 ]
 
 
@@ -97,3 +98,7 @@ class IdentifiabilityWarning(SensorlessWarning):
 
 class DataWarning(SensorlessWarning):
     """A log was altered on request (e.g. outlier samples dropped) or looks suspicious."""
+
+
+class RobotModelWarning(SensorlessWarning):
+    """A robot model that loads but looks wrong (e.g. an inertia that no real body has)."""

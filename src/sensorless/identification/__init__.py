@@ -18,8 +18,13 @@ from .least_squares import LeastSquaresSolution, excitation_check, solve_least_s
 from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
 from .result import IdentificationResult
+from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
 __all__ = [
+    "JointMotion",
+    "base_parameter_uncertainty",
+    "check_joint_motion",
+    "poorly_identified",
     "BodyMassBounds",
     "BoundingEllipsoid",
     "ComInEllipsoid",
