@@ -2,20 +2,23 @@
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
+import warnings
 from pathlib import Path
 from typing import List, Optional
 
 import numpy as np
 import typer
 
-from ..errors import ExcitationError, SensorlessError
+from ..errors import ExcitationError, OptionError, SensorlessError
 from .common import (
     ROBOT_HELP,
     app,
     atomic_outdir,
     bench_app,
+    check_preprocessing,
     console,
     err_console,
     guarded,
@@ -55,6 +58,8 @@ def identify(
     contact_mode: str = typer.Option("projected", help="projected (no force sensing) | wrench (log has contact_forces)"),
     coulomb_smoothing: float = typer.Option(0.0, help="ε [rad/s]: Coulomb term tanh(v/ε) instead of sgn(v); ≈ 2× velocity noise"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
+    outliers: str = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
+                                               "warning) | keep"),
 ) -> None:
     """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png."""
     from ..estimators import CADModel
@@ -62,10 +67,12 @@ def identify(
     from ..regressor import ModelStructure
     from ..report import metrics_table, plot_torques
 
+    _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers)
+    check_preprocessing(rate, lowpass, savgol_window, decimate)
     r = load_robot_arg(robot, lock, floating_base)
     with atomic_outdir(out, force) as tmp:
-        train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate)
-        val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate)
+        train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate, outliers)
+        val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate, outliers)
         structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode)
         total = sum(len(t) for t in train)
@@ -73,7 +80,8 @@ def identify(
             task = bar.add_task("regressor", total=total)
             lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
             try:
-                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n), **lmi_kw)
+                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n),
+                                   outliers="keep", **lmi_kw)  # the logs' outliers were handled on reading
             except ExcitationError as exc:
                 raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -84,7 +92,9 @@ def identify(
         baseline = None
         if method != "ols" and val:
             try:  # unconstrained least squares on the same data, for the comparison table
-                baseline = _identify(structure, train, method="ols")
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
+                    baseline = _identify(structure, train, method="ols", outliers="keep")
             except SensorlessError:
                 baseline = None
         doc["validation"] = {}
@@ -111,14 +121,38 @@ def identify(
     console.print(f"{len(result.base.independent)} base parameters, {extra}; wrote {out}/")
 
 
+def _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers) -> None:
+    """OptionError, naming the option, for values no run can use (checked before any work)."""
+    from ..data.outliers import OUTLIER_MODES
+    from ..identification import METHODS
+    from ..identification.regularizers import REGULARIZERS
+
+    if method not in METHODS:
+        raise OptionError(f"--method must be one of {', '.join(METHODS)}, got '{method}'")
+    if gamma != "auto":
+        try:
+            g = float(gamma)
+        except ValueError:
+            raise OptionError(f"--gamma must be a number or 'auto', got '{gamma}'") from None
+        if not (math.isfinite(g) and g >= 0):
+            raise OptionError(f"--gamma must be a finite number >= 0 or 'auto', got '{gamma}'")
+    if regularization != "none" and regularization not in REGULARIZERS:
+        raise OptionError(f"--regularization must be one of {', '.join(sorted(REGULARIZERS))}, none; "
+                          f"got '{regularization}'")
+    if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
+        raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
+    if outliers not in OUTLIER_MODES:
+        raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got '{outliers}'")
+
+
 def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames, contact_dims, contact_offset,
                contact_mode):
     """ModelStructure, or ContactStructure when contact frames are given."""
     from ..regressor import ModelStructure
 
     terms = tuple(t for t in joint_terms.split(",") if t)
-    if coulomb_smoothing < 0:
-        raise SensorlessError(f"--coulomb-smoothing must be ≥ 0, got {coulomb_smoothing}")
+    if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
+        raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
     if not contact_frames:
         if contact_dims:
             raise SensorlessError("--contact-dims needs --contact-frames")
@@ -198,17 +232,21 @@ def predict(
     savgol_window: Optional[int] = typer.Option(None),
     lock: Optional[List[str]] = typer.Option(None),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
+    outliers: str = typer.Option("error", help="gross outliers in the log: error | drop | keep"),
 ) -> None:
     """Predict joint torques of a log with an identified model."""
     from ..estimators import load_parameters
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
+    check_preprocessing(rate, None, savgol_window, 1)
     r = load_robot_arg(robot, lock, floating_base)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
-    (traj,) = load_logs([data], r, columns, rate, None, savgol_window, 1)
+    (traj,) = load_logs([data], r, columns, rate, None, savgol_window, 1, outliers)
     pred = structure.torques(params, traj)
+    if not np.all(np.isfinite(pred)):
+        raise SensorlessError(f"{path}: the model predicts non-finite torques on {data}")
     arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(structure.row_names)}
     if traj.tau is not None:
         meas = structure.target(traj)
