@@ -519,6 +519,9 @@ def _assemble(
     robot: "Robot | None",
     time_unit: str | None,
 ) -> Trajectory:
+    for field, arr in raw.items():
+        if arr.ndim == 0:
+            raise ShapeMismatchError(f"'{field}' is a single number (0-D), not one value per sample", src)
     q = raw["q"]
     if q.ndim == 1:
         q = q[:, None]
