@@ -402,3 +402,25 @@ def test_parameters_module_raises_typed_value_errors():
         with pytest.raises(ParameterError) as exc:
             call()
         assert isinstance(exc.value, ValueError) and isinstance(exc.value, SensorlessError)
+
+
+def test_corrupt_npy_header_is_a_data_error(tmp_path):
+    """Found by benchmarks/fuzz.py: numpy's header parser raised tokenize.TokenError."""
+    import io
+
+    buf = io.BytesIO()
+    np.save(buf, np.zeros((5, 2)))
+    f = tmp_path / "hdr.npz"
+    with zipfile.ZipFile(f, "w") as z:
+        z.writestr("positions.npy", buf.getvalue().replace(b"'shape': (5, 2)", b"'shape': ((5, 2)"))
+    with pytest.raises(DataError, match="hdr.npz.*TokenError"):
+        read_trajectory(f, rate=100.0)
+
+
+def test_zero_dimensional_positions_are_a_shape_error(tmp_path):
+    """Found by the hypothesis fuzz test: a 0-D 'positions' array raised IndexError."""
+    f = tmp_path / "scalar.npz"
+    with open(f, "wb") as fh:
+        np.savez(fh, positions=np.array(0.0))
+    with pytest.raises(DataError, match="0-D"):
+        read_trajectory(f, rate=100.0)

@@ -20,6 +20,7 @@ else ``joint_0..joint_{n-1}``. Time is kept as read (converted to seconds when
 from __future__ import annotations
 
 import re
+import tokenize
 import zipfile
 import zlib
 from pathlib import Path
@@ -218,7 +219,10 @@ def _pick_key(field: str, keys: list[str], columns: Columns | None, src: str, ba
 
 
 #: What a corrupt NPZ/HDF5 member can raise on read (zlib, zip, h5py/HDF5 and numpy errors).
-_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, RuntimeError, TypeError, zipfile.BadZipFile, zlib.error)
+#: numpy parses a corrupt .npy header with tokenize/ast (TokenError, SyntaxError) and may try to
+#: allocate what a corrupt header declares (MemoryError).
+_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, RuntimeError, TypeError, IndexError, AttributeError,
+                OverflowError, MemoryError, SyntaxError, tokenize.TokenError, zipfile.BadZipFile, zlib.error)
 
 
 def _one_line(exc: BaseException) -> str:
