@@ -19,6 +19,13 @@ __all__ = [
     "SolverError",
     "PhysicalConsistencyError",
     "OutputError",
+    "ParameterError",
+    "OptionError",
+    "OutlierError",
+    "SensorlessWarning",
+    "IdentifiabilityWarning",
+    "DataWarning",
+    "RobotModelWarning",
 ]
 
 
@@ -58,6 +65,10 @@ class UnitsError(DataError):
     """Values whose magnitude suggests the wrong unit (e.g. degrees for radians)."""
 
 
+class OutlierError(DataError):
+    """Gross outliers (glitched samples) in a signal; see :mod:`sensorless.data.outliers`."""
+
+
 class ExcitationError(SensorlessError):
     """Too few samples, or a trajectory that does not excite the parameters (rank)."""
 
@@ -73,3 +84,15 @@ class PhysicalConsistencyError(SensorlessError, ValueError):
 class OutputError(SensorlessError):
     """An output path that cannot be written, or must not be replaced (not a sensorless output,
     the working or home directory, a directory holding the inputs, another run writing it)."""
+class ParameterError(SensorlessError, ValueError):
+    """A parameter vector, parameter file or model description with the wrong size, keys or values."""
+class OptionError(SensorlessError, ValueError):
+    """An option (command line or keyword argument) with an invalid value."""
+class SensorlessWarning(UserWarning):
+    """Base class of the warnings this package issues (the CLI prints each on one line)."""
+class IdentifiabilityWarning(SensorlessWarning):
+    """Identified parameters that the data determine poorly (large relative standard deviation)."""
+class DataWarning(SensorlessWarning):
+    """A log was altered on request (e.g. outlier samples dropped) or looks suspicious."""
+class RobotModelWarning(SensorlessWarning):
+    """A robot model that loads but looks wrong (e.g. an inertia that no real body has)."""

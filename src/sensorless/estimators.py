@@ -16,7 +16,7 @@ from typing import Iterable, Protocol, Sequence
 import numpy as np
 
 from .data.trajectory import Trajectory
-from .errors import SensorlessError
+from .errors import ParameterError, SensorlessError
 from .identification.identify import identify
 from .identification.metrics import TorqueMetrics, torque_metrics
 from .identification.result import IdentificationResult
@@ -89,25 +89,54 @@ class CADModel(_Scored):
 
 
 def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructure, np.ndarray]:
-    """Rebuild (structure, parameters) from a ``result.json`` written by ``sensorless identify``."""
+    """Rebuild (structure, parameters) from a ``result.json`` written by ``sensorless identify``.
+
+    A file that is not such a result (unreadable, not JSON, missing or mistyped keys,
+    parameters that are not finite numbers) raises :class:`~sensorless.errors.ParameterError`.
+    """
     path = Path(result_json)
     try:
         doc = json.loads(path.read_text())
         settings = doc["settings"]
         values = doc["parameters"]
-    except (OSError, ValueError, KeyError) as exc:
-        raise SensorlessError(f"{path}: not a sensorless result file ({exc})") from None
-    common = {"joint_terms": tuple(settings["joint_terms"]), "coulomb_smoothing": settings.get("coulomb_smoothing", 0.0)}
+        if not isinstance(settings, dict) or not isinstance(values, dict):
+            raise TypeError("'settings' and 'parameters' must be objects")
+        structure = _structure_from_settings(settings, robot)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
+        if isinstance(exc, SensorlessError):
+            raise ParameterError(f"{path}: {exc}") from None
+        raise ParameterError(f"{path}: not a sensorless result file ({type(exc).__name__}: {exc})") from None
+    except SensorlessError as exc:
+        raise ParameterError(f"{path}: settings do not fit robot '{robot.name}': {exc}") from None
+    missing = [lab for lab in structure.labels if lab not in values]
+    if missing:
+        name = doc.get("robot", {}).get("name") if isinstance(doc.get("robot"), dict) else None
+        raise ParameterError(
+            f"{path}: parameters {missing[:5]} are missing; was it identified for another robot "
+            f"(file says '{name}', given '{robot.name}')?"
+        )
+    bad = [lab for lab in structure.labels
+           if isinstance(values[lab], bool) or not isinstance(values[lab], (int, float))
+           or not np.isfinite(values[lab])]
+    if bad:
+        raise ParameterError(f"{path}: parameter(s) {bad[:5]} are not finite numbers "
+                             f"(e.g. {bad[0]} = {values[bad[0]]!r})")
+    return structure, np.array([float(values[lab]) for lab in structure.labels])
+
+
+def _structure_from_settings(settings: dict, robot: Robot) -> ModelStructure:
+    terms = settings["joint_terms"]
+    if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
+        raise TypeError(f"settings.joint_terms must be a list of names, got {terms!r}")
+    eps = settings.get("coulomb_smoothing", 0.0)
+    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not (np.isfinite(eps) and eps >= 0):
+        raise TypeError(f"settings.coulomb_smoothing must be a number >= 0, got {eps!r}")
+    common = {"joint_terms": tuple(terms), "coulomb_smoothing": float(eps)}
     if settings.get("contact_frames"):
         from .regressor.contact import ContactStructure
 
-        structure = ContactStructure.from_settings(robot, settings, **common)
-    else:
-        structure = ModelStructure(robot, **common, rows=settings.get("rows"))
-    missing = [lab for lab in structure.labels if lab not in values]
-    if missing:
-        raise SensorlessError(
-            f"{path}: parameters {missing[:5]} are missing; was it identified for another robot "
-            f"(file says '{doc.get('robot', {}).get('name')}', given '{robot.name}')?"
-        )
-    return structure, np.array([values[lab] for lab in structure.labels])
+        return ContactStructure.from_settings(robot, settings, **common)
+    rows = settings.get("rows")
+    if rows not in (None, "actuated", "all"):
+        raise TypeError(f"settings.rows must be 'actuated' or 'all', got {rows!r}")
+    return ModelStructure(robot, **common, rows=rows)

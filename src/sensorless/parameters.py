@@ -38,7 +38,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
-from .errors import PhysicalConsistencyError
+from .errors import ParameterError, PhysicalConsistencyError
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -79,17 +79,17 @@ def as_bodies(pi: np.ndarray) -> np.ndarray:
     pi = np.asarray(pi, dtype=float)
     if pi.ndim == 1:
         if pi.size % 10:
-            raise ValueError(f"a parameter vector needs 10 entries per body, got {pi.size}")
+            raise ParameterError(f"a parameter vector needs 10 entries per body, got {pi.size}")
         return pi.reshape(-1, 10)
     if pi.shape[-1] != 10:
-        raise ValueError(f"expected parameters of shape (..., 10), got {pi.shape}")
+        raise ParameterError(f"expected parameters of shape (..., 10), got {pi.shape}")
     return pi
 
 
 def _check10(pi: np.ndarray) -> np.ndarray:
     pi = np.asarray(pi, dtype=float)
     if pi.shape[-1:] != (10,):
-        raise ValueError(f"expected parameters of shape (..., 10), got {pi.shape}")
+        raise ParameterError(f"expected parameters of shape (..., 10), got {pi.shape}")
     return pi
 
 
@@ -125,7 +125,7 @@ def from_pseudo_inertia(J: np.ndarray) -> np.ndarray:
     """Inverse of :func:`pseudo_inertia` (``J`` is symmetrised): ``I = tr(Sigma) 1 - Sigma``."""
     J = np.asarray(J, dtype=float)
     if J.shape[-2:] != (4, 4):
-        raise ValueError(f"expected pseudo-inertias of shape (..., 4, 4), got {J.shape}")
+        raise ParameterError(f"expected pseudo-inertias of shape (..., 4, 4), got {J.shape}")
     J = 0.5 * (J + np.swapaxes(J, -1, -2))
     S = J[..., :3, :3]
     I = np.trace(S, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) - S
@@ -221,7 +221,7 @@ def urdf_inertial(pi: np.ndarray, frame: pin.SE3 | None = None) -> dict[str, Any
     """
     pi = _check10(pi)
     if pi.shape != (10,):
-        raise ValueError(f"urdf_inertial takes one body (10,), got {pi.shape}")
+        raise ParameterError(f"urdf_inertial takes one body (10,), got {pi.shape}")
     m, c, I_c = com_frame(pi)
     if frame is not None:
         R = frame.rotation
@@ -241,7 +241,15 @@ def urdf_inertial(pi: np.ndarray, frame: pin.SE3 | None = None) -> dict[str, Any
 
 def from_urdf_inertial(inertial: Mapping[str, Any], frame: pin.SE3 | None = None) -> np.ndarray:
     """``pi (10,)`` from a URDF inertial dict (as :func:`urdf_inertial`; optional ``rpy``)."""
-    g = lambda k: float(inertial.get(k, 0.0))  # noqa: E731
+    def g(k: str) -> float:
+        try:
+            v = float(inertial.get(k, 0.0))
+        except (TypeError, ValueError):
+            raise ParameterError(f"inertial '{k}' is not a number: {inertial.get(k)!r}") from None
+        if not np.isfinite(v):
+            raise ParameterError(f"inertial '{k}' is not finite: {v!r}")
+        return v
+
     I = np.array(
         [[g("ixx"), g("ixy"), g("ixz")], [g("ixy"), g("iyy"), g("iyz")], [g("ixz"), g("iyz"), g("izz")]]
     )
@@ -289,7 +297,7 @@ def check_physical_consistency(
     P = as_bodies(pi).reshape(-1, 10)
     names = list(body_names) if body_names is not None else [f"body{k}" for k in range(len(P))]
     if len(names) != len(P):
-        raise ValueError(f"{len(names)} body names for {len(P)} bodies")
+        raise ParameterError(f"{len(names)} body names for {len(P)} bodies")
     m, c, I_c = com_frame(P)
     moments = np.linalg.eigvalsh(I_c)
     tri = (moments.sum(axis=-1)[:, None] - 2.0 * moments).min(axis=-1)  # I1+I2-I3 minimal for the largest I3
@@ -326,7 +334,7 @@ class JointTerms:
             v = getattr(self, t)
             v = np.zeros(n) if v is None else np.array(v, dtype=float).reshape(-1)
             if v.shape != (n,):
-                raise ValueError(f"JointTerms.{t} has {v.size} values for {n} joints")
+                raise ParameterError(f"JointTerms.{t} has {v.size} values for {n} joints")
             setattr(self, t, v)
 
     def to_dict(self) -> dict[str, dict[str, float]]:
@@ -340,6 +348,12 @@ class JointTerms:
         for j in names:
             unknown = set(d[j]) - set(TERM_NAMES)
             if unknown:
-                raise ValueError(f"joint '{j}': unknown term(s) {sorted(unknown)}; expected {TERM_NAMES}")
-        vals = {t: [float(d[j].get(t, 0.0)) for j in names] for t in TERM_NAMES}
+                raise ParameterError(f"joint '{j}': unknown term(s) {sorted(unknown)}; expected {TERM_NAMES}")
+        try:
+            vals = {t: [float(d[j].get(t, 0.0)) for j in names] for t in TERM_NAMES}
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise ParameterError(f"joint terms must map joint -> {{term: number}} ({exc})") from None
+        bad = [f"{j}.{t}" for t in TERM_NAMES for j, v in zip(names, vals[t]) if not np.isfinite(v)]
+        if bad:
+            raise ParameterError(f"joint terms {bad[:5]} are not finite")
         return cls(names, **vals)

@@ -233,16 +233,27 @@ def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str]:
     if suffix in {".urdf", ".xml", ".mjcf"}:
         if not path.exists():
             raise RobotModelError(f"{spec}: no such robot model file")
+        from .model_checks import check_model, check_urdf_file, quiet_stderr
+
+        if not path.is_file():
+            raise RobotModelError(f"{spec}: not a regular file")
+        if suffix == ".urdf":
+            check_urdf_file(path)  # one-line errors for malformed XML and impossible values
+        captured: list[str] = []
         try:
-            if suffix == ".urdf":
-                if floating_base:
-                    model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+            with quiet_stderr() as captured:  # urdfdom/MuJoCo print multi-line C++ messages on fd 2
+                if suffix == ".urdf":
+                    if floating_base:
+                        model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+                    else:
+                        model = pin.buildModelFromUrdf(str(path))
                 else:
-                    model = pin.buildModelFromUrdf(str(path))
-            else:
-                model = pin.buildModelFromMJCF(str(path))
+                    model = pin.buildModelFromMJCF(str(path))
         except Exception as exc:  # Pinocchio raises bare RuntimeError/ValueError
-            raise RobotModelError(f"{spec}: Pinocchio could not parse the model: {exc}") from None
+            detail = " ".join(" ".join(str(exc).split()).split(" | ")) or type(exc).__name__
+            extra = f" [{' / '.join(captured[:3])[:300]}]" if captured else ""
+            raise RobotModelError(f"{spec}: Pinocchio could not parse the model: {detail[:400]}{extra}") from None
+        check_model(model, str(path))
         return model, path.stem, str(path)
     import example_robot_data as erd
 

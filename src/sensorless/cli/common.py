@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import os
+import warnings
 from pathlib import Path
 from typing import Iterable, Iterator, List, Optional
 
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.text import Text
 
-from ..errors import SensorlessError
+from ..errors import OptionError, SensorlessError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -23,26 +26,45 @@ console = Console(stderr=False)
 err_console = Console(stderr=True)
 
 
+def one_line(text: object, limit: int = 2000) -> str:
+    """``text`` with every run of whitespace (newlines included) collapsed to one space."""
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
+
+
+def _print_line(label: str, style: str, message: str) -> None:
+    # Text, not markup: messages may hold "[...]" (C++ diagnostics, lists) that rich would eat
+    err_console.print(Text.assemble((label, style), " ", message), highlight=False, soft_wrap=True)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    name = getattr(category, "__name__", "Warning")
+    prefix = "" if name in ("UserWarning", "IdentifiabilityWarning", "DataWarning") else f"{name}: "
+    _print_line("warning:", "yellow", prefix + one_line(message))
+
+
 def guarded(fn):
-    """Turn SensorlessError (and any unexpected error) into one line + non-zero exit."""
+    """Turn SensorlessError (and any unexpected error) into one line + non-zero exit; print
+    every warning (ours, numpy's, torch's) on one line too."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        try:
-            return fn(*args, **kwargs)
-        except typer.Exit:
-            raise
-        except SensorlessError as exc:
-            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-        except Exception as exc:  # noqa: BLE001 - last line of defence for the user
-            if os.environ.get("SENSORLESS_DEBUG"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = _show_warning
+            try:
+                return fn(*args, **kwargs)
+            except typer.Exit:
                 raise
-            err_console.print(
-                f"[bold red]internal error:[/] {type(exc).__name__}: {exc} (set SENSORLESS_DEBUG=1 for a traceback)",
-                highlight=False, soft_wrap=True,
-            )
-            raise typer.Exit(3) from None
+            except SensorlessError as exc:
+                _print_line("error:", "bold red", one_line(exc))
+                raise typer.Exit(2) from None
+            except Exception as exc:  # noqa: BLE001 - last line of defence for the user
+                if os.environ.get("SENSORLESS_DEBUG"):
+                    raise
+                _print_line("internal error:", "bold red",
+                            f"{type(exc).__name__}: {one_line(exc, 500)} (set SENSORLESS_DEBUG=1 for a traceback)")
+                raise typer.Exit(3) from None
 
     return wrapper
 
@@ -184,13 +206,35 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
     return load_robot(robot, lock_joints=lock or (), floating_base=floating)
 
 
+def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
+    """OptionError for preprocessing options no log can use (zero, negative, NaN, absurd)."""
+    from ..data.readers import MAX_RATE, MIN_RATE
+
+    if rate is not None and not (math.isfinite(rate) and MIN_RATE <= rate <= MAX_RATE):
+        raise OptionError(f"--rate must be a sample rate in [{MIN_RATE:g}, {MAX_RATE:g}] Hz, got {rate!r}")
+    if lowpass is not None and not (math.isfinite(lowpass) and lowpass > 0):
+        raise OptionError(f"--lowpass must be a cut-off frequency > 0 Hz, got {lowpass!r}")
+    if savgol_window is not None and (savgol_window < 5 or savgol_window % 2 == 0):
+        raise OptionError(f"--savgol-window must be an odd number of samples >= 5, got {savgol_window!r}")
+    if decimate is not None and decimate < 1:
+        raise OptionError(f"--decimate must be an integer >= 1, got {decimate!r}")
+
+
 def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
-              resample="auto", velocity="logged", max_gap=None):
-    """Read, validate and preprocess logs given on the command line (:func:`sensorless.data.prepare`)."""
+              resample="auto", velocity="logged", max_gap=None, outliers: str = "error"):
+    """Read, validate and preprocess logs given on the command line (:func:`sensorless.data.prepare`).
+
+    ``outliers`` ("error" | "drop" | "keep") is applied to the raw log; a log that lost samples
+    that way is resampled onto its uniform grid even with ``resample="off"``.
+    """
     from ..data import prepare, read_trajectory
+    from ..data.outliers import OUTLIER_MODES
     from ..data.prepare import parse_resample
     from ..data.resample import DEFAULT_MAX_GAP
 
+    check_preprocessing(rate, lowpass, savgol_window, decimate)
+    if outliers not in OUTLIER_MODES:
+        raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got {outliers!r}")
     mode = parse_resample(resample)
     cols = parse_columns(columns) if isinstance(columns, str) else columns
     if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):
@@ -198,9 +242,10 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, 
     logs = []
     for p in paths:
         traj = read_trajectory(p, columns=cols, rate=rate, robot=robot, gains=gains,
-                               allow_duplicate_times=mode != "off")
-        traj = prepare(traj, trim=trim, resample=mode, lowpass=lowpass, savgol_window=savgol_window,
-                       velocity=velocity or "logged", decimate=decimate or 1,
+                               allow_duplicate_times=mode != "off", outliers=outliers)
+        dropped = "outlier" in traj.units.get("processing", "")
+        traj = prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
+                       savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
                        max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap)
         logs.append(traj)
     return logs

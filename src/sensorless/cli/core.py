@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 import json
+import math
+import warnings
 from pathlib import Path
 from typing import List, Optional
 
 import numpy as np
 import typer
 
-from ..errors import ExcitationError, SensorlessError
+from ..errors import ExcitationError, OptionError, SensorlessError
 from ..io import write_npz_atomic
 from .common import (
     ROBOT_HELP,
     app,
     atomic_outdir,
     bench_app,
+    check_preprocessing,
     console,
     err_console,
     gains_option,
@@ -78,6 +81,8 @@ def identify(
                                             "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: float = typer.Option(0.0, help="ε [rad/s]: Coulomb term tanh(v/ε) instead of sgn(v); ≈ 2× velocity noise"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
+    outliers: str = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
+                                               "warning) | keep"),
 ) -> None:
     """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png."""
     from ..estimators import CADModel
@@ -85,11 +90,13 @@ def identify(
     from ..regressor import ModelStructure
     from ..report import metrics_table, plot_torques
 
+    _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers)
+    check_preprocessing(rate, lowpass, savgol_window, decimate)
     if floating_base is None and contact_frames:
         floating_base = True  # contact structures need a floating base; a URDF would load fixed
     r = load_robot_arg(robot, lock, floating_base)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior)) as tmp:
-        prep = dict(gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap)
+        prep = dict(gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers)
         train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate, **prep)
         val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate, **prep)
         if imu_frame:
@@ -102,7 +109,8 @@ def identify(
             task = bar.add_task("regressor", total=total)
             lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
             try:
-                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n), **lmi_kw)
+                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n),
+                                   outliers="keep", **lmi_kw)  # the logs' outliers were handled on reading
             except ExcitationError as exc:
                 raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -118,7 +126,9 @@ def identify(
         baseline = None
         if method != "ols" and val:
             try:  # unconstrained least squares on the same data, for the comparison table
-                baseline = _identify(structure, train, method="ols")
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
+                    baseline = _identify(structure, train, method="ols", outliers="keep")
             except SensorlessError:
                 baseline = None
         doc["validation"] = {}
@@ -146,6 +156,30 @@ def identify(
     console.print(f"{len(result.base.independent)} base parameters, {extra}; wrote {out}/")
 
 
+def _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers) -> None:
+    """OptionError, naming the option, for values no run can use (checked before any work)."""
+    from ..data.outliers import OUTLIER_MODES
+    from ..identification import METHODS
+    from ..identification.regularizers import REGULARIZERS
+
+    if method not in METHODS:
+        raise OptionError(f"--method must be one of {', '.join(METHODS)}, got '{method}'")
+    if gamma != "auto":
+        try:
+            g = float(gamma)
+        except ValueError:
+            raise OptionError(f"--gamma must be a number or 'auto', got '{gamma}'") from None
+        if not (math.isfinite(g) and g >= 0):
+            raise OptionError(f"--gamma must be a finite number >= 0 or 'auto', got '{gamma}'")
+    if regularization != "none" and regularization not in REGULARIZERS:
+        raise OptionError(f"--regularization must be one of {', '.join(sorted(REGULARIZERS))}, none; "
+                          f"got '{regularization}'")
+    if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
+        raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
+    if outliers not in OUTLIER_MODES:
+        raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got '{outliers}'")
+
+
 def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames, contact_dims, contact_offset,
                contact_mode, *, contact_rows: str = "auto", wrench_offset: str = "none", offset_axes: str = "xy",
                train=None):
@@ -154,8 +188,8 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
     from ..regressor import ModelStructure
 
     terms = tuple(t for t in joint_terms.split(",") if t)
-    if coulomb_smoothing < 0:
-        raise SensorlessError(f"--coulomb-smoothing must be ≥ 0, got {coulomb_smoothing}")
+    if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
+        raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
     if not contact_frames:
         if contact_dims:
             raise SensorlessError("--contact-dims needs --contact-frames")
@@ -289,6 +323,7 @@ def predict(
     max_gap: Optional[float] = max_gap_option(),
     lock: Optional[List[str]] = typer.Option(None),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
+    outliers: str = typer.Option("error", help="gross outliers in the log: error | drop | keep"),
 ) -> None:
     """Predict joint torques of a log with an identified model. The log is preprocessed as the
     model's training logs were (result.json settings.preprocessing) unless an option says otherwise."""
@@ -296,6 +331,7 @@ def predict(
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
+    check_preprocessing(rate, lowpass, savgol_window, 1)
     output_file(out, path_inputs(robot, model, data))
     r = load_robot_arg(robot, lock, floating_base)
     path = model / "result.json" if model.is_dir() else model
@@ -304,8 +340,10 @@ def predict(
                                savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
     (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                         gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                        max_gap=opts["max_gap"])
+                        max_gap=opts["max_gap"], outliers=outliers)
     pred = structure.torques(params, traj)
+    if not np.all(np.isfinite(pred)):
+        raise SensorlessError(f"{path}: the model predicts non-finite torques on {data}")
     arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(structure.row_names),
               "preprocessing": np.array(json.dumps({**opts, "trim": trim, "signals": traj.provenance}))}
     if traj.tau is not None:

@@ -7,6 +7,7 @@ from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resampl
 from .gains import currents_to_torques, load_gains, resolve_gains
 from .prepare import TrimWindow, prepare, trim_window
 from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
+from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers
 from .readers import read_trajectory, write_npz
 from .resample import Timing, resample, timing
 from .trajectory import Trajectory
@@ -39,4 +40,8 @@ __all__ = [
     "BasePose",
     "clean_base_pose",
     "with_base_pose",
+    "find_outliers",
+    "check_outliers",
+    "drop_outliers",
+    "handle_outliers",
 ]

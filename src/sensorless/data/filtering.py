@@ -31,6 +31,7 @@ __all__ = [
 ]
 
 MAX_JITTER = 0.05  # relative sample-period variation accepted as "uniform"
+MIN_PERIOD, MAX_PERIOD = 1e-7, 1e3  # s: sample periods the filters accept (10 MHz .. 1 mHz)
 _PER_SAMPLE = ("q", "v", "a", "tau", "base_q", "base_v", "base_a")
 
 
@@ -47,6 +48,10 @@ def _uniform_dt(traj: Trajectory, what: str) -> float:
         raise TooFewSamplesError(f"{what} needs at least 2 samples, got {len(traj)}", traj.source)
     dt = np.diff(traj.t)
     med = float(np.median(dt))
+    if not MIN_PERIOD <= med <= MAX_PERIOD:
+        raise DataError(
+            f"{what}: median sample period {med:.3g} s is outside [{MIN_PERIOD:g}, {MAX_PERIOD:g}] s; "
+            "is the time in the right unit (time_unit=...) or the rate right?", traj.source)
     jitter = float(np.max(np.abs(dt - med)) / med)
     if jitter > MAX_JITTER:
         raise DataError(
@@ -93,7 +98,11 @@ def butter_lowpass(x: np.ndarray, cutoff_hz: float, rate_hz: float, order: int =
         raise DataError(f"cutoff {cutoff_hz!r} Hz must lie in (0, {rate_hz / 2:g}) Hz (the Nyquist frequency)")
     if int(order) != order or order < 1:
         raise DataError(f"filter order must be a positive integer, got {order!r}")
-    sos = butter(int(order), cutoff_hz, btype="low", fs=rate_hz, output="sos")
+    try:
+        with np.errstate(all="raise"):
+            sos = butter(int(order), cutoff_hz, btype="low", fs=rate_hz, output="sos")
+    except (ArithmeticError, ValueError) as exc:
+        raise DataError(f"cannot design a low-pass at {cutoff_hz!r} Hz for {rate_hz!r} Hz sampling ({exc})") from None
     padlen = 3 * (2 * len(sos) + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum()))
     if x.shape[0] <= padlen:
         raise TooFewSamplesError(
@@ -171,10 +180,17 @@ class SavitzkyGolay:
             raise DataError(f"dt must be a positive number of seconds, got {self.dt!r}")
         self.window, self.polyorder, self.dt = int(self.window), int(self.polyorder), float(self.dt)
         pos = self.window - 1 if self.causal else None
-        self.coeffs = {
-            d: savgol_coeffs(self.window, self.polyorder, deriv=d, delta=self.dt, pos=pos, use="dot")
-            for d in range(self.polyorder + 1)
-        }
+        try:
+            with np.errstate(all="raise"):
+                self.coeffs = {
+                    d: savgol_coeffs(self.window, self.polyorder, deriv=d, delta=self.dt, pos=pos, use="dot")
+                    for d in range(self.polyorder + 1)
+                }
+        except (ArithmeticError, ValueError) as exc:  # dt**d under/overflows for absurd sample periods
+            raise DataError(f"Savitzky-Golay coefficients for dt={self.dt!r} s are not finite ({exc}); "
+                            "check the time unit / rate") from None
+        if not all(np.all(np.isfinite(c)) for c in self.coeffs.values()):
+            raise DataError(f"Savitzky-Golay coefficients for dt={self.dt!r} s are not finite; check the time unit / rate")
 
     @property
     def delay(self) -> float:

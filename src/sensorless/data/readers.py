@@ -24,7 +24,9 @@ turn logged motor currents into torques τ = K·i, see :mod:`sensorless.data.gai
 from __future__ import annotations
 
 import re
+import tokenize
 import zipfile
+import zlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
@@ -33,7 +35,7 @@ import numpy as np
 from ..errors import DataError, ShapeMismatchError
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
-from .trajectory import Trajectory
+from .trajectory import Trajectory, as_float_array
 from .validation import JOINT_EXTRAS, validate_trajectory
 
 if TYPE_CHECKING:
@@ -70,6 +72,8 @@ _TIME_COLUMNS = ("t", "time", "times", "timestamp")
 _DEFAULT_PATTERNS = {f: f"{f}_{{joint}}" for f in ("q", "v", "a", "tau", "current", "command")}
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
+#: Accepted sample rates [Hz] for logs without a time column (1 sample per 1000 s .. 10 MHz).
+MIN_RATE, MAX_RATE = 1e-3, 1e7
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
 
 Columns = Mapping[str, "str | int | Sequence[str | int]"]
@@ -85,6 +89,7 @@ def read_trajectory(
     time_unit: str | None = None,
     gains: Any = None,
     allow_duplicate_times: bool = False,
+    outliers: str = "error",
 ) -> Trajectory:
     """Read a log and return it validated (and reordered to ``robot.joint_names``).
 
@@ -93,8 +98,10 @@ def read_trajectory(
     drive gains K (number, list in the log's column order, ``{joint: K}``, or a .json/.csv
     file): the logged currents become τ = K·i (:func:`~sensorless.data.gains.currents_to_torques`).
     ``allow_duplicate_times`` accepts repeated stamps for :func:`sensorless.data.prepare`
-    to merge. Every problem raises a :class:`~sensorless.errors.DataError` subclass
-    naming the file, column and row.
+    to merge. ``outliers``: gross outliers (:mod:`~sensorless.data.outliers`) raise an
+    OutlierError ("error", default), are dropped with a warning ("drop") or kept ("keep").
+    Every problem raises a :class:`~sensorless.errors.DataError` subclass naming the file,
+    column and row.
     """
     path = Path(path)
     src = str(path)
@@ -129,12 +136,11 @@ def read_trajectory(
     traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
     if gains is not None:
         traj = currents_to_torques(traj, gains, gain_field)
-    traj = validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times)
     if kind in ("npz", "hdf5"):
         extras = _sample_extras(path, kind, len(traj))
         if extras:
             traj = traj.with_(extras={**traj.extras, **extras})
-    return traj
+    return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers)
 
 
 #: Per-sample contact data of legged-robot logs (NPZ/HDF5 keys): flags (N, n_feet) and
@@ -147,10 +153,7 @@ _EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3 or 6", "imu_acc":
 
 def _contact_forces(val: Any, src: str, n: int) -> np.ndarray:
     """Measured contact wrenches as stored: (N, n_feet, 3|6) or flattened (N, n_feet·d)."""
-    try:
-        arr = np.asarray(val, dtype=float)
-    except (TypeError, ValueError):
-        raise DataError(f"array 'contact_forces' is not numeric (dtype {getattr(val, 'dtype', '?')})", src) from None
+    arr = as_float_array(val, "contact_forces", src)
     if arr.ndim not in (2, 3) or arr.shape[0] != n or (arr.ndim == 3 and arr.shape[2] not in (3, 6)):
         raise ShapeMismatchError(
             f"'contact_forces' has shape {arr.shape}; expected ({n}, n_feet, 3 or 6) or ({n}, n_feet·d) "
@@ -163,16 +166,20 @@ def _sample_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
     flags 0/1, three accelerometer columns)."""
     src = str(path)
     out: dict[str, np.ndarray] = {}
-    if kind == "npz":
-        with np.load(path, allow_pickle=False) as z:
-            found = {k: z[k] for k in CONTACT_KEYS + IMU_KEYS if k in z.files}
-    else:
-        import h5py
+    try:
+        if kind == "npz":
+            with np.load(path, allow_pickle=False) as z:
+                found = {k: z[k] for k in CONTACT_KEYS + IMU_KEYS if k in z.files}
+        else:
+            import h5py
 
-        with h5py.File(path, "r") as f:
-            found = {k: f[k][()] for k in CONTACT_KEYS + IMU_KEYS if k in f}
+            with h5py.File(path, "r") as f:
+                found = {k: f[k][()] for k in CONTACT_KEYS + IMU_KEYS if k in f}
+    except _READ_ERRORS as exc:
+        raise DataError(f"cannot read contact/IMU arrays ({_one_line(exc)})", src) from None
     for key, val in found.items():
-        arr = _contact_forces(val, src, n) if key == "contact_forces" else _as_float(val, src, key)
+        arr = (_contact_forces(val, src, n) if key == "contact_forces"
+               else _as_float(val, src, key, allow_bool=key == "contact"))
         if arr.ndim < 2 or arr.shape[0] != n or (key in IMU_KEYS and arr.shape != (n, 3)):
             raise DataError(f"'{key}' has shape {arr.shape}; expected ({n}, {_EXPECTED[key]}) — one row per sample", src)
         bad = np.argwhere(~np.isfinite(arr.reshape(n, -1)))
@@ -240,15 +247,34 @@ def _pick_key(field: str, keys: list[str], columns: Columns | None, src: str, ba
     return None
 
 
-def _as_float(arr: Any, src: str, key: str) -> np.ndarray:
-    try:
-        out = np.asarray(arr, dtype=float)
-    except (TypeError, ValueError):
-        dtype = getattr(arr, "dtype", type(arr).__name__)
-        raise DataError(f"array '{key}' is not numeric (dtype {dtype})", src) from None
-    if out.ndim > 2:
+#: What a corrupt NPZ/HDF5 member can raise on read (zlib, zip, h5py/HDF5 and numpy errors).
+#: numpy parses a corrupt .npy header with tokenize/ast (TokenError, SyntaxError) and may try to
+#: allocate what a corrupt header declares (MemoryError).
+_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, RuntimeError, TypeError, IndexError, AttributeError,
+                OverflowError, MemoryError, SyntaxError, tokenize.TokenError, zipfile.BadZipFile, zlib.error)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:300]}" if text else type(exc).__name__
+
+
+def _as_float(arr: Any, src: str, key: str, allow_bool: bool = False, max_dim: int = 2) -> np.ndarray:
+    out = as_float_array(arr, key, src, allow_bool=allow_bool)
+    if out.ndim > max_dim:
         raise ShapeMismatchError(f"array '{key}' has shape {out.shape}; expected 1-D or 2-D", src)
     return out
+
+
+def _names(raw: Any, src: str) -> list[str]:
+    """Joint names stored in a file: a 1-D array of strings (bytes are decoded)."""
+    arr = np.atleast_1d(np.asarray(raw))
+    if arr.ndim != 1 or arr.dtype.kind not in "USO":
+        raise DataError(f"'joint_names' must be a 1-D array of strings, got dtype {arr.dtype} shape {arr.shape}", src)
+    try:
+        return [n.decode() if isinstance(n, bytes) else str(n) for n in arr]
+    except UnicodeDecodeError:
+        raise DataError("'joint_names' are not valid UTF-8", src) from None
 
 
 def _missing_q(keys: list[str], src: str) -> DataError:
@@ -263,8 +289,8 @@ def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray
     src = str(path)
     try:
         archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise DataError(f"not a readable NPZ archive ({exc})", src) from None
+    except _READ_ERRORS as exc:
+        raise DataError(f"not a readable NPZ archive ({_one_line(exc)})", src) from None
     if not isinstance(archive, np.lib.npyio.NpzFile):
         raise DataError("holds a single array (.npy), not an NPZ archive of named arrays", src)
     with archive as z:
@@ -275,11 +301,11 @@ def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray
                 key = _pick_key(field, keys, columns, src)
                 if key is not None:
                     raw[field] = _as_float(z[key], src, key)
-            names = [str(n) for n in np.atleast_1d(z["joint_names"])] if "joint_names" in keys else None
+            names = _names(z["joint_names"], src) if "joint_names" in keys else None
         except DataError:
             raise
-        except (ValueError, OSError, zipfile.BadZipFile) as exc:  # pickled/object or corrupt member
-            raise DataError(f"cannot read an array from the NPZ archive ({exc})", src) from None
+        except _READ_ERRORS as exc:  # pickled/object or corrupt member (zlib.error, BadZipFile...)
+            raise DataError(f"cannot read an array from the NPZ archive ({_one_line(exc)})", src) from None
     if "q" not in raw:
         raise _missing_q(keys, src)
     return raw, names
@@ -291,24 +317,36 @@ def _read_hdf5(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarra
     src = str(path)
     try:
         f = h5py.File(path, "r")
-    except OSError as exc:
-        raise DataError(f"not a readable HDF5 file ({exc})", src) from None
-    with f:
-        keys: list[str] = []
-        f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
-        base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
-        raw: dict[str, np.ndarray] = {}
-        for field in FIELDS:
-            key = _pick_key(field, keys, columns, src, base)
-            if key is not None:
-                raw[field] = _as_float(f[key][()], src, key)
-        names = None
-        if "joint_names" in keys:
-            names = f["joint_names"][()]
-        elif "joint_names" in f.attrs:
-            names = f.attrs["joint_names"]
-        if names is not None:
-            names = [n.decode() if isinstance(n, bytes) else str(n) for n in np.atleast_1d(names)]
+    except _READ_ERRORS as exc:
+        raise DataError(f"not a readable HDF5 file ({_one_line(exc)})", src) from None
+    try:
+        return _hdf5_fields(f, src, columns)
+    except DataError:
+        raise
+    except _READ_ERRORS as exc:  # corrupt dataset, bad link, undecodable names...
+        raise DataError(f"cannot read a dataset from the HDF5 file ({_one_line(exc)})", src) from None
+    finally:
+        f.close()
+
+
+def _hdf5_fields(f, src: str, columns: Columns | None) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    import h5py
+
+    keys: list[str] = []
+    f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
+    base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
+    raw: dict[str, np.ndarray] = {}
+    for field in FIELDS:
+        key = _pick_key(field, keys, columns, src, base)
+        if key is not None:
+            raw[field] = _as_float(f[key][()], src, key)
+    names = None
+    if "joint_names" in keys:
+        names = f["joint_names"][()]
+    elif "joint_names" in f.attrs:
+        names = f.attrs["joint_names"]
+    if names is not None:
+        names = _names(names, src)
     if "q" not in raw:
         raise _missing_q(keys, src)
     return raw, names
@@ -428,6 +466,8 @@ def _numeric(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarr
                 raise DataError(f"missing timestamp in column '{c}' at row {i}", src)
             cols.append((s - pd.Timestamp(0, tz=getattr(s.dt, "tz", None))).dt.total_seconds().to_numpy(float))
             continue
+        if pd.api.types.is_bool_dtype(s) or pd.api.types.is_datetime64_any_dtype(s) or pd.api.types.is_complex_dtype(s):
+            raise DataError(f"column '{c}' (for '{field}') holds {s.dtype} values; expected real numbers", src)
         if pd.api.types.is_numeric_dtype(s):
             cols.append(s.to_numpy(dtype=float, na_value=np.nan))
             continue
@@ -512,6 +552,9 @@ def _assemble(
     robot: "Robot | None",
     time_unit: str | None,
 ) -> Trajectory:
+    for field, arr in raw.items():
+        if arr.ndim == 0:
+            raise ShapeMismatchError(f"'{field}' is a single number (0-D), not one value per sample", src)
     q = raw["q"]
     if q.ndim == 1:
         q = q[:, None]
@@ -520,7 +563,11 @@ def _assemble(
         names = list(joint_names)
         if len(names) != n:
             raise ShapeMismatchError(f"joint_names has {len(names)} names but 'q' has {n} columns", src)
-    elif file_names is not None and len(file_names) == n:
+    elif file_names is not None:
+        if len(file_names) != n:
+            raise ShapeMismatchError(
+                f"the file's joint_names has {len(file_names)} names but 'q' has {n} columns; "
+                "pass joint_names=[...] in column order", src)
         names = list(file_names)
     elif robot is not None:
         if len(robot.joint_names) != n:
@@ -546,8 +593,8 @@ def _assemble(
     else:
         if rate is None:
             raise DataError(f"no time column in {src}; pass rate=... (Hz)", src)
-        if not (np.isfinite(rate) and rate > 0):
-            raise DataError(f"rate must be a positive number of Hz, got {rate!r}", src)
+        if not isinstance(rate, (int, float, np.integer, np.floating)) or not MIN_RATE <= rate <= MAX_RATE:
+            raise DataError(f"rate must be a number of Hz in [{MIN_RATE:g}, {MAX_RATE:g}], got {rate!r}", src)
         t = np.arange(q.shape[0]) / float(rate)
         units["t"] = f"s (built from rate={rate:g} Hz)"
     extras = {k: raw[k] for k in JOINT_EXTRAS if k in raw}

@@ -18,7 +18,9 @@ from typing import Any, Iterator
 
 import numpy as np
 
-__all__ = ["Trajectory"]
+from ..errors import DataError
+
+__all__ = ["Trajectory", "as_float_array"]
 
 _PER_SAMPLE = ("q", "v", "a", "tau", "base_q", "base_v", "base_a")
 
@@ -41,11 +43,11 @@ class Trajectory:
 
     def __post_init__(self) -> None:
         self.joint_names = tuple(self.joint_names)
-        self.t = np.asarray(self.t, dtype=float)
+        self.t = as_float_array(self.t, "t", self.source)
         for name in _PER_SAMPLE:
             val = getattr(self, name)
             if val is not None:
-                setattr(self, name, np.asarray(val, dtype=float))
+                setattr(self, name, as_float_array(val, name, self.source))
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -99,3 +101,29 @@ class Trajectory:
             kw[n] = None if any(v is None for v in vals) else np.concatenate(vals)
         extras = {k: np.concatenate([p.extras[k] for p in parts]) for k in first.extras if all(k in p.extras for p in parts)}
         return replace(first, t=np.concatenate([p.t for p in parts]), extras=extras, **kw)
+
+
+def as_float_array(val, name: str, source: str | None = None, allow_bool: bool = False) -> np.ndarray:
+    """``val`` as a float array, or DataError for values that are not real numbers.
+
+    Integers and floats convert; booleans (unless ``allow_bool``), complex numbers,
+    datetimes/timedeltas, strings and objects that are not numbers are refused rather
+    than silently cast (a complex cast would drop the imaginary part, a bool one is a flag).
+    """
+    arr = val if isinstance(val, np.ndarray) else None
+    if arr is None:
+        try:
+            arr = np.asarray(val)
+        except (TypeError, ValueError) as exc:  # ragged nested lists
+            raise DataError(f"array '{name}' is not numeric ({str(exc).splitlines()[0]})", source) from None
+    kind = arr.dtype.kind
+    ok = "iuf" + ("b" if allow_bool else "")
+    if kind not in ok + "O":
+        what = {"b": "boolean", "c": "complex", "M": "datetime", "m": "timedelta", "U": "text", "S": "bytes",
+                "V": "structured"}.get(kind, str(arr.dtype))
+        raise DataError(f"array '{name}' is not numeric: {what} values (dtype {arr.dtype}); expected real numbers", source)
+    try:
+        out = np.asarray(arr, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise DataError(f"array '{name}' is not numeric: values that are not real numbers (dtype {arr.dtype})", source) from None
+    return out

@@ -22,12 +22,12 @@ from ..errors import (
     TimestampError,
     UnitsError,
 )
-from .trajectory import Trajectory
+from .trajectory import Trajectory, as_float_array
 
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["validate_trajectory", "TooFewSamplesError", "JOINT_EXTRAS"]
+__all__ = ["validate_trajectory", "TooFewSamplesError", "JOINT_EXTRAS", "MAX_ABS_VALUE"]
 
 #: ``extras`` keys holding one column per joint; they are reordered with the joints.
 JOINT_EXTRAS = ("current", "command")
@@ -37,6 +37,9 @@ _BASE_COLS = {"base_q": 7, "base_v": 6, "base_a": 6}
 _LIMIT_MARGIN = 0.5  # rad: slack beyond the model limits before values look like degrees
 _MAX_REVOLUTE_Q = 100.0  # rad: no revolute joint travels ~16 turns in one log
 _MAX_REVOLUTE_V = 100.0  # rad/s
+#: No SI signal of a robot log (rad, m, rad/s, N·m, N, A) reaches this magnitude; beyond it the
+#: values are in the wrong unit or corrupt, and their squares would overflow the normal equations.
+MAX_ABS_VALUE = 1e9
 
 
 class TooFewSamplesError(DataError, ExcitationError):
@@ -50,6 +53,7 @@ def validate_trajectory(
     check_units: bool = True,
     min_samples: int = 2,
     allow_duplicate_times: bool = False,
+    outliers: str = "keep",
 ) -> Trajectory:
     """Check ``traj`` and return it (reordered to ``robot.joint_names`` if a robot is given).
 
@@ -57,10 +61,17 @@ def validate_trajectory(
     backwards); :func:`sensorless.data.resample` merges them.
 
     Raises ShapeMismatchError, NonFiniteError, TimestampError, JointNameError,
-    UnitsError or TooFewSamplesError. The input is never modified.
+    UnitsError or TooFewSamplesError. ``outliers`` ("error" | "drop" | "keep") handles gross
+    outliers (:mod:`~sensorless.data.outliers`, OutlierError or dropped samples). With
+    ``check_units`` any value beyond :data:`MAX_ABS_VALUE` is a UnitsError. The input is never
+    modified.
     """
+    from .outliers import handle_outliers
+
+    if not isinstance(traj, Trajectory):
+        raise DataError(f"expected a Trajectory, got {type(traj).__name__}")
     src = traj.source
-    t = np.asarray(traj.t, dtype=float)
+    t = as_float_array(traj.t, "t", src)
     if t.ndim != 1:
         raise ShapeMismatchError(f"'t' must be 1-D, got shape {t.shape}", src)
     n = t.shape[0]
@@ -68,6 +79,8 @@ def validate_trajectory(
         raise TooFewSamplesError(f"only {n} sample(s); at least {min_samples} are needed", src)
 
     names = list(traj.joint_names)
+    if not all(isinstance(j, str) and j for j in names):
+        raise JointNameError(f"joint names must be non-empty strings, got {names}", src)
     dup = sorted({j for j in names if names.count(j) > 1})
     if dup:
         raise JointNameError(f"duplicate joint name(s) {dup} in {names}", src)
@@ -79,7 +92,7 @@ def validate_trajectory(
             if name == "q":
                 raise ShapeMismatchError("'q' (joint positions) is missing", src)
             continue
-        arr = np.asarray(val, dtype=float)
+        arr = as_float_array(val, name, src)
         cols = _BASE_COLS.get(name, len(names))
         if arr.ndim == 1 and cols == 1:
             arr = arr[:, None]
@@ -95,6 +108,12 @@ def validate_trajectory(
         arr = np.asarray(val)
         if arr.ndim == 0 or arr.shape[0] != n:
             raise ShapeMismatchError(f"extras['{key}'] has shape {arr.shape} but 't' has {n} samples", src)
+        if key in JOINT_EXTRAS:
+            arr = as_float_array(arr, key, src)
+            if arr.ndim != 2:
+                raise ShapeMismatchError(f"extras['{key}'] has shape {arr.shape}; expected (samples, columns)", src)
+            labels = names if arr.shape[1] == len(names) else [f"{key}[{k}]" for k in range(arr.shape[1])]
+            _check_finite(key, arr, labels, t, src)
 
     _check_finite("t", t[:, None], ["t"], t, src)
     for name, arr in arrays.items():
@@ -102,13 +121,17 @@ def validate_trajectory(
         _check_finite(name, arr, labels, t, src)
     _check_time(t, src, allow_duplicate_times)
 
-    out = traj.with_(t=t, **arrays)
+    out = handle_outliers(traj.with_(t=t, **arrays), outliers)
+    if len(out) < min_samples:
+        raise TooFewSamplesError(f"only {len(out)} sample(s) left after dropping outliers; at least {min_samples} are needed", src)
+    if check_units:
+        _check_magnitude(out)
     if robot is None:
         return out
     perm = robot.joint_order(names, src)  # JointNameError for unknown / missing / duplicates
     if not np.array_equal(perm, np.arange(len(names))):
         extras = {
-            k: (np.asarray(v)[:, perm] if k in JOINT_EXTRAS and np.ndim(v) == 2 else v)
+            k: (np.asarray(v)[:, perm] if k in JOINT_EXTRAS and np.ndim(v) == 2 and np.shape(v)[1] == len(perm) else v)
             for k, v in out.extras.items()
         }
         out = out.select_joints(list(robot.joint_names)).with_(extras=extras)
@@ -129,6 +152,22 @@ def _check_finite(name: str, arr: np.ndarray, labels: list[str], t: np.ndarray, 
     others = int(bad.any(axis=0).sum()) - 1
     more = f"; {others} other column(s) too" if others else ""
     raise NonFiniteError(f"{what} has {rows.size} non-finite values (NaN/inf), first at {where}{more}", src)
+
+
+def _check_magnitude(traj: Trajectory) -> None:
+    fields = [(f, getattr(traj, f)) for f in _JOINT_FIELDS + tuple(_BASE_COLS)] + [
+        (k, traj.extras.get(k)) for k in JOINT_EXTRAS]
+    for name, arr in fields:
+        if arr is None:
+            continue
+        arr = np.asarray(arr, dtype=float).reshape(len(traj), -1)
+        big = np.abs(arr) > MAX_ABS_VALUE
+        if big.any():
+            i, c = (int(x) for x in np.argwhere(big)[0])
+            col = traj.joint_names[c] if arr.shape[1] == traj.n_joints and name not in _BASE_COLS else f"{name}[{c}]"
+            raise UnitsError(
+                f"'{name}' column '{col}' reaches {arr[i, c]:.3g} at sample {i} (|value| > {MAX_ABS_VALUE:.0e}): "
+                "no robot signal is that large in SI units; wrong unit or corrupt data", traj.source)
 
 
 def _check_time(t: np.ndarray, src: str, allow_duplicates: bool = False) -> None:

@@ -20,11 +20,17 @@ from .metrics import TorqueMetrics, torque_metrics
 from .result import IdentificationResult
 from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
+from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
+
 __all__ = [
     "base_wrench_metrics",
     "com_cop_check",
     "com_positions",
     "standing_mask",
+    "JointMotion",
+    "base_parameter_uncertainty",
+    "check_joint_motion",
+    "poorly_identified",
     "BodyMassBounds",
     "BoundingEllipsoid",
     "ComInEllipsoid",

@@ -31,6 +31,9 @@ class BaseParameters:
     independent: np.ndarray  # indices of the r independent standard columns
     B: np.ndarray  # (r, p): π_b = B π
     labels: list[str]  # standard parameter labels (length p)
+    #: RMS of each independent column of W over the random states (generic motion): the torque
+    #: a unit change of each base parameter makes on a typical trajectory (None if unknown).
+    column_rms: np.ndarray | None = None
 
     @property
     def rank(self) -> int:
@@ -105,4 +108,5 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     B = np.zeros((r, p))
     B[np.arange(r), ind] = 1.0
     B[:, dep] = K
-    return BaseParameters(independent=ind, B=B, labels=list(structure.labels))
+    rms = np.sqrt(np.mean(W[:, ind] ** 2, axis=0))  # per equation row, physical units
+    return BaseParameters(independent=ind, B=B, labels=list(structure.labels), column_rms=rms)

@@ -6,20 +6,26 @@ solver → standard parameters → IdentificationResult.
 
 from __future__ import annotations
 
+import math
 import time
-from typing import Callable, Iterable, Sequence
+import warnings
+from typing import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
+from ..data.outliers import OUTLIER_MODES
 from ..data.trajectory import Trajectory
-from ..errors import SolverError
+from ..data.validation import validate_trajectory
+from ..errors import DataError, ExcitationError, IdentifiabilityWarning, OptionError, SolverError
 from ..regressor.compress import NormalEquations, compress
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
 from .base import BaseParameters, base_parameters
-from .least_squares import solve_least_squares, solve_truncated_svd
+from .identifiability import identifiability_report
+from .least_squares import MIN_SINGULAR_RATIO, sample_count_check, solve_least_squares, solve_truncated_svd
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
+from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
 __all__ = ["identify", "METHODS"]
 
@@ -42,6 +48,7 @@ def identify(
     ellipsoids=None,
     lmi_options: dict | None = None,
     progress: Callable[[int], None] | None = None,
+    outliers: str = "error",
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
@@ -54,18 +61,41 @@ def identify(
     :func:`~.lmi.cross_validate_gamma`). ``ellipsoids`` and ``lmi_options`` go to the solver.
     ``standard``: how to pick standard parameters from the base ones, "closest_to_prior"
     (nearest to the model's own inertials) or "min_norm".
+
+    Trajectories are validated as the readers do (:func:`~sensorless.data.validate_trajectory`:
+    shapes, dtypes, finiteness, time, joint names, units), and gross outliers are handled by
+    ``outliers`` ("error" | "drop" | "keep", :mod:`~sensorless.data.outliers`). Every method
+    then needs at least as many equations as base parameters and motion on every joint with
+    fv/fc/armature terms (:class:`~sensorless.errors.ExcitationError` otherwise, naming the
+    joint). ols/wls also refuse a rank-deficient base regressor; svd and lmi accept one (the
+    truncation / the prior fixes the unexcited directions) and warn. ``diagnostics`` carries
+    each base parameter's standard deviation and relative standard deviation
+    (:mod:`~.uncertainty`); base parameters above 100 % and joints that barely move are listed
+    in ``diagnostics["poorly_identified"]`` / ``["warnings"]`` and issued as an
+    :class:`~sensorless.errors.IdentifiabilityWarning`.
     """
-    if method not in METHODS:
-        raise SolverError(f"unknown method '{method}'; choose from {METHODS}")
+    _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard)
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
+    motion = None
+    if not isinstance(data, NormalEquations):
+        motion = JointMotion(structure.robot.joint_names)
+        data = _validated(data, structure.robot, outliers, motion)
     if method == "lmi" and gamma == "auto":
         if isinstance(data, NormalEquations):
             raise SolverError("gamma='auto' needs the training trajectories, not precompressed equations")
-        data = [data] if isinstance(data, Trajectory) else list(data)
+        data = list(data)
     t0 = time.perf_counter()
     ne = data if isinstance(data, NormalEquations) else compress(structure, data, chunk=chunk, progress=progress)
     t_compress = time.perf_counter() - t0
+    _check_finite_equations(ne)
     base = base_parameters(structure)
+    sample_count_check(ne, base)
+    slow: dict[str, float] = {}
+    if motion is not None:
+        slow = check_joint_motion(motion, structure.robot, structure.joint_terms)
+    report = None
+    if method in ("svd", "lmi"):
+        report = identifiability_report(ne, base, rcond=MIN_SINGULAR_RATIO)
     t1 = time.perf_counter()
     w = weights
     if method == "wls" and w is None:
@@ -104,6 +134,16 @@ def identify(
         base_std = np.sqrt(np.maximum(sol.base_covariance_diag, 0)).tolist()
         extra = {}
     t_solve = time.perf_counter() - t1
+    if not np.all(np.isfinite(params)):
+        raise SolverError(f"method '{method}' returned non-finite parameters; check the data for extreme values")
+    dof = max(ne.n_samples - base.rank / max(ne.A.shape[0], 1), 1.0)
+    sig_dof = np.sqrt(ne.residual_ss(params) / dof)
+    std = base_parameter_uncertainty(ne, base, sig_dof, rcond=MIN_SINGULAR_RATIO)
+    noise = float(np.median(sig_dof)) if sig_dof.size else 0.0
+    rel, poor = poorly_identified(base, np.asarray(base_values, dtype=float), std, noise)
+    notes = _identifiability_notes(poor, slow, report, structure, base.rank)
+    for note in notes:
+        warnings.warn(note, IdentifiabilityWarning, stacklevel=2)
     train = metrics_from_sums(
         structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
     )
@@ -113,7 +153,12 @@ def identify(
         "condition_number": cond,
         "n_samples": ne.n_samples,
         "residual_sigma": dict(zip(structure.row_names, map(float, sigma))),
-        "base_std": base_std,
+        "base_std": _finite_or_none(std) if method in ("svd", "lmi") else base_std,
+        "base_relative_std": _finite_or_none(rel),
+        "poorly_identified": poor,
+        "joint_position_range": motion.ranges if motion is not None else None,
+        "warnings": notes,
+        **({"not_excited": report["not_excited"]} if report and report["not_excited"] else {}),
         **extra,
         "compress_seconds": t_compress,
         "solve_seconds": t_solve,
@@ -123,6 +168,7 @@ def identify(
         "weights": w.tolist() if isinstance(w, np.ndarray) else w,
         "standard": standard,
         "chunk": chunk,
+        "outliers": outliers,
         **({"gamma": float(gamma), "regularization": regularization, "prior": "given" if prior is not None else "model"}
            if method == "lmi" else {}),
         **structure.settings(),
@@ -136,3 +182,88 @@ def _standard(base: BaseParameters, pi_b: np.ndarray, structure: ModelStructure,
     if kind == "closest_to_prior":
         return base.closest_to(pi_b, structure.prior())
     raise SolverError(f"unknown standard-parameter choice '{kind}'; use 'closest_to_prior' or 'min_norm'")
+
+
+def _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard) -> None:
+    """OptionError for option values no method can use (NaN γ, unknown names, ...)."""
+    if method not in METHODS:
+        raise SolverError(f"unknown method '{method}'; choose from {METHODS}")
+    if not (isinstance(gamma, str) and gamma == "auto"):
+        try:
+            g = float(gamma)
+        except (TypeError, ValueError):
+            raise OptionError(f"gamma must be a number >= 0 or 'auto', got {gamma!r}") from None
+        if not (math.isfinite(g) and g >= 0):
+            raise OptionError(f"gamma must be a finite number >= 0 or 'auto', got {gamma!r}")
+    if regularization is not None and isinstance(regularization, str):
+        from .regularizers import REGULARIZERS
+
+        if regularization not in REGULARIZERS:
+            raise OptionError(f"unknown regularization {regularization!r}; choose from {sorted(REGULARIZERS)} or None")
+    if not (isinstance(svd_rcond, (int, float)) and 0 < svd_rcond < 1):
+        raise OptionError(f"svd_rcond must lie in (0, 1), got {svd_rcond!r}")
+    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise OptionError(f"chunk must be a positive integer, got {chunk!r}")
+    if outliers not in OUTLIER_MODES:
+        raise OptionError(f"outliers must be one of {list(OUTLIER_MODES)}, got {outliers!r}")
+    if standard not in ("closest_to_prior", "min_norm"):
+        raise SolverError(f"unknown standard-parameter choice '{standard}'; use 'closest_to_prior' or 'min_norm'")
+
+
+def _validated(data, robot: Robot, outliers: str, motion: JointMotion):
+    """Validate each trajectory as the readers do; a list stays a list, a generator stays lazy."""
+    def one(traj) -> Trajectory:
+        if not isinstance(traj, Trajectory):
+            raise DataError(f"identify() takes Trajectory objects (or NormalEquations), got {type(traj).__name__}")
+        return motion.add(validate_trajectory(traj, robot, outliers=outliers))
+
+    if isinstance(data, Trajectory):
+        return [one(data)]
+    if isinstance(data, (list, tuple)):
+        return [one(t) for t in data]
+    try:
+        it = iter(data)
+    except TypeError:
+        raise DataError(f"identify() takes a Trajectory, an iterable of them or NormalEquations, got "
+                        f"{type(data).__name__}") from None
+
+    def lazy() -> Iterator[Trajectory]:
+        for traj in it:
+            yield one(traj)
+
+    return lazy()
+
+
+def _check_finite_equations(ne: NormalEquations) -> None:
+    if not (np.all(np.isfinite(ne.A)) and np.all(np.isfinite(ne.b)) and np.all(np.isfinite(ne.c))):
+        raise DataError("the identification equations overflowed (values too large to square); "
+                        "check the units and magnitudes of the log")
+
+
+def _finite_or_none(x) -> list:
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(x, dtype=float)]
+
+
+def _identifiability_notes(poor: list[dict], slow: dict[str, float], report: dict | None,
+                           structure: ModelStructure, n_base: int) -> list[str]:
+    """One-line warnings: poorly identified base parameters, barely moving joints, unexcited directions."""
+    notes = []
+    if poor:
+        worst = "; ".join(
+            f"{p['base_parameter']} = {p['value']:.3g} ± "
+            + ("inf" if p["std"] is None else f"{p['std']:.2g} ({100 * p['relative_std']:.0f} %)"
+               if p["relative_std"] is not None else f"{p['std']:.2g}")
+            for p in poor[:5])
+        notes.append(f"{len(poor)} of {n_base} base parameters are poorly identified "
+                     f"(relative std > {100 * MAX_RELATIVE_STD:.0f} %): {worst}"
+                     + (" ..." if len(poor) > 5 else ""))
+    if slow:
+        joints = ", ".join(f"{j} ({r:.2g})" for j, r in slow.items())
+        terms = [t for t in structure.joint_terms if t in ("fv", "fc", "armature")]
+        notes.append(f"joint(s) barely move (position range): {joints}; their "
+                     f"{'/'.join(terms) if terms else 'body'} parameters are poorly identified")
+    if report and report["not_excited"]:
+        notes.append(f"{len(report['not_excited'])} base-parameter direction(s) are not excited by the data "
+                     f"(e.g. {', '.join(report['not_excited'][0]['dominant_base_parameters'])}); "
+                     "their values come from the regularisation / truncation, not the data")
+    return notes

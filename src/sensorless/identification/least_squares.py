@@ -21,7 +21,8 @@ from ..errors import ExcitationError, SolverError
 from ..regressor.compress import NormalEquations
 from .base import BaseParameters
 
-__all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd", "excitation_check"]
+__all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd", "excitation_check",
+           "sample_count_check"]
 
 # Below this ratio of smallest to largest singular value of the equilibrated base
 # regressor, a direction of parameter space is considered not excited by the data.
@@ -43,15 +44,24 @@ def _base_system(ne: NormalEquations, base: BaseParameters, w: np.ndarray):
     return A[np.ix_(ind, ind)], b[ind], c
 
 
-def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None) -> float:
-    """Condition number of the equilibrated base regressor; ExcitationError if rank deficient."""
+def sample_count_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None) -> None:
+    """ExcitationError when the samples give fewer equations than there are base parameters."""
     w = np.ones(ne.A.shape[0]) if w is None else w
     n_eq = ne.n_samples * int(np.count_nonzero(w))
     if n_eq < base.rank:
         raise ExcitationError(
-            f"{ne.n_samples} samples give {n_eq} equations for {base.rank} base parameters; log more data"
+            f"too few samples: {ne.n_samples} samples give {n_eq} equations for {base.rank} base parameters; "
+            "log more data"
         )
+
+
+def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None) -> float:
+    """Condition number of the equilibrated base regressor; ExcitationError if rank deficient."""
+    w = np.ones(ne.A.shape[0]) if w is None else w
+    sample_count_check(ne, base, w)
     A11, _, _ = _base_system(ne, base, w)
+    if not np.all(np.isfinite(A11)):
+        raise SolverError("the normal equations are not finite; check the data for extreme values")
     d = np.sqrt(np.diag(A11))
     dead = np.flatnonzero(d <= 1e-12 * max(d.max(), 1e-300))
     labels = [base.labels[k] for k in base.independent]
@@ -62,7 +72,10 @@ def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | 
             "move those joints or remove the term"
         )
     S = A11 / np.outer(d, d)
-    evals, evecs = np.linalg.eigh(S)
+    try:
+        evals, evecs = np.linalg.eigh(S)
+    except np.linalg.LinAlgError as exc:
+        raise SolverError(f"eigen-decomposition of the normal equations failed ({exc})") from None
     evals = np.maximum(evals, 0.0)
     sv = np.sqrt(evals)
     if sv[0] < MIN_SINGULAR_RATIO * sv[-1]:
@@ -142,7 +155,12 @@ def solve_truncated_svd(ne: NormalEquations, rcond: float = 1e-6, row_weights: n
     S = A / np.outer(d, d)
     S[~live, :] = 0.0
     S[:, ~live] = 0.0
-    lam, U = np.linalg.eigh(S)
+    if not np.all(np.isfinite(S)):
+        raise SolverError("the normal equations are not finite; check the data for extreme values")
+    try:
+        lam, U = np.linalg.eigh(S)
+    except np.linalg.LinAlgError as exc:
+        raise SolverError(f"eigen-decomposition of the normal equations failed ({exc})") from None
     lam = np.maximum(lam, 0.0)
     keep = np.sqrt(lam) > rcond * np.sqrt(lam.max())
     if not keep.any():

@@ -19,14 +19,54 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from ..errors import DataError
+from ..errors import DataError, SensorlessError
 from ..io import atomic_open, write_json_atomic
 from .mlp import build_network
 
-__all__ = ["META", "WEIGHTS", "load_network", "save_network"]
+__all__ = ["META", "WEIGHTS", "MAX_NETWORK_PARAMETERS", "check_architecture", "load_network", "save_network"]
 
 WEIGHTS = "weights.pt"
 META = "model.json"
+#: Largest network a model.json may describe (parameters); beyond it loading would allocate
+#: gigabytes on the word of a JSON file. The project's networks have < 10⁶.
+MAX_NETWORK_PARAMETERS = 50_000_000
+_MAX_DIM = 1_000_000
+_MAX_LAYERS = 64
+_MAX_META_BYTES = 64 * 1024 * 1024
+
+
+def _positive_int(arch: dict, key: str, value, src: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) or not 1 <= value <= _MAX_DIM:
+        raise DataError(f"architecture '{key}' must be an integer in [1, {_MAX_DIM}], got {value!r}", src)
+    return int(value)
+
+
+def check_architecture(arch, src: str = "model.json") -> dict:
+    """DataError unless ``arch`` describes a network of bounded size (≤ :data:`MAX_NETWORK_PARAMETERS`)."""
+    if not isinstance(arch, dict):
+        raise DataError(f"'architecture' must be an object, got {type(arch).__name__}", src)
+    for key in ("in_dim", "out_dim", "hidden"):
+        if key not in arch:
+            raise DataError(f"architecture lacks '{key}'", src)
+    i = _positive_int(arch, "in_dim", arch["in_dim"], src)
+    o = _positive_int(arch, "out_dim", arch["out_dim"], src)
+    hidden = arch["hidden"]
+    if not isinstance(hidden, (list, tuple)) or len(hidden) > _MAX_LAYERS:
+        raise DataError(f"architecture 'hidden' must be a list of at most {_MAX_LAYERS} layer sizes", src)
+    hs = [_positive_int(arch, "hidden", h, src) for h in hidden]
+    kind = arch.get("kind", "mlp")
+    if kind == "lstm":
+        w = _positive_int(arch, "window", arch.get("window"), src)
+        h = hs[0] if hs else 1
+        n = 4 * h * (i // max(w, 1) + h + 2) * max(1, len(hs)) + (h + 1) * o
+    else:
+        dims = [i, *hs, o]
+        groups = o if kind == "per_joint" else 1
+        n = groups * sum((a + 1) * b for a, b in zip(dims[:-1], dims[1:]))
+    if n > MAX_NETWORK_PARAMETERS:
+        raise DataError(f"architecture describes a network of {n:.3g} parameters "
+                        f"(more than {MAX_NETWORK_PARAMETERS:.0e}); refusing to allocate it", src)
+    return arch
 
 
 def save_network(directory: str | Path, net: nn.Module, meta: dict) -> Path:
@@ -49,15 +89,30 @@ def load_network(directory: str | Path) -> tuple[nn.Module, dict]:
     if not meta_path.exists() or not w_path.exists():
         raise DataError(f"not a saved sensorless network (need {META} and {WEIGHTS})", str(d))
     try:
+        if meta_path.stat().st_size > _MAX_META_BYTES:
+            raise ValueError(f"larger than {_MAX_META_BYTES} bytes")
         meta = json.loads(meta_path.read_text())
         arch = meta["architecture"]
-    except (ValueError, KeyError) as exc:
-        raise DataError(f"unreadable model description: {exc}", str(meta_path)) from None
-    net = build_network(arch)
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
+        raise DataError(f"unreadable model description: {type(exc).__name__}: {exc}", str(meta_path)) from None
+    check_architecture(arch, str(meta_path))
+    try:
+        net = build_network(arch)
+    except SensorlessError:
+        raise
+    except (TypeError, ValueError, KeyError, RuntimeError) as exc:
+        raise DataError(f"cannot build the network: {_first_line(exc)}", str(meta_path)) from None
     try:
         state = torch.load(w_path, map_location="cpu", weights_only=True)
         net.load_state_dict(state)
     except Exception as exc:  # noqa: BLE001 - torch raises many kinds (UnpicklingError, RuntimeError)
-        raise DataError(f"weights could not be loaded safely: {type(exc).__name__}: {exc}", str(w_path)) from None
+        raise DataError(f"weights could not be loaded safely: {type(exc).__name__}: {_first_line(exc)}",
+                        str(w_path)) from None
     net.eval()
     return net, meta
+
+
+def _first_line(exc: BaseException) -> str:
+    """torch's messages span many lines (tracebacks of the unpickler, key lists): keep one."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    return (lines[0] if lines else type(exc).__name__)[:300] + (" ..." if len(lines) > 1 else "")

@@ -1,0 +1,237 @@
+"""Property-based fuzzing (hypothesis): every failure is a SensorlessError, every success is sane.
+
+Readers get random shapes, dtypes, NaN/inf/huge values and truncated or corrupted bytes;
+``identify`` gets small random trajectories of a 2-link arm; the CLI gets random option
+values. Properties: nothing but :class:`SensorlessError` escapes, and whatever succeeds
+holds finite values (readers: |x| ≤ MAX_ABS_VALUE; identify: finite parameters, and either
+of sane magnitude or flagged by a warning). Bounded examples keep the file under a minute;
+``benchmarks/fuzz.py`` runs the long version (≥ 10,000 inputs).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+from hypothesis.extra import numpy as hnp  # noqa: E402
+
+from sensorless.data import Trajectory, read_trajectory  # noqa: E402
+from sensorless.data.validation import MAX_ABS_VALUE  # noqa: E402
+from sensorless.errors import SensorlessError  # noqa: E402
+
+FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
+TWO_LINK = """<robot name="two"><link name="base"/>
+<link name="l1"><inertial><origin xyz="0 0 0.2"/><mass value="2"/><inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.005"/></inertial></link>
+<link name="l2"><inertial><origin xyz="0.15 0 0"/><mass value="1"/><inertia ixx="0.004" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
+<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.4"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
+</robot>"""
+
+_SPECIAL = st.sampled_from([0.0, -0.0, 1.0, np.nan, np.inf, -np.inf, 1e300, -1e300, 1e-300, 1e30, 1e10, 5e-324])
+_DTYPES = st.sampled_from(["f8", "f4", "i8", "u1", "bool", "c16", "M8[s]", "U3", "O"])
+
+
+def _array(draw, n_max=12, cols_max=4):
+    dtype = draw(_DTYPES)
+    shape = draw(st.sampled_from([(), (0,), (draw(st.integers(0, n_max)),),
+                                  (draw(st.integers(0, n_max)), draw(st.integers(0, cols_max))),
+                                  (2, 2, 2)]))
+    if dtype == "O":
+        return np.array([None] * (int(np.prod(shape)) or 1), dtype=object)
+    if dtype in ("U3", "M8[s]", "c16", "bool", "u1", "i8"):
+        return np.zeros(shape, dtype=dtype)
+    base = draw(hnp.arrays(np.float64, shape, elements=st.floats(-10, 10)))
+    if base.size and draw(st.booleans()):
+        base.flat[draw(st.integers(0, base.size - 1))] = draw(_SPECIAL)
+    return base.astype(dtype)
+
+
+@st.composite
+def npz_contents(draw):
+    keys = draw(st.lists(st.sampled_from(["times", "positions", "velocities", "accelerations", "torques",
+                                          "joint_names", "contact", "imu_acc", "current"]), min_size=1, max_size=6,
+                         unique=True))
+    return {k: (np.array(draw(st.lists(st.text(max_size=3), max_size=4))) if k == "joint_names" and draw(st.booleans())
+                else _array(draw)) for k in keys}
+
+
+def _check_trajectory(tr: Trajectory) -> None:
+    for f in ("t", "q", "v", "a", "tau"):
+        val = getattr(tr, f)
+        if val is not None:
+            assert np.all(np.isfinite(val)), f
+            if f != "t":
+                assert np.all(np.abs(val) <= MAX_ABS_VALUE), f
+
+
+def _read(path: Path, **kw) -> None:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tr = read_trajectory(path, **kw)
+    except SensorlessError:
+        return
+    _check_trajectory(tr)
+
+
+@FUZZ
+@given(npz_contents(), st.integers(0, 3), st.integers(0, 10 ** 6))
+def test_fuzz_npz_reader(contents, damage, seed):
+    with tempfile.TemporaryDirectory() as d:
+        f = Path(d) / "f.npz"
+        with open(f, "wb") as fh:
+            np.savez_compressed(fh, **contents) if damage == 3 else np.savez(fh, **contents)
+        data = bytearray(f.read_bytes())
+        rng = np.random.default_rng(seed)
+        if damage == 1:
+            data = data[: rng.integers(0, len(data))]
+        elif damage >= 2 and data:
+            idx = rng.integers(0, len(data), size=max(1, len(data) // 50))
+            data = bytearray(data)
+            for i in idx:
+                data[i] = rng.integers(0, 256)
+        f.write_bytes(bytes(data))
+        _read(f, rate=100.0)
+
+
+@FUZZ
+@given(st.lists(st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=4),
+                                   st.sampled_from(["", "nan", "1e400", "True", "2020-01-01", "1+2j"])),
+                         min_size=1, max_size=5), min_size=0, max_size=8),
+       st.booleans(), st.integers(0, 10 ** 6))
+def test_fuzz_csv_reader(rows, header, seed):
+    with tempfile.TemporaryDirectory() as d:
+        f = Path(d) / "f.csv"
+        lines = (["t,q_a,q_b,tau_a,tau_b"] if header else []) + [",".join(map(str, r)) for r in rows]
+        text = "\n".join(lines)
+        if seed % 3 == 0 and text:
+            text = text[: seed % len(text)]
+        f.write_text(text)
+        _read(f, rate=100.0) if header else _read(f, columns={"q": "0:2"}, rate=100.0)
+
+
+@FUZZ
+@given(npz_contents(), st.booleans(), st.integers(0, 10 ** 6))
+def test_fuzz_hdf5_reader(contents, corrupt, seed):
+    h5py = pytest.importorskip("h5py")
+    with tempfile.TemporaryDirectory() as d:
+        f = Path(d) / "f.h5"
+        with h5py.File(f, "w") as h:
+            for k, v in contents.items():
+                if v.dtype.kind in "OU":
+                    v = np.char.encode(v.astype(str)) if v.dtype.kind == "U" else np.zeros(1)
+                if v.dtype.kind == "M":
+                    v = v.astype("i8")
+                h[k] = v
+        if corrupt:
+            data = bytearray(f.read_bytes())
+            rng = np.random.default_rng(seed)
+            for i in rng.integers(0, len(data), size=max(1, len(data) // 30)):
+                data[i] = rng.integers(0, 256)
+            f.write_bytes(bytes(data))
+        _read(f, rate=100.0)
+
+
+@pytest.fixture(scope="module")
+def two_link(tmp_path_factory):
+    from sensorless.robot import load_robot
+
+    f = tmp_path_factory.mktemp("robot") / "two.urdf"
+    f.write_text(TWO_LINK)
+    return load_robot(f)
+
+
+def run_identify(robot, traj: Trajectory, method: str) -> str:
+    """'typed' | 'ok' | 'flagged'; raises AssertionError on silent garbage, anything else on escape."""
+    from sensorless.identification import identify
+
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = identify(robot, traj, method=method, gamma=1e-3)
+    except SensorlessError:
+        return "typed"
+    assert np.all(np.isfinite(res.parameters)), "non-finite parameters on success"
+    sane = np.max(np.abs(res.parameters)) < 1e6
+    assert sane or caught, f"huge parameters {np.max(np.abs(res.parameters)):.3g} without a warning"
+    return "ok" if sane else "flagged"
+
+
+@FUZZ
+@given(st.integers(3, 400), st.floats(1e-4, 3.0), st.sampled_from(["ols", "wls", "svd", "lmi"]),
+       st.integers(0, 10 ** 6), st.sampled_from(["none", "nan", "spike", "const", "still", "huge"]))
+def test_fuzz_identify_small_random_trajectories(two_link, n, amp, method, seed, defect):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 100.0
+    w = rng.uniform(0.2, 3.0, size=2)
+    q = amp * np.sin(np.outer(t, w) + rng.uniform(0, 6, 2))
+    v = amp * w * np.cos(np.outer(t, w))
+    a = -amp * w ** 2 * np.sin(np.outer(t, w))
+    tau = rng.normal(scale=rng.choice([1e-3, 1.0, 100.0]), size=(n, 2))
+    if defect == "nan":
+        tau[rng.integers(n), rng.integers(2)] = np.nan
+    elif defect == "spike":
+        tau[rng.integers(n), rng.integers(2)] = 10.0 ** rng.integers(5, 300)
+    elif defect == "const":
+        q[:] = 0.3
+    elif defect == "still":
+        q[:, 1] = 0.1
+        v[:, 1] = a[:, 1] = 0.0
+    elif defect == "huge":
+        tau *= 1e12
+    tr = Trajectory(t=t, q=q, v=v, a=a, tau=tau, joint_names=("j1", "j2"))
+    run_identify(two_link, tr, method)
+
+
+OPTION_VALUES = st.sampled_from(["0", "-1", "nan", "inf", "-inf", "1e300", "1e-300", "abc", "", "3", "11", "2.5"])
+OPTIONS = ["--rate", "--lowpass", "--savgol-window", "--decimate", "--gamma", "--coulomb-smoothing", "--regularization",
+           "--outliers", "--method", "--ellipsoids", "--joint-terms", "--columns"]
+
+
+@pytest.fixture(scope="module")
+def small_log(tmp_path_factory, two_link):
+    from sensorless.data import write_npz
+    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.excitation import random_fourier
+
+    d = tmp_path_factory.mktemp("cli")
+    truth = perturbed_truth(two_link, rng=0)
+    tr = synthetic_trajectory(truth, random_fourier(two_link, rng=1).sample(100, 4.0), noise_std=0.05, rng=2)
+    return d, write_npz(tr, d / "log.npz")
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
+@given(st.lists(st.tuples(st.sampled_from(OPTIONS), OPTION_VALUES), min_size=1, max_size=3, unique_by=lambda x: x[0]))
+def test_fuzz_cli_option_values(small_log, opts):
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+
+    d, log = small_log
+    robot = d / "two.urdf"
+    robot.write_text(TWO_LINK)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "o"
+        args = ["identify", "--robot", str(robot), "--data", str(log), "--out", str(out)]
+        for k, v in opts:
+            args += [k, v]
+        r = CliRunner().invoke(app, args)
+        assert r.exit_code in (0, 2), r.output  # 1 = typer's usage error is fine too
+        if r.exit_code == 2 and "internal error" in r.output:
+            pytest.fail(r.output)
+        assert "Traceback" not in r.output and "internal error" not in r.output, r.output
+        if r.exit_code == 0:
+            import json
+
+            doc = json.loads((out / "result.json").read_text())
+            vals = np.array(list(doc["parameters"].values()), dtype=float)
+            assert np.all(np.isfinite(vals))
+        else:
+            assert not out.exists()
