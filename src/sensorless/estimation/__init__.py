@@ -10,6 +10,7 @@ from .force import (
     frame_jacobians,
 )
 from .joint_torque import FTSensor, ImuSpec, JointTorqueEstimate, JointTorqueEstimator
+from .momentum import MomentumDynamics, MomentumObserver, ObserverResult, depth_first_model, observer_filter
 
 __all__ = [
     "REFERENCES",
@@ -19,7 +20,12 @@ __all__ = [
     "ImuSpec",
     "JointTorqueEstimate",
     "JointTorqueEstimator",
+    "MomentumDynamics",
+    "MomentumObserver",
+    "ObserverResult",
     "damped_least_squares",
+    "depth_first_model",
     "external_torque",
     "frame_jacobians",
+    "observer_filter",
 ]
