@@ -1,6 +1,7 @@
 """Estimation from sensors and identified models: joint torque from F/T + IMU + encoders,
 external joint torque and Cartesian force."""
 
+from .collision import ContactInterval, Thresholds, detect_contacts, quiet_mask, quiet_thresholds, score_detection
 from .force import (
     REFERENCES,
     CartesianForceEstimator,
@@ -10,11 +11,20 @@ from .force import (
     frame_jacobians,
 )
 from .joint_torque import FTSensor, ImuSpec, JointTorqueEstimate, JointTorqueEstimator
-from .momentum import MomentumDynamics, MomentumObserver, ObserverResult, depth_first_model, observer_filter
+from .momentum import (
+    MomentumDynamics,
+    MomentumObserver,
+    ObserverResult,
+    benchmark_observer,
+    depth_first_model,
+    observer_filter,
+)
 
 __all__ = [
     "REFERENCES",
+    "benchmark_observer",
     "CartesianForceEstimator",
+    "ContactInterval",
     "FTSensor",
     "ForceEstimate",
     "ImuSpec",
@@ -23,9 +33,14 @@ __all__ = [
     "MomentumDynamics",
     "MomentumObserver",
     "ObserverResult",
+    "Thresholds",
     "damped_least_squares",
     "depth_first_model",
+    "detect_contacts",
     "external_torque",
     "frame_jacobians",
     "observer_filter",
+    "quiet_mask",
+    "quiet_thresholds",
+    "score_detection",
 ]

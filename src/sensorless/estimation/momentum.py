@@ -43,7 +43,7 @@ from scipy import signal
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, ShapeMismatchError, TimestampError
 
-__all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "depth_first_model", "observer_filter"]
+__all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "benchmark_observer", "depth_first_model", "observer_filter"]
 
 
 def depth_first_model(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
@@ -392,3 +392,50 @@ def _uniform_dt(traj: Trajectory, tol: float = 0.25) -> float:
             f"one (median period {dt:.4g} s)"
         )
     return dt
+
+
+def benchmark_observer(samples: int = 2000, seed: int = 0) -> dict:
+    """Wall time per sample of :meth:`MomentumObserver.step` and :meth:`MomentumObserver.run`
+    (UR5, Solo12 floating base, dVRK PSM transmission; random states). JSON-able."""
+    import platform
+    import time
+
+    from ..regressor.terms import ModelStructure
+    from ..robot import load_robot
+    from ..robots.dvrk_psm import psm_structure
+
+    rng = np.random.default_rng(seed)
+    cases = {}
+    ur5 = ModelStructure(load_robot("ur5"), coulomb_smoothing=0.05)
+    cases["ur5"] = (ur5, ur5.prior())
+    solo = ModelStructure(load_robot("solo12", floating_base=True), joint_terms=("fv", "fc", "armature"))
+    cases["solo12"] = (solo, solo.prior())
+    psm = psm_structure(drives="motors")
+    p = np.zeros(psm.n_params)
+    for k in range(psm.robot.n_bodies):
+        p[10 * k : 10 * k + 10] = pin.Inertia.Random().toDynamicParameters()
+    cases["dvrk_psm"] = (psm, p)
+    out = {"samples": samples, "python": platform.python_version(), "pinocchio": pin.__version__, "robots": {}}
+    for name, (st, params) in cases.items():
+        dyn = MomentumDynamics(st, params)
+        robot = st.robot
+        nj = len(robot.joint_names)
+        q = rng.uniform(-1, 1, (samples, nj)) * 0.3
+        v = rng.normal(size=(samples, nj)) * 0.3
+        tau = rng.normal(size=(samples, robot.n_actuated))
+        base_q = np.tile([0, 0, 0.3, 0, 0, 0, 1.0], (samples, 1)) if dyn.floating_base else None
+        base_v = rng.normal(size=(samples, 6)) * 0.1 if dyn.floating_base else None
+        obs = MomentumObserver(dyn, gain=50.0, dt=1e-3)
+        t0 = time.perf_counter()
+        for i in range(samples):
+            obs.step(q[i], v[i], tau[i], None if base_q is None else base_q[i], None if base_v is None else base_v[i])
+        step = (time.perf_counter() - t0) / samples
+        full_tau = np.zeros((samples, nj))
+        full_tau[:, [robot.joint_names.index(j) for j in robot.actuated_joints]] = tau
+        traj = Trajectory(t=np.arange(samples) * 1e-3, q=q, v=v, tau=full_tau, base_q=base_q, base_v=base_v,
+                          joint_names=robot.joint_names)
+        t0 = time.perf_counter()
+        MomentumObserver(dyn, gain=50.0).run(traj)
+        run = (time.perf_counter() - t0) / samples
+        out["robots"][name] = {"n": dyn.n, "step_us": step * 1e6, "run_us": run * 1e6}
+    return out
