@@ -2,6 +2,7 @@
 external joint torque and Cartesian force."""
 
 from .collision import ContactInterval, Thresholds, detect_contacts, quiet_mask, quiet_thresholds, score_detection
+from .contact_forces import ContactForceEstimate, estimate_contact_forces, solve_contact_forces
 from .force import (
     REFERENCES,
     CartesianForceEstimator,
@@ -24,6 +25,7 @@ __all__ = [
     "REFERENCES",
     "benchmark_observer",
     "CartesianForceEstimator",
+    "ContactForceEstimate",
     "ContactInterval",
     "FTSensor",
     "ForceEstimate",
@@ -37,10 +39,12 @@ __all__ = [
     "damped_least_squares",
     "depth_first_model",
     "detect_contacts",
+    "estimate_contact_forces",
     "external_torque",
     "frame_jacobians",
     "observer_filter",
     "quiet_mask",
     "quiet_thresholds",
     "score_detection",
+    "solve_contact_forces",
 ]
