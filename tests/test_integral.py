@@ -40,7 +40,7 @@ def test_filtered_regressor_explains_noise_free_torques(arm):
     assert rel < 5e-3
     np.testing.assert_allclose(filtered_target(st, traj), fr.y)
     wrong = th.copy()
-    wrong[10] *= 1.5  # mass of the second body (the first one only turns about the vertical)
+    wrong[20:30] *= 1.5  # the elbow link 50 % heavier
     assert np.sqrt(np.mean((fr.W @ wrong - fr.y) ** 2)) > 10 * np.sqrt(np.mean((fr.W @ th - fr.y) ** 2))
 
 
