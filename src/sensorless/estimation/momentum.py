@@ -40,6 +40,7 @@ import numpy as np
 import pinocchio as pin
 from scipy import signal
 
+from ..data.integral_filter import observer_filter
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, ShapeMismatchError, TimestampError
 
@@ -250,33 +251,6 @@ class MomentumDynamics:
         for i in range(N):
             P[i], B[i] = self.momentum_terms(Q[i], V[i])
         return P, B
-
-
-def observer_filter(gain: float, order: int, dt: float, damping: float = 1.0):
-    """Tustin-discretised (b_p, b_u, a): r = (b_p/a)[p − p₀] − (b_u/a)[τ + β].
-
-    order 1: L(s) = K/(s + K); order 2: L(s) = K²/(s² + 2ζK s + K²), ζ = ``damping``.
-    """
-    if not (gain > 0 and np.isfinite(gain)):
-        raise RobotModelError(f"observer gain must be a positive number [1/s], got {gain}")
-    if order == 1:
-        den = [1.0, gain]
-        num_u = [gain]
-    elif order == 2:
-        if damping <= 0:
-            raise RobotModelError(f"damping must be > 0, got {damping}")
-        den = [1.0, 2.0 * damping * gain, gain**2]
-        num_u = [gain**2]
-    else:
-        raise RobotModelError(f"observer order must be 1 or 2, got {order}")
-    num_p = list(np.polymul(num_u, [1.0, 0.0]))  # s L(s)
-    fs = 1.0 / dt
-    b_u, a = signal.bilinear(num_u, den, fs)
-    b_p, a2 = signal.bilinear(num_p, den, fs)
-    assert np.allclose(a, a2)
-    n = len(a)
-    pad = lambda b: np.concatenate([np.zeros(n - len(b)), b]) if len(b) < n else np.asarray(b)  # noqa: E731
-    return pad(b_p), pad(b_u), np.asarray(a)
 
 
 @dataclass

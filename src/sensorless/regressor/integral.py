@@ -12,15 +12,21 @@ included), linear in the parameters θ = [π, φ]:
 * joint terms: armature I_a puts v_j in Y_p (p_j += I_a v_j); viscous, Coulomb and offset
   put their features [v, sgn v, 1] in Y_b.
 
-No accelerations appear: apply one stable low-pass L(s) = λ/(s + λ) to both sides,
+No accelerations appear: apply one stable low-pass L(s) = (λ/(s + λ))ⁿ (n = ``order``)
+to both sides, from zero state at t₀,
 
     L[Sᵀτ] = s L[Y_p θ − p(t₀)] + L[Y_b θ],
 
-which holds exactly (in continuous time, zero initial state at t₀) and is linear in θ:
-the *filtered regressor* W_f = s L[Y_p − Y_p(t₀)] + L[Y_b], target y_f = L[Sᵀτ]. Both
-filters are the Tustin discretisation used by the momentum observer
-(:func:`~sensorless.estimation.momentum.observer_filter`), i.e. the trapezoidal rule for
-∫τ dt; this is the only approximation on a fixed base (τ varies between log samples).
+which holds exactly in continuous time and is linear in θ: the *filtered regressor*
+W_f = s L[Y_p − Y_p(t₀)] + L[Y_b], target y_f = L[Sᵀτ]
+(:class:`~sensorless.data.integral_filter.LowpassChain`). The samples are integrated
+exactly for piecewise-linear signals (first-order hold) — and the torque either the same
+way (``tau_hold="linear"``: a log of instantaneous torque samples, the trapezoid rule) or as
+piecewise constant (``"mean"``: a log of each period's mean torque, then ∫τ dt is exact).
+On a fixed base the only approximation is the interpolation between log samples; with a
+1 kHz controller logged at 100 Hz the instantaneous torque aliases (trot, jump), which
+``"mean"`` logs remove. Order n ≥ 2 makes s L a band-pass, so the velocity noise, which
+enters through s L[M v] with gain ≈ λ at high frequency for n = 1, is attenuated too.
 
 Contact null-space projection (legged robots, no force sensing): P(q) = I − Jc⁺Jc removes
 Jcᵀ f only when it multiplies the equation *before* filtering, and P varies in time:
@@ -40,8 +46,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy import signal
 
+from ..data.filtering import _uniform_dt
+from ..data.integral_filter import LowpassChain
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from .terms import ModelStructure, _in_robot_order
@@ -95,12 +102,6 @@ def _segments(flags: np.ndarray | None, N: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def _filters(cutoff: float, dt: float):
-    from ..estimation.momentum import observer_filter
-
-    return observer_filter(2 * np.pi * cutoff, 1, dt)
-
-
 @dataclass
 class FilteredRows:
     """Filtered regressor W (N, rows, n_params) and target y (N, rows) of one log."""
@@ -145,14 +146,18 @@ def _rows(structure) -> np.ndarray:
     return structure._row_idx
 
 
-def filtered_rows(structure: ModelStructure, traj: Trajectory, cutoff: float = 4.0, *, pdot: bool = True,
-                  eps: float = 1e-5) -> FilteredRows:
+def _filter(cutoff: float, order: int, dt: float, tau_hold: str) -> LowpassChain:
+    if tau_hold not in ("linear", "mean"):
+        raise RobotModelError(f"tau_hold must be 'linear' (torque samples) or 'mean' (period means), got {tau_hold!r}")
+    return LowpassChain(cutoff, order, dt)
+
+
+def filtered_rows(structure: ModelStructure, traj: Trajectory, cutoff: float = 4.0, *, order: int = 1,
+                  tau_hold: str = "linear", pdot: bool = True, eps: float = 1e-5) -> FilteredRows:
     """W_f and y_f of a whole log (see the module docstring); ``cutoff`` = λ/2π [Hz]."""
     from .contact import ContactStructure
 
-    if not cutoff > 0:
-        raise RobotModelError(f"filter cut-off must be > 0 Hz, got {cutoff}")
-    dt = _dt(traj)
+    lp = _filter(cutoff, order, _dt(traj), tau_hold)
     Q, V = _state(structure, traj)
     Yp, Yb = momentum_regressors(structure, Q, V, eps)
     y = _generalised(structure, traj, None)
@@ -168,24 +173,24 @@ def filtered_rows(structure: ModelStructure, traj: Trajectory, cutoff: float = 4
         y = np.einsum("nij,nj->ni", P, y)
     rows = _rows(structure)
     Yp, Yb, y = Yp[:, rows], Yb[:, rows], y[:, rows]
-    b_p, b_u, a = _filters(cutoff, dt)
     W = np.empty_like(Yp)
     yf = np.empty_like(y)
     start = np.zeros(len(traj), bool)
     for s, e in _segments(flags, len(traj)):
         start[s] = True
-        W[s:e] = signal.lfilter(b_p, a, Yp[s:e] - Yp[s], axis=0) + signal.lfilter(b_u, a, Yb[s:e], axis=0)
-        yf[s:e] = signal.lfilter(b_u, a, y[s:e], axis=0)
+        dp = Yp[s:e] - Yp[s]
+        W[s:e] = lp.rate(lp.states(dp), dp) + lp.value(lp.states(Yb[s:e]))
+        yf[s:e] = lp.value(lp.states(y[s:e], tau_hold))
     return FilteredRows(W, yf, start)
 
 
 def filtered_target(structure: ModelStructure, traj: Trajectory, tau: np.ndarray | None = None,
-                    cutoff: float = 4.0) -> np.ndarray:
+                    cutoff: float = 4.0, *, order: int = 1, tau_hold: str = "linear") -> np.ndarray:
     """y_f = L[P Sᵀτ] (or L[Sᵀτ] on the kept rows) for actuated torques ``tau`` (N, n_actuated)
     of any model — e.g. a black-box MLP — or the log's; scored "the same way" as W_f θ."""
     from .contact import ContactStructure
 
-    dt = _dt(traj)
+    lp = _filter(cutoff, order, _dt(traj), tau_hold)
     y = _generalised(structure, traj, tau)
     flags = None
     if isinstance(structure, ContactStructure):
@@ -193,17 +198,16 @@ def filtered_target(structure: ModelStructure, traj: Trajectory, tau: np.ndarray
         flags = structure.contacts(traj)
         y = np.einsum("nij,nj->ni", structure.projector(Q, flags), y)
     y = y[:, _rows(structure)]
-    _, b_u, a = _filters(cutoff, dt)
     out = np.empty_like(y)
     for s, e in _segments(flags, len(traj)):
-        out[s:e] = signal.lfilter(b_u, a, y[s:e], axis=0)
+        out[s:e] = lp.value(lp.states(y[s:e], tau_hold))
     return out
 
 
-def projection_rate_error(structure, traj: Trajectory, params: np.ndarray, cutoff: float = 4.0) -> dict:
+def projection_rate_error(structure, traj: Trajectory, params: np.ndarray, cutoff: float = 4.0, **kw) -> dict:
     """Size of the Ṗ p term: RMS of W_f θ with and without it, and of their difference."""
-    full = filtered_rows(structure, traj, cutoff, pdot=True)
-    approx = filtered_rows(structure, traj, cutoff, pdot=False)
+    full = filtered_rows(structure, traj, cutoff, pdot=True, **kw)
+    approx = filtered_rows(structure, traj, cutoff, pdot=False, **kw)
     a, b = full.W @ params, approx.W @ params
     rms = lambda x: float(np.sqrt(np.mean(x**2)))  # noqa: E731
     return {"rms_with_pdot": rms(a), "rms_difference": rms(a - b), "relative": rms(a - b) / max(rms(a), 1e-300),
@@ -211,6 +215,4 @@ def projection_rate_error(structure, traj: Trajectory, params: np.ndarray, cutof
 
 
 def _dt(traj: Trajectory) -> float:
-    from ..estimation.momentum import _uniform_dt
-
-    return _uniform_dt(traj)
+    return _uniform_dt(traj, "acceleration-free identification")
