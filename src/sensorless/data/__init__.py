@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
+from .integral_filter import LowpassChain, observer_filter
 from .imu import base_acceleration, imu_base_acceleration
 from .readers import read_trajectory, write_npz
 from .trajectory import Trajectory
 from .validation import validate_trajectory
 
 __all__ = [
+    "LowpassChain",
+    "observer_filter",
     "Trajectory",
     "read_trajectory",
     "write_npz",
