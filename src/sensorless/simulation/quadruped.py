@@ -374,6 +374,7 @@ def simulate(
     ik_stride: int = 5,
     on_fall: str = "truncate",
     coulomb_velocity: float = 0.0,
+    tau_log: str = "sample",
     **scenario_kwargs,
 ) -> tuple[Trajectory, SimulationTruth]:
     """Simulate ``scenario`` for ``duration`` s and return (user's log, ground truth).
@@ -387,6 +388,10 @@ def simulate(
     log's ``source`` say so), ``"raise"`` raises :class:`SimulationError`.
     ``coulomb_velocity`` ε > 0 simulates joint Coulomb friction as fc tanh(v/ε) instead of
     MuJoCo's stiction-like friction loss (:func:`~.mujoco_scene.build_scene`).
+    ``tau_log="sample"`` logs the actuator force of the logged step; ``"mean"`` its mean over
+    the log period [t_k, t_k + 1/log_rate) (an anti-aliased torque log: ∫τ dt over each
+    period is then exact, what the acceleration-free identification integrates); the
+    ground truth's ``tau`` is the same quantity without noise.
     Extra keyword arguments go to the scenario planner (see :data:`SCENARIOS`).
     """
     if scenario not in SCENARIOS:
@@ -397,6 +402,8 @@ def simulate(
         raise SimulationError(f"scenario {scenario!r} has no setting(s) {unknown}; its settings are {params}")
     if on_fall not in ("truncate", "raise"):
         raise SimulationError(f"on_fall must be 'truncate' or 'raise', got {on_fall!r}")
+    if tau_log not in ("sample", "mean"):
+        raise SimulationError(f"tau_log must be 'sample' or 'mean', got {tau_log!r}")
     if not (duration > 0 and log_rate > 0 and sim_rate > 0):
         raise SimulationError(f"duration, log_rate and sim_rate must be > 0 (got {duration}, {log_rate}, {sim_rate})")
     ratio = sim_rate / log_rate
@@ -477,9 +484,12 @@ def simulate(
             L["height"][i] = d.geom_xpos[scene.foot_geoms, 2] - scene.foot_radius
             L["idx"][i] = idx
         mujoco.mj_step2(m, d)
+        if tau_log == "mean" and k >= n_settle:  # the force applied during step k
+            L["act"][(k - n_settle) // decim] += d.actuator_force / decim
         if log:
             L["qacc"][i] = d.qacc
-            L["act"][i] = d.actuator_force
+            if tau_log == "sample":
+                L["act"][i] = d.actuator_force
             flags, forces, points = _contacts(scene, d)
             L["flags"][i], L["forces"][i], L["points"][i] = flags, forces, points
             L["fric"][i] = scene.joint_friction(d)
@@ -494,9 +504,11 @@ def simulate(
         if on_fall == "raise":
             raise SimulationError(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=2)
+        if tau_log == "mean":
+            n_done = max(n_done - 1, 0)  # the last period was cut short
     L = {k: v[:n_done] for k, v in L.items()}
     wall = time.perf_counter() - wall0
-    return _assemble(
+    traj, gt = _assemble(
         scenario,
         scene,
         truth,
@@ -517,6 +529,8 @@ def simulate(
         fall_time,
         wall,
     )
+    gt.settings["tau_log"] = tau_log
+    return traj, gt
 
 
 def _retime(idx: int, offset: int, held: int, flights: list[tuple[int, int]], ncon: int, rate: float):

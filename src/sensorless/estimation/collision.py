@@ -1,0 +1,148 @@
+"""Collision (contact) detection on the observer's external-torque estimate.
+
+Per joint j, from a quiet segment (no contact) of the observer output r:
+
+    b_j = median(r_j),  σ_j = std(r_j),  contact  ⇔  ∃ j: |r_j − b_j| > k σ_j.
+
+``k`` is given, or chosen for a false-alarm rate λ [1/min] under a Gaussian model of the
+quiet residual: each of the n joints may exceed at a per-sample probability
+p = λ·dt / (60 n), so k = Φ⁻¹(1 − p/2). (The observer output is low-pass, so exceedances
+come in bursts and the realised rate of *intervals* is below λ; measure it with
+:func:`score_detection`.) Contact intervals are the runs of the flag, merged across gaps
+shorter than ``merge_gap`` and kept when at least ``min_duration`` long.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy import stats
+
+from ..errors import DataError
+
+__all__ = ["ContactInterval", "Thresholds", "detect_contacts", "quiet_mask", "quiet_thresholds", "score_detection"]
+
+
+@dataclass
+class Thresholds:
+    names: list[str]
+    bias: np.ndarray
+    sigma: np.ndarray
+    k: float
+    samples: int
+
+    @property
+    def threshold(self) -> np.ndarray:
+        return self.k * self.sigma
+
+    def to_dict(self) -> dict:
+        return {"names": list(self.names), "bias": self.bias.tolist(), "sigma": self.sigma.tolist(), "k": self.k,
+                "threshold": self.threshold.tolist(), "quiet_samples": self.samples}
+
+
+@dataclass
+class ContactInterval:
+    start: float
+    end: float
+    start_index: int
+    end_index: int  # inclusive
+    peak: list[float]  # signed peak of r − b per joint over the interval
+    peak_time: list[float]
+    joints: list[str]  # joints whose threshold was crossed
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def quiet_mask(t: np.ndarray, start: float, end: float, source: str = "<log>") -> np.ndarray:
+    """Samples with start ≤ t ≤ end; DataError if fewer than 20."""
+    mask = (t >= start) & (t <= end)
+    if mask.sum() < 20:
+        raise DataError(f"quiet segment {start:g}:{end:g} s holds {int(mask.sum())} samples (need ≥ 20; the log spans "
+                        f"{t[0]:g} to {t[-1]:g} s)", source)
+    return mask
+
+
+def quiet_thresholds(r: np.ndarray, quiet: np.ndarray, names, *, k: float | None = None,
+                     false_alarm_rate: float | None = None, dt: float | None = None) -> Thresholds:
+    """Per-joint bias and σ from the quiet samples (boolean mask) and the multiplier k."""
+    r = np.asarray(r, float)
+    rq = r[np.asarray(quiet, bool)]
+    if rq.shape[0] < 20:
+        raise DataError(f"the quiet segment has {rq.shape[0]} samples; need ≥ 20")
+    if (k is None) == (false_alarm_rate is None):
+        raise DataError("give exactly one of k or false_alarm_rate")
+    if false_alarm_rate is not None:
+        if not (false_alarm_rate > 0 and dt and dt > 0):
+            raise DataError(f"false_alarm_rate must be > 0 per minute with a sample period dt, got {false_alarm_rate}, dt={dt}")
+        p = false_alarm_rate * dt / (60.0 * r.shape[1])
+        k = float(stats.norm.isf(p / 2))
+    if not k > 0:
+        raise DataError(f"k must be > 0, got {k}")
+    bias = np.median(rq, axis=0)
+    sigma = np.maximum(rq.std(axis=0), 1e-12)
+    return Thresholds(list(names), bias, sigma, float(k), int(rq.shape[0]))
+
+
+def detect_contacts(r: np.ndarray, t: np.ndarray, th: Thresholds, *, min_duration: float = 0.0,
+                    merge_gap: float = 0.0) -> tuple[np.ndarray, list[ContactInterval]]:
+    """(flag (N,), intervals) of samples where some joint's |r − b| exceeds k σ."""
+    r, t = np.asarray(r, float), np.asarray(t, float)
+    dev = r - th.bias
+    over = np.abs(dev) > th.threshold
+    flag = over.any(axis=1)
+    runs = _runs(flag)
+    merged: list[list[int]] = []
+    for s, e in runs:
+        if merged and t[s] - t[merged[-1][1]] <= merge_gap:
+            merged[-1][1] = e
+        else:
+            merged.append([s, e])
+    out, flag = [], np.zeros_like(flag)
+    for s, e in merged:
+        if t[e] - t[s] < min_duration:
+            continue
+        seg = dev[s : e + 1]
+        i = np.argmax(np.abs(seg), axis=0)
+        out.append(ContactInterval(
+            float(t[s]), float(t[e]), int(s), int(e), seg[i, np.arange(seg.shape[1])].tolist(),
+            t[s + i].tolist(), [n for n, o in zip(th.names, over[s : e + 1].any(axis=0)) if o],
+        ))
+        flag[s : e + 1] = True
+    return flag, out
+
+
+def _runs(flag: np.ndarray) -> list[tuple[int, int]]:
+    """(start, end inclusive) of the runs of True."""
+    d = np.diff(np.concatenate([[0], flag.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1))
+
+
+def score_detection(intervals: list[ContactInterval], t: np.ndarray, truth: np.ndarray) -> dict:
+    """Delay of the first detection after each true contact onset, and false alarms.
+
+    ``truth`` (N,) bool marks the true contact samples. An interval overlapping no true
+    contact (± 0.2 s) is a false alarm; rates are per minute of contact-free time.
+    """
+    t, truth = np.asarray(t, float), np.asarray(truth, bool)
+    onsets = [(t[s], t[e]) for s, e in _runs(truth)]
+    delays, missed = [], 0
+    for a, b in onsets:
+        hits = [iv.start for iv in intervals if iv.end >= a and iv.start <= b]
+        if hits:
+            delays.append(max(0.0, min(hits) - a))
+        else:
+            missed += 1
+    false = [iv for iv in intervals if not any(iv.end >= a - 0.2 and iv.start <= b + 0.2 for a, b in onsets)]
+    dt = float(np.median(np.diff(t)))
+    quiet_minutes = (~truth).sum() * dt / 60.0
+    return {
+        "contacts": len(onsets),
+        "detected": len(onsets) - missed,
+        "missed": missed,
+        "delays_s": delays,
+        "mean_delay_s": float(np.mean(delays)) if delays else float("nan"),
+        "false_alarms": len(false),
+        "false_alarms_per_minute": len(false) / quiet_minutes if quiet_minutes > 0 else float("nan"),
+    }

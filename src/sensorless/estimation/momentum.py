@@ -1,0 +1,415 @@
+"""Generalised-momentum observer: external joint torques without joint accelerations.
+
+With p = M(q) v and Pinocchio's Coriolis matrix C (Ṁ = C + Cᵀ),
+
+    M v̇ + C v + g + τ_f(v) = τ + τ_ext   ⇒   ṗ = τ + β(q, v) + τ_ext,   β = Cᵀ v − g − τ_f.
+
+The first-order observer (De Luca & Mattone 2003) is
+
+    r(t) = K ( p(t) − p(0) − ∫₀ᵗ (τ + β + r) ds ),
+
+i.e. ṙ = K (τ_ext − r): r is τ_ext through the low-pass L(s) = K / (s + K), and it needs
+only q, v and τ. In transfer-function form, with e = p − p(0) and u = τ + β,
+
+    r = s L(s) [e] − L(s) [u].
+
+The second-order (filtered) variant uses L(s) = ω² / (s² + 2ζω s + ω²) (ω = K): the same
+identity with a steeper roll-off on measurement noise. Both are discretised by the
+bilinear (Tustin) transform — the trapezoidal rule of the integral above — and run either
+on a whole log (:meth:`MomentumObserver.run`, scipy ``lfilter``) or one sample at a time
+(:meth:`MomentumObserver.step`); the two give the same numbers.
+
+M, C and g come from Pinocchio (``crba``, ``computeCoriolisMatrix``,
+``computeGeneralizedGravity``) on a copy of the model whose inertias and armature are the
+*identified* ones (:class:`MomentumDynamics`), τ_f from the identified joint terms
+(viscous, Coulomb, offset). Coordinates:
+
+* fixed-base arm: the nv joint velocities (τ = Sᵀ τ_actuated);
+* floating base: nv = 6 + n_joints (base twist in the base frame, Pinocchio LOCAL); the
+  base rows of r are the external wrench on the base, τ_ext = Σ Jcᵀ f in stance;
+* transmission (q = Gθ + q₀, e.g. the dVRK PSM in motor coordinates θ):
+  M_θ = Gᵀ M G + Σ_d I_d g_d g_dᵀ, C_θ = Gᵀ C(q, Gθ̇) G, g_θ = Gᵀ g, τ_f,θ = Σ_d g_d f_d(θ, θ̇).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+from scipy import signal
+
+from ..data.integral_filter import observer_filter
+from ..data.trajectory import Trajectory
+from ..errors import DataError, RobotModelError, ShapeMismatchError, TimestampError
+
+__all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "benchmark_observer", "depth_first_model", "observer_filter"]
+
+
+def depth_first_model(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
+    """The same tree with joints renumbered in depth-first order, and ``perm`` (new v → old v).
+
+    Pinocchio's ``crba`` and ``computeCoriolisMatrix`` assume each joint's subtree occupies
+    consecutive velocity indices (depth-first numbering); a tree built by ``addJoint`` in
+    another order (e.g. the dVRK PSM tree) silently gets a wrong M and C, while RNEA and the
+    regressor stay right. Only 1-DoF joints below the root are renumbered; an already
+    depth-first model is returned as is (``perm`` = identity).
+    """
+    children: dict[int, list[int]] = {j: [] for j in range(model.njoints)}
+    for j in range(1, model.njoints):
+        children[model.parents[j]].append(j)
+    order, stack = [], [0]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(sorted(children[j], reverse=True))
+    if order == list(range(model.njoints)):
+        return model, np.arange(model.nv)
+    if any(model.joints[j].nv != 1 or model.joints[j].nq != 1 for j in range(1, model.njoints)):
+        raise RobotModelError("the kinematic tree is not numbered depth-first and has multi-DoF joints; "
+                              "Pinocchio's crba/computeCoriolisMatrix would be wrong on it")
+    new = pin.Model()
+    new.name = model.name
+    new.gravity = model.gravity
+    ids = {0: 0}
+    for j in order[1:]:
+        jid = new.addJoint(ids[model.parents[j]], model.joints[j], model.jointPlacements[j], model.names[j])
+        new.appendBodyToJoint(jid, model.inertias[j], pin.SE3.Identity())
+        ids[j] = jid
+    perm = np.empty(model.nv, dtype=int)
+    for j_old, j_new in ids.items():
+        if j_old:
+            perm[new.joints[j_new].idx_v] = model.joints[j_old].idx_v
+    new.armature[:] = np.asarray(model.armature)[perm]
+    return new, perm
+
+
+def _sym(M: np.ndarray) -> np.ndarray:
+    """Full symmetric matrix from Pinocchio's (possibly upper-triangular) M."""
+    return np.triu(M) + np.triu(M, 1).T
+
+
+class MomentumDynamics:
+    """M(q), p = M v and β = Cᵀv − g − τ_f of an identified model, in observer coordinates.
+
+    Build it from an identification structure and its parameter vector (or with
+    :meth:`from_result` from a ``result.json``). Supported structures:
+    :class:`~sensorless.regressor.ModelStructure` (fixed or floating base, incl.
+    :class:`~sensorless.regressor.contact.ContactStructure`) and
+    :class:`~sensorless.regressor.transmission.TransmissionStructure`.
+    """
+
+    def __init__(self, structure, params: np.ndarray) -> None:
+        from ..regressor.transmission import TransmissionStructure
+
+        params = np.asarray(params, dtype=float)
+        if params.shape != (structure.n_params,):
+            raise ShapeMismatchError(f"expected {structure.n_params} parameters for this structure, got {params.shape}")
+        self.structure, self.params = structure, params
+        self.transmission = isinstance(structure, TransmissionStructure)
+        nb = structure.n_body_params
+        if self.transmission:
+            tree = structure.tree
+            model = tree.model.copy()
+            model.armature[:] = 0.0  # drive inertias are added in coordinate space
+            ids = structure.robot.body_indices
+            for j in range(1, model.njoints):
+                model.inertias[j] = pin.Inertia.Zero()
+            for k, b in enumerate(ids):
+                model.inertias[int(b) + 1] = pin.Inertia.FromDynamicParameters(params[10 * k : 10 * k + 10])
+            model, perm = depth_first_model(model)
+            self.tree = tree
+            self._perm = perm
+            self.G = structure.G[perm]
+            self.names = tuple(structure.coordinates)
+            self.floating_base = False
+            self._drive_values = structure.drive_values(params)
+            self._M_drive = sum(
+                (self._drive_values[d.name].get("inertia", 0.0) * np.outer(d.g, d.g) for d in structure.drives),
+                np.zeros((len(self.names),) * 2),
+            )
+        else:
+            robot = structure.robot
+            if nb:
+                robot = robot.with_inertial_parameters(params[:nb])
+            model = robot.model.copy()
+            act = structure.robot.actuated_v_indices
+            model.armature[act] = 0.0
+            if "armature" in structure.joint_terms:
+                model.armature[act] = [params[structure.joint_term_index(j, "armature")] for j in structure.robot.actuated_joints]
+            self.tree = structure.robot
+            self.floating_base = structure.robot.floating_base
+            base = [f"base_{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")] if self.floating_base else []
+            self.names = tuple(base + list(structure.robot.joint_names))
+            self._act = act
+            nt = len(structure.joint_terms)
+            self._phi = params[nb:].reshape(structure.robot.n_actuated, nt) if nt else np.zeros((structure.robot.n_actuated, 0))
+            if depth_first_model(model)[0] is not model:
+                raise RobotModelError(f"{structure.robot.name}: joints are not numbered depth-first; "
+                                      "Pinocchio's crba/computeCoriolisMatrix need it")
+        self.model, self.data = model, model.createData()
+
+    @classmethod
+    def from_result(cls, result_json: str | Path, robot) -> "MomentumDynamics":
+        """From a ``result.json`` of ``sensorless identify`` (or its directory) and the robot."""
+        from ..estimators import load_parameters
+
+        path = Path(result_json)
+        path = path / "result.json" if path.is_dir() else path
+        structure, params = load_parameters(path, robot)
+        return cls(structure, params)
+
+    # ---- sizes and inputs ---------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Number of generalised coordinates of the observer."""
+        return len(self.names)
+
+    @property
+    def actuated_rows(self) -> np.ndarray:
+        """Observer rows of the logged (actuated) joints/coordinates."""
+        return np.arange(self.n) if self.transmission else self._act
+
+    @property
+    def actuated_names(self) -> list[str]:
+        return [self.names[i] for i in self.actuated_rows]
+
+    def _ordered(self, traj: Trajectory) -> Trajectory:
+        robot = self.structure.robot
+        if tuple(traj.joint_names) == tuple(robot.joint_names):
+            return traj
+        robot.joint_order(traj.joint_names, traj.source)
+        return traj.select_joints(list(robot.joint_names))
+
+    def arrays(self, traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Q, V, τ) of a log: Pinocchio/coordinate states (N, ·) and generalised forces (N, n)."""
+        if traj.v is None:
+            raise DataError("the momentum observer needs joint velocities 'v'", traj.source)
+        if traj.tau is None:
+            raise DataError("the momentum observer needs the joint torque/effort 'tau'", traj.source)
+        tr = self._ordered(traj)
+        if self.transmission:
+            return tr.q.copy(), tr.v.copy(), tr.tau.copy()
+        robot = self.structure.robot
+        if self.floating_base and (tr.base_q is None or tr.base_v is None):
+            raise DataError("a floating-base robot needs base_q and base_v in the log", traj.source)
+        Q = robot.full_configuration(tr.q, tr.base_q)
+        V = robot.full_velocity(tr.v, tr.base_v)
+        tau = np.zeros((len(tr), self.n))
+        cols = [robot.joint_names.index(j) for j in robot.actuated_joints]
+        tau[:, self._act] = tr.tau[:, cols]
+        return Q, V, tau
+
+    # ---- dynamics -----------------------------------------------------------------------
+    def friction(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """τ_f (n,) or (N, n): identified joint/drive terms at zero acceleration."""
+        q2, v2 = np.atleast_2d(q), np.atleast_2d(v)
+        out = np.zeros((v2.shape[0], self.n))
+        s = self.structure
+        if self.transmission:
+            for d in s.drives:
+                vals = {k: val for k, val in self._drive_values[d.name].items() if k != "inertia"}
+                out += d.force(vals, q2, v2, np.zeros_like(v2), s.coulomb_smoothing)[:, None] * d.g[None, :]
+        elif self._phi.shape[1]:
+            F = s.joint_features(v2, np.zeros_like(v2))  # (N, n_act, n_terms); armature column is 0
+            out[:, self._act] = np.einsum("nkt,kt->nk", F, self._phi)
+        return out if np.ndim(v) == 2 else out[0]
+
+    def _tree_q(self, theta: np.ndarray) -> np.ndarray:
+        """Tree configuration (depth-first numbering) of coordinates θ."""
+        return self.tree.full_configuration(self.structure.joint_values(theta))[0][self._perm]
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q) (n, n) in observer coordinates (identified inertias + armature/drive inertia)."""
+        if self.transmission:
+            qt = self._tree_q(q)
+            return self.G.T @ _sym(pin.crba(self.model, self.data, qt)) @ self.G + self._M_drive
+        return _sym(pin.crba(self.model, self.data, q))
+
+    def momentum_terms(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(p, β) at one state: p = M v, β = Cᵀ v − g − τ_f (Pinocchio, no accelerations)."""
+        model, data = self.model, self.data
+        if self.transmission:
+            qt = self._tree_q(q)
+            vt = self.G @ v
+            M = self.G.T @ _sym(pin.crba(model, data, qt)) @ self.G + self._M_drive
+            C = pin.computeCoriolisMatrix(model, data, qt, vt)
+            g = pin.computeGeneralizedGravity(model, data, qt)
+            beta = self.G.T @ (C.T @ vt - g)
+        else:
+            M = _sym(pin.crba(model, data, q))
+            C = pin.computeCoriolisMatrix(model, data, q, v)
+            g = pin.computeGeneralizedGravity(model, data, q)
+            beta = C.T @ v - g
+        return M @ v, beta - self.friction(q, v)
+
+    def momentum_series(self, Q: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(p, β), each (N, n), along a log (one set of Pinocchio calls per sample)."""
+        N = Q.shape[0]
+        P, B = np.empty((N, self.n)), np.empty((N, self.n))
+        for i in range(N):
+            P[i], B[i] = self.momentum_terms(Q[i], V[i])
+        return P, B
+
+
+@dataclass
+class ObserverResult:
+    """Observer output on a log: ``r`` (N, n) ≈ L(s)[τ_ext] in observer coordinates."""
+
+    t: np.ndarray
+    r: np.ndarray
+    names: tuple[str, ...]
+    p: np.ndarray
+    beta: np.ndarray
+    settings: dict = field(default_factory=dict)
+    actuated_rows: np.ndarray | None = None
+
+    @property
+    def tau_ext(self) -> np.ndarray:
+        """External torque on the actuated joints/coordinates (N, n_actuated)."""
+        return self.r if self.actuated_rows is None else self.r[:, self.actuated_rows]
+
+
+class MomentumObserver:
+    """First- or second-order generalised-momentum observer (see module docstring).
+
+    ``gain`` K [1/s] is the bandwidth of L(s); ``order`` 1 or 2; ``damping`` ζ of order 2.
+    ``dt`` fixes the sample period of :meth:`step` (default: taken from the log in
+    :meth:`run`, or required at the first :meth:`step`).
+    """
+
+    def __init__(self, dynamics: MomentumDynamics, gain: float = 50.0, order: int = 1, damping: float = 1.0,
+                 dt: float | None = None) -> None:
+        self.dynamics, self.gain, self.order, self.damping = dynamics, float(gain), int(order), float(damping)
+        observer_filter(self.gain, self.order, 1e-3, self.damping)  # validate settings now
+        self.dt = dt
+        self.reset()
+
+    def get_params(self) -> dict:
+        return {"gain": self.gain, "order": self.order, "damping": self.damping, "dt": self.dt}
+
+    # ---- offline --------------------------------------------------------------------------
+    def run(self, traj: Trajectory) -> ObserverResult:
+        """Observer output on a whole log (vectorised filtering; Pinocchio per sample)."""
+        dt = _uniform_dt(traj) if self.dt is None else self.dt
+        Q, V, tau = self.dynamics.arrays(traj)
+        P, B = self.dynamics.momentum_series(Q, V)
+        return self.from_terms(traj.t, P, B, tau, dt)
+
+    def from_terms(self, t: np.ndarray, P: np.ndarray, B: np.ndarray, tau: np.ndarray, dt: float) -> ObserverResult:
+        """Observer output from precomputed p, β and generalised forces τ, each (N, n)."""
+        b_p, b_u, a = observer_filter(self.gain, self.order, dt, self.damping)
+        r = signal.lfilter(b_p, a, P - P[:1], axis=0) - signal.lfilter(b_u, a, tau + B, axis=0)
+        return ObserverResult(np.asarray(t, float), r, self.dynamics.names, P, B,
+                              {**self.get_params(), "dt": dt}, self.dynamics.actuated_rows)
+
+    # ---- streaming ------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the state: the next :meth:`step` sets p(0)."""
+        self._p0 = None
+        self._zp = self._zu = None
+        self._coef = None
+
+    def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, base_q: np.ndarray | None = None,
+             base_v: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
+        """One sample (joint arrays in the robot's ``joint_names`` order; τ of the actuated
+        joints, or of all coordinates for a transmission) → r (n,)."""
+        dyn = self.dynamics
+        if self._coef is None:
+            dt = dt or self.dt
+            if not dt or dt <= 0:
+                raise TimestampError("MomentumObserver.step needs the sample period dt at the first call")
+            self.dt = dt
+            self._coef = observer_filter(self.gain, self.order, dt, self.damping)
+        if dyn.transmission:
+            qf, vf = np.asarray(q, float), np.asarray(v, float)
+            tf = np.asarray(tau, float)
+        else:
+            robot = dyn.structure.robot
+            qf = robot.full_configuration(np.asarray(q, float)[None], None if base_q is None else np.asarray(base_q)[None])[0]
+            vf = robot.full_velocity(np.asarray(v, float)[None], None if base_v is None else np.asarray(base_v)[None])[0]
+            tf = np.zeros(dyn.n)
+            tf[dyn.actuated_rows] = tau
+        p, beta = dyn.momentum_terms(qf, vf)
+        b_p, b_u, a = self._coef
+        if self._p0 is None:
+            self._p0 = p.copy()
+            k = len(a) - 1
+            self._zp, self._zu = np.zeros((k, dyn.n)), np.zeros((k, dyn.n))
+        yp = _df2t(b_p, a, p - self._p0, self._zp)
+        yu = _df2t(b_u, a, tf + beta, self._zu)
+        return yp - yu
+
+
+def _df2t(b: np.ndarray, a: np.ndarray, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """One step of scipy's lfilter (direct form II transposed, a[0] = 1), state z updated in place."""
+    y = b[0] * x + z[0]
+    k = len(a) - 1
+    for i in range(k - 1):
+        z[i] = b[i + 1] * x + z[i + 1] - a[i + 1] * y
+    z[k - 1] = b[k] * x - a[k] * y
+    return y
+
+
+def _uniform_dt(traj: Trajectory, tol: float = 0.25) -> float:
+    """Median sample period; TimestampError if the log is not (nearly) uniformly sampled."""
+    if len(traj) < 2:
+        raise DataError("the log has fewer than 2 samples", traj.source)
+    d = np.diff(traj.t)
+    dt = float(np.median(d))
+    bad = np.flatnonzero(np.abs(d - dt) > tol * dt)
+    if dt <= 0 or bad.size:
+        i = int(bad[0]) + 1 if bad.size else 1
+        raise TimestampError(
+            f"{traj.source}: the observer needs uniform sampling; sample {i} is {d[i - 1]:.4g} s after the previous "
+            f"one (median period {dt:.4g} s)"
+        )
+    return dt
+
+
+def benchmark_observer(samples: int = 2000, seed: int = 0) -> dict:
+    """Wall time per sample of :meth:`MomentumObserver.step` and :meth:`MomentumObserver.run`
+    (UR5, Solo12 floating base, dVRK PSM transmission; random states). JSON-able."""
+    import platform
+    import time
+
+    from ..regressor.terms import ModelStructure
+    from ..robot import load_robot
+    from ..robots.dvrk_psm import psm_structure
+
+    rng = np.random.default_rng(seed)
+    cases = {}
+    ur5 = ModelStructure(load_robot("ur5"), coulomb_smoothing=0.05)
+    cases["ur5"] = (ur5, ur5.prior())
+    solo = ModelStructure(load_robot("solo12", floating_base=True), joint_terms=("fv", "fc", "armature"))
+    cases["solo12"] = (solo, solo.prior())
+    psm = psm_structure(drives="motors")
+    p = np.zeros(psm.n_params)
+    for k in range(psm.robot.n_bodies):
+        p[10 * k : 10 * k + 10] = pin.Inertia.Random().toDynamicParameters()
+    cases["dvrk_psm"] = (psm, p)
+    out = {"samples": samples, "python": platform.python_version(), "pinocchio": pin.__version__, "robots": {}}
+    for name, (st, params) in cases.items():
+        dyn = MomentumDynamics(st, params)
+        robot = st.robot
+        nj = len(robot.joint_names)
+        q = rng.uniform(-1, 1, (samples, nj)) * 0.3
+        v = rng.normal(size=(samples, nj)) * 0.3
+        tau = rng.normal(size=(samples, robot.n_actuated))
+        base_q = np.tile([0, 0, 0.3, 0, 0, 0, 1.0], (samples, 1)) if dyn.floating_base else None
+        base_v = rng.normal(size=(samples, 6)) * 0.1 if dyn.floating_base else None
+        obs = MomentumObserver(dyn, gain=50.0, dt=1e-3)
+        t0 = time.perf_counter()
+        for i in range(samples):
+            obs.step(q[i], v[i], tau[i], None if base_q is None else base_q[i], None if base_v is None else base_v[i])
+        step = (time.perf_counter() - t0) / samples
+        full_tau = np.zeros((samples, nj))
+        full_tau[:, [robot.joint_names.index(j) for j in robot.actuated_joints]] = tau
+        traj = Trajectory(t=np.arange(samples) * 1e-3, q=q, v=v, tau=full_tau, base_q=base_q, base_v=base_v,
+                          joint_names=robot.joint_names)
+        t0 = time.perf_counter()
+        MomentumObserver(dyn, gain=50.0).run(traj)
+        run = (time.perf_counter() - t0) / samples
+        out["robots"][name] = {"n": dyn.n, "step_us": step * 1e6, "run_us": run * 1e6}
+    return out

@@ -1,0 +1,93 @@
+"""Collision detection: thresholds from a quiet segment, intervals, and `sensorless monitor`."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from sensorless.cli import app
+from sensorless.data import write_npz
+from sensorless.errors import DataError
+from sensorless.estimation.collision import detect_contacts, quiet_mask, quiet_thresholds, score_detection
+from sensorless.robot import load_robot
+from sensorless.simulation.arm_push import Push, simulate_pushes
+from sensorless.simulation.synthetic import perturbed_truth
+
+
+def test_false_alarm_rate_threshold_on_white_noise():
+    """k from a target false-alarm rate: on white noise the realised rate stays at or below it,
+    and a step of 10 σ is detected at its first sample."""
+    rng = np.random.default_rng(0)
+    dt, n = 1e-3, 600_000  # 10 minutes
+    t = np.arange(n) * dt
+    r = rng.normal(size=(n, 3)) * [1.0, 0.1, 5.0] + [0.5, 0.0, -1.0]
+    th = quiet_thresholds(r, t < 60.0, ["a", "b", "c"], false_alarm_rate=2.0, dt=dt)
+    assert 4.0 < th.k < 6.0
+    np.testing.assert_allclose(th.sigma, [1.0, 0.1, 5.0], rtol=0.02)
+    _, ivs = detect_contacts(r, t, th)
+    rate = len(ivs) / (n * dt / 60)
+    assert rate <= 2.0 * 1.5
+    truth = np.zeros(n, bool)
+    truth[300_000:300_500] = True
+    r[truth, 1] += 1.0
+    _, ivs = detect_contacts(r, t, th)
+    score = score_detection(ivs, t, truth)
+    assert score["detected"] == 1 and score["mean_delay_s"] <= dt
+
+
+def test_threshold_input_errors():
+    t = np.arange(100) * 0.01
+    r = np.zeros((100, 2))
+    with pytest.raises(DataError, match="quiet segment 5:6"):
+        quiet_mask(t, 5.0, 6.0, "log.csv")
+    with pytest.raises(DataError, match="exactly one"):
+        quiet_thresholds(r, t < 0.5, ["a", "b"])
+    with pytest.raises(DataError, match="20 samples|need ≥ 20"):
+        quiet_thresholds(r, t < 0.05, ["a", "b"], k=3.0)
+
+
+@pytest.fixture(scope="module")
+def arm_logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("monitor")
+    nom = load_robot("ur5")
+    truth = perturbed_truth(nom, rng=1)
+    noise = dict(noise_q=1e-4, noise_v=1e-2, noise_tau=0.2, log_rate=200.0)
+    train, _ = simulate_pushes(truth, nom, [], duration=20.0, seed=10, base_freq=0.05, **noise)
+    write_npz(train, d / "train.npz")
+    pushes = [Push(12.0, 12.8, (0.0, 0.0, -25.0), "tool0"), Push(16.0, 16.5, (15.0, -10.0, 0.0), "tool0")]
+    log, gt = simulate_pushes(truth, nom, pushes, duration=19.0, seed=11, **noise)
+    write_npz(log, d / "pushed.npz")
+    res = CliRunner().invoke(app, ["identify", "--robot", "ur5", "--data", str(d / "train.npz"), "--out", str(d / "id"),
+                                   "--coulomb-smoothing", "0.05"])
+    assert res.exit_code == 0, res.output
+    return d, gt
+
+
+def test_monitor_cli_finds_the_pushes(arm_logs):
+    d, gt = arm_logs
+    runner = CliRunner()
+    res = runner.invoke(app, ["monitor", "--robot", "ur5", "--model", str(d / "id"), "--data", str(d / "pushed.npz"),
+                              "--frame", "tool0", "--quiet", "0:10", "--out", str(d / "mon")])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((d / "mon" / "monitor.json").read_text())
+    ivs = doc["contacts"]
+    assert len(ivs) == 2, ivs
+    for iv, push in zip(ivs, gt.pushes):
+        assert push.start <= iv["start"] <= push.end and iv["end"] <= push.end + 0.2
+        assert abs(iv["peak_force_norm"] - np.linalg.norm(push.peak)) < 0.3 * np.linalg.norm(push.peak)
+    arrays = np.load(d / "mon" / "monitor.npz")
+    assert arrays["tau_ext"].shape == (len(gt.t), 6) and arrays["force"].shape == (len(gt.t), 3)
+    assert set(doc["peak_external_torque"]) == set(load_robot("ur5").joint_names)
+
+
+def test_monitor_cli_bad_quiet_leaves_no_output(arm_logs):
+    d, _ = arm_logs
+    runner = CliRunner()
+    for quiet, msg in (("3", "START:END"), ("50:60", "holds 0 samples")):
+        res = runner.invoke(app, ["monitor", "--robot", "ur5", "--model", str(d / "id"), "--data", str(d / "pushed.npz"),
+                                  "--quiet", quiet, "--out", str(d / "bad")])
+        assert res.exit_code == 2 and msg in res.output.replace("\n", " "), res.output
+        assert not (d / "bad").exists()
