@@ -91,3 +91,31 @@ def test_monitor_cli_bad_quiet_leaves_no_output(arm_logs):
                                   "--quiet", quiet, "--out", str(d / "bad")])
         assert res.exit_code == 2 and msg in res.output.replace("\n", " "), res.output
         assert not (d / "bad").exists()
+
+
+def test_monitor_cli_on_a_current_logged_arm_with_a_gains_map(arm_logs):
+    """The pushed log as a CSV of motor currents i = τ/K plus a gains file: monitor maps it
+    through τ = K·i and finds the same two pushes."""
+    import pandas as pd
+
+    d, gt = arm_logs
+    log = np.load(d / "pushed.npz")
+    log = {"t": log["times"], "q": log["positions"], "v": log["velocities"], "tau": log["torques"]}
+    names = load_robot("ur5").joint_names
+    gains = np.linspace(8.0, 12.0, len(names))
+    cols = {"time": log["t"]}
+    cols.update({f"pos_{n}": log["q"][:, j] for j, n in enumerate(names)})
+    cols.update({f"vel_{n}": log["v"][:, j] for j, n in enumerate(names)})
+    cols.update({f"i_{n}": log["tau"][:, j] / gains[j] for j, n in enumerate(names)})
+    pd.DataFrame(cols).to_csv(d / "pushed_currents.csv", index=False)
+    (d / "gains.json").write_text(json.dumps(dict(zip(names, map(float, gains)))))
+    res = CliRunner().invoke(app, ["monitor", "--robot", "ur5", "--model", str(d / "id"),
+                                   "--data", str(d / "pushed_currents.csv"),
+                                   "--columns", "q=pos_{joint};v=vel_{joint};tau=i_{joint}",
+                                   "--gains", str(d / "gains.json"), "--frame", "tool0", "--quiet", "0:10",
+                                   "--out", str(d / "mon_currents")])
+    assert res.exit_code == 0, res.output
+    ivs = json.loads((d / "mon_currents" / "monitor.json").read_text())["contacts"]
+    assert len(ivs) == 2, ivs
+    for iv, push in zip(ivs, gt.pushes):
+        assert push.start <= iv["start"] <= push.end
