@@ -97,23 +97,29 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
 
 def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate):
     """Read, validate and preprocess logs given on the command line."""
+    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate) for p in paths]
+
+
+def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate):
+    """Read, validate and preprocess one log: read → low-pass → Savitzky–Golay derivatives → decimate.
+
+    The one preprocessing function of both the local path (:func:`load_logs`) and the Dask
+    workers (:class:`sensorless.regressor.distributed.LogReader`), so both see the same samples.
+    """
     from ..data import decimate as _decimate
     from ..data import lowpass as _lowpass
     from ..data import base_acceleration, read_trajectory, savgol_derivatives
 
-    logs = []
-    for p in paths:
-        traj = read_trajectory(p, columns=parse_columns(columns), rate=rate, robot=robot)
-        if lowpass:
-            traj = _lowpass(traj, lowpass)
-        if traj.v is None or traj.a is None or savgol_window:
-            traj = savgol_derivatives(traj, window=savgol_window or 11)
-        if traj.base_v is not None and traj.base_q is not None and (traj.base_a is None or savgol_window):
-            traj = base_acceleration(traj, window=savgol_window or 11)  # linear part from imu_acc if logged
-        if decimate and decimate > 1:
-            traj = _decimate(traj, decimate)
-        logs.append(traj)
-    return logs
+    traj = read_trajectory(path, columns=parse_columns(columns), rate=rate, robot=robot)
+    if lowpass:
+        traj = _lowpass(traj, lowpass)
+    if traj.v is None or traj.a is None or savgol_window:
+        traj = savgol_derivatives(traj, window=savgol_window or 11)
+    if traj.base_v is not None and traj.base_q is not None and (traj.base_a is None or savgol_window):
+        traj = base_acceleration(traj, window=savgol_window or 11)  # linear part from imu_acc if logged
+    if decimate and decimate > 1:
+        traj = _decimate(traj, decimate)
+    return traj
 
 
 ROBOT_HELP = "URDF path, MJCF path, or example-robot-data name (e.g. panda, ur5, solo12)"

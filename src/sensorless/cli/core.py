@@ -55,36 +55,63 @@ def identify(
     contact_mode: str = typer.Option("projected", help="projected (no force sensing) | wrench (log has contact_forces)"),
     coulomb_smoothing: float = typer.Option(0.0, help="ε [rad/s]: Coulomb term tanh(v/ε) instead of sgn(v); ≈ 2× velocity noise"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
+    scheduler: Optional[str] = typer.Option(
+        None, help="compress on Dask: 'local' (a LocalCluster on this machine) or a scheduler address "
+                   "tcp://HOST:PORT; workers read the --data files themselves (see docs/fleet.md)"),
+    workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
+                                                     "an address: wait until this many workers are connected"),
+    skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
 ) -> None:
-    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png."""
+    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png.
+
+    --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
     from ..estimators import CADModel
     from ..identification import identify as _identify
     from ..regressor import ModelStructure
     from ..report import metrics_table, plot_torques
 
     r = load_robot_arg(robot, lock, floating_base)
+    from ..regressor.distributed import expand_paths
+
+    data = [Path(p) for p in expand_paths(data)]
     with atomic_outdir(out, force) as tmp:
-        train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate)
+        skipped: list = []
+        if scheduler is None:
+            train, data, skipped = _load_training(data, r, columns, rate, lowpass, savgol_window, decimate, skip_bad)
         val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate)
         structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode)
-        total = sum(len(t) for t in train)
-        with progress_bar() as bar:
-            task = bar.add_task("regressor", total=total)
-            lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
-            try:
-                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n), **lmi_kw)
-            except ExcitationError as exc:
-                raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
+        lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
+        fleet = None
+        if scheduler is not None:
+            from ..regressor.distributed import LogReader
+            from .fleet import identify_on_dask
+
+            reader = LogReader(columns, rate, lowpass, savgol_window, decimate)
+            result, fleet = identify_on_dask(structure, data, scheduler, workers, reader, method, skip_bad, lmi_kw)
+            data, skipped = [Path(p) for p in fleet.files], fleet.skipped
+            train = _first_training_log(data, r, columns, rate, lowpass, savgol_window, decimate) if not val else []
+        else:
+            total = sum(len(t) for t in train)
+            with progress_bar() as bar:
+                task = bar.add_task("regressor", total=total)
+                try:
+                    result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n), **lmi_kw)
+                except ExcitationError as exc:
+                    raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate})
+        if scheduler is not None or skip_bad:
+            result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
+        for f, e in skipped:
+            err_console.print(f"[yellow]warning:[/] skipped {e}", highlight=False, soft_wrap=True)
         doc = result.to_dict()
         cad = CADModel(r, like=structure)
         baseline = None
         if method != "ols" and val:
             try:  # unconstrained least squares on the same data, for the comparison table
-                baseline = _identify(structure, train, method="ols")
+                baseline = _identify(structure, fleet.equations if fleet is not None else train, method="ols")
             except SensorlessError:
                 baseline = None
         doc["validation"] = {}
@@ -97,9 +124,10 @@ def identify(
                 doc["validation"][str(p)]["ols"] = cols["OLS"].to_dict()
             cols[method.upper()] = m_id
             console.print(metrics_table(f"held-out {Path(p).name}", cols))
-        shown = val[0] if val else train[0]
-        plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
-                     structure.row_names, tmp / "torques.png", title=f"{r.name}: {'held-out' if val else 'training'} torques")
+        shown = val[0] if val else (train[0] if train else None)
+        if shown is not None:  # with --scheduler, the client may not see the training files
+            plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
+                         structure.row_names, tmp / "torques.png", title=f"{r.name}: {'held-out' if val else 'training'} torques")
         _export(result, tmp, doc)
         from ..identification.result import write_json_atomic
 
@@ -108,7 +136,36 @@ def identify(
     extra = (f"γ = {d['gamma']:.3g}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
              f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
              else f"condition number {d['condition_number']:.1f}")
-    console.print(f"{len(result.base.independent)} base parameters, {extra}; wrote {out}/")
+    skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
+    console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
+
+
+def _load_training(data, r, columns, rate, lowpass, savgol_window, decimate, skip_bad):
+    """Local path: every training log in memory; with --skip-bad a file that fails is left out and reported."""
+    if not skip_bad:
+        return load_logs(data, r, columns, rate, lowpass, savgol_window, decimate), data, []
+    from .common import load_log
+
+    train, used, skipped = [], [], []
+    for p in data:
+        try:
+            train.append(load_log(p, r, columns, rate, lowpass, savgol_window, decimate))
+            used.append(p)
+        except SensorlessError as exc:
+            skipped.append((str(p), str(exc) if str(p) in str(exc) else f"{p}: {exc}"))
+    if not train:
+        raise SensorlessError("every --data file was skipped: " + "; ".join(e for _, e in skipped))
+    return train, used, skipped
+
+
+def _first_training_log(data, r, columns, rate, lowpass, savgol_window, decimate) -> list:
+    """The first training log for the torque plot, if this machine can read it (else no plot)."""
+    from .common import load_log
+
+    try:
+        return [load_log(data[0], r, columns, rate, lowpass, savgol_window, decimate)]
+    except SensorlessError:
+        return []
 
 
 def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames, contact_dims, contact_offset,

@@ -1,6 +1,7 @@
 """Regressor terms and streaming compression."""
 
 from .compress import NormalEquations, compress, iter_trajectories
+from .distributed import DistributedError, FleetEquations, LogReader, compress_files, expand_paths
 from .contact import ContactStructure, contact_jacobians, detect_contacts, null_space_projector
 from .terms import JOINT_TERMS, ModelStructure
 
@@ -10,4 +11,5 @@ __all__ = [
     "detect_contacts",
     "null_space_projector",
     "JOINT_TERMS",
-    "ModelStructure", "NormalEquations", "compress", "iter_trajectories"]
+    "ModelStructure", "NormalEquations", "compress", "iter_trajectories",
+    "DistributedError", "FleetEquations", "LogReader", "compress_files", "expand_paths"]
