@@ -7,7 +7,11 @@ real log) are written to a temporary directory, then identified twice from the s
 * single process: the unchanged CLI path (``load_logs`` + :func:`identify`), run in a
   fresh process so its peak RSS is its own;
 * Dask: :func:`identify_files` on a fresh ``LocalCluster`` (``workers`` processes, one
-  thread each); peak RSS of every worker process (``ru_maxrss``) after the run.
+  thread each).
+
+Peak memory is each process's resident high-water mark (``VmHWM``), reset to the current
+RSS (``/proc/self/clear_refs``) after imports and before the timed run; the idle RSS at
+that moment is reported next to it. Both paths import their modules before timing.
 
 Reported: wall times, speed-up, relative difference of the identified parameters, peak
 memory per worker at each N (flat in N: a worker holds one file and O(rows·p²) sums), and
@@ -92,32 +96,59 @@ def write_fleet_logs(
     return paths
 
 
+def _warm_up() -> None:
+    """Import what reading a log needs, so neither path times its imports."""
+    import pyarrow.parquet  # noqa: F401
+
+    from .cli import common  # noqa: F401
+    from .regressor import distributed  # noqa: F401
+
+
+def _status_mb(key: str) -> float:
+    """A memory figure of this process from /proc/self/status (Linux) [MiB]."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(key + ":"):
+                return int(line.split()[1]) / 1024
+    return float("nan")  # pragma: no cover
+
+
+def _hwm_mb() -> float:
+    """Peak resident memory (VmHWM) [MiB]."""
+    return _status_mb("VmHWM")
+
+
+def _reset_peak() -> float:
+    """Reset VmHWM to the current RSS (``/proc/self/clear_refs`` ← 5) and return that RSS [MiB]."""
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+    except OSError:  # pragma: no cover - not Linux / not permitted: the peak then includes start-up
+        pass
+    return _status_mb("VmRSS")
+
+
 def _single_process(robot_name: str, files: list[str], method: str) -> dict:
     """The CLI's local path, in a fresh process: load every log, then identify."""
-    import resource
-
     from .cli.common import load_logs
     from .identification import identify
     from .regressor import ModelStructure
     from .robot import load_robot
 
+    _warm_up()
     robot = load_robot(robot_name, lock_joints=_lock(robot_name))
     structure = ModelStructure(robot)
+    idle = _reset_peak()
     t0 = time.perf_counter()
     logs = load_logs(files, robot, None, None, None, None, 1)
     res = identify(structure, logs, method=method)
     wall = time.perf_counter() - t0
-    return {"wall_seconds": wall, "params": res.base_values,
-            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    return {"wall_seconds": wall, "params": res.base_values, "idle_rss_mb": idle, "peak_rss_mb": _hwm_mb()}
 
 
-def _worker_rss() -> dict:
-    import resource
-
-    import psutil
-
-    return {"peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "rss_mb": psutil.Process().memory_info().rss / 2**20}
+def _worker_start() -> float:
+    _warm_up()
+    return _reset_peak()
 
 
 def _dask_run(robot_name: str, files: list[str], method: str, workers: int) -> dict:
@@ -133,21 +164,20 @@ def _dask_run(robot_name: str, files: list[str], method: str, workers: int) -> d
     t0 = time.perf_counter()
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                       silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
-        client.run(lambda: __import__("sensorless.regressor.distributed"))  # import on every worker
         startup = time.perf_counter() - t0
-        idle = client.run(_worker_rss)
+        idle = client.run(_worker_start)  # imports, then reset each worker's peak-RSS counter
         t1 = time.perf_counter()
         res = identify_files(structure, files, client=client, method=method)
         wall = time.perf_counter() - t1
-        mem = client.run(_worker_rss)
+        peak = client.run(_hwm_mb)
     return {
         "wall_seconds": wall,
         "cluster_startup_seconds": startup,
         "params": res.base_values,
         "n_samples": res.diagnostics["n_samples"],
         "rank": res.base.rank,
-        "worker_peak_rss_mb": sorted(m["peak_rss_mb"] for m in mem.values()),
-        "worker_idle_rss_mb": sorted(m["rss_mb"] for m in idle.values()),
+        "worker_peak_rss_mb": [peak[w] for w in sorted(peak)],
+        "worker_idle_rss_mb": [idle[w] for w in sorted(idle)],
     }
 
 

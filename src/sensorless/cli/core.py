@@ -313,6 +313,27 @@ def bench_identify(
 
 
 
+@bench_app.command("dask")
+@guarded
+def bench_dask_cmd(
+    robot: str = typer.Option("panda", help="example-robot-data name"),
+    samples: str = typer.Option("1000000,10000000", help="comma-separated total sample counts"),
+    samples_per_file: int = typer.Option(100_000, help="samples per generated Parquet file"),
+    workers: int = typer.Option(2, help="LocalCluster worker processes (one thread each)"),
+    method: str = typer.Option("ols", help="ols | wls"),
+    out: Path = typer.Option(Path("benchmarks/results/dask.json")),
+) -> None:
+    """Dask LocalCluster vs single-process identification from generated Parquet logs (deleted afterwards)."""
+    from ..benchmarks_dask import bench_dask
+    from ..identification.result import write_json_atomic
+
+    sizes = tuple(int(float(s)) for s in samples.split(","))
+    res = bench_dask(robot, sizes, samples_per_file=samples_per_file, workers=workers, method=method, console=console)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")
+
+
 @bench_app.command("contact")
 @guarded
 def bench_contact_cmd(
