@@ -49,7 +49,7 @@ def structure(panda):
 @pytest.fixture(scope="module")
 def client():
     """Two in-process workers, one thread each (fast to start)."""
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as c, \
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0") as c, \
             distributed.Client(c) as cl:
         yield cl
 
@@ -157,6 +157,12 @@ def test_skip_bad_skips_and_reports_the_file_and_equals_local_on_the_rest(with_c
     assert _rel(res.base_values, _local(structure, fleet[1], "ols").base_values) < TOL
     with pytest.raises(DataError, match="every file was skipped"):
         compress_files(structure, [bad], client=client, skip_bad=True)
+    # the cross-validation folds (two passes) skip it too, and cut the other files as the local path does
+    got = compress_files(structure, files, client=client, skip_bad=True, n_folds=5, period=None)
+    assert [f for f, _ in got.skipped] == [bad] and got.files == fleet[1]
+    local = _split_folds(structure, load_logs(fleet[1], structure.robot, None, None, None, None, 1), 5, 2048, None)
+    for a, b in zip(got.folds, local):
+        np.testing.assert_allclose(a.A, b.A, rtol=1e-12, atol=1e-12 * np.abs(b.A).max())
 
 
 @dataclass(frozen=True)
@@ -205,7 +211,7 @@ def test_worker_killed_mid_run_gives_the_same_result(fleet, structure, tmp_path,
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([here, os.environ.get("PYTHONPATH", "")]))
     reader = KillOnceReader(marker=str(tmp_path / "killed"), victim=files[1])
     local = _local(structure, files, "ols")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
                                   silence_logs=50) as c, distributed.Client(c) as cl:
         pids = set(cl.run(os.getpid).values())
         res = identify_files(structure, files, client=cl, reader=reader)
@@ -250,7 +256,7 @@ def _cli(args):
 @pytest.fixture(scope="module")
 def tcp_cluster():
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
-                                  dashboard_address=None) as c:
+                                  dashboard_address=":0") as c:
         yield c.scheduler_address
 
 
@@ -291,4 +297,6 @@ def test_cli_bad_file_fails_without_output_or_is_skipped_and_listed(with_corrupt
 def test_cli_glob_matching_nothing_fails_naming_the_pattern(tmp_path):
     out = tmp_path / "run"
     r = _cli(["identify", *ROBOT, "--data", str(tmp_path / "none" / "**" / "*.parquet"), "--out", out])
-    assert r.exit_code == 2 and "matches no file" in r.output and not out.exists()
+    assert r.exit_code == 2 and "matches no file" in r.output and "none/**/*.parquet" in r.output and not out.exists()
+    r = _cli(["identify", *ROBOT, "--data", str(tmp_path / "x.parquet"), "--workers", 2, "--out", out])
+    assert r.exit_code == 2 and "--workers needs --scheduler" in r.output and not out.exists()

@@ -162,7 +162,7 @@ def _dask_run(robot_name: str, files: list[str], method: str, workers: int) -> d
 
     structure = ModelStructure(load_robot(robot_name, lock_joints=_lock(robot_name)))
     t0 = time.perf_counter()
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                       silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
         startup = time.perf_counter() - t0
         idle = client.run(_worker_start)  # imports, then reset each worker's peak-RSS counter

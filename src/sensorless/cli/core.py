@@ -70,6 +70,8 @@ def identify(
     from ..regressor import ModelStructure
     from ..report import metrics_table, plot_torques
 
+    if workers is not None and scheduler is None:
+        raise SensorlessError("--workers needs --scheduler (local or tcp://HOST:PORT)")
     r = load_robot_arg(robot, lock, floating_base)
     from ..regressor.distributed import expand_paths
 

@@ -298,7 +298,7 @@ def compress_files(
     if client is not None:
         runner = _Dask(client, _Model.of(structure), retries, split_every, progress)
     folds_plan: list[tuple | None] = [None] * len(paths)
-    found_period = None
+    found_period, skipped_first = None, []
     if n_folds is not None:
         lengths = runner.lengths(reader, paths, skip_bad)
         good = [(p, n, per) for p, (n, per, err) in zip(paths, lengths) if err is None]
@@ -310,9 +310,12 @@ def compress_files(
         found_period = good[0][2] if period == "auto" else period
         if found_period is not None and not float(found_period) > 0:
             raise DataError(f"period must be positive, got {found_period}")
-        offsets = dict(zip([p for p, _, _ in good], np.cumsum([0] + [n for _, n, _ in good])[:-1].tolist()))
-        folds_plan = [(n_folds, found_period, offsets.get(p, 0), total) for p in paths]
+        skipped_first = [(p, err) for p, (_, _, err) in zip(paths, lengths) if err is not None]
+        paths = [p for p, _, _ in good]  # pass 2 reads the files pass 1 could read, at these offsets
+        offsets = np.cumsum([0] + [n for _, n, _ in good])[:-1].tolist()
+        folds_plan = [(n_folds, found_period, off, total) for off in offsets]
     part = runner.run(reader, paths, chunk, skip_bad, folds_plan)
+    part.skipped = skipped_first + part.skipped
     if part.ne is None:
         raise DataError("every file was skipped: " + "; ".join(e for _, e in part.skipped))
     folds = None
@@ -420,7 +423,7 @@ def connect(scheduler: str, workers: int | None = None, *, timeout: float = 30.0
     try:
         if scheduler == "local":
             cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
             client = Client(cluster)
         else:
             client = Client(scheduler, timeout=timeout)
