@@ -5,7 +5,7 @@ For each total sample count N, ``N / samples_per_file`` Parquet logs (``t``, ``q
 real log) are written to a temporary directory, then identified twice from the same files:
 
 * single process: the unchanged CLI path (``load_logs`` + :func:`identify`), run in a
-  fresh process so its peak RSS is its own;
+  fresh process so its peak RSS is its own, with one BLAS thread like the Dask workers;
 * Dask: :func:`identify_files` on a fresh ``LocalCluster`` (``workers`` processes, one
   thread each).
 
@@ -24,6 +24,7 @@ for one period and tiled; each file gets its own seeded noise.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import platform
 import shutil
@@ -128,6 +129,26 @@ def _reset_peak() -> float:
     return _status_mb("VmRSS")
 
 
+#: What Dask's nanny sets in every worker (distributed.nanny.pre-spawn-environ); the single
+#: process gets the same, else a multi-threaded BLAS on the small per-chunk products makes it
+#: many times slower on a loaded machine and the comparison measures that instead.
+_ONE_BLAS_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+@contextlib.contextmanager
+def _environ(values: dict):
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def _single_process(robot_name: str, files: list[str], method: str) -> dict:
     """The CLI's local path, in a fresh process: load every log, then identify."""
     from .cli.common import load_logs
@@ -207,7 +228,7 @@ def bench_dask(
             gen = time.perf_counter() - tg
             files = [str(p) for p in paths]
             size_mb = sum(p.stat().st_size for p in paths) / 2**20
-            with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as pool:
+            with _environ(_ONE_BLAS_THREAD), ProcessPoolExecutor(1, mp_context=get_context("spawn")) as pool:
                 single = pool.submit(_single_process, robot_name, files, method).result()
             dask = _dask_run(robot_name, files, method, workers)
         finally:
@@ -241,6 +262,7 @@ def bench_dask(
         "method": method,
         "workers": workers,
         "threads_per_worker": 1,
+        "blas_threads_both_paths": _ONE_BLAS_THREAD,
         "runs": runs,
         "worker_peak_rss_ratio_largest_over_smallest_N": max(peaks) / min(peaks),
         "goals": {"params_relative_difference": "<= 1e-10", "worker_peak_memory": "flat in N"},
