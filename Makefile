@@ -21,8 +21,10 @@ $(STAMP): pyproject.toml Makefile
 demo: $(STAMP)
 	$(VENV)/bin/sensorless demo --out demo_output
 
+# One BLAS thread per pytest worker: two workers on two cores; threaded BLAS under
+# contention made small solves 50x slower.
 test: $(STAMP)
-	$(PY) -m pytest -q -n 2 tests || [ $$? -eq 5 ]
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n 2 tests || [ $$? -eq 5 ]
 
 test-all: $(STAMP)
 	$(PY) -m pytest -q -m '' tests

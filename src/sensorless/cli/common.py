@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import math
 import os
 import warnings
 from pathlib import Path
@@ -15,7 +14,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
 
-from ..errors import OptionError, SensorlessError
+from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
+from ..errors import SensorlessError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -118,29 +118,7 @@ def progress_bar() -> Progress:
     )
 
 
-def parse_columns(spec: Optional[str]) -> Optional[dict]:
-    """'q=0:7;v=vel_{joint};tau=a|b|c' -> {'q': '0:7', 'v': 'vel_{joint}', 'tau': ['a','b','c']}.
 
-    A field may carry per-joint drive gains for currents, 'tau=i_{joint}:gain=10,10.7,...'
-    (``i_*`` = ``i_{joint}``); they stay on the entry (the last item of a list) for the
-    reader (:func:`sensorless.data.gains.split_gain_modifiers`).
-    """
-    if not spec:
-        return None
-    out: dict = {}
-    for part in spec.split(";"):
-        if not part.strip():
-            continue
-        if "=" not in part:
-            raise SensorlessError(f"--columns: '{part}' is not FIELD=SPEC (e.g. 'q=0:7;tau=14:21')")
-        key, val = (s.strip() for s in part.split("=", 1))
-        out[key] = val.split("|") if "|" in val else val
-    return out
-
-
-PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap")
-"""Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
-The trim window and decimation belong to one log and are recorded but not reused."""
 
 
 def gains_option():
@@ -206,49 +184,15 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
     return load_robot(robot, lock_joints=lock or (), floating_base=floating)
 
 
-def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
-    """OptionError for preprocessing options no log can use (zero, negative, NaN, absurd)."""
-    from ..data.readers import MAX_RATE, MIN_RATE
-
-    if rate is not None and not (math.isfinite(rate) and MIN_RATE <= rate <= MAX_RATE):
-        raise OptionError(f"--rate must be a sample rate in [{MIN_RATE:g}, {MAX_RATE:g}] Hz, got {rate!r}")
-    if lowpass is not None and not (math.isfinite(lowpass) and lowpass > 0):
-        raise OptionError(f"--lowpass must be a cut-off frequency > 0 Hz, got {lowpass!r}")
-    if savgol_window is not None and (savgol_window < 5 or savgol_window % 2 == 0):
-        raise OptionError(f"--savgol-window must be an odd number of samples >= 5, got {savgol_window!r}")
-    if decimate is not None and decimate < 1:
-        raise OptionError(f"--decimate must be an integer >= 1, got {decimate!r}")
 
 
-def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
-              resample="auto", velocity="logged", max_gap=None, outliers: str = "error"):
-    """Read, validate and preprocess logs given on the command line (:func:`sensorless.data.prepare`).
 
-    ``outliers`` ("error" | "drop" | "keep") is applied to the raw log; a log that lost samples
-    that way is resampled onto its uniform grid even with ``resample="off"``.
-    """
-    from ..data import prepare, read_trajectory
-    from ..data.outliers import OUTLIER_MODES
-    from ..data.prepare import parse_resample
-    from ..data.resample import DEFAULT_MAX_GAP
+def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **options):
+    """Read, validate and preprocess logs given on the command line (:func:`load_log` each)."""
+    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, **options) for p in paths]
 
-    check_preprocessing(rate, lowpass, savgol_window, decimate)
-    if outliers not in OUTLIER_MODES:
-        raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got {outliers!r}")
-    mode = parse_resample(resample)
-    cols = parse_columns(columns) if isinstance(columns, str) else columns
-    if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):
-        gains = None
-    logs = []
-    for p in paths:
-        traj = read_trajectory(p, columns=cols, rate=rate, robot=robot, gains=gains,
-                               allow_duplicate_times=mode != "off", outliers=outliers)
-        dropped = "outlier" in traj.units.get("processing", "")
-        traj = prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
-                       savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
-                       max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap)
-        logs.append(traj)
-    return logs
+
+
 
 
 ROBOT_HELP = "URDF path, MJCF path, or example-robot-data name (e.g. panda, ur5, solo12)"

@@ -83,8 +83,16 @@ def identify(
     force: bool = typer.Option(False, help="replace --out if it exists"),
     outliers: str = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
                                                "warning) | keep"),
+    scheduler: Optional[str] = typer.Option(
+        None, help="compress on Dask: 'local' (a LocalCluster on this machine) or a scheduler address "
+                   "tcp://HOST:PORT; workers read the --data files themselves (see docs/fleet.md)"),
+    workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
+                                                     "an address: wait until this many workers are connected"),
+    skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
 ) -> None:
-    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png."""
+    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png.
+
+    --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
     from ..estimators import CADModel
     from ..identification import identify as _identify
     from ..regressor import ModelStructure
@@ -92,35 +100,59 @@ def identify(
 
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
+    if workers is not None and scheduler is None:
+        raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
+    if scheduler is not None and (imu_frame or contact_mode == "wrench"):
+        raise OptionError("--scheduler does not support --imu-frame or --contact-mode wrench yet; run without it")
     if floating_base is None and contact_frames:
         floating_base = True  # contact structures need a floating base; a URDF would load fixed
     r = load_robot_arg(robot, lock, floating_base)
+    from ..regressor.distributed import LogReader, expand_paths
+
+    data = [Path(p) for p in expand_paths(data)]
+    prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
+                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior)) as tmp:
-        prep = dict(gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers)
-        train = load_logs(data, r, columns, rate, lowpass, savgol_window, decimate, **prep)
-        val = load_logs(validate, r, columns, rate, lowpass, savgol_window, decimate, **prep)
+        skipped: list = []
+        if scheduler is None:
+            train, data, skipped = _load_training(data, r, prep, skip_bad)
+        val = load_logs(validate, r, **prep)
         if imu_frame:
             train, val = (_imu_frame_logs(logs, r, imu_frame, savgol_window) for logs in (train, val))
         structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
-                               offset_axes=offset_axes, train=train)
-        total = sum(len(t) for t in train)
-        with progress_bar() as bar:
-            task = bar.add_task("regressor", total=total)
-            lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
-            try:
-                result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n),
-                                   outliers="keep", **lmi_kw)  # the logs' outliers were handled on reading
-            except ExcitationError as exc:
-                raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
+                               offset_axes=offset_axes, train=train if scheduler is None else None)
+        lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
+        fleet = None
+        if scheduler is not None:
+            from .fleet import identify_on_dask
+
+            result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
+                                             lmi_kw)
+            data, skipped = [Path(p) for p in fleet.files], fleet.skipped
+            train = _first_training_log(data, r, prep) if not val else []
+        else:
+            total = sum(len(t) for t in train)
+            with progress_bar() as bar:
+                task = bar.add_task("regressor", total=total)
+                try:
+                    result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n),
+                                       outliers="keep", **lmi_kw)  # the logs' outliers were handled on reading
+                except ExcitationError as exc:
+                    raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate,
                                 "preprocessing": preprocessing_settings(
-                                    train, columns=columns, gains=gains, rate=rate, trim=trim, resample=resample,
-                                    lowpass=lowpass, savgol_window=savgol_window, velocity=velocity,
-                                    decimate=decimate, max_gap=max_gap),
-                                "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}})
+                                    train + val, columns=columns, gains=gains, rate=rate, trim=trim,
+                                    resample=resample, lowpass=lowpass, savgol_window=savgol_window,
+                                    velocity=velocity, decimate=decimate, max_gap=max_gap),
+                                "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
+                                if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
+        if scheduler is not None or skip_bad:
+            result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
+        for f, e in skipped:
+            err_console.print(f"[yellow]warning:[/] skipped {e}", highlight=False, soft_wrap=True)
         doc = result.to_dict()
         cad = CADModel(r, like=structure)
         baseline = None
@@ -128,7 +160,8 @@ def identify(
             try:  # unconstrained least squares on the same data, for the comparison table
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
-                    baseline = _identify(structure, train, method="ols", outliers="keep")
+                    baseline = _identify(structure, fleet.equations if fleet is not None else train, method="ols",
+                                         outliers="keep")
             except SensorlessError:
                 baseline = None
         doc["validation"] = {}
@@ -141,9 +174,10 @@ def identify(
                 doc["validation"][str(p)]["ols"] = cols["OLS"].to_dict()
             cols[method.upper()] = m_id
             console.print(metrics_table(f"held-out {Path(p).name}", cols))
-        shown = val[0] if val else train[0]
-        plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
-                     structure.row_names, tmp / "torques.png", title=f"{r.name}: {'held-out' if val else 'training'} torques")
+        shown = val[0] if val else (train[0] if train else None)
+        if shown is not None:  # with --scheduler, the client may not see the training files
+            plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
+                         structure.row_names, tmp / "torques.png", title=f"{r.name}: {'held-out' if val else 'training'} torques")
         _floating_base_checks(structure, result, doc, train, val, validate)
         _export(result, tmp, doc)
         from ..identification.result import write_json_atomic
@@ -153,7 +187,36 @@ def identify(
     extra = (f"γ = {d['gamma']:.3g}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
              f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
              else f"condition number {d['condition_number']:.1f}")
-    console.print(f"{len(result.base.independent)} base parameters, {extra}; wrote {out}/")
+    skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
+    console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
+
+
+def _load_training(data, r, prep: dict, skip_bad: bool):
+    """Local path: every training log in memory; with --skip-bad a file that fails is left out and reported."""
+    if not skip_bad:
+        return load_logs(data, r, **prep), data, []
+    from .common import load_log
+
+    train, used, skipped = [], [], []
+    for p in data:
+        try:
+            train.append(load_log(p, r, **prep))
+            used.append(p)
+        except SensorlessError as exc:
+            skipped.append((str(p), str(exc) if str(p) in str(exc) else f"{p}: {exc}"))
+    if not train:
+        raise SensorlessError("every --data file was skipped: " + "; ".join(e for _, e in skipped))
+    return train, used, skipped
+
+
+def _first_training_log(data, r, prep: dict) -> list:
+    """The first training log for the torque plot, if this machine can read it (else no plot)."""
+    from .common import load_log
+
+    try:
+        return [load_log(data[0], r, **prep)]
+    except SensorlessError:
+        return []
 
 
 def _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers) -> None:
@@ -386,6 +449,27 @@ def bench_identify(
     console.print(f"wrote {out}")
 
 
+
+
+@bench_app.command("dask")
+@guarded
+def bench_dask_cmd(
+    robot: str = typer.Option("panda", help="example-robot-data name"),
+    samples: str = typer.Option("1000000,10000000", help="comma-separated total sample counts"),
+    samples_per_file: int = typer.Option(100_000, help="samples per generated Parquet file"),
+    workers: int = typer.Option(2, help="LocalCluster worker processes (one thread each)"),
+    method: str = typer.Option("ols", help="ols | wls"),
+    out: Path = typer.Option(Path("benchmarks/results/dask.json")),
+) -> None:
+    """Dask LocalCluster vs single-process identification from generated Parquet logs (deleted afterwards)."""
+    from ..benchmarks_dask import bench_dask
+    from ..identification.result import write_json_atomic
+
+    sizes = tuple(int(float(s)) for s in samples.split(","))
+    res = bench_dask(robot, sizes, samples_per_file=samples_per_file, workers=workers, method=method, console=console)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")
 
 
 @bench_app.command("contact")

@@ -21,12 +21,13 @@ how), the drive gains, the trim window, the timing and the resampling.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, TimestampError
+from ..errors import DataError, OptionError, TimestampError
 from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_derivatives
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
@@ -36,7 +37,7 @@ from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError, validate_trajectory
 
-__all__ = ["prepare", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES"]
+__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES"]
 
 #: Savitzky–Golay window [samples] when none is given (polynomial order 3).
 DEFAULT_SAVGOL_WINDOW = 11
@@ -234,3 +235,69 @@ def prepare(
         traj = _decimate(traj, decimate)
         traj = traj.with_(provenance={**traj.provenance, "decimate": int(decimate)})
     return traj
+
+
+def parse_columns(spec: "str | None") -> "dict | None":
+    """'q=0:7;v=vel_{joint};tau=a|b|c' -> {'q': '0:7', 'v': 'vel_{joint}', 'tau': ['a','b','c']}.
+
+    A field may carry per-joint drive gains for currents, 'tau=i_{joint}:gain=10,10.7,...'
+    (``i_*`` = ``i_{joint}``); they stay on the entry (the last item of a list) for the
+    reader (:func:`sensorless.data.gains.split_gain_modifiers`).
+    """
+    if not spec:
+        return None
+    out: dict = {}
+    for part in spec.split(";"):
+        if not part.strip():
+            continue
+        if "=" not in part:
+            raise OptionError(f"--columns: '{part}' is not FIELD=SPEC (e.g. 'q=0:7;tau=14:21')")
+        key, val = (s.strip() for s in part.split("=", 1))
+        out[key] = val.split("|") if "|" in val else val
+    return out
+
+
+PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap")
+"""Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
+The trim window and decimation belong to one log and are recorded but not reused."""
+
+
+def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
+    """OptionError for preprocessing options no log can use (zero, negative, NaN, absurd)."""
+    from .readers import MAX_RATE, MIN_RATE
+
+    if rate is not None and not (math.isfinite(rate) and MIN_RATE <= rate <= MAX_RATE):
+        raise OptionError(f"--rate must be a sample rate in [{MIN_RATE:g}, {MAX_RATE:g}] Hz, got {rate!r}")
+    if lowpass is not None and not (math.isfinite(lowpass) and lowpass > 0):
+        raise OptionError(f"--lowpass must be a cut-off frequency > 0 Hz, got {lowpass!r}")
+    if savgol_window is not None and (savgol_window < 5 or savgol_window % 2 == 0):
+        raise OptionError(f"--savgol-window must be an odd number of samples >= 5, got {savgol_window!r}")
+    if decimate is not None and decimate < 1:
+        raise OptionError(f"--decimate must be an integer >= 1, got {decimate!r}")
+
+
+def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
+             resample="auto", velocity="logged", max_gap=None, outliers: str = "error"):
+    """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
+
+    The one preprocessing function of both the local path (``sensorless.cli.common.load_logs``) and the Dask
+    workers (:class:`sensorless.regressor.distributed.LogReader`), so both see the same samples.
+    ``outliers`` ("error" | "drop" | "keep") is applied to the raw log; a log that lost samples
+    that way is resampled onto its uniform grid even with ``resample="off"``.
+    """
+    from .outliers import OUTLIER_MODES
+    from .readers import read_trajectory
+
+    check_preprocessing(rate, lowpass, savgol_window, decimate)
+    if outliers not in OUTLIER_MODES:
+        raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got {outliers!r}")
+    mode = parse_resample(resample)
+    cols = parse_columns(columns) if isinstance(columns, str) else columns
+    if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):
+        gains = None
+    traj = read_trajectory(path, columns=cols, rate=rate, robot=robot, gains=gains,
+                           allow_duplicate_times=mode != "off", outliers=outliers)
+    dropped = "outlier" in traj.units.get("processing", "")
+    return prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
+                   savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
+                   max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap)

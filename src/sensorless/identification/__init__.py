@@ -14,6 +14,7 @@ from .constraints import (
     default_constraints,
 )
 from .ellipsoids import BoundingEllipsoid, auto_ellipsoids
+from .fleet import identify_files, identify_fleet
 from .least_squares import LeastSquaresSolution, excitation_check, solve_least_squares, solve_truncated_svd
 from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
@@ -56,6 +57,8 @@ __all__ = [
     "excitation_check",
     "identifiability_report",
     "identify",
+    "identify_files",
+    "identify_fleet",
     "solve_least_squares",
     "solve_truncated_svd",
     "torque_metrics",

@@ -10,6 +10,7 @@ from .contact import (
     detect_contacts,
     null_space_projector,
 )
+from .distributed import DistributedError, FleetEquations, LogReader, compress_files, expand_paths
 from .terms import JOINT_TERMS, ModelStructure
 
 __all__ = [
@@ -21,4 +22,5 @@ __all__ = [
     "detect_contacts",
     "null_space_projector",
     "JOINT_TERMS",
-    "ModelStructure", "NormalEquations", "compress", "iter_trajectories"]
+    "ModelStructure", "NormalEquations", "compress", "iter_trajectories",
+    "DistributedError", "FleetEquations", "LogReader", "compress_files", "expand_paths"]

@@ -120,12 +120,24 @@ def compress(
     *,
     chunk: int = 2048,
     progress: Callable[[int], None] | None = None,
+    client=None,
+    reader=None,
 ) -> NormalEquations:
     """Evaluate the regressor chunk by chunk and fold it into :class:`NormalEquations`.
 
     ``data`` may be a generator, so arbitrarily long logs never sit in memory whole.
     ``progress(n)`` is called with the number of samples folded after each chunk.
+
+    With a Dask ``client`` (``distributed.Client``), ``data`` are file paths or glob patterns:
+    each worker reads and preprocesses its own files (``reader``, default
+    :class:`~.distributed.LogReader`) and returns partial sums, added by a tree reduction
+    (:func:`~.distributed.compress_files`; ``progress(1)`` per finished file). A file that
+    cannot be used raises its typed error; to skip such files instead, use ``compress_files``.
     """
+    if client is not None:
+        from .distributed import compress_files
+
+        return compress_files(structure, data, client=client, reader=reader, chunk=chunk, progress=progress).equations
     ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
     buf = np.empty((chunk, structure.n_rows, structure.n_body_params))
     seen = False

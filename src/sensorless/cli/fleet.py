@@ -1,0 +1,26 @@
+"""`identify --scheduler`: the Dask path of the identify command (see docs/fleet.md)."""
+
+from __future__ import annotations
+
+from ..errors import ExcitationError
+from .common import err_console, progress_bar
+
+
+def identify_on_dask(structure, files, scheduler: str, workers, reader, method: str, skip_bad: bool, lmi_kw: dict):
+    """Connect to (or start) a Dask cluster, compress ``files`` on its workers with a progress
+    bar of finished file tasks, solve on this machine. Returns (result, FleetEquations)."""
+    from ..identification.fleet import identify_fleet
+    from ..regressor.distributed import compress_files, connect
+
+    lmi_auto = method == "lmi" and lmi_kw.get("gamma") == "auto"
+    with connect(scheduler, workers) as client:
+        n = len(client.scheduler_info().get("workers", {}))
+        err_console.print(f"Dask: {scheduler} ({n} workers), {len(files)} files", highlight=False)
+        with progress_bar() as bar:
+            task = bar.add_task("files (dask)", total=len(files) * (2 if lmi_auto else 1))
+            fleet = compress_files(structure, files, client=client, reader=reader, skip_bad=skip_bad,
+                                   n_folds=5 if lmi_auto else None, progress=lambda k: bar.advance(task, k))
+    try:
+        return identify_fleet(structure, fleet, method=method, **lmi_kw), fleet
+    except ExcitationError as exc:
+        raise ExcitationError(f"{len(fleet.files)} files ({fleet.files[0]} …): {exc}") from None

@@ -1,0 +1,71 @@
+"""identify_files(): identification from many log files, compressed on a Dask cluster.
+
+The files are compressed by :func:`~sensorless.regressor.distributed.compress_files`
+(one task per file, partial normal equations summed by a tree reduction) and the model is
+solved on the client by :func:`~.identify.identify` from the summed equations, so OLS,
+two-step WLS (σ_r from the per-row OLS residual of the same equations), SVD and LMI with a
+fixed γ are the local computations on the same sums. LMI with ``gamma="auto"`` gets its
+cross-validation folds from the workers too (the same contiguous/phase blocks as
+:func:`~.lmi.cross_validate_gamma` cuts from trajectories).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from ..regressor.distributed import FleetEquations, compress_files
+from ..regressor.terms import ModelStructure
+from .identify import identify
+from .result import IdentificationResult
+
+__all__ = ["identify_files", "identify_fleet"]
+
+
+def identify_files(
+    structure: ModelStructure,
+    files: Sequence[str | Path] | str | Path,
+    *,
+    client=None,
+    reader: Callable | None = None,
+    method: str = "ols",
+    skip_bad: bool = False,
+    retries: int = 2,
+    chunk: int = 2048,
+    progress: Callable[[int], None] | None = None,
+    **identify_kwargs: Any,
+) -> IdentificationResult:
+    """:func:`~.identify.identify` on log files read by the workers of ``client``.
+
+    ``files``: paths or glob patterns. ``reader``, ``skip_bad``, ``retries``, ``progress`` as
+    :func:`~sensorless.regressor.distributed.compress_files`; the other keywords go to
+    ``identify``. ``result.settings`` lists the files used and every skipped file with its error.
+    """
+    lmi_auto = method == "lmi" and identify_kwargs.get("gamma", 1e-3) == "auto"
+    fleet = compress_files(structure, files, client=client, reader=reader, chunk=chunk, skip_bad=skip_bad,
+                           retries=retries, n_folds=5 if lmi_auto else None, progress=progress)
+    return identify_fleet(structure, fleet, method=method, chunk=chunk, **identify_kwargs)
+
+
+def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: str = "ols",
+                   **identify_kwargs: Any) -> IdentificationResult:
+    """Solve from already summed :class:`FleetEquations` (see :func:`identify_files`)."""
+    kw = dict(identify_kwargs)
+    cv = None
+    if method == "lmi" and kw.get("gamma", 1e-3) == "auto":
+        from .lmi import cross_validate_gamma
+
+        w = kw.get("weights")
+        row_w = None if w is None or isinstance(w, str) else 1.0 / np.asarray(w, dtype=float) ** 2
+        cv = cross_validate_gamma(structure, fleet.folds, prior=kw.get("prior"),
+                                  regularization=kw.get("regularization", "pullback"),
+                                  ellipsoids=kw.get("ellipsoids"), row_weights=row_w, **dict(kw.get("lmi_options") or {}))
+        kw["gamma"] = cv.gamma
+    result = identify(structure, fleet.equations, method=method, **kw)
+    if cv is not None:
+        result.diagnostics["gamma_selection"] = cv.to_dict()
+    result.diagnostics["compress_seconds"] = fleet.seconds
+    result.settings.update(fleet.summary())
+    return result

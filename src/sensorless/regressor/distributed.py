@@ -1,0 +1,452 @@
+"""Fleet-scale compression on Dask: files → partial normal equations → tree sum.
+
+The compressed normal equations (:mod:`.compress`) are sums over samples, hence over files,
+
+    A_r = Σ_files Σ_i W_{i,r}ᵀ W_{i,r},   b_r = Σ_files Σ_i W_{i,r}ᵀ y_{i,r},   c_r = …
+
+so identification over many logs is a map-reduce. Each Dask task reads one file on its
+worker, preprocesses it exactly like the local path (:class:`LogReader`, i.e.
+``cli.common.load_log``: read → low-pass → Savitzky–Golay → decimate) and folds it with
+:func:`~.compress.compress`. The partial sums are added by a fixed tree of merge tasks
+(``split_every`` inputs per node, so the summation order does not depend on which task
+finishes first) and the client receives one :class:`~.compress.NormalEquations` of size
+O(rows · p²). Only the pickled model structure (scattered once to every worker, unpickled
+once per worker thread because a Pinocchio ``Data`` is per-thread scratch space) and the
+reader settings travel; the arrays never leave the worker that read them.
+
+Dask does the scheduling: tasks of a worker that dies are rerun elsewhere, a task that
+raises is retried ``retries`` times. A file that cannot be used raises its typed error
+(naming the file) or, with ``skip_bad``, is skipped and listed in
+:attr:`FleetEquations.skipped`.
+
+Two-step WLS needs no second pass over the files: the per-row equations give every row's
+OLS residual ‖W_r π − y_r‖² = πᵀA_rπ − 2πᵀb_r + c_r exactly. LMI with γ chosen by
+cross-validation needs the samples split into folds exactly as
+``identification.lmi._split_folds`` does: pass 1 returns each file's length and excitation
+period, pass 2 folds each file's samples into ``n_folds`` partial equations.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import glob
+import hashlib
+import logging
+import os
+import pickle
+import threading
+import time
+import uuid
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator, Sequence
+
+import numpy as np
+
+from ..data.trajectory import Trajectory
+from ..errors import DataError, SensorlessError
+from .compress import NormalEquations, compress
+from .terms import ModelStructure
+
+__all__ = ["DistributedError", "FleetEquations", "LogReader", "compress_files", "connect", "expand_paths"]
+
+_GLOB_CHARS = frozenset("*?[")
+
+
+class DistributedError(SensorlessError):
+    """The Dask run could not complete: scheduler unreachable, dask missing, a worker lost too often."""
+
+
+# ---- what travels to the workers -----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LogReader:
+    """Preprocessing settings of a log; calling it reads and preprocesses one file.
+
+    The same function (``cli.common.load_log``) as the local path, so a worker sees exactly
+    the samples a single-process run would.
+    """
+
+    columns: str | None = None
+    rate: float | None = None
+    lowpass: float | None = None
+    savgol_window: int | None = None
+    decimate: int = 1
+    gains: Any = None
+    trim: str | None = None
+    resample: str = "auto"
+    velocity: str = "logged"
+    max_gap: float | None = None
+    outliers: str = "error"
+
+    def __call__(self, path: str | Path, robot) -> Trajectory:
+        from ..data.prepare import load_log
+
+        return load_log(path, robot, self.columns, self.rate, self.lowpass, self.savgol_window, self.decimate,
+                        gains=self.gains, trim=self.trim, resample=self.resample, velocity=self.velocity,
+                        max_gap=self.max_gap, outliers=self.outliers)
+
+    def settings(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class _Model:
+    """A model structure as pickled bytes plus their digest (the per-worker cache key)."""
+
+    token: str
+    blob: bytes
+
+    @classmethod
+    def of(cls, structure: ModelStructure) -> "_Model":
+        try:
+            blob = pickle.dumps(structure, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:  # noqa: BLE001 - e.g. a robot built from an unpicklable object
+            raise DistributedError(
+                f"the model structure cannot be sent to the workers ({type(exc).__name__}: {exc})"
+            ) from None
+        return cls(hashlib.sha256(blob).hexdigest(), blob)
+
+
+_CACHE: dict[tuple[str, int], ModelStructure] = {}
+_CACHE_LOCK = threading.Lock()
+
+
+def _structure(model: ModelStructure | _Model) -> ModelStructure:
+    """The structure for this thread: unpickled once per (model, worker thread), then cached."""
+    if isinstance(model, ModelStructure):
+        return model
+    key = (model.token, threading.get_ident())
+    s = _CACHE.get(key)
+    if s is None:
+        s = pickle.loads(model.blob)
+        with _CACHE_LOCK:
+            if len(_CACHE) >= 32:
+                _CACHE.clear()
+            _CACHE[key] = s
+    return s
+
+
+# ---- partial results and their sum ----------------------------------------------------------
+
+
+@dataclass
+class _Part:
+    """What a task returns: partial equations (and per-fold ones), files used, files skipped."""
+
+    ne: NormalEquations | None
+    folds: list[NormalEquations | None] | None
+    files: list[str]
+    skipped: list[tuple[str, str]]
+
+
+def _add(a: NormalEquations | None, b: NormalEquations | None) -> NormalEquations | None:
+    return b if a is None else a if b is None else a.merge(b)
+
+
+def _merge(*parts: _Part) -> _Part:
+    """Sum of partial results, in argument order (a node of the reduction tree)."""
+    out = _Part(None, None, [], [])
+    for p in parts:
+        out.ne = _add(out.ne, p.ne)
+        if p.folds is not None:
+            out.folds = list(p.folds) if out.folds is None else [_add(x, y) for x, y in zip(out.folds, p.folds)]
+        out.files = out.files + p.files
+        out.skipped = out.skipped + p.skipped
+    return out
+
+
+def _named(exc: SensorlessError, path: str) -> SensorlessError:
+    """The error, with the file name in front if its message does not name it already."""
+    msg = str(exc)
+    if path in msg:
+        return exc
+    try:
+        return type(exc)(f"{path}: {msg}")
+    except Exception:  # noqa: BLE001 - an error class with another signature
+        return DataError(msg, path)
+
+
+def _fold_parts(traj: Trajectory, n_folds: int, period: float | None, offset: int, total: int):
+    """This file's share of each cross-validation fold, as ``lmi._split_folds`` cuts them:
+    phase blocks ``⌊((t − t₀) mod period) / period · n_folds⌋`` per file when a period is
+    known, else contiguous blocks of the concatenated samples (``offset`` = samples before this file)."""
+    if period is not None:
+        block = np.floor(((traj.t - traj.t[0]) % period) / period * n_folds).astype(int)
+        return [traj.take(block == f) if np.any(block == f) else None for f in range(n_folds)]
+    edges = np.linspace(0, total, n_folds + 1).round().astype(int)
+    out = []
+    for f in range(n_folds):
+        lo, hi = max(edges[f] - offset, 0), min(edges[f + 1] - offset, len(traj))
+        out.append(traj.take(slice(lo, hi)) if hi > lo else None)
+    return out
+
+
+def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple | None) -> _Part:
+    """Map step: read + preprocess one file on this worker and fold it into normal equations.
+
+    ``plan = (n_folds, period, offset, total)`` also splits it into cross-validation folds
+    (the file's total is then the sum of its folds).
+    """
+    structure = _structure(model)
+    try:
+        traj = reader(path, structure.robot)
+        if plan is None:
+            return _Part(compress(structure, traj, chunk=chunk), None, [path], [])
+        folds = [None if part is None else compress(structure, part, chunk=chunk) for part in _fold_parts(traj, *plan)]
+        return _Part(functools.reduce(_add, folds), folds, [path], [])
+    except SensorlessError as exc:
+        if not skip_bad:
+            raise _named(exc, path) from None
+        return _Part(None, None if plan is None else [None] * plan[0], [], [(path, str(_named(exc, path)))])
+
+
+def _length_task(model, reader, path: str, skip_bad: bool) -> tuple[int | None, float | None, str | None]:
+    """Pass 1 of cross-validation folds: (samples after preprocessing, excitation period, error)."""
+    from ..identification.lmi import excitation_period
+
+    structure = _structure(model)
+    try:
+        traj = reader(path, structure.robot)
+    except SensorlessError as exc:
+        if not skip_bad:
+            raise _named(exc, path) from None
+        return None, None, str(_named(exc, path))
+    return len(traj), excitation_period(traj), None
+
+
+# ---- result ----------------------------------------------------------------------------------
+
+
+@dataclass
+class FleetEquations:
+    """Normal equations summed over files, with the files used and those skipped (and why)."""
+
+    equations: NormalEquations
+    files: list[str]
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    folds: list[NormalEquations] | None = None
+    period: float | None = None
+    seconds: float = 0.0
+
+    def summary(self) -> dict:
+        return {
+            "files_used": len(self.files),
+            "skipped_files": [{"file": f, "error": e} for f, e in self.skipped],
+            "n_samples": self.equations.n_samples,
+        }
+
+
+# ---- driver ----------------------------------------------------------------------------------
+
+
+def expand_paths(patterns: Sequence[str | Path] | str | Path) -> list[str]:
+    """File paths from paths and glob patterns (``**`` is recursive), in the order given and
+    sorted within a pattern. A pattern that matches no file raises :class:`DataError` naming it;
+    plain paths are kept as they are (reading reports a missing one)."""
+    if isinstance(patterns, (str, Path)):
+        patterns = [patterns]
+    out: list[str] = []
+    for p in patterns:
+        s = os.path.expanduser(str(p))
+        if _GLOB_CHARS & set(s):
+            hits = sorted(h for h in glob.glob(s, recursive=True) if os.path.isfile(h))
+            if not hits:
+                raise DataError("the pattern matches no file", s)
+            out += hits
+        else:
+            out.append(s)
+    return out
+
+
+def _paths(data) -> list[str]:
+    items = [data] if isinstance(data, (str, Path, Trajectory)) else list(data)
+    bad = [i for i in items if not isinstance(i, (str, Path))]
+    if bad:
+        src = getattr(bad[0], "source", None) or type(bad[0]).__name__
+        raise DataError("with a Dask client, pass file paths: workers read their own files and "
+                        "arrays are never shipped", src)
+    files = expand_paths(items)
+    if not files:
+        raise DataError("no file was given")
+    return files
+
+
+def compress_files(
+    structure: ModelStructure,
+    files: Sequence[str | Path] | str | Path,
+    *,
+    client=None,
+    reader: Callable[[str, Any], Trajectory] | None = None,
+    chunk: int = 2048,
+    skip_bad: bool = False,
+    retries: int = 2,
+    split_every: int = 8,
+    n_folds: int | None = None,
+    period: float | str | None = "auto",
+    progress: Callable[[int], None] | None = None,
+) -> FleetEquations:
+    """Compress logs given as file paths (or glob patterns), one task per file.
+
+    ``client``: a ``distributed.Client`` (None: the same tasks run one after another in this
+    process). ``reader(path, robot) -> Trajectory`` reads and preprocesses one file (default
+    :class:`LogReader`\\ (): the CLI defaults); it must be picklable. A file that fails raises
+    its typed error naming it, unless ``skip_bad`` (then it is listed in ``skipped``).
+    ``retries``: Dask retries of a task that raised. ``n_folds`` also returns the
+    cross-validation folds of ``lmi.cross_validate_gamma`` (``period`` as there; this costs
+    a first pass that reads every file for its length). ``progress(1)`` is called per finished
+    file task (twice per file with folds).
+    """
+    reader = LogReader() if reader is None else reader
+    paths = _paths(files)
+    t0 = time.perf_counter()
+    runner = _Local(structure, progress)
+    if client is not None:
+        runner = _Dask(client, _Model.of(structure), retries, split_every, progress)
+    folds_plan: list[tuple | None] = [None] * len(paths)
+    found_period, skipped_first = None, []
+    if n_folds is not None:
+        lengths = runner.lengths(reader, paths, skip_bad)
+        good = [(p, n, per) for p, (n, per, err) in zip(paths, lengths) if err is None]
+        if not good:
+            raise DataError("every file was skipped: " + "; ".join(err for _, _, err in lengths if err))
+        total = sum(n for _, n, _ in good)
+        if n_folds < 2 or total < 2 * n_folds:
+            raise DataError(f"cannot split {total} samples into {n_folds} folds (need n_folds >= 2)")
+        found_period = good[0][2] if period == "auto" else period
+        if found_period is not None and not float(found_period) > 0:
+            raise DataError(f"period must be positive, got {found_period}")
+        skipped_first = [(p, err) for p, (_, _, err) in zip(paths, lengths) if err is not None]
+        paths = [p for p, _, _ in good]  # pass 2 reads the files pass 1 could read, at these offsets
+        offsets = np.cumsum([0] + [n for _, n, _ in good])[:-1].tolist()
+        folds_plan = [(n_folds, found_period, off, total) for off in offsets]
+    part = runner.run(reader, paths, chunk, skip_bad, folds_plan)
+    part.skipped = skipped_first + part.skipped
+    if part.ne is None:
+        raise DataError("every file was skipped: " + "; ".join(e for _, e in part.skipped))
+    folds = None
+    if n_folds is not None:
+        empty = [f for f, ne in enumerate(part.folds or []) if ne is None]
+        if empty:
+            raise DataError(f"no sample falls in phase block {empty[0]} of {n_folds}; is period={found_period} s right?")
+        folds = part.folds
+    return FleetEquations(part.ne, part.files, part.skipped, folds, found_period, time.perf_counter() - t0)
+
+
+class _Local:
+    """The map-reduce run in this process, file after file (same tasks, no Dask)."""
+
+    def __init__(self, model: ModelStructure, progress):
+        self.model, self.progress = model, progress
+
+    def _tick(self):
+        if self.progress is not None:
+            self.progress(1)
+
+    def lengths(self, reader, paths, skip_bad):
+        out = []
+        for p in paths:
+            out.append(_length_task(self.model, reader, p, skip_bad))
+            self._tick()
+        return out
+
+    def run(self, reader, paths, chunk, skip_bad, plans) -> _Part:
+        acc = _Part(None, None, [], [])
+        for p, plan in zip(paths, plans):
+            acc = _merge(acc, _file_task(self.model, reader, p, chunk, skip_bad, plan))
+            self._tick()
+        return acc
+
+
+class _Dask:
+    """The map-reduce on a Dask cluster: one task per file, a fixed merge tree, gathered on the client."""
+
+    def __init__(self, client, model: _Model, retries: int, split_every: int, progress):
+        self.client, self.retries, self.progress = client, retries, progress
+        self.split_every = max(int(split_every), 2)
+        self.tag = uuid.uuid4().hex[:8]
+        self.model = client.scatter(model, broadcast=True, hash=False)  # once per worker, not per task
+
+    def lengths(self, reader, paths, skip_bad):
+        futs = [self.client.submit(_length_task, self.model, reader, p, skip_bad, key=f"sensorless-length-{self.tag}-{i}",
+                                   retries=self.retries, pure=False) for i, p in enumerate(paths)]
+        self._wait(futs, paths)
+        return self.client.gather(futs)
+
+    def run(self, reader, paths, chunk, skip_bad, plans) -> _Part:
+        futs = [self.client.submit(_file_task, self.model, reader, p, chunk, skip_bad, plan,
+                                   key=f"sensorless-file-{self.tag}-{i}", retries=self.retries, pure=False)
+                for i, (p, plan) in enumerate(zip(paths, plans))]
+        level, nodes = 0, futs
+        while len(nodes) > 1:  # fixed tree: the summation order does not depend on completion order
+            k = self.split_every
+            nodes = [self.client.submit(_merge, *nodes[i : i + k], key=f"sensorless-merge-{self.tag}-{level}-{i // k}",
+                                        retries=self.retries, pure=False) for i in range(0, len(nodes), k)]
+            level += 1
+        self._wait(futs, paths, extra=nodes)
+        try:
+            return nodes[0].result()
+        except SensorlessError:
+            raise
+        except Exception as exc:  # noqa: BLE001
+            raise DistributedError(f"the reduction of the partial equations failed ({type(exc).__name__}: {exc})") from exc
+
+    def _wait(self, futs, paths, extra=()):
+        """Follow the file tasks as they finish; stop everything at the first failure."""
+        from distributed import as_completed
+
+        index = {f.key: p for f, p in zip(futs, paths)}
+        try:
+            for fut in as_completed(futs):
+                if fut.status == "error":
+                    exc = fut.exception()
+                    if isinstance(exc, SensorlessError):
+                        raise exc
+                    raise DistributedError(f"{index[fut.key]}: task failed after {self.retries} retries "
+                                           f"({type(exc).__name__}: {exc})")
+                if fut.status == "cancelled":
+                    raise DistributedError(f"{index[fut.key]}: the task was cancelled (scheduler or client lost?)")
+                if self.progress is not None:
+                    self.progress(1)
+        except BaseException:
+            self.client.cancel(list(futs) + list(extra))
+            raise
+
+
+@contextlib.contextmanager
+def connect(scheduler: str, workers: int | None = None, *, timeout: float = 30.0) -> Iterator[Any]:
+    """A ``distributed.Client`` for ``scheduler``: ``"local"`` starts a ``LocalCluster`` of
+    ``workers`` processes (default: one per core, one thread each: the regressor loop holds
+    the GIL); any other value is a scheduler address (``tcp://host:8786``) of an existing
+    cluster, and ``workers`` then waits until that many workers are connected."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise DistributedError("--scheduler needs dask.distributed: pip install 'sensorless[dist]'") from None
+    if workers is not None and workers < 1:
+        raise DistributedError(f"--workers must be >= 1, got {workers}")
+    cluster = None
+    try:
+        if scheduler == "local":
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
+            client = Client(cluster)
+        else:
+            client = Client(scheduler, timeout=timeout)
+    except (OSError, TimeoutError, ValueError) as exc:
+        if cluster is not None:
+            cluster.close()
+        raise DistributedError(f"{scheduler}: cannot reach the Dask scheduler ({type(exc).__name__}: {exc})") from None
+    try:
+        if workers and cluster is None:
+            try:
+                client.wait_for_workers(workers, timeout=timeout)
+            except TimeoutError:
+                raise DistributedError(f"{scheduler}: fewer than {workers} workers connected after {timeout:.0f} s") from None
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,302 @@
+"""Fleet-scale identification on Dask (issue 16): same result as the local path, typed
+errors naming the bad file, --skip-bad reporting, retries, and a worker killed mid-run."""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+distributed = pytest.importorskip("distributed")
+
+from sensorless.benchmarks_dask import write_fleet_logs  # noqa: E402
+from sensorless.cli import app  # noqa: E402
+from sensorless.cli.common import load_logs  # noqa: E402
+from sensorless.errors import DataError  # noqa: E402
+from sensorless.identification import identify, identify_files  # noqa: E402
+from sensorless.identification.lmi import _split_folds  # noqa: E402
+from sensorless.regressor import ModelStructure, compress, compress_files, expand_paths  # noqa: E402
+from sensorless.regressor.distributed import DistributedError, LogReader, _Model, _structure, connect  # noqa: E402
+
+TOL = 1e-10
+ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
+
+
+def _rel(a, b) -> float:
+    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(b))
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory, panda):
+    """4 Parquet logs (3000 samples each, > one 2048-sample chunk) in two sub-directories."""
+    d = tmp_path_factory.mktemp("fleet")
+    paths = write_fleet_logs(panda, d, 4, 3000, rate=500.0, base_freq=0.1, subdirs=2, seed=3)
+    files = expand_paths([d / "**" / "*.parquet"])
+    return d, files
+
+
+@pytest.fixture(scope="module")
+def structure(panda):
+    return ModelStructure(panda)
+
+
+@pytest.fixture(scope="module")
+def client():
+    """Two in-process workers, one thread each (fast to start)."""
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0") as c, \
+            distributed.Client(c) as cl:
+        yield cl
+
+
+_LOCAL: dict = {}
+
+
+def _local(structure, files, method, **kw):
+    """The unchanged single-process path: every log loaded by the CLI's load_logs, then identify() (cached)."""
+    key = (tuple(files), method, tuple(sorted(kw.items())))
+    if key not in _LOCAL:
+        _LOCAL[key] = identify(structure, load_logs(files, structure.robot, None, None, None, None, 1), method=method, **kw)
+    return _LOCAL[key]
+
+
+# ---- paths --------------------------------------------------------------------------------
+
+
+def test_glob_is_recursive_sorted_and_a_pattern_matching_nothing_is_a_typed_error(fleet, tmp_path):
+    d, files = fleet
+    assert len(files) == 4 and files == sorted(files)
+    assert {Path(f).parent.name for f in files} == {"robot_0", "robot_1"}  # '**' went into sub-directories
+    assert expand_paths([files[1], files[0]]) == [files[1], files[0]]  # plain paths kept as given
+    with pytest.raises(DataError, match=r"nothing/\*\*/\*\.parquet.*matches no file"):
+        expand_paths([tmp_path / "nothing" / "**" / "*.parquet"])
+
+
+# ---- same result as the local path -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("method", ["ols", "wls"])
+def test_dask_identification_equals_local_path(fleet, structure, client, method):
+    _, files = fleet
+    local = _local(structure, files, method)
+    dask = identify_files(structure, files, client=client, method=method)
+    assert _rel(dask.base_values, local.base_values) < TOL
+    assert _rel(dask.parameters, local.parameters) < TOL
+    assert dask.diagnostics["n_samples"] == local.diagnostics["n_samples"] == 12_000
+    assert dask.settings["files_used"] == 4 and dask.settings["skipped_files"] == []
+    s_d, s_l = dask.diagnostics["residual_sigma"], local.diagnostics["residual_sigma"]
+    # residual σ_r² = c_r − 2b_rᵀπ + πᵀA_rπ cancels digits (by c_r / RSS_r ≈ 10²) in both paths
+    assert max(abs(s_d[j] - s_l[j]) / s_l[j] for j in s_l) < 1e-8
+
+
+def test_compress_with_client_equals_compress_of_loaded_logs(fleet, structure, client):
+    _, files = fleet
+    ne_local = compress(structure, load_logs(files, structure.robot, None, None, None, None, 1))
+    ne_dask = compress(structure, files, client=client)
+    assert ne_dask.n_samples == ne_local.n_samples
+    for k in ("A", "b", "c", "y_min", "y_max", "y_sum"):
+        np.testing.assert_allclose(getattr(ne_dask, k), getattr(ne_local, k), rtol=1e-12, atol=1e-12 * np.abs(ne_local.A).max())
+    with pytest.raises(DataError, match="pass file paths"):  # arrays never travel
+        compress(structure, load_logs(files[:1], structure.robot, None, None, None, None, 1), client=client)
+
+
+@pytest.mark.parametrize("period", [2.0, None])
+def test_cross_validation_folds_equal_the_local_split(fleet, structure, client, period):
+    """LMI γ='auto' folds: phase blocks of a period (per file, from its first sample), or contiguous blocks over all files."""
+    _, files = fleet
+    trajs = load_logs(files, structure.robot, None, None, None, None, 1)
+    local = _split_folds(structure, trajs, 5, 2048, period)
+    got = compress_files(structure, files, client=client, n_folds=5, period=period)
+    assert got.period == period
+    assert len(got.folds) == 5
+    for a, b in zip(got.folds, local):
+        assert a.n_samples == b.n_samples
+        np.testing.assert_allclose(a.A, b.A, rtol=1e-12, atol=1e-12 * np.abs(b.A).max())
+    np.testing.assert_allclose(got.equations.A, sum(f.A for f in local), rtol=1e-12, atol=1e-12 * np.abs(local[0].A).max())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("gamma", [1e-3, "auto"])
+def test_lmi_on_dask_equals_local(fleet, structure, client, gamma):
+    _, files = fleet
+    local = _local(structure, files, "lmi", gamma=gamma)
+    dask = identify_files(structure, files, client=client, method="lmi", gamma=gamma)
+    assert dask.diagnostics["gamma"] == local.diagnostics["gamma"]
+    assert _rel(dask.parameters, local.parameters) < TOL
+
+
+# ---- bad files, retries, dead workers --------------------------------------------------------
+
+
+@pytest.fixture()
+def with_corrupt(fleet, tmp_path):
+    _, files = fleet
+    bad = tmp_path / "robot_9" / "log_corrupt.parquet"
+    bad.parent.mkdir()
+    bad.write_bytes(b"PAR1 this is not a parquet file")
+    return files[:2] + [str(bad)] + files[2:], str(bad)
+
+
+def test_corrupt_file_fails_with_typed_error_naming_it(with_corrupt, structure, client):
+    files, bad = with_corrupt
+    with pytest.raises(DataError, match=r"log_corrupt\.parquet.*not a readable Parquet"):
+        identify_files(structure, files, client=client)
+
+
+def test_skip_bad_skips_and_reports_the_file_and_equals_local_on_the_rest(with_corrupt, fleet, structure, client):
+    files, bad = with_corrupt
+    res = identify_files(structure, files, client=client, skip_bad=True)
+    (entry,) = res.settings["skipped_files"]
+    assert entry["file"] == bad and "not a readable Parquet" in entry["error"]
+    assert res.settings["files_used"] == 4
+    assert _rel(res.base_values, _local(structure, fleet[1], "ols").base_values) < TOL
+    with pytest.raises(DataError, match="every file was skipped"):
+        compress_files(structure, [bad], client=client, skip_bad=True)
+    # the cross-validation folds (two passes) skip it too, and cut the other files as the local path does
+    got = compress_files(structure, files, client=client, skip_bad=True, n_folds=5, period=None)
+    assert [f for f, _ in got.skipped] == [bad] and got.files == fleet[1]
+    local = _split_folds(structure, load_logs(fleet[1], structure.robot, None, None, None, None, 1), 5, 2048, None)
+    for a, b in zip(got.folds, local):
+        np.testing.assert_allclose(a.A, b.A, rtol=1e-12, atol=1e-12 * np.abs(b.A).max())
+
+
+@dataclass(frozen=True)
+class FlakyReader(LogReader):
+    """Raises an (untyped) OSError on the first attempt at ``victim``, like a network filesystem hiccup."""
+
+    marker: str = ""
+    victim: str = ""
+
+    def __call__(self, path, robot):
+        if path == self.victim and not os.path.exists(self.marker):
+            Path(self.marker).touch()
+            raise OSError("transient read failure")
+        return super().__call__(path, robot)
+
+
+def test_a_task_that_raises_is_retried_by_dask(fleet, structure, client, tmp_path):
+    _, files = fleet
+    reader = FlakyReader(marker=str(tmp_path / "failed_once"), victim=files[2])
+    ne = compress_files(structure, files, client=client, reader=reader, retries=1).equations
+    assert Path(reader.marker).exists()
+    ref = compress_files(structure, files, client=client).equations
+    np.testing.assert_array_equal(ne.A, ref.A)  # same tasks, same tree: bit-identical
+    reader = FlakyReader(marker=str(tmp_path / "failed_again"), victim=files[2])
+    with pytest.raises(DistributedError, match=Path(files[2]).name + r".*after 0 retries.*transient read failure"):
+        compress_files(structure, files, client=client, reader=reader, retries=0)
+
+
+@dataclass(frozen=True)
+class KillOnceReader(LogReader):
+    """Kills its worker process (os._exit) the first time it reads ``victim``."""
+
+    marker: str = ""
+    victim: str = ""
+
+    def __call__(self, path, robot):
+        if path == self.victim and not os.path.exists(self.marker):
+            Path(self.marker).touch()
+            os._exit(1)
+        return super().__call__(path, robot)
+
+
+def test_worker_killed_mid_run_gives_the_same_result(fleet, structure, tmp_path, monkeypatch):
+    _, files = fleet
+    here = str(Path(__file__).parent)  # worker processes must import this module to unpickle the reader
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([here, os.environ.get("PYTHONPATH", "")]))
+    reader = KillOnceReader(marker=str(tmp_path / "killed"), victim=files[1])
+    local = _local(structure, files, "ols")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                  silence_logs=50) as c, distributed.Client(c) as cl:
+        pids = set(cl.run(os.getpid).values())
+        res = identify_files(structure, files, client=cl, reader=reader)
+        cl.wait_for_workers(2, timeout=30)
+        after = set(cl.run(os.getpid).values())
+    assert Path(reader.marker).exists()  # the worker did die while reading files[1] ...
+    assert after != pids  # ... and the nanny replaced it
+    assert res.settings["files_used"] == 4
+    assert _rel(res.base_values, local.base_values) < TOL
+
+
+# ---- worker-side structure cache and connection errors -------------------------------------------
+
+
+def test_structure_travels_once_and_is_unpickled_once_per_thread(structure):
+    m = _Model.of(structure)
+    assert len(m.blob) < 2**20  # a pickled Panda structure, not data
+    a, b = _structure(m), _structure(m)
+    assert a is b and a is not structure and a.n_params == structure.n_params
+    other = []
+    t = threading.Thread(target=lambda: other.append(_structure(m)))
+    t.start()
+    t.join()
+    assert other[0] is not a  # Pinocchio Data is per-thread scratch space
+
+
+def test_unreachable_scheduler_is_a_typed_error():
+    with pytest.raises(DistributedError, match="tcp://127.0.0.1:9.*cannot reach"):
+        with connect("tcp://127.0.0.1:9", timeout=1):
+            pass
+
+
+# ---- CLI ----------------------------------------------------------------------------------------
+
+runner = CliRunner()
+
+
+def _cli(args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def tcp_cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
+                                  dashboard_address=":0") as c:
+        yield c.scheduler_address
+
+
+def _params(out):
+    doc = json.loads((out / "result.json").read_text())
+    return doc, np.array(list(doc["parameters"].values()))
+
+
+def test_cli_identify_on_a_cluster_equals_local_and_expands_the_glob(fleet, tcp_cluster, tmp_path):
+    d, _ = fleet
+    pattern = str(d / "**" / "*.parquet")
+    r1 = _cli(["identify", *ROBOT, "--data", pattern, "--method", "wls", "--out", tmp_path / "local"])
+    assert r1.exit_code == 0, r1.output
+    r2 = _cli(["identify", *ROBOT, "--data", pattern, "--method", "wls", "--scheduler", tcp_cluster,
+               "--workers", 2, "--out", tmp_path / "dask"])
+    assert r2.exit_code == 0, r2.output
+    (doc_l, p_l), (doc_d, p_d) = _params(tmp_path / "local"), _params(tmp_path / "dask")
+    assert _rel(p_d, p_l) < TOL
+    assert doc_d["settings"]["data"] == doc_l["settings"]["data"] and len(doc_d["settings"]["data"]) == 4
+    assert doc_d["settings"]["scheduler"] == tcp_cluster and doc_d["settings"]["skipped_files"] == []
+    assert (tmp_path / "dask" / "torques.png").exists()
+
+
+def test_cli_bad_file_fails_without_output_or_is_skipped_and_listed(with_corrupt, tcp_cluster, tmp_path):
+    files, bad = with_corrupt
+    data = [a for f in files for a in ("--data", f)]
+    out = tmp_path / "run"
+    r = _cli(["identify", *ROBOT, *data, "--scheduler", tcp_cluster, "--out", out])
+    assert r.exit_code == 2 and "log_corrupt.parquet" in r.output and not out.exists()
+    r = _cli(["identify", *ROBOT, *data, "--scheduler", tcp_cluster, "--skip-bad", "--out", out])
+    assert r.exit_code == 0, r.output
+    assert "1 file(s) skipped" in r.output
+    doc, _ = _params(out)
+    assert [e["file"] for e in doc["settings"]["skipped_files"]] == [bad]
+    assert bad not in doc["settings"]["data"] and len(doc["settings"]["data"]) == 4
+
+
+def test_cli_glob_matching_nothing_fails_naming_the_pattern(tmp_path):
+    out = tmp_path / "run"
+    r = _cli(["identify", *ROBOT, "--data", str(tmp_path / "none" / "**" / "*.parquet"), "--out", out])
+    assert r.exit_code == 2 and "matches no file" in r.output and "none/**/*.parquet" in r.output and not out.exists()
+    r = _cli(["identify", *ROBOT, "--data", str(tmp_path / "x.parquet"), "--workers", 2, "--out", out])
+    assert r.exit_code == 2 and "--workers needs --scheduler" in r.output and not out.exists()
