@@ -62,7 +62,8 @@ class PhysicalModel(_Scored):
         return {"method": self.method, "joint_terms": list(self.joint_terms), **self.identify_kwargs}
 
     def fit(self, data) -> "PhysicalModel":
-        self.structure_ = ModelStructure(self.robot, joint_terms=self.joint_terms)
+        make = getattr(self.robot, "make_structure", None)  # a transmission's coordinate robot (e.g. the PSM)
+        self.structure_ = make(self.joint_terms) if make else ModelStructure(self.robot, joint_terms=self.joint_terms)
         self.result_: IdentificationResult = identify(self.structure_, data, method=self.method, **self.identify_kwargs)
         self.parameters_ = self.result_.parameters
         return self
@@ -77,8 +78,13 @@ class CADModel(_Scored):
     def __init__(self, robot: Robot, like: ModelStructure | None = None) -> None:
         """``like``: score on the same equations as this structure (e.g. a contact projection)."""
         self.robot = robot
-        self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
-                           else dataclasses.replace(like, joint_terms=("armature",)))
+        if like is not None and like.settings().get("structure") == "transmission":
+            self.structure_ = like  # its prior has zero drive terms: the tree's inertials only
+        elif like is None and hasattr(robot, "make_structure"):
+            self.structure_ = robot.make_structure(None)
+        else:
+            self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
+                               else dataclasses.replace(like, joint_terms=("armature",)))
         self.parameters_ = self.structure_.prior()
 
     def fit(self, data=None) -> "CADModel":
@@ -97,6 +103,21 @@ def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructu
         values = doc["parameters"]
     except (OSError, ValueError, KeyError) as exc:
         raise SensorlessError(f"{path}: not a sensorless result file ({exc})") from None
+    if settings.get("structure") == "transmission":
+        from .regressor.transmission import TransmissionStructure
+
+        tree = getattr(robot, "tree", None)
+        if tree is None:
+            raise SensorlessError(f"{path}: a model of a coupled-joint robot ('{doc.get('robot', {}).get('name')}'); "
+                                  f"load it with that robot (e.g. --robot dvrk_psm), not '{robot.name}'")
+        lo, hi = robot.position_limits()
+        structure = TransmissionStructure.from_settings(tree, settings, limits=(lo, hi),
+                                                        velocity_limits=robot.velocity_limits(), name=robot.name)
+        structure.robot.factory = getattr(robot, "factory", None)
+        return structure, _values(path, doc, structure, robot)
+    if hasattr(robot, "make_structure"):
+        raise SensorlessError(f"{path}: identified for '{doc.get('robot', {}).get('name')}' (per-joint model), "
+                              f"not for the coupled-joint robot '{robot.name}'")
     common = {"joint_terms": tuple(settings["joint_terms"]), "coulomb_smoothing": settings.get("coulomb_smoothing", 0.0)}
     if settings.get("contact_frames"):
         from .regressor.contact import ContactStructure
@@ -108,10 +129,15 @@ def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructu
         )
     else:
         structure = ModelStructure(robot, **common, rows=settings.get("rows"))
+    return structure, _values(path, doc, structure, robot)
+
+
+def _values(path: Path, doc: dict, structure: ModelStructure, robot) -> np.ndarray:
+    values = doc["parameters"]
     missing = [lab for lab in structure.labels if lab not in values]
     if missing:
         raise SensorlessError(
             f"{path}: parameters {missing[:5]} are missing; was it identified for another robot "
             f"(file says '{doc.get('robot', {}).get('name')}', given '{robot.name}')?"
         )
-    return structure, np.array([values[lab] for lab in structure.labels])
+    return np.array([values[lab] for lab in structure.labels])

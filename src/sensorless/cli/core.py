@@ -39,7 +39,8 @@ def identify(
     ellipsoids: str = typer.Option("auto", help="lmi: bounding ellipsoids auto | kinematic | none"),
     contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain the prior body"),
     out: Path = typer.Option(..., help="output directory (written atomically)"),
-    joint_terms: str = typer.Option("fv,fc,offset,armature", help="per-joint terms, comma separated"),
+    joint_terms: str = typer.Option("fv,fc,offset,armature", help="per-joint terms, comma separated "
+                                    "(dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
     rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
@@ -119,6 +120,10 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
     terms = tuple(t for t in joint_terms.split(",") if t)
     if coulomb_smoothing < 0:
         raise SensorlessError(f"--coulomb-smoothing must be ≥ 0, got {coulomb_smoothing}")
+    if hasattr(robot, "make_structure"):  # coupled joints (dvrk_psm): drive terms of its own
+        if contact_frames:
+            raise SensorlessError(f"--contact-frames: '{robot.name}' is a fixed-base coupled-joint model")
+        return robot.make_structure(terms, coulomb_smoothing)
     if not contact_frames:
         if contact_dims:
             raise SensorlessError("--contact-dims needs --contact-frames")

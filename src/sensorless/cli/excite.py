@@ -21,7 +21,7 @@ from .common import (
     load_robot_arg,
 )
 
-PSM_NAMES = ("dvrk_psm", "dvrk-psm", "psm")
+from ..robots.dvrk_psm import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
 
 
 def _parse_box(spec: str):
@@ -47,7 +47,7 @@ def _parse_box(spec: str):
 @app.command()
 @guarded
 def excite(
-    robot: str = typer.Option(..., help=ROBOT_HELP + ", or 'dvrk_psm' (coupled PSM model, motor coordinates)"),
+    robot: str = typer.Option(..., help=ROBOT_HELP),
     out: Path = typer.Option(..., help="output directory (written atomically): excitation.json, trajectory.npz"),
     harmonics: int = typer.Option(5, help="Fourier harmonics per joint"),
     base_freq: float = typer.Option(0.1, help="base frequency f0 [Hz] (period 1/f0)"),

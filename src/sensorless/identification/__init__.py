@@ -17,6 +17,7 @@ from .ellipsoids import BoundingEllipsoid, auto_ellipsoids
 from .least_squares import LeastSquaresSolution, excitation_check, solve_least_squares, solve_truncated_svd
 from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
+from .payload import JointConsistency, PayloadEstimate, identify_payload, payload_regressor, point_mass_parameters
 from .result import IdentificationResult
 
 __all__ = [
@@ -38,6 +39,8 @@ __all__ = [
     "solve_lmi",
     "BaseParameters",
     "IdentificationResult",
+    "JointConsistency",
+    "PayloadEstimate",
     "LeastSquaresSolution",
     "METHODS",
     "TorqueMetrics",
@@ -45,6 +48,9 @@ __all__ = [
     "excitation_check",
     "identifiability_report",
     "identify",
+    "identify_payload",
+    "payload_regressor",
+    "point_mass_parameters",
     "solve_least_squares",
     "solve_truncated_svd",
     "torque_metrics",
