@@ -180,6 +180,13 @@ def _export(result, tmp: Path, doc: dict) -> None:
     reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
     bad = [rep.name for rep in reports if not rep.consistent]
     doc["physical_consistency"] = {"inconsistent_bodies": bad, "n_bodies": len(reports)}
+    if hasattr(result.structure, "drive_values"):  # coupled joints: drive terms, no URDF (result.json is the model)
+        from ..identification.result import write_json_atomic
+
+        write_json_atomic(result.structure.drive_values(result.parameters), tmp / "drive_terms.json")
+        doc["urdf"] = None
+        doc["urdf_error"] = f"'{result.robot.name}' has coupled joints; a URDF cannot hold it (result.json does)"
+        return
     terms = JointTerms.from_dict(result.joint_terms())
     write_joint_terms(terms, tmp / "joint_terms.json")
     try:

@@ -8,8 +8,9 @@ the joint torques linearly:
 
 with π̂ the identified robot parameters, Φ_f Pinocchio's body regressor of a body at the
 frame (``pin.frameBodyRegressor``, after ``pin.rnea`` so gravity is included), J_f the
-frame Jacobian in the LOCAL frame and o optional per-joint constant offsets (``offsets=True``:
-a torque bias that changed since the model was identified, e.g. a recalibrated drive). For
+frame Jacobian in the LOCAL frame and o optional per-joint constant offsets (a torque bias
+that changed since the model was identified, e.g. a recalibrated drive; ``offsets="auto"``
+fits them where they are distinguishable from the payload's own torque). For
 a robot driven through a transmission (joints q = Gθ + q₀, e.g. the dVRK PSM in motor
 coordinates) the rows are mapped to the coordinates, Y_p = Gᵀ J_fᵀ Φ_f.
 
@@ -232,34 +233,27 @@ class _Blocks:
 class _System:
     """Weighted normal equations in z = [φ (10), o (rows)] and their reduction to φ."""
 
-    def __init__(self, A: np.ndarray, b: np.ndarray, w: np.ndarray, offsets: bool) -> None:
-        R = A.shape[0]
-        self.offsets = offsets
+    def __init__(self, A: np.ndarray, b: np.ndarray, w: np.ndarray, offsets: np.ndarray) -> None:
+        self.mask = np.asarray(offsets, bool)  # rows with a free offset
+        self.offsets = bool(self.mask.any())
+        mw = w * self.mask
         self.App = np.einsum("r,rij->ij", w, A[:, :10, :10])
         self.bp = np.einsum("r,ri->i", w, b[:, :10])
-        if offsets:
-            self.Apo = (w[:, None] * A[:, :10, 10]).T  # (10, R)
-            self.Aoo = w * A[:, 10, 10]  # diagonal (R,)
-            self.bo = w * b[:, 10]
-            K = self.Apo / self.Aoo
-            self.Ar = self.App - K @ self.Apo.T
-            self.br = self.bp - K @ self.bo
-        else:
-            self.Apo, self.Aoo, self.bo = np.zeros((10, R)), np.ones(R), np.zeros(R)
-            self.Ar, self.br = self.App, self.bp
+        self.Apo = (mw[:, None] * A[:, :10, 10]).T  # (10, R), zero columns for rows without offset
+        self.Aoo = np.where(self.mask, w * A[:, 10, 10], 1.0)  # diagonal (R,)
+        self.bo = mw * b[:, 10]
+        K = self.Apo / self.Aoo
+        self.Ar = self.App - K @ self.Apo.T
+        self.br = self.bp - K @ self.bo
 
     def offsets_for(self, phi: np.ndarray) -> np.ndarray:
-        if not self.offsets:
-            return np.zeros_like(self.bo)
-        return (self.bo - self.Apo.T @ phi) / self.Aoo
+        return np.where(self.mask, (self.bo - self.Apo.T @ phi) / self.Aoo, 0.0)
 
     def profile_score(self, Ab: np.ndarray, bb: np.ndarray, w: np.ndarray, phi: np.ndarray, o: np.ndarray) -> np.ndarray:
         """Score of one block for φ with the offsets profiled out: g_φ − A_φo A_oo⁻¹ g_o."""
         z_res_p = bb[:, :10] - np.einsum("rij,j->ri", Ab[:, :10, :10], phi) - Ab[:, :10, 10] * o[:, None]
         g_p = np.einsum("r,ri->i", w, z_res_p)
-        if not self.offsets:
-            return g_p
-        g_o = w * (bb[:, 10] - Ab[:, 10, :10] @ phi - Ab[:, 10, 10] * o)
+        g_o = w * self.mask * (bb[:, 10] - Ab[:, 10, :10] @ phi - Ab[:, 10, 10] * o)
         return g_p - (self.Apo / self.Aoo) @ g_o
 
 
@@ -376,7 +370,7 @@ def identify_payload(
     frame: str,
     *,
     no_load: Trajectory | Iterable[Trajectory] | None = None,
-    offsets: bool = False,
+    offsets: bool | Sequence[str] = False,
     mode: str = "auto",
     com: Sequence[float] | None = None,
     consistent: bool = True,
@@ -387,6 +381,7 @@ def identify_payload(
     flag_sigma: float = 3.0,
     flag_rel: float = 0.1,
     max_pair_dq: float = 0.05,
+    max_offset_inflation: float = 2.0,
     seed: int = 0,
     chunk: int = 2048,
 ) -> PayloadEstimate:
@@ -398,7 +393,11 @@ def identify_payload(
     :class:`~sensorless.estimators.PhysicalModel` or a ``(structure, parameters)`` pair; any
     structure (URDF arm, a transmission such as the dVRK PSM). ``no_load``: one log per
     payload log, the same trajectory without the payload (row-aligned; positions within
-    ``max_pair_dq``). ``offsets``: fit one constant torque offset per joint.
+    ``max_pair_dq``). ``offsets``: fit one constant torque offset per joint (True), on the
+    listed joints only (names), none (False), or ``"auto"``: on every joint whose offset is
+    distinguishable from the payload, i.e. fitting it alone multiplies the variance of the mass
+    by less than ``max_offset_inflation`` (an offset on a joint that carries the payload's
+    weight at a nearly constant angle, such as a vertical insertion axis, would absorb m·g).
     ``weights``: "auto" (per-joint inverse residual variance) or None (ordinary LS).
     """
     if mode not in MODES:
@@ -421,6 +420,20 @@ def identify_payload(
         if len(refs) != len(logs):
             raise DataError(f"{len(logs)} payload log(s) but {len(refs)} no-load log(s); pair them one to one")
     rows = structure.n_rows
+    joints = list(structure.row_names)
+    auto_offsets = isinstance(offsets, str) and offsets == "auto"
+    if auto_offsets:
+        off_mask = np.ones(rows, bool)  # refined below
+    elif isinstance(offsets, str):
+        raise DataError(f"offsets must be True, False, 'auto' or a list of joints, got {offsets!r}")
+    elif isinstance(offsets, (bool, np.bool_)):
+        off_mask = np.full(rows, bool(offsets))
+    else:
+        names = [str(j) for j in offsets]
+        unknown = [j for j in names if j not in joints]
+        if unknown:
+            raise DataError(f"offsets for unknown joint(s) {unknown}; the model's joints are {joints}")
+        off_mask = np.array([j in names for j in joints])
     blocks = _Blocks(rows)
     ss_before = np.zeros(rows)
     n_total = 0
@@ -452,14 +465,21 @@ def identify_payload(
         z = np.concatenate([np.broadcast_to(phi, (rows, 10)), o[:, None]], axis=1)  # (rows, 11)
         return np.maximum(np.einsum("ri,rij,rj->r", z, A_r, z) - 2 * np.einsum("ri,ri->r", b_r, z) + c_r, 0.0)
 
-    # two-step weights: OLS residual variance per joint
-    w = np.ones(rows)
-    if weights == "auto":
-        sys0 = _System(A_r, b_r, w, offsets)
+    def row_weights(mask: np.ndarray) -> np.ndarray:
+        """Two-step weights: inverse OLS residual variance per joint."""
+        if weights != "auto":
+            return np.ones(rows)
+        sys0 = _System(A_r, b_r, np.ones(rows), mask)
         phi0 = _solve_spd(sys0.Ar + 1e-12 * np.trace(sys0.Ar) * np.eye(10) / 10, sys0.br)
         res = row_ss(phi0, sys0.offsets_for(phi0)) / n
-        w = 1.0 / np.maximum(res, 1e-12 * max(res.max(), 1e-300))
-    system = _System(A_r, b_r, w, offsets)
+        return 1.0 / np.maximum(res, 1e-12 * max(res.max(), 1e-300))
+
+    w = row_weights(off_mask)
+    inflation = _offset_inflation(A_r, b_r, w)
+    if auto_offsets:
+        off_mask = np.array([v < max_offset_inflation for v in inflation])
+        w = row_weights(off_mask)
+    system = _System(A_r, b_r, w, off_mask)
     if np.linalg.eigvalsh(system.Ar)[-1] <= 0:
         raise ExcitationError("the log does not move the payload frame (zero payload regressor)")
     excitation = _inertia_excitation(system.Ar)
@@ -468,7 +488,7 @@ def identify_payload(
     phi, cov_unit, Gphi = solver(system.Ar, system.br)
     o = system.offsets_for(phi)
     res_ss = row_ss(phi, o)
-    k_par = Gphi.shape[1] + (rows if offsets else 0)
+    k_par = Gphi.shape[1] + int(off_mask.sum())
     dof = max(n * rows - k_par, 1)
     s2 = float(w @ res_ss) / dof
     mass_std_a = float(np.sqrt(max(cov_unit[0, 0] * s2, 0.0)))
@@ -492,7 +512,7 @@ def identify_payload(
         samples = []
         for _ in range(n_boot):
             Ab, bb, _, _ = blocks.total(rng.integers(0, nb, nb))
-            sb = _System(Ab, bb, w, offsets)
+            sb = _System(Ab, bb, w, off_mask)
             samples.append(solver(sb.Ar, sb.br)[0])
         samples = np.array(samples)
         boot = float(samples[:, 0].std(ddof=1))
@@ -501,8 +521,7 @@ def identify_payload(
             com_boot = (samples[ok, 1:4] / samples[ok, :1]).std(axis=0, ddof=1)
             com_std = com_boot if com_std is None else np.maximum(com_std, com_boot)
     mass_std = max(mass_std_hac, boot) if boot is not None else mass_std_hac
-    joints = list(structure.row_names)
-    per_joint = _per_joint(blocks, A_r, b_r, phi, mass_std, offsets, joints, flag_sigma, flag_rel)
+    per_joint = _per_joint(blocks, A_r, b_r, phi, mass_std, off_mask, joints, flag_sigma, flag_rel)
     eig = float(np.linalg.eigvalsh(pseudo_inertia(phi))[0])
     gravity = float(np.linalg.norm(robot.model.gravity.linear))
     return PayloadEstimate(
@@ -510,14 +529,30 @@ def identify_payload(
         mass_std=mass_std, mass_std_analytic=mass_std_a, mass_std_bootstrap=boot, mass_std_hac=mass_std_hac,
         com_std=com_std, consistent=eig >= -1e-9 * max(1.0, abs(phi[0])), min_pseudo_inertia_eig=eig,
         residual_rms_before=np.sqrt(ss_before / n), residual_rms_after=np.sqrt(res_ss / n), joints=joints,
-        n_samples=int(n), covariance=cov, offsets=o if offsets else None, per_joint=per_joint, gravity=gravity,
+        n_samples=int(n), covariance=cov, offsets=o if off_mask.any() else None, per_joint=per_joint, gravity=gravity,
         settings={"mode": mode, "consistent": consistent, "weights": weights, "n_boot": n_boot,
                   "block_seconds": block_seconds, "inertia_threshold": inertia_threshold, "seed": seed,
-                  "com": None if com is None else list(map(float, com)), "offsets": offsets,
+                  "com": None if com is None else list(map(float, com)),
+                  "offsets": [j for j, f in zip(joints, off_mask) if f],
                   "paired_no_load": refs is not None, "flag_sigma": flag_sigma, "flag_rel": flag_rel},
         diagnostics={"inertia_excitation": excitation, "mode_used": used, "row_weights": dict(zip(joints, w.tolist())),
+                     "offset_variance_inflation": dict(zip(joints, map(float, inflation))),
                      "n_blocks": nb, "residual_variance_factor": s2},
     )
+
+
+def _offset_inflation(A_r: np.ndarray, b_r: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Per joint: factor by which an offset on that joint alone multiplies the (white-noise)
+    variance of the mass, from the mass / first-moment block of the reduced normal equations."""
+    rows = A_r.shape[0]
+
+    def var_m(mask) -> float:
+        return float(np.linalg.pinv(_System(A_r, b_r, w, mask).Ar[:4, :4])[0, 0])
+
+    base = var_m(np.zeros(rows, bool))
+    if base <= 0:
+        return np.ones(rows)
+    return np.array([var_m(np.eye(rows, dtype=bool)[j]) / base for j in range(rows)])
 
 
 def _per_joint(blocks: _Blocks, A_r, b_r, phi, mass_std, offsets, joints, flag_sigma, flag_rel) -> list[JointConsistency]:
@@ -526,11 +561,11 @@ def _per_joint(blocks: _Blocks, A_r, b_r, phi, mass_std, offsets, joints, flag_s
     if m <= 0:
         return [JointConsistency(j, float("nan"), float("nan"), float("nan"), 0.0, False, False, None) for j in joints]
     u = phi / m
-    cols = [0, 1] if offsets else [0]
     info = np.einsum("i,rij,j->r", u, A_r[:, :10, :10], u)
     share = info / max(info.sum(), 1e-300)
     out = []
     for r, name in enumerate(joints):
+        cols = [0, 1] if offsets[r] else [0]
         # features [Y u, 1] of this row: 2×2 (or 1×1) normal equations from the 11-column blocks
         T = np.zeros((11, 2))
         T[:10, 0], T[10, 1] = u, 1.0
@@ -547,5 +582,5 @@ def _per_joint(blocks: _Blocks, A_r, b_r, phi, mass_std, offsets, joints, flag_s
         informative = bool(std < abs(m))
         flagged = informative and abs(z) > flag_sigma and abs(mj - m) > flag_rel * abs(m)
         out.append(JointConsistency(name, mj, std, float(z), float(share[r]), informative, bool(flagged),
-                                    float(x[1]) if offsets else None))
+                                    float(x[1]) if offsets[r] else None))
     return out
