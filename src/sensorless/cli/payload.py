@@ -86,15 +86,16 @@ def _print(est) -> None:
 
     c, cs = est.com * 1e3, est.com_std * 1e3 if est.com_std is not None else None
     com = ", ".join(f"{x:.1f}" + (f" ± {s:.1f}" if cs is not None else "") for x, s in zip(c, cs if cs is not None else c))
-    console.print(f"[bold]payload at '{est.frame}'[/] [{est.mode}]: m = {est.mass:.4f} ± {est.mass_std:.4f} kg "
+    console.print(f"[bold]payload at '{est.frame}'[/] \\[{est.mode}]: m = {est.mass:.4f} ± {est.mass_std:.4f} kg "
                   f"(m·g = {est.weight:.3f} ± {est.mass_std * est.gravity:.3f} N), CoM = ({com}) mm, "
                   f"physically consistent: {est.consistent}")
-    table = Table(title="per-joint consistency (mass each joint alone implies, CoM fixed)")
-    for col in ("joint", "mass [kg]", "± σ", "z", "share", "offset", "residual rms before → after", "flag"):
+    table = Table(title="per-joint consistency: mass this joint alone implies vs the other joints (CoM fixed)")
+    for col in ("joint", "mass [kg]", "± σ", "others [kg]", "± σ", "z", "share", "offset", "flag"):
         table.add_column(col, justify="right")
+    fitted = set(est.settings.get("offsets") or ())
     for k, j in enumerate(est.per_joint):
-        flag = "[red]CONTRADICTS[/]" if j.flagged else ("uninformative" if not j.informative else "ok")
-        table.add_row(j.joint, f"{j.mass:.4f}", f"{j.std:.4f}", f"{j.z:+.1f}", f"{100 * j.share:.0f} %",
-                      "—" if est.offsets is None else f"{est.offsets[k]:.4g}",
-                      f"{est.residual_rms_before[k]:.4g} → {est.residual_rms_after[k]:.4g}", flag)
+        flag = "[red]CONTRADICTS[/]" if j.flagged else ("ok" if j.informative else "no info")
+        table.add_row(j.joint, f"{j.mass:.4f}", f"{j.std:.4f}", f"{j.others_mass:.4f}", f"{j.others_std:.4f}",
+                      f"{j.z:+.1f}", f"{100 * j.share:.0f} %",
+                      f"{est.offsets[k]:.3g}" if est.offsets is not None and j.joint in fitted else "—", flag)
     console.print(table)

@@ -46,12 +46,12 @@ Uncertainty (logs are time series: residuals are correlated in time and across j
 ``mass_std`` is the larger of the HAC and bootstrap values. Both see noise, not a bias of
 the model: that is what the paired no-load log is for.
 
-Per-joint consistency: with the payload's shape u = φ/m fixed at the joint estimate, each
-joint alone implies a mass m_j (with its own offset when offsets are on), with its own HAC
-standard error σ_j. A joint is flagged when it contradicts the joint estimate both
-statistically (|m_j − m| > ``flag_sigma`` · √(σ_j² + σ_m²)) and materially
-(|m_j − m| > ``flag_rel`` · |m|); joints that hardly see the payload (σ_j > |m|) are
-reported as uninformative, never flagged.
+Per-joint consistency: with the payload's shape u = φ/m fixed at the estimate, each joint's
+equation alone implies a mass m_j (with its own offset when fitted), with its HAC standard
+error σ_j, and the other informative joints together imply m_¬j (σ_¬j). A joint is flagged
+when it contradicts the others both statistically (|m_j − m_¬j| > ``flag_sigma`` ·
+√(σ_j² + σ_¬j²)) and materially (|m_j − m_¬j| > ``flag_rel`` · |m|); joints that hardly see
+the payload (σ_j > |m|) are reported as uninformative, never flagged.
 """
 
 from __future__ import annotations
@@ -108,19 +108,22 @@ def point_mass_parameters(mass: float, com: np.ndarray) -> np.ndarray:
 
 @dataclass
 class JointConsistency:
-    """The mass one joint alone implies (payload shape fixed at the joint estimate)."""
+    """The mass one joint alone implies vs the mass the other joints imply (payload shape fixed)."""
 
     joint: str
-    mass: float
-    std: float
-    z: float  # (m_j − m) / √(σ_j² + σ_m²)
+    mass: float  # m_j from this joint's equation alone
+    std: float  # its HAC standard error σ_j
+    others_mass: float  # m from every other informative joint
+    others_std: float
+    z: float  # (m_j − m_others) / √(σ_j² + σ_others²)
     share: float  # fraction of the payload information this joint carries
-    informative: bool
+    informative: bool  # σ_j < |m|
     flagged: bool
-    offset: float | None  # fitted offset of this joint (joint-wise fit), when offsets are on
+    offset: float | None  # offset of this joint in its own fit, when fitted
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("joint", "mass", "std", "z", "share", "informative", "flagged", "offset")}
+        return {k: getattr(self, k) for k in ("joint", "mass", "std", "others_mass", "others_std", "z", "share",
+                                              "informative", "flagged", "offset")}
 
 
 @dataclass
@@ -521,7 +524,7 @@ def identify_payload(
             com_boot = (samples[ok, 1:4] / samples[ok, :1]).std(axis=0, ddof=1)
             com_std = com_boot if com_std is None else np.maximum(com_std, com_boot)
     mass_std = max(mass_std_hac, boot) if boot is not None else mass_std_hac
-    per_joint = _per_joint(blocks, A_r, b_r, phi, mass_std, off_mask, joints, flag_sigma, flag_rel)
+    per_joint = _per_joint(blocks, A_r, b_r, w, phi, mass_std, off_mask, joints, flag_sigma, flag_rel)
     eig = float(np.linalg.eigvalsh(pseudo_inertia(phi))[0])
     gravity = float(np.linalg.norm(robot.model.gravity.linear))
     return PayloadEstimate(
@@ -555,32 +558,52 @@ def _offset_inflation(A_r: np.ndarray, b_r: np.ndarray, w: np.ndarray) -> np.nda
     return np.array([var_m(np.eye(rows, dtype=bool)[j]) / base for j in range(rows)])
 
 
-def _per_joint(blocks: _Blocks, A_r, b_r, phi, mass_std, offsets, joints, flag_sigma, flag_rel) -> list[JointConsistency]:
-    """Per-joint mass with the payload shape u = φ/m fixed (module docstring)."""
+def _scalar_fit(blocks: _Blocks, A_r, b_r, w, u, offsets, rows) -> tuple[float, float, dict]:
+    """Mass m of the payload shape u from the equations of ``rows`` only (their offsets free
+    where ``offsets``), with its HAC standard error: x = [m, o_r …], row r has features T_rᵀ = [Y_r u, e_r]."""
+    rows = [r for r in rows]
+    off_rows = [r for r in rows if offsets[r]]
+    k = 1 + len(off_rows)
+    T = {}
+    for r in rows:
+        Tr = np.zeros((11, k))
+        Tr[:10, 0] = u
+        if offsets[r]:
+            Tr[10, 1 + off_rows.index(r)] = 1.0
+        T[r] = Tr
+    H = sum(w[r] * T[r].T @ A_r[r] @ T[r] for r in rows)
+    g = sum(w[r] * T[r].T @ b_r[r] for r in rows)
+    if not rows or H[0, 0] <= 1e-14 * max(np.abs(H).max(), 1e-300):
+        return float("nan"), float("inf"), {}
+    x = _solve_spd(H, g)
+    scores = np.array([sum(w[r] * T[r].T @ (blocks.b[i][r] - blocks.A[i][r] @ (T[r] @ x)) for r in rows)
+                       for i in range(len(blocks.n))])
+    std = float(np.sqrt(max(_sandwich(H, scores)[0, 0], 0.0)))
+    return float(x[0]), std, {r: float(x[1 + off_rows.index(r)]) for r in off_rows}
+
+
+def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, mass_std, offsets, joints, flag_sigma, flag_rel) -> list[JointConsistency]:
+    """Per joint: the mass its equation alone implies vs the mass all other joints imply
+    (payload shape u = φ/m fixed at the estimate, offsets free where fitted; module docstring).
+    ``share``: the joint's part of the weighted information uᵀ(Σ_r w_r Y_rᵀY_r)u."""
     m = float(phi[0])
+    R = len(joints)
     if m <= 0:
-        return [JointConsistency(j, float("nan"), float("nan"), float("nan"), 0.0, False, False, None) for j in joints]
+        return [JointConsistency(j, float("nan"), float("nan"), float("nan"), float("nan"), float("nan"), 0.0,
+                                 False, False, None) for j in joints]
     u = phi / m
-    info = np.einsum("i,rij,j->r", u, A_r[:, :10, :10], u)
+    info = w * np.einsum("i,rij,j->r", u, A_r[:, :10, :10], u)
     share = info / max(info.sum(), 1e-300)
+    fits = [_scalar_fit(blocks, A_r, b_r, w, u, offsets, [r]) for r in range(R)]
+    informative = [bool(np.isfinite(f[1]) and f[1] < abs(m)) for f in fits]
     out = []
     for r, name in enumerate(joints):
-        cols = [0, 1] if offsets[r] else [0]
-        # features [Y u, 1] of this row: 2×2 (or 1×1) normal equations from the 11-column blocks
-        T = np.zeros((11, 2))
-        T[:10, 0], T[10, 1] = u, 1.0
-        T = T[:, cols]
-        H = T.T @ A_r[r] @ T
-        if H[0, 0] <= 0:
-            out.append(JointConsistency(name, float("nan"), float("inf"), 0.0, 0.0, False, False, None))
-            continue
-        x = _solve_spd(H, T.T @ b_r[r])
-        scores = np.array([T.T @ (blocks.b[i][r] - blocks.A[i][r] @ (T @ x)) for i in range(len(blocks.n))])
-        std = float(np.sqrt(max(_sandwich(H, scores)[0, 0], 0.0)))
-        mj = float(x[0])
-        z = (mj - m) / max(np.hypot(std, mass_std), 1e-300)
-        informative = bool(std < abs(m))
-        flagged = informative and abs(z) > flag_sigma and abs(mj - m) > flag_rel * abs(m)
-        out.append(JointConsistency(name, mj, std, float(z), float(share[r]), informative, bool(flagged),
-                                    float(x[1]) if offsets[r] else None))
+        mj, sj, off = fits[r]
+        others = [k for k in range(R) if k != r and informative[k]]
+        mo, so, _ = _scalar_fit(blocks, A_r, b_r, w, u, offsets, others) if others else (float("nan"), float("inf"), {})
+        d = mj - mo
+        z = d / max(float(np.hypot(sj, so)), 1e-300) if np.isfinite(d) and np.isfinite(so) else 0.0
+        flagged = informative[r] and np.isfinite(so) and abs(z) > flag_sigma and abs(d) > flag_rel * abs(m)
+        out.append(JointConsistency(name, mj, sj, mo, so, float(z), float(share[r]), informative[r], bool(flagged),
+                                    off.get(r)))
     return out

@@ -15,6 +15,7 @@ same structure with :func:`~.dvrk_psm.published_parameters` and evaluated on the
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -92,8 +93,12 @@ def _table(names, metrics) -> dict:
 
 
 def psm_identification_study(
-    data_dir: str | Path,
+    data_dir: str | Path | None = None,
     *,
+    train: str | Path | None = None,
+    test: str | Path | None = None,
+    params: str | Path | None = None,
+    results: dict | None = None,
     cutoff_hz: float = 5.4,
     methods: Sequence[str] = ("ols", "wls"),
     smoothing: float | str = "cv",
@@ -104,12 +109,27 @@ def psm_identification_study(
 ) -> dict:
     """Identify on one_results, evaluate on two_results; JSON-able report (module docstring).
 
+    Files: ``data_dir`` (the WPI folder holding ``data/psm/...``), or ``train`` / ``test``
+    logs in the same format (any names) and optionally the authors' ``params`` JSON (the
+    published comparison is skipped without it). ``results`` (a dict, optional) receives
+    the :class:`~sensorless.identification.IdentificationResult` of each method.
     ``lmi`` (optional) also runs ``identify(method="lmi", **lmi)`` (physically consistent);
-    the PSM tree is massless, so use e.g. ``{"regularization": None, "ellipsoids": False,
-    "gamma": 0.0}`` or give a ``prior``.
+    the PSM tree is massless, so it runs unregularised unless ``lmi`` gives a ``prior``.
     """
     t0 = time.perf_counter()
-    paths = psm_split_paths(data_dir)
+    if train is not None or test is not None:
+        if train is None or test is None:
+            raise DataError("give both train and test logs (or data_dir)")
+        paths = {"train": Path(train), "test": Path(test)}
+        if params is not None:
+            paths["params"] = Path(params)
+        missing = [str(p) for p in paths.values() if not p.exists()]
+        if missing:
+            raise DataError(f"missing PSM file(s): {missing}")
+    elif data_dir is not None:
+        paths = psm_split_paths(data_dir)
+    else:
+        raise DataError("give data_dir or train and test logs")
     one = read_psm_log(paths["train"], cutoff_hz=cutoff_hz)
     two = read_psm_log(paths["test"], cutoff_hz=cutoff_hz)
     if smoothing == "cv":
@@ -134,23 +154,29 @@ def psm_identification_study(
             **(extra or {}),
         }
 
+    results = {} if results is None else results
     for method in methods:
         res = identify(s, one, method=method)
+        results[method] = res
         add(method, res.parameters, {"rank": res.diagnostics["rank"], "condition_number": res.diagnostics["condition_number"]})
     if lmi is not None:
-        res = identify(s, one, method="lmi", **lmi)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the massless-prior note is in the diagnostics
+            res = identify(s, one, method="lmi", **lmi)
+        results["lmi"] = res
         summ = res.diagnostics.get("lmi", {})
         add("lmi", res.parameters, {k: summ[k] for k in ("solver", "status", "consistent") if k in summ})
-    s_pub = psm_structure(bodies="authors", drives="authors", coulomb_smoothing=0.0)
-    p_pub = published_parameters(s_pub, paths["params"])
-    pub_te = s_pub.torques(p_pub, two)
-    report["published"] = {
-        "test_nrmse": _table(names, torque_metrics(y_test, pub_te, names).nrmse),
-        "test_nrmse_raw_effort": _table(names, torque_metrics(y_raw, pub_te, names).nrmse),
-        "test_rel_rms": _table(names, torque_metrics(y_test, pub_te, names).rel_rms),
-        "train_nrmse": _table(names, torque_metrics(s_pub.target(one), s_pub.torques(p_pub, one), names).nrmse),
-        "note": "authors' params.json mapped with published_parameters (CoM inertia, sign Coulomb)",
-    }
+    if "params" in paths:
+        s_pub = psm_structure(bodies="authors", drives="authors", coulomb_smoothing=0.0)
+        p_pub = published_parameters(s_pub, paths["params"])
+        pub_te = s_pub.torques(p_pub, two)
+        report["published"] = {
+            "test_nrmse": _table(names, torque_metrics(y_test, pub_te, names).nrmse),
+            "test_nrmse_raw_effort": _table(names, torque_metrics(y_raw, pub_te, names).nrmse),
+            "test_rel_rms": _table(names, torque_metrics(y_test, pub_te, names).rel_rms),
+            "train_nrmse": _table(names, torque_metrics(s_pub.target(one), s_pub.torques(p_pub, one), names).nrmse),
+            "note": "authors' params.json mapped with published_parameters (CoM inertia, sign Coulomb)",
+        }
     report["settings"] = {
         "train": str(paths["train"]),
         "test": str(paths["test"]),
