@@ -51,7 +51,10 @@ equation alone implies a mass m_j (with its own offset when fitted), with its HA
 error σ_j, and the other informative joints together imply m_¬j (σ_¬j). A joint is flagged
 when it contradicts the others both statistically (|m_j − m_¬j| > ``flag_sigma`` ·
 √(σ_j² + σ_¬j²)) and materially (|m_j − m_¬j| > ``flag_rel`` · |m|); joints that hardly see
-the payload (σ_j > |m|) are reported as uninformative, never flagged.
+the payload (σ_j > |m|) are reported as uninformative, never flagged. A wrong joint also
+distorts the fitted shape u, so flagged joints are set aside one at a time (largest |z|
+first), the shape refitted without them and the others re-checked;
+``diagnostics["mass_without_flagged"]`` is the mass without the flagged joints.
 """
 
 from __future__ import annotations
@@ -524,7 +527,24 @@ def identify_payload(
             com_boot = (samples[ok, 1:4] / samples[ok, :1]).std(axis=0, ddof=1)
             com_std = com_boot if com_std is None else np.maximum(com_std, com_boot)
     mass_std = max(mass_std_hac, boot) if boot is not None else mass_std_hac
-    per_joint = _per_joint(blocks, A_r, b_r, w, phi, mass_std, off_mask, joints, flag_sigma, flag_rel)
+    # per-joint check; a contradicting joint also distorts the fitted shape, so flagged joints are
+    # set aside one at a time (largest |z| first) and the others re-checked without them
+    excluded = np.zeros(rows, bool)
+    final: dict[int, JointConsistency] = {}
+    phi_ok = phi
+    for _ in range(rows):
+        if excluded.any():
+            sys_x = _System(A_r, b_r, w * ~excluded, off_mask)
+            phi_ok = solver(sys_x.Ar, sys_x.br)[0]
+        checks = _per_joint(blocks, A_r, b_r, w, phi_ok, off_mask, joints, flag_sigma, flag_rel, excluded)
+        bad = [r for r, c in enumerate(checks) if c.flagged and not excluded[r]]
+        if not bad:
+            final.update({r: c for r, c in enumerate(checks) if not excluded[r]})
+            break
+        worst = max(bad, key=lambda r: abs(checks[r].z))
+        final[worst] = checks[worst]
+        excluded[worst] = True
+    per_joint = [final[r] for r in range(rows)]
     eig = float(np.linalg.eigvalsh(pseudo_inertia(phi))[0])
     gravity = float(np.linalg.norm(robot.model.gravity.linear))
     return PayloadEstimate(
@@ -540,7 +560,8 @@ def identify_payload(
                   "paired_no_load": refs is not None, "flag_sigma": flag_sigma, "flag_rel": flag_rel},
         diagnostics={"inertia_excitation": excitation, "mode_used": used, "row_weights": dict(zip(joints, w.tolist())),
                      "offset_variance_inflation": dict(zip(joints, map(float, inflation))),
-                     "n_blocks": nb, "residual_variance_factor": s2},
+                     "n_blocks": nb, "residual_variance_factor": s2,
+                     "mass_without_flagged": float(phi_ok[0]) if excluded.any() else None},
     )
 
 
@@ -582,10 +603,10 @@ def _scalar_fit(blocks: _Blocks, A_r, b_r, w, u, offsets, rows) -> tuple[float, 
     return float(x[0]), std, {r: float(x[1 + off_rows.index(r)]) for r in off_rows}
 
 
-def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, mass_std, offsets, joints, flag_sigma, flag_rel) -> list[JointConsistency]:
-    """Per joint: the mass its equation alone implies vs the mass all other joints imply
-    (payload shape u = φ/m fixed at the estimate, offsets free where fitted; module docstring).
-    ``share``: the joint's part of the weighted information uᵀ(Σ_r w_r Y_rᵀY_r)u."""
+def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, offsets, joints, flag_sigma, flag_rel, excluded) -> list[JointConsistency]:
+    """Per joint: the mass its equation alone implies vs the mass all other informative joints
+    (``excluded`` left out) imply, payload shape u = φ/m fixed, offsets free where fitted
+    (module docstring). ``share``: the joint's part of the weighted information uᵀ(Σ_r w_r Y_rᵀY_r)u."""
     m = float(phi[0])
     R = len(joints)
     if m <= 0:
@@ -599,7 +620,7 @@ def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, mass_std, offsets, joints, fla
     out = []
     for r, name in enumerate(joints):
         mj, sj, off = fits[r]
-        others = [k for k in range(R) if k != r and informative[k]]
+        others = [k for k in range(R) if k != r and informative[k] and not excluded[k]]
         mo, so, _ = _scalar_fit(blocks, A_r, b_r, w, u, offsets, others) if others else (float("nan"), float("inf"), {})
         d = mj - mo
         z = d / max(float(np.hypot(sj, so)), 1e-300) if np.isfinite(d) and np.isfinite(so) else 0.0
