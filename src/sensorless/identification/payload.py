@@ -536,7 +536,7 @@ def identify_payload(
         if excluded.any():
             sys_x = _System(A_r, b_r, w * ~excluded, off_mask)
             phi_ok = solver(sys_x.Ar, sys_x.br)[0]
-        checks = _per_joint(blocks, A_r, b_r, w, phi_ok, off_mask, joints, flag_sigma, flag_rel, excluded)
+        checks = _per_joint(blocks, A_r, b_r, w, phi_ok, cov, off_mask, joints, flag_sigma, flag_rel, excluded)
         bad = [r for r, c in enumerate(checks) if c.flagged and not excluded[r]]
         if not bad:
             final.update({r: c for r, c in enumerate(checks) if not excluded[r]})
@@ -579,7 +579,7 @@ def _offset_inflation(A_r: np.ndarray, b_r: np.ndarray, w: np.ndarray) -> np.nda
     return np.array([var_m(np.eye(rows, dtype=bool)[j]) / base for j in range(rows)])
 
 
-def _scalar_fit(blocks: _Blocks, A_r, b_r, w, u, offsets, rows) -> tuple[float, float, dict]:
+def _scalar_fit(blocks: _Blocks, A_r, b_r, w, u, offsets, rows, hac: bool = True) -> tuple[float, float, dict]:
     """Mass m of the payload shape u from the equations of ``rows`` only (their offsets free
     where ``offsets``), with its HAC standard error: x = [m, o_r …], row r has features T_rᵀ = [Y_r u, e_r]."""
     rows = [r for r in rows]
@@ -597,16 +597,22 @@ def _scalar_fit(blocks: _Blocks, A_r, b_r, w, u, offsets, rows) -> tuple[float, 
     if not rows or H[0, 0] <= 1e-14 * max(np.abs(H).max(), 1e-300):
         return float("nan"), float("inf"), {}
     x = _solve_spd(H, g)
+    if not hac:
+        return float(x[0]), float("nan"), {}
     scores = np.array([sum(w[r] * T[r].T @ (blocks.b[i][r] - blocks.A[i][r] @ (T[r] @ x)) for r in rows)
                        for i in range(len(blocks.n))])
     std = float(np.sqrt(max(_sandwich(H, scores)[0, 0], 0.0)))
     return float(x[0]), std, {r: float(x[1 + off_rows.index(r)]) for r in off_rows}
 
 
-def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, offsets, joints, flag_sigma, flag_rel, excluded) -> list[JointConsistency]:
+def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, cov, offsets, joints, flag_sigma, flag_rel, excluded) -> list[JointConsistency]:
     """Per joint: the mass its equation alone implies vs the mass all other informative joints
     (``excluded`` left out) imply, payload shape u = φ/m fixed, offsets free where fitted
-    (module docstring). ``share``: the joint's part of the weighted information uᵀ(Σ_r w_r Y_rᵀY_r)u."""
+    (module docstring). Standard errors: HAC of the scalar fit plus the propagated uncertainty
+    of the shape, Σ_k ((m(φ + √λ_k v_k) − m(φ − √λ_k v_k))/2)² over the eigenpairs of the
+    covariance of φ (a joint whose payload torque hinges on the CoM, such as a wrist joint,
+    gets the CoM's uncertainty). ``share``: the joint's part of the weighted information
+    uᵀ(Σ_r w_r Y_rᵀY_r)u."""
     m = float(phi[0])
     R = len(joints)
     if m <= 0:
@@ -615,13 +621,30 @@ def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, offsets, joints, flag_sigma, f
     u = phi / m
     info = w * np.einsum("i,rij,j->r", u, A_r[:, :10, :10], u)
     share = info / max(info.sum(), 1e-300)
-    fits = [_scalar_fit(blocks, A_r, b_r, w, u, offsets, [r]) for r in range(R)]
+    lam, vec = np.linalg.eigh(0.5 * (cov + cov.T))
+    steps = [np.sqrt(l) * v for l, v in zip(lam, vec.T) if l > 1e-12 * max(lam.max(), 1e-300)]
+
+    def fit(rows):
+        mj, sj, off = _scalar_fit(blocks, A_r, b_r, w, u, offsets, rows)
+        if not np.isfinite(sj):
+            return mj, sj, off
+        shape2 = 0.0
+        for d in steps:
+            up, dn = phi + d, phi - d
+            if up[0] <= 0 or dn[0] <= 0:
+                continue
+            mp = _scalar_fit(blocks, A_r, b_r, w, up / up[0], offsets, rows, hac=False)[0]
+            mm = _scalar_fit(blocks, A_r, b_r, w, dn / dn[0], offsets, rows, hac=False)[0]
+            shape2 += (0.5 * (mp - mm)) ** 2
+        return mj, float(np.hypot(sj, np.sqrt(shape2))), off
+
+    fits = [fit([r]) for r in range(R)]
     informative = [bool(np.isfinite(f[1]) and f[1] < abs(m)) for f in fits]
     out = []
     for r, name in enumerate(joints):
         mj, sj, off = fits[r]
         others = [k for k in range(R) if k != r and informative[k] and not excluded[k]]
-        mo, so, _ = _scalar_fit(blocks, A_r, b_r, w, u, offsets, others) if others else (float("nan"), float("inf"), {})
+        mo, so, _ = fit(others) if others else (float("nan"), float("inf"), {})
         d = mj - mo
         z = d / max(float(np.hypot(sj, so)), 1e-300) if np.isfinite(d) and np.isfinite(so) else 0.0
         flagged = informative[r] and np.isfinite(so) and abs(z) > flag_sigma and abs(d) > flag_rel * abs(m)
