@@ -111,6 +111,8 @@ def psm_identify(
     params: Optional[Path] = typer.Option(None, help="optional: the authors' params.json, for comparison"),
     save: str = typer.Option("ols", help="which model result.json holds: ols | wls | lmi"),
     cutoff: float = typer.Option(5.4, help="zero-phase low-pass cut-off [Hz] on q, q̇ and effort"),
+    smoothing: str = typer.Option("cv", help="Coulomb smoothing ε [rad/s], or 'cv' (3-fold cross-validation on the "
+                                             "training log; slow)"),
     lmi: bool = typer.Option(False, help="also solve the physically consistent (LMI) problem"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
@@ -125,13 +127,18 @@ def psm_identify(
 
     if data is None and (train is None or test is None):
         raise ExcitationError("give --data (the WPI folder) or both --train and --test")
+    if smoothing != "cv":
+        try:
+            smoothing = float(smoothing)
+        except ValueError:
+            raise ExcitationError(f"--smoothing must be a number or 'cv', got '{smoothing}'") from None
     if save not in ("ols", "wls", "lmi"):
         raise ExcitationError(f"--save must be ols, wls or lmi, got '{save}'")
     with atomic_outdir(out, force) as tmp:
         results: dict = {}
         with err_console.status("identifying the PSM (smoothing chosen by cross-validation on the training log) …"):
             report = psm_identification_study(
-                data, train=train, test=test, params=params, results=results, cutoff_hz=cutoff,
+                data, train=train, test=test, params=params, results=results, cutoff_hz=cutoff, smoothing=smoothing,
                 lmi={"ellipsoids": False, "regularization": None, "gamma": 0.0} if (lmi or save == "lmi") else None,
             )
         write_json_atomic(report, tmp / "psm_identification.json")
