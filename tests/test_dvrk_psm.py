@@ -214,3 +214,18 @@ def test_lmi_with_default_arguments_runs_on_the_psm():
     assert np.all(res.train_metrics.nrmse < 2 * ols.train_metrics.nrmse + 1e-3)
     pred = res.predict(psm_motion(2, 5.0).with_(tau=np.zeros((500, 7))))
     assert pred.shape == (500, 7) and np.all(np.isfinite(pred))
+
+
+def test_estimators_accept_the_psm_robot():
+    """PhysicalModel / CADModel build the PSM's own structure from its coordinate robot."""
+    from sensorless.estimators import CADModel, PhysicalModel
+    from sensorless.robots import psm_robot
+
+    s, p = psm_truth(np.random.default_rng(5), coulomb_smoothing=0.0)
+    mot = psm_motion(3, 10.0)
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p)
+    phys = PhysicalModel(psm_robot()).fit(log)
+    assert phys.structure_.settings()["structure"] == "transmission"
+    assert phys.score(log).rmse.max() < 1e-8  # noiseless, the structure contains the truth
+    cad = CADModel(psm_robot())
+    assert np.allclose(cad.predict(log), 0.0)  # the tree carries no inertials and no drive terms

@@ -247,3 +247,14 @@ def test_paired_log_errors(psm_case):
         identify_payload(result, log, PSM_LINK, no_load=[log, log], n_boot=0)
     with pytest.raises(DataError, match="unknown joint"):
         identify_payload(result, log, PSM_LINK, offsets=["q9"], n_boot=0)
+
+
+def test_no_payload_in_com_mode_terminates_at_zero(psm_case):
+    """With no payload the point-mass CoM c = (m c)/m is noise over noise: the fit (and every
+    bootstrap resample) must stop at m = 0 instead of iterating to an overflow."""
+    s, p, result = psm_case
+    mot = psm_motion(14, 10.0)
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + np.random.default_rng(15).normal(size=(len(mot), 7)) * 0.01)
+    est = identify_payload(result, log, PSM_LINK, mode="com", n_boot=50)
+    assert est.mass < 5 * est.mass_std + 1e-3 and np.isfinite(est.mass_std)
+    assert np.isfinite(est.diagnostics["mass_unconstrained"])

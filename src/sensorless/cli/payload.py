@@ -85,9 +85,12 @@ def _print(est) -> None:
     from rich.table import Table
 
     c, cs = est.com * 1e3, est.com_std * 1e3 if est.com_std is not None else None
-    com = ", ".join(f"{x:.1f}" + (f" ± {s:.1f}" if cs is not None else "") for x, s in zip(c, cs if cs is not None else c))
+    if est.mass > 0:
+        com = "(" + ", ".join(f"{x:.1f}" + (f" ± {s:.1f}" if cs is not None else "") for x, s in zip(c, cs if cs is not None else c)) + ") mm"
+    else:
+        com = f"undefined (least-squares mass without the m ≥ 0 bound: {est.diagnostics['mass_unconstrained']:.4f} kg)"
     console.print(f"[bold]payload at '{est.frame}'[/] \\[{est.mode}]: m = {est.mass:.4f} ± {est.mass_std:.4f} kg "
-                  f"(m·g = {est.weight:.3f} ± {est.mass_std * est.gravity:.3f} N), CoM = ({com}) mm, "
+                  f"(m·g = {est.weight:.3f} ± {est.mass_std * est.gravity:.3f} N), CoM = {com}, "
                   f"physically consistent: {est.consistent}")
     table = Table(title="per-joint consistency: mass this joint alone implies vs the other joints (CoM fixed)")
     for col in ("joint", "mass [kg]", "± σ", "others [kg]", "± σ", "z", "share", "offset", "flag"):

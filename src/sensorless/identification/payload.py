@@ -75,6 +75,9 @@ from ..robot import Robot
 __all__ = ["JointConsistency", "PayloadEstimate", "identify_payload", "payload_regressor", "point_mass_parameters"]
 
 MODES = ("auto", "full", "com", "mass")
+MAX_COM = 10.0
+"""[m] A point-mass CoM farther than this from the frame is taken as "no payload" (mode com):
+it only happens when the fitted mass is ≈ 0 and c = (m c)/m is noise over noise."""
 
 
 def payload_regressor(robot: Robot, Q: np.ndarray, V: np.ndarray, A: np.ndarray, frame: str) -> np.ndarray:
@@ -288,9 +291,9 @@ class _Solver:
                 G[4:, 0] = point_mass_parameters(1.0, c)[4:]
                 Ar, br = G.T @ A @ G, G.T @ b
                 x = _solve_spd(Ar, br)
-                if x[0] <= 0:
-                    x = np.zeros(4)
                 c_new = x[1:4] / x[0] if x[0] > 0 else np.zeros(3)
+                if not (x[0] > 0 and np.all(np.isfinite(c_new)) and np.linalg.norm(c_new) < MAX_COM):
+                    x, c_new = np.zeros(4), np.zeros(3)  # no (physical) payload: m ≤ 0 or CoM out of reach
                 if np.allclose(c_new, c, atol=1e-9):
                     break
                 c = c_new
@@ -561,8 +564,18 @@ def identify_payload(
         diagnostics={"inertia_excitation": excitation, "mode_used": used, "row_weights": dict(zip(joints, w.tolist())),
                      "offset_variance_inflation": dict(zip(joints, map(float, inflation))),
                      "n_blocks": nb, "residual_variance_factor": s2,
-                     "mass_without_flagged": float(phi_ok[0]) if excluded.any() else None},
+                     "mass_without_flagged": float(phi_ok[0]) if excluded.any() else None,
+                     "mass_unconstrained": _unconstrained_mass(system, phi, com_arr)},
     )
+
+
+def _unconstrained_mass(system: _System, phi: np.ndarray, com: np.ndarray) -> float:
+    """Least-squares mass with the CoM fixed (at the estimate, or ``com`` when m = 0) and no
+    positivity: shows how negative the data would have it when the estimate is clamped at 0."""
+    c = phi[1:4] / phi[0] if phi[0] > 0 else com
+    g = point_mass_parameters(1.0, c)
+    a = float(g @ system.Ar @ g)
+    return float(g @ system.br) / a if a > 0 else float("nan")
 
 
 def _offset_inflation(A_r: np.ndarray, b_r: np.ndarray, w: np.ndarray) -> np.ndarray:
