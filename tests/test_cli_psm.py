@@ -201,3 +201,20 @@ def test_payload_acceptance_on_the_real_psm_trajectory(tmp_path, mass):
     doc = json.loads((tmp_path / "payload.json").read_text())
     assert abs(doc["weight_N"] - mass * 9.81) / (mass * 9.81) < 0.10, doc["weight_N"]
     assert abs(doc["mass"] - mass) < 3 * doc["mass_std"] + 0.02 * mass
+
+
+def test_every_psm_name_loads_the_psm_in_every_command(tmp_path):
+    """excite, identify, predict, estimate-force and payload share one loader: the names excite
+    accepted are the names every command accepts (regression: only excite knew them)."""
+    from sensorless.cli.common import load_robot_arg
+    from sensorless.cli.excite import PSM_NAMES
+    from sensorless.robots import COORDINATES
+
+    for name in PSM_NAMES + ("DVRK_PSM",):
+        assert load_robot_arg(name, None, None).joint_names == COORDINATES
+    code, out = _run(["excite", "--robot", "dvrk_psm", "--harmonics", "1", "--n-samples", "20", "--maxiter", "1",
+                      "--base-freq", "0.2", "--out", tmp_path / "exc"])
+    assert code == 0, out
+    code, out = _run(["identify", "--robot", "dvrk_psm", "--lock", "q1", "--data", tmp_path / "none.csv",
+                      "--out", tmp_path / "m"])
+    assert code == 2 and "--lock" in out and "neither a .urdf" not in out
