@@ -131,12 +131,6 @@ def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructu
 
 
 def _structure_from_settings(settings: dict, doc: dict, robot: Robot) -> ModelStructure:
-    terms = settings["joint_terms"]
-    if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
-        raise TypeError(f"settings.joint_terms must be a list of names, got {terms!r}")
-    eps = settings.get("coulomb_smoothing", 0.0)
-    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not (np.isfinite(eps) and eps >= 0):
-        raise TypeError(f"settings.coulomb_smoothing must be a number >= 0, got {eps!r}")
     file_robot = doc.get("robot", {}).get("name") if isinstance(doc.get("robot"), dict) else None
     if settings.get("structure") == "transmission":
         from .regressor.transmission import TransmissionStructure
@@ -150,6 +144,12 @@ def _structure_from_settings(settings: dict, doc: dict, robot: Robot) -> ModelSt
                                                         velocity_limits=robot.velocity_limits(), name=robot.name)
         structure.robot.factory = getattr(robot, "factory", None)
         return structure
+    terms = settings["joint_terms"]
+    if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
+        raise TypeError(f"settings.joint_terms must be a list of names, got {terms!r}")
+    eps = settings.get("coulomb_smoothing", 0.0)
+    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not (np.isfinite(eps) and eps >= 0):
+        raise TypeError(f"settings.coulomb_smoothing must be a number >= 0, got {eps!r}")
     if hasattr(robot, "make_structure"):
         raise ParameterError(f"identified for '{file_robot}' (per-joint model), "
                              f"not for the coupled-joint robot '{robot.name}'")
