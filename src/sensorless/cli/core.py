@@ -42,7 +42,7 @@ from .common import (
 @guarded
 def identify(
     robot: str = typer.Option(..., help=ROBOT_HELP),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5"),
+    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag folder"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on"),
     method: str = typer.Option("ols", help="ols | wls | lmi (physically consistent) | svd"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
