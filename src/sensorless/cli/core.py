@@ -356,7 +356,7 @@ def _lmi_kwargs(robot, structure, method, prior, regularization, gamma, ellipsoi
 def _export(result, tmp: Path, doc: dict) -> None:
     """URDF + joint terms; a model that is not a physical body is reported, not exported."""
     from ..errors import SensorlessError as _E
-    from ..export import write_joint_terms, write_urdf
+    from ..export import write_joint_terms
     from ..parameters import JointTerms, check_physical_consistency
 
     reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
@@ -372,7 +372,9 @@ def _export(result, tmp: Path, doc: dict) -> None:
     terms = JointTerms.from_dict(result.joint_terms())
     write_joint_terms(terms, tmp / "joint_terms.json")
     try:
-        write_urdf(result.robot, result.inertial_parameters, tmp / "model.urdf", joint_terms=terms)
+        from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf
+
+        _, doc["urdf_export"] = export_urdf(result.robot, result.inertial_parameters, tmp / "model.urdf", joint_terms=terms)
         doc["urdf"] = "model.urdf"
     except _E as exc:
         doc["urdf"] = None
