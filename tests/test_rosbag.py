@@ -192,6 +192,9 @@ def test_cli_identify_reads_a_bag(tmp_path):
     res = CliRunner().invoke(app, ["identify", "--robot", "ur5", "--data", str(bag), "--out", str(out)])
     assert res.exit_code == 0, res.output
     doc = json.loads((out / "result.json").read_text())
+    page = (out / "report.html").read_text()  # the run's one-page report: metrics, plot, consistency, settings
+    for needle in ("shoulder_pan_joint", "data:image/png;base64,", "Physical consistency", "Identifiability", str(bag)):
+        assert needle in page, needle
     assert doc["train_metrics"]["n_samples"] == len(traj) and doc["train_metrics"]["mean_nrmse"] < 0.05
     bad = CliRunner().invoke(app, ["identify", "--robot", "panda", "--data", str(bag), "--out", str(tmp_path / "p")])
     assert bad.exit_code == 2 and "/joint_states" in bad.output and not (tmp_path / "p").exists()

@@ -91,7 +91,7 @@ def identify(
                                                      "an address: wait until this many workers are connected"),
     skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
 ) -> None:
-    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png.
+    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png, report.html.
 
     --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
     from ..estimators import CADModel
@@ -184,6 +184,9 @@ def identify(
         from ..identification.result import write_json_atomic
 
         write_json_atomic(doc, tmp / "result.json")
+        from ..report.html import write_html_report
+
+        write_html_report(tmp, doc)
     d = result.diagnostics
     extra = (f"γ = {d['gamma']:.3g}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
              f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
