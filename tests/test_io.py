@@ -371,3 +371,43 @@ def test_sigterm_during_replacement_keeps_previous_output(tmp_path):
 
 def test_output_error_is_a_sensorless_error():
     assert issubclass(OutputError, SensorlessError)
+
+
+def test_write_npz_is_atomic_and_exact(tmp_path, monkeypatch):
+    """write_npz writes exactly PATH (no '.npz' appended, no temp left); a failed write keeps the old file."""
+    from sensorless.data import Trajectory, write_npz
+
+    t = np.arange(5) * 0.01
+    traj = Trajectory(t=t, q=np.zeros((5, 2)), v=np.zeros((5, 2)), a=np.zeros((5, 2)), tau=np.ones((5, 2)),
+                      joint_names=("a", "b"))
+    out = write_npz(traj, tmp_path / "log.bin")
+    assert out == tmp_path / "log.bin" and sorted(p.name for p in tmp_path.iterdir()) == ["log.bin"]
+    before = out.read_bytes()
+
+    def boom(*a, **k):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(np, "savez", boom)
+    with pytest.raises(RuntimeError):
+        write_npz(traj, out)
+    assert out.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["log.bin"]
+
+
+def test_malformed_learned_model_description_is_a_data_error(tmp_path):
+    """A model.json that parses but lacks keys (e.g. 'params') is a DataError naming the folder."""
+    import json
+
+    torch = pytest.importorskip("torch")
+    from sensorless.learning.io import save_network
+    from sensorless.learning.models import LearnedTorqueModel
+    from sensorless.errors import DataError
+
+    from sensorless.learning.mlp import build_network
+
+    arch = {"kind": "mlp", "in_dim": 2, "out_dim": 2, "hidden": [4], "activation": "relu"}
+    d = save_network(tmp_path / "m", build_network(arch), {"type": "LearnedTorqueModel", "architecture": arch})
+    meta = json.loads((d / "model.json").read_text())
+    meta.pop("params", None)
+    (d / "model.json").write_text(json.dumps(meta))
+    with pytest.raises(DataError, match="incomplete or malformed"):
+        LearnedTorqueModel.load(d)

@@ -216,12 +216,9 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
     for key in JOINT_EXTRAS + CONTACT_KEYS + IMU_KEYS:
         if key in traj.extras:
             data[key] = np.asarray(traj.extras[key], dtype=float)
-    try:
-        with open(path, "wb") as fh:  # file handle: np.savez would append ".npz"
-            np.savez(fh, **data)
-    except OSError as exc:
-        raise DataError(f"cannot write NPZ: {exc.strerror or exc}", str(path)) from None
-    return path
+    from ..io import write_npz_atomic  # hidden sibling + rename: a failed write leaves no partial file
+
+    return write_npz_atomic(path, **data)
 
 
 # ---- NPZ / HDF5 ------------------------------------------------------------------

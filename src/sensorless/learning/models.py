@@ -17,6 +17,7 @@ inputs and targets, and saved as weights + JSON (:mod:`sensorless.learning.io`).
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
@@ -124,7 +125,21 @@ class _Network:
         return {}
 
 
+@contextlib.contextmanager
+def _meta_errors(directory):
+    """A model.json that parses but lacks or mistypes a key → DataError naming the directory."""
+    try:
+        yield
+    except SensorlessError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise DataError(f"saved model description is incomplete or malformed ({type(exc).__name__}: {exc})",
+                        str(directory)) from None
+
+
 def _check_type(meta: dict, expected: str, directory) -> None:
+    if not isinstance(meta, dict):
+        raise DataError("saved model description is not a JSON object", str(directory))
     if meta.get("type") != expected:
         raise DataError(f"saved model is a {meta.get('type')!r}, not a {expected}", str(directory))
 
@@ -214,16 +229,17 @@ class MLPTorqueModel(_Network):
         """Load a saved model; custom ``features``/``targets`` callables must be given again."""
         net, meta = load_network(directory)
         _check_type(meta, cls.__name__, directory)
-        p = meta["params"]
-        if p.get("features") and features is None:
-            raise DataError(f"this model was trained with features={p['features']}; pass the same callable to load()", str(directory))
-        obj = cls.__new__(cls)
-        obj._init_from_params(p, features, targets)
-        f = _CallableFeatures(features) if features is not None else WindowFeatures.from_dict(meta["features"])
-        if features is not None:
-            f.scaler = Standardizer.from_dict(meta["features"]["scaler"])
-        obj._restore(net, meta, f)
-        return obj
+        with _meta_errors(directory):
+            p = meta["params"]
+            if p.get("features") and features is None:
+                raise DataError(f"this model was trained with features={p['features']}; pass the same callable to load()", str(directory))
+            obj = cls.__new__(cls)
+            obj._init_from_params(p, features, targets)
+            f = _CallableFeatures(features) if features is not None else WindowFeatures.from_dict(meta["features"])
+            if features is not None:
+                f.scaler = Standardizer.from_dict(meta["features"]["scaler"])
+            obj._restore(net, meta, f)
+            return obj
 
     def _init_from_params(self, p: dict, features, targets) -> None:
         MLPTorqueModel.__init__(self, p["hidden"], p["activation"], features=features, targets=targets,
@@ -272,11 +288,12 @@ class LearnedTorqueModel(MLPTorqueModel):
     def load(cls, directory: str | Path, robot: Robot | None = None) -> LearnedTorqueModel:  # type: ignore[override]
         net, meta = load_network(directory)
         _check_type(meta, cls.__name__, directory)
-        p = meta["params"]
-        obj = cls(robot, window=p["window"], stride=p["stride"], hidden=p["hidden"], activation=p["activation"],
-                  kind=p.get("kind", "mlp"), per_joint=p["per_joint"])
-        obj._restore(net, meta, WindowFeatures.from_dict(meta["features"]))
-        return obj
+        with _meta_errors(directory):
+            p = meta["params"]
+            obj = cls(robot, window=p["window"], stride=p["stride"], hidden=p["hidden"], activation=p["activation"],
+                      kind=p.get("kind", "mlp"), per_joint=p["per_joint"])
+            obj._restore(net, meta, WindowFeatures.from_dict(meta["features"]))
+            return obj
 
 
 class ParameterModel:
@@ -388,8 +405,9 @@ class HybridModel(_Network):
         """Load a saved residual and attach it to ``physical_model`` (the one it was trained with)."""
         net, meta = load_network(directory)
         _check_type(meta, cls.__name__, directory)
-        p = meta["params"]
-        obj = cls(physical_model, window=p["window"], stride=p["stride"], hidden=p["hidden"], activation=p["activation"],
-                  per_joint=p["per_joint"], use_model_torque=p["use_model_torque"])
-        obj._restore(net, meta, WindowFeatures.from_dict(meta["features"]))
-        return obj
+        with _meta_errors(directory):
+            p = meta["params"]
+            obj = cls(physical_model, window=p["window"], stride=p["stride"], hidden=p["hidden"], activation=p["activation"],
+                      per_joint=p["per_joint"], use_model_torque=p["use_model_torque"])
+            obj._restore(net, meta, WindowFeatures.from_dict(meta["features"]))
+            return obj
