@@ -57,8 +57,11 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
     if method == "lmi" and kw.get("gamma", 1e-3) == "auto":
         from .lmi import cross_validate_gamma
 
-        w = kw.get("weights")
-        row_w = None if w is None or isinstance(w, str) else 1.0 / np.asarray(w, dtype=float) ** 2
+        from .least_squares import row_weights
+
+        w = kw.get("weights", "auto")
+        row_w = row_weights(fleet.equations, "auto" if isinstance(w, str) and w != "none" else
+                            None if w is None or isinstance(w, str) else np.asarray(w, dtype=float))
         cv = cross_validate_gamma(structure, fleet.folds, prior=kw.get("prior"),
                                   regularization=kw.get("regularization", "pullback"),
                                   ellipsoids=kw.get("ellipsoids"), row_weights=row_w, **dict(kw.get("lmi_options") or {}))

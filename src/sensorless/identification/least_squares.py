@@ -22,7 +22,7 @@ from ..regressor.compress import NormalEquations
 from .base import BaseParameters
 
 __all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd", "excitation_check",
-           "sample_count_check"]
+           "sample_count_check", "two_step_sigma", "row_weights", "joint_term_inflation"]
 
 # Below this ratio of smallest to largest singular value of the equilibrated base
 # regressor, a direction of parameter space is considered not excited by the data.
@@ -167,3 +167,58 @@ def solve_truncated_svd(ne: NormalEquations, rcond: float = 1e-6, row_weights: n
         raise ExcitationError("the data excite no parameter at all")
     z = U[:, keep] @ ((U[:, keep].T @ (b / d)) / lam[keep])
     return z / d, int(keep.sum())
+
+
+def two_step_sigma(ne: NormalEquations, rcond: float = MIN_SINGULAR_RATIO) -> np.ndarray:
+    """Per-row noise σ_r of two-step weighted fitting, from the unconstrained fit's residual.
+
+    ``σ_r² = ‖W_r π̂ − y_r‖² / (N − rank/rows)`` with ``π̂`` the minimum-norm least-squares
+    solution over all standard parameters (:func:`solve_truncated_svd`, so a rank-deficient
+    excitation is fine), floored at ``1e-6 max_r σ_r``. Works from the compressed equations
+    alone (per-row normal equations); no second pass over the data.
+    """
+    params, rank = solve_truncated_svd(ne, rcond=rcond)
+    rows = ne.A.shape[0]
+    dof = max(ne.n_samples - rank / max(rows, 1), 1.0)
+    sig = np.sqrt(np.maximum(ne.residual_ss(params), 0.0) / dof)
+    return np.maximum(sig, 1e-6 * max(float(sig.max()), 1e-12))
+
+
+def row_weights(ne: NormalEquations, weights: str | np.ndarray | None) -> np.ndarray | None:
+    """Row weights ``w_r = 1/σ_r²``: None (unweighted), ``"auto"`` (:func:`two_step_sigma`)
+    or per-row σ values (checked positive and finite by the caller)."""
+    if weights is None:
+        return None
+    if isinstance(weights, str):
+        if weights != "auto":
+            raise SolverError(f"unknown weights '{weights}'; use None, 'auto' or per-joint σ values")
+        return 1.0 / two_step_sigma(ne) ** 2
+    return 1.0 / np.asarray(weights, dtype=float) ** 2
+
+
+def joint_term_inflation(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None,
+                         n_body_params: int | None = None) -> dict[str, float]:
+    """Variance inflation factor of every joint-term base parameter (label → VIF).
+
+    With ``S = D A₁₁ D`` the equilibrated (weighted) base normal matrix, ``VIF_k = (S⁻¹)_kk =
+    1 / (1 − R_k²)``, ``R_k²`` the fraction of column ``k`` that the other base columns explain
+    on this log. A VIF of 10³ means the term's effect is 99.9 % collinear with the others: the
+    log cannot tell it apart, and its estimate (and predictions off this log) swing with the noise.
+    Joint-term columns are the independent columns at index ≥ ``n_body_params``.
+    """
+    w = np.ones(ne.A.shape[0]) if w is None else w
+    A11, _, _ = _base_system(ne, base, w)
+    d = np.sqrt(np.diag(A11))
+    live = d > 1e-12 * max(d.max(), 1e-300)
+    d[~live] = 1.0
+    S = A11 / np.outer(d, d)
+    try:
+        inv = np.linalg.pinv(S, hermitian=True, rcond=1e-14)
+    except np.linalg.LinAlgError:
+        return {}
+    nb = n_body_params if n_body_params is not None else 0
+    out = {}
+    for i, k in enumerate(base.independent):
+        if k >= nb and live[i]:
+            out[base.labels[k]] = float(inv[i, i])
+    return out
