@@ -102,6 +102,12 @@ def identify(
     if not isinstance(data, NormalEquations):
         motion = JointMotion(structure.robot.joint_names)
         data = _validated(data, structure.robot, outliers, motion)
+    prior_note = None
+    if method == "lmi" and prior is None and regularization is not None and _massless_prior(structure):
+        regularization, gamma = None, 0.0  # a pull toward zero mass everywhere is no prior
+        prior_note = (f"'{structure.robot.name}' has no inertial prior (every identified body is massless): "
+                      "ran without regularisation (regularization=None, gamma=0); pass prior=... to regularise")
+        warnings.warn(prior_note, stacklevel=2)
     if method == "lmi" and gamma == "auto":
         if isinstance(data, NormalEquations):
             raise SolverError("gamma='auto' needs the training trajectories, not precompressed equations")
@@ -157,6 +163,8 @@ def identify(
             if cost["warn"]:
                 fit_notes.append(cost.pop("message"))
             cost.pop("message", None)
+        if prior_note:
+            extra["prior_note"] = prior_note
     else:
         sol = solve_least_squares(ne, base, w)
         row_w = sol.row_weights
@@ -262,6 +270,10 @@ def _collinear_note(collinear: dict[str, float], n_samples: int) -> str:
             f"({n_samples} samples; variance inflation > {JOINT_TERM_MAX_VIF:.0f}): {worst}"
             + (" ..." if len(collinear) > 6 else "")
             + "; log a longer or richer motion, or drop them (joint_terms / --joint-terms)")
+def _massless_prior(structure: ModelStructure) -> bool:
+    """True when the model carries no inertials at all (e.g. a kinematic tree such as the PSM's)."""
+    nb = structure.robot.n_bodies
+    return nb > 0 and not np.any(np.asarray(structure.prior())[: 10 * nb : 10] > 0)
 
 
 def _standard(base: BaseParameters, pi_b: np.ndarray, structure: ModelStructure, kind: str) -> np.ndarray:
