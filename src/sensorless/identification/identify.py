@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from typing import Callable, Iterable, Iterator, Sequence
+from typing import Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -32,6 +32,7 @@ from .least_squares import (
 )
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
+from .weights import check_weights
 from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
 __all__ = ["identify", "METHODS", "CONSTRAINT_RESIDUAL_RISE", "JOINT_TERM_MAX_VIF"]
@@ -49,7 +50,7 @@ def identify(
     data: Trajectory | Iterable[Trajectory] | NormalEquations,
     *,
     method: str = "ols",
-    weights: str | Sequence[float] | None = "auto",
+    weights: str | Sequence[float] | Mapping[str, float] | None = "auto",
     joint_terms: Sequence[str] = ("fv", "fc", "offset", "armature"),
     standard: str = "closest_to_prior",
     chunk: int = 2048,
@@ -68,7 +69,8 @@ def identify(
     weighted by ``1/σ_r²``, σ_r the per-joint residual of the first, unweighted fit (two-step
     weighted least squares; for "lmi" and "svd" the first fit is the unconstrained
     minimum-norm least squares, :func:`~.least_squares.two_step_sigma`); per-joint σ values
-    weight by ``1/σ²``; None fits unweighted (ordinary least squares).
+    (row order, or ``{joint: σ}``) weight by ``1/σ²``; None or "none" fits unweighted
+    (ordinary least squares). See :mod:`~.weights`.
     ``method``: "ols" (= "wls" with the default weights),
     or "svd" (minimum-norm truncated SVD over all standard parameters, relative cut-off
     ``svd_rcond``; the unconstrained baseline for contact identification), or "lmi"
@@ -97,7 +99,7 @@ def identify(
     """
     _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard)
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
-    weights = _check_weights(weights, structure, method)
+    weights = check_weights(weights, structure.row_names)
     motion = None
     if not isinstance(data, NormalEquations):
         motion = JointMotion(structure.robot.joint_names)
@@ -222,27 +224,6 @@ def identify(
     return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings)
 
 
-def _check_weights(weights, structure: ModelStructure, method: str):
-    """``weights`` as None, "auto" or an array of per-row σ (OptionError otherwise, naming the joint)."""
-    if weights is None:
-        return None
-    if isinstance(weights, str):
-        if weights not in ("auto", "none"):
-            raise OptionError(f"weights must be 'auto', None or per-joint noise levels σ, got {weights!r}")
-        return None if weights == "none" else "auto"
-    try:
-        sigma = np.asarray(weights, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise OptionError(f"weights must be 'auto', None or per-joint noise levels σ, got {weights!r}") from None
-    rows = structure.row_names
-    if sigma.shape != (len(rows),):
-        raise OptionError(f"weights: {len(rows)} per-joint noise levels σ needed ({', '.join(rows)}), got {sigma.size}")
-    bad = [f"{j} ({v:g})" for j, v in zip(rows, sigma) if not (np.isfinite(v) and v > 0)]
-    if bad:
-        raise OptionError(f"weights: σ must be positive and finite; bad for {', '.join(bad)}")
-    return sigma
-
-
 def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dict | None:
     """Training residual of the LMI solution over that of the unconstrained least squares, and the
     bodies whose bounding-ellipsoid constraint is active (density margin < 1e-3); ``warn`` when
@@ -270,6 +251,8 @@ def _collinear_note(collinear: dict[str, float], n_samples: int) -> str:
             f"({n_samples} samples; variance inflation > {JOINT_TERM_MAX_VIF:.0f}): {worst}"
             + (" ..." if len(collinear) > 6 else "")
             + "; log a longer or richer motion, or drop them (joint_terms / --joint-terms)")
+
+
 def _massless_prior(structure: ModelStructure) -> bool:
     """True when the model carries no inertials at all (e.g. a kinematic tree such as the PSM's)."""
     nb = structure.robot.n_bodies

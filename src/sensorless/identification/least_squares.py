@@ -123,9 +123,7 @@ def solve_least_squares(
     if isinstance(weights, str):
         if weights != "auto":
             raise SolverError(f"unknown weights '{weights}'; use None, 'auto' or per-joint σ values")
-        sig = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
-        sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
-        w = 1.0 / sig**2
+        w = 1.0 / _sigma_floor(ne, np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))) ** 2
         cond = excitation_check(ne, base, w)
         A11, b1, _ = _base_system(ne, base, w)
         pi_b = _solve(A11, b1)
@@ -174,14 +172,21 @@ def two_step_sigma(ne: NormalEquations, rcond: float = MIN_SINGULAR_RATIO) -> np
 
     ``σ_r² = ‖W_r π̂ − y_r‖² / (N − rank/rows)`` with ``π̂`` the minimum-norm least-squares
     solution over all standard parameters (:func:`solve_truncated_svd`, so a rank-deficient
-    excitation is fine), floored at ``1e-6 max_r σ_r``. Works from the compressed equations
+    excitation is fine), floored as :func:`_sigma_floor`. Works from the compressed equations
     alone (per-row normal equations); no second pass over the data.
     """
     params, rank = solve_truncated_svd(ne, rcond=rcond)
     rows = ne.A.shape[0]
     dof = max(ne.n_samples - rank / max(rows, 1), 1.0)
-    sig = np.sqrt(np.maximum(ne.residual_ss(params), 0.0) / dof)
-    return np.maximum(sig, 1e-6 * max(float(sig.max()), 1e-12))
+    return _sigma_floor(ne, np.sqrt(np.maximum(ne.residual_ss(params), 0.0) / dof))
+
+
+def _sigma_floor(ne: NormalEquations, sig: np.ndarray) -> np.ndarray:
+    """σ_r ≥ max(1e-6 RMS(y_r), 1e-6 max_r σ_r): a residual at the level of round-off in
+    ``‖Wπ‖² − 2bᵀπ + c`` (noise-free data) says nothing about noise, and weights that far apart
+    would only spoil the conditioning."""
+    rms = np.sqrt(np.maximum(ne.c, 0.0) / max(ne.n_samples, 1))
+    return np.maximum(sig, np.maximum(1e-6 * rms, 1e-6 * max(float(sig.max()), 1e-12)))
 
 
 def row_weights(ne: NormalEquations, weights: str | np.ndarray | None) -> np.ndarray | None:
