@@ -529,3 +529,39 @@ def bench_lmi_cmd(
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(res, out)
     console.print(f"wrote {out}")
+
+
+@bench_app.command("peers")
+@guarded
+def bench_peers_cmd(
+    recipe: Path = typer.Option(Path("benchmarks/peers.toml"), help="fixed recipe (TOML); the built-in copy when "
+                                "the default file is absent"),
+    seeds: Optional[str] = typer.Option(None, help="comma-separated seeds (default: the recipe's)"),
+    cases: Optional[str] = typer.Option(None, help="comma-separated cases (default: all, main,hard)"),
+    out: Path = typer.Option(Path("benchmarks/results/peers.json")),
+) -> None:
+    """UR5 accuracy vs figaroh/rigeo's published figures: perturbed-truth inertials, random Fourier
+    excitation, 1 % (main) and 5 %/600 samples (hard) noise; `identify` with its CLI defaults
+    (--method lmi and ols). Held-out nRMSE vs the noise-free torque, mean and worst over seeds."""
+    from ..benchmarks_peers import load_recipe, run_peers
+    from ..identification.result import write_json_atomic
+
+    default = recipe == Path("benchmarks/peers.toml") and not recipe.exists()
+    rec = load_recipe(None if default else recipe)
+    try:
+        seed_list = tuple(int(s) for s in seeds.split(",")) if seeds else None
+    except ValueError:
+        raise OptionError(f"--seeds must be comma-separated integers, got '{seeds}'") from None
+    res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None, console=console)
+    res["recipe"]["file"] = "built-in (sensorless.benchmarks_peers.DEFAULT_RECIPE)" if default else str(recipe)
+    for name, c in res["cases"].items():
+        peers = ", ".join(f"{k} {v} %" for k, v in rec.peers.get(name, {}).items())
+        for v in ("lmi", "ols", "lmi_unweighted"):
+            if v in c:
+                console.print(f"{name:4s} {v:15s} mean {c[v]['mean_nrmse_percent']:.3f} %, worst "
+                              f"{c[v]['worst_nrmse_percent']:.3f} %, all bodies consistent: {c[v]['all_consistent']}")
+        verdict = {True: "[green]PASS[/]", False: "[red]FAIL[/]", None: "—"}[c["passed"]]
+        console.print(f"{name:4s} acceptance (lmi ≤ {c['acceptance_percent']} %, consistent): {verdict}; peers: {peers}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")

@@ -7,8 +7,9 @@ With the base regressor W₁ (independent columns), the (weighted) problem
 has normal equations (Σ_r w_r A_r[ind, ind]) π_b = Σ_r w_r b_r[ind]. Columns are
 equilibrated (D = diag(A₁₁)^-½) before the solve; the condition number reported is
 that of the equilibrated base regressor, cond(W₁ D) = sqrt(cond(D A₁₁ D)).
-``weights="auto"`` estimates σ_r from the OLS residual of row r (two-step WLS, no second
-pass over the data thanks to per-row normal equations).
+``weights="auto"`` estimates σ_r from the OLS residual of row r and refits (iterated two-step
+WLS, :data:`AUTO_WEIGHT_ITERATIONS` fits; no second pass over the data thanks to per-row
+normal equations).
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ __all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd",
 # Below this ratio of smallest to largest singular value of the equilibrated base
 # regressor, a direction of parameter space is considered not excited by the data.
 MIN_SINGULAR_RATIO = 1e-6
+# weights="auto": fits in all (the unweighted one, then refits with σ_r of the previous fit)
+AUTO_WEIGHT_ITERATIONS = 3
 
 
 @dataclass
@@ -123,11 +126,12 @@ def solve_least_squares(
     if isinstance(weights, str):
         if weights != "auto":
             raise SolverError(f"unknown weights '{weights}'; use None, 'auto' or per-joint σ values")
-        w = 1.0 / _sigma_floor(ne, np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))) ** 2
-        cond = excitation_check(ne, base, w)
-        A11, b1, _ = _base_system(ne, base, w)
-        pi_b = _solve(A11, b1)
-        params[base.independent] = pi_b
+        for _ in range(AUTO_WEIGHT_ITERATIONS - 1):  # iterated two-step (see two_step_sigma)
+            w = 1.0 / _sigma_floor(ne, np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))) ** 2
+            cond = excitation_check(ne, base, w)
+            A11, b1, _ = _base_system(ne, base, w)
+            pi_b = _solve(A11, b1)
+            params[base.independent] = pi_b
     sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples - base.rank / rows, 1))
     # covariance of π_b under the weighted model: (W₁ᵀ Σ⁻¹ W₁)⁻¹ with Σ = diag(σ_r²)
     A11_s, _, _ = _base_system(ne, base, 1.0 / np.maximum(sigma, 1e-12) ** 2)
@@ -167,18 +171,25 @@ def solve_truncated_svd(ne: NormalEquations, rcond: float = 1e-6, row_weights: n
     return z / d, int(keep.sum())
 
 
-def two_step_sigma(ne: NormalEquations, rcond: float = MIN_SINGULAR_RATIO) -> np.ndarray:
+def two_step_sigma(ne: NormalEquations, rcond: float = MIN_SINGULAR_RATIO, iterations: int = AUTO_WEIGHT_ITERATIONS) -> np.ndarray:
     """Per-row noise σ_r of two-step weighted fitting, from the unconstrained fit's residual.
 
     ``σ_r² = ‖W_r π̂ − y_r‖² / (N − rank/rows)`` with ``π̂`` the minimum-norm least-squares
     solution over all standard parameters (:func:`solve_truncated_svd`, so a rank-deficient
-    excitation is fine), floored as :func:`_sigma_floor`. Works from the compressed equations
-    alone (per-row normal equations); no second pass over the data.
+    excitation is fine), floored as :func:`_sigma_floor`. Each further iteration refits with
+    weights ``1/σ_r²`` and re-estimates σ (iterated feasible GLS, default 3 fits): on a short
+    log the unweighted fit leaves the big joints' noise in the small joints' residual (UR5,
+    600 samples: wrist σ over-estimated 2–6×; the second fit is within a few %). Works from the
+    compressed equations alone (per-row normal equations); no second pass over the data.
     """
-    params, rank = solve_truncated_svd(ne, rcond=rcond)
     rows = ne.A.shape[0]
-    dof = max(ne.n_samples - rank / max(rows, 1), 1.0)
-    return _sigma_floor(ne, np.sqrt(np.maximum(ne.residual_ss(params), 0.0) / dof))
+    w = None
+    for _ in range(max(int(iterations), 1)):
+        params, rank = solve_truncated_svd(ne, rcond=rcond, row_weights=w)
+        dof = max(ne.n_samples - rank / max(rows, 1), 1.0)
+        sig = _sigma_floor(ne, np.sqrt(np.maximum(ne.residual_ss(params), 0.0) / dof))
+        w = 1.0 / sig**2
+    return sig
 
 
 def _sigma_floor(ne: NormalEquations, sig: np.ndarray) -> np.ndarray:
