@@ -538,6 +538,8 @@ def bench_peers_cmd(
                                 "the default file is absent"),
     seeds: Optional[str] = typer.Option(None, help="comma-separated seeds (default: the recipe's)"),
     cases: Optional[str] = typer.Option(None, help="comma-separated cases (default: all, main,hard)"),
+    variants: str = typer.Option("lmi,ols,lmi_unweighted", help="fits: lmi (CLI defaults, --method lmi), ols "
+                                 "(--method ols), lmi_unweighted (--method lmi --weights none)"),
     out: Path = typer.Option(Path("benchmarks/results/peers.json")),
 ) -> None:
     """UR5 accuracy vs figaroh/rigeo's published figures: perturbed-truth inertials, random Fourier
@@ -552,7 +554,8 @@ def bench_peers_cmd(
         seed_list = tuple(int(s) for s in seeds.split(",")) if seeds else None
     except ValueError:
         raise OptionError(f"--seeds must be comma-separated integers, got '{seeds}'") from None
-    res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None, console=console)
+    res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None,
+                    variants=tuple(v for v in variants.split(",") if v), console=console)
     res["recipe"]["file"] = "built-in (sensorless.benchmarks_peers.DEFAULT_RECIPE)" if default else str(recipe)
     for name, c in res["cases"].items():
         peers = ", ".join(f"{k} {v} %" for k, v in rec.peers.get(name, {}).items())
