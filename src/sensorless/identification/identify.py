@@ -240,7 +240,8 @@ def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dic
     warn = bool(active) and ratio > CONSTRAINT_RESIDUAL_RISE
     msg = (f"the bounding-ellipsoid (density) constraints are active on {', '.join(active)} and the training "
            f"residual is {ratio:.3g}× that of an unconstrained fit: the ellipsoids probably exclude the real "
-           "bodies; use the automatic ellipsoids (grown around the prior), ellipsoids='box', or none"
+           "bodies; use the automatic ellipsoids grown around the prior (contain_prior=True, i.e. drop "
+           "--no-contain-prior) or none (ellipsoids=False, --ellipsoids none)"
            if warn else None)
     return {"residual_ratio": ratio, "active_bodies": active, "warn": warn, "message": msg}
 
