@@ -43,7 +43,11 @@ from .simulation import TruthModel, synthetic_trajectory
 
 __all__ = [
     "DEFAULT_RECIPE",
+    "VARIANTS",
+    "CaseSpec",
     "PeerCase",
+    "Recipe",
+    "cli_defaults",
     "held_out_nrmse",
     "load_recipe",
     "peer_case",
