@@ -239,7 +239,9 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "lmi": ("lmi", {}),  # the CLI defaults with --method lmi
     "ols": ("ols", {}),
     "lmi_unweighted": ("lmi", {"weights": "none"}),  # reference: the pre-issue-13 weighting
+    "lmi_no_contain_prior": ("lmi", {"contain_prior": False}),  # geometry-only ellipsoids (warns)
 }
+DEFAULT_VARIANTS = ("lmi", "ols", "lmi_unweighted")
 
 
 def run_peers(
@@ -247,7 +249,7 @@ def run_peers(
     *,
     seeds: tuple[int, ...] | None = None,
     cases: tuple[str, ...] | None = None,
-    variants: tuple[str, ...] = tuple(VARIANTS),
+    variants: tuple[str, ...] = DEFAULT_VARIANTS,
     train_samples: int | None = None,
     console=None,
     log: Callable[[str], None] | None = None,
