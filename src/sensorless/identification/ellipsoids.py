@@ -40,7 +40,7 @@ is then feasible (and so is the identification problem), and so is a true body t
 from it as a CAD model differs from the real arm: over 200 draws of the perturbation of
 ``sensorless benchmark peers`` (mass ``×exp(N(0, 0.1))``, CoM ``+N(0, 2 cm)``, principal
 moments ``×exp(N(0, 0.2))``, axes rotated ``N(0, 0.2 rad)``) every true UR5 and Panda body
-(fingers included) lies inside (``tests/test_defaults.py``). Geometry alone does not suffice:
+(fingers included) lies inside (``tests/test_defaults.py`` checks 50 draws). Geometry alone does not suffice:
 the UR5 wrists' URDF inertias do not fit in their meshes. ``prior_slack=1, com_margin=0``
 is the smallest scaling that makes the prior realisable.
 """
