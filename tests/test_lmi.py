@@ -278,9 +278,9 @@ def test_base_and_eigen_reductions_agree(panda_case):
 
 def test_synthetic_panda_lmi_beats_ols_on_another_trajectory(panda, panda_case):
     """500 samples, 3 % noise, nominal URDF as prior: LMI (default γ) predicts a different
-    trajectory better than OLS and every body is physically consistent."""
+    trajectory better than OLS and every body is physically consistent (both unweighted)."""
     s, _, _, test, ne = panda_case
-    ols = identify(s, ne, method="ols")
+    ols = identify(s, ne, method="ols", weights=None)
     sol = solve_lmi(ne, s)
     y = s.target(test)
     rmse = lambda p: np.sqrt(((s.torques(p, test) - y) ** 2).mean(axis=0))

@@ -46,7 +46,8 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
     write_npz(test, out / "validate.npz")
 
     structure = ModelStructure(robot)
-    results = {m: identify(structure, train, method=m) for m in ("ols", "wls")}
+    results = {"ols": identify(structure, train, method="ols", weights=None),  # ordinary least squares
+               "wls": identify(structure, train, method="wls")}
     results["lmi"] = identify(structure, train, method="lmi", gamma="auto")
     cad = CADModel(robot)
     scores = {"CAD": cad.score(test), **{m.upper(): r.evaluate(test) for m, r in results.items()}}

@@ -49,7 +49,10 @@ def identify(
     regularization: str = typer.Option("pullback", help="lmi: pullback | entropic | euclidean | none"),
     gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),
     ellipsoids: str = typer.Option("auto", help="lmi: bounding ellipsoids auto | kinematic | none"),
-    contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain the prior body"),
+    contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain any body near the prior "
+                                       "(second moments ×4, CoM within 7.5 cm); --no-contain-prior: geometry only"),
+    weights: str = typer.Option("auto", help="per-joint noise weighting, every method: auto (two-step: σ from an "
+                                "unweighted fit's residual) | none | FILE (JSON {joint: σ} or CSV 'joint,σ' rows)"),
     out: Path = typer.Option(..., help="output directory (written atomically)"),
     joint_terms: str = typer.Option("fv,fc,offset,armature", help="per-joint terms, comma separated "
                                     "(dvrk_psm: drive set 'authors' (default) or 'motors')"),
@@ -99,7 +102,7 @@ def identify(
     from ..regressor import ModelStructure
     from ..report import metrics_table, plot_torques
 
-    _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers)
+    _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
         raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
@@ -113,7 +116,7 @@ def identify(
     data = [Path(p) for p in expand_paths(data)]
     prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
                 gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers)
-    with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior)) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
         skipped: list = []
         if scheduler is None:
             train, data, skipped = _load_training(data, r, prep, skip_bad)
@@ -124,12 +127,15 @@ def identify(
                                contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
                                offset_axes=offset_axes, train=train if scheduler is None else None)
         lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
+        from ..identification.weights import weights_option
+
+        row_sigma = weights_option(weights, structure.row_names)
         fleet = None
         if scheduler is not None:
             from .fleet import identify_on_dask
 
             result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
-                                             lmi_kw)
+                                             {**lmi_kw, "weights": row_sigma})
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
             train = _first_training_log(data, r, prep) if not val else []
         else:
@@ -138,7 +144,7 @@ def identify(
                 task = bar.add_task("regressor", total=total)
                 try:
                     result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n),
-                                       outliers="keep", **lmi_kw)  # the logs' outliers were handled on reading
+                                       outliers="keep", weights=row_sigma, **lmi_kw)  # the logs' outliers were handled on reading
                 except ExcitationError as exc:
                     raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -162,7 +168,7 @@ def identify(
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
                     baseline = _identify(structure, fleet.equations if fleet is not None else train, method="ols",
-                                         outliers="keep")
+                                         outliers="keep", weights=row_sigma)
             except SensorlessError:
                 baseline = None
         doc["validation"] = {}
@@ -223,7 +229,7 @@ def _first_training_log(data, r, prep: dict) -> list:
         return []
 
 
-def _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers) -> None:
+def _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights="auto") -> None:
     """OptionError, naming the option, for values no run can use (checked before any work)."""
     from ..data.outliers import OUTLIER_MODES
     from ..identification import METHODS
@@ -245,6 +251,8 @@ def _check_identify_options(method, gamma, regularization, coulomb_smoothing, ou
         raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
     if outliers not in OUTLIER_MODES:
         raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got '{outliers}'")
+    if weights not in ("auto", "none") and not Path(weights).is_file():
+        raise OptionError(f"--weights must be auto, none or a JSON/CSV file of per-joint σ; no file '{weights}'")
 
 
 def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames, contact_dims, contact_offset,
@@ -523,6 +531,45 @@ def bench_lmi_cmd(
                 f"{robot} ({r['n_bodies']} bodies, {r['n_params']} parameters) {solver}: setup {v.get('setup_seconds', float('nan')):.3f} s, "
                 f"solve {v.get('solve_seconds', float('nan')):.3f} s, {v['status']}, consistent {v.get('consistent')}"
             )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")
+
+
+@bench_app.command("peers")
+@guarded
+def bench_peers_cmd(
+    recipe: Path = typer.Option(Path("benchmarks/peers.toml"), help="fixed recipe (TOML); the built-in copy when "
+                                "the default file is absent"),
+    seeds: Optional[str] = typer.Option(None, help="comma-separated seeds (default: the recipe's)"),
+    cases: Optional[str] = typer.Option(None, help="comma-separated cases (default: all, main,hard)"),
+    variants: str = typer.Option("lmi,ols,lmi_unweighted", help="fits: lmi (CLI defaults, --method lmi), ols "
+                                 "(--method ols), lmi_unweighted (--method lmi --weights none), lmi_no_contain_prior"),
+    out: Path = typer.Option(Path("benchmarks/results/peers.json")),
+) -> None:
+    """UR5 accuracy vs figaroh/rigeo's published figures: perturbed-truth inertials, random Fourier
+    excitation, 1 % (main) and 5 %/600 samples (hard) noise; `identify` with its CLI defaults
+    (--method lmi and ols). Held-out nRMSE vs the noise-free torque, mean and worst over seeds."""
+    from ..benchmarks_peers import load_recipe, run_peers
+    from ..identification.result import write_json_atomic
+
+    default = recipe == Path("benchmarks/peers.toml") and not recipe.exists()
+    rec = load_recipe(None if default else recipe)
+    try:
+        seed_list = tuple(int(s) for s in seeds.split(",")) if seeds else None
+    except ValueError:
+        raise OptionError(f"--seeds must be comma-separated integers, got '{seeds}'") from None
+    res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None,
+                    variants=tuple(v for v in variants.split(",") if v), console=console)
+    res["recipe"]["file"] = "built-in (sensorless.benchmarks_peers.DEFAULT_RECIPE)" if default else str(recipe)
+    for name, c in res["cases"].items():
+        peers = ", ".join(f"{k} {v} %" for k, v in rec.peers.get(name, {}).items())
+        for v in c:
+            if isinstance(c[v], dict) and "mean_nrmse_percent" in c[v]:
+                console.print(f"{name:4s} {v:15s} mean {c[v]['mean_nrmse_percent']:.3f} %, worst "
+                              f"{c[v]['worst_nrmse_percent']:.3f} %, all bodies consistent: {c[v]['all_consistent']}")
+        verdict = {True: "[green]PASS[/]", False: "[red]FAIL[/]", None: "—"}[c["passed"]]
+        console.print(f"{name:4s} acceptance (lmi ≤ {c['acceptance_percent']} %, consistent): {verdict}; peers: {peers}")
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(res, out)
     console.print(f"wrote {out}")

@@ -2,7 +2,7 @@
 
 from .base import BaseParameters, base_parameters
 from .identifiability import identifiability_report
-from .identify import METHODS, identify
+from .identify import CONSTRAINT_RESIDUAL_RISE, JOINT_TERM_MAX_VIF, METHODS, identify
 from .constraints import (
     BodyMassBounds,
     ComInEllipsoid,
@@ -13,18 +13,37 @@ from .constraints import (
     TotalMass,
     default_constraints,
 )
-from .ellipsoids import BoundingEllipsoid, auto_ellipsoids
+from .ellipsoids import PRIOR_COM_MARGIN, PRIOR_SLACK, BoundingEllipsoid, auto_ellipsoids
 from .fleet import identify_files, identify_fleet
-from .least_squares import LeastSquaresSolution, excitation_check, solve_least_squares, solve_truncated_svd
+from .least_squares import (
+    LeastSquaresSolution,
+    excitation_check,
+    joint_term_inflation,
+    row_weights,
+    solve_least_squares,
+    solve_truncated_svd,
+    two_step_sigma,
+)
 from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
 from .payload import JointConsistency, PayloadEstimate, identify_payload, payload_regressor, point_mass_parameters
 from .result import IdentificationResult
 from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
+from .weights import check_weights, read_weights_file, weights_option
 from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
 __all__ = [
+    "CONSTRAINT_RESIDUAL_RISE",
+    "JOINT_TERM_MAX_VIF",
+    "PRIOR_COM_MARGIN",
+    "PRIOR_SLACK",
+    "check_weights",
+    "joint_term_inflation",
+    "read_weights_file",
+    "row_weights",
+    "two_step_sigma",
+    "weights_option",
     "base_wrench_metrics",
     "com_cop_check",
     "com_positions",

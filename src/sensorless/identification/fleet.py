@@ -55,10 +55,11 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
     kw = dict(identify_kwargs)
     cv = None
     if method == "lmi" and kw.get("gamma", 1e-3) == "auto":
+        from .least_squares import row_weights
         from .lmi import cross_validate_gamma
+        from .weights import check_weights
 
-        w = kw.get("weights")
-        row_w = None if w is None or isinstance(w, str) else 1.0 / np.asarray(w, dtype=float) ** 2
+        row_w = row_weights(fleet.equations, check_weights(kw.get("weights", "auto"), structure.row_names))
         cv = cross_validate_gamma(structure, fleet.folds, prior=kw.get("prior"),
                                   regularization=kw.get("regularization", "pullback"),
                                   ellipsoids=kw.get("ellipsoids"), row_weights=row_w, **dict(kw.get("lmi_options") or {}))
@@ -66,6 +67,8 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
     result = identify(structure, fleet.equations, method=method, **kw)
     if cv is not None:
         result.diagnostics["gamma_selection"] = cv.to_dict()
+        if cv.edge is not None:  # (warned by cross_validate_gamma)
+            result.diagnostics["warnings"].append(cv.edge_message())
     result.diagnostics["compress_seconds"] = fleet.seconds
     result.settings.update(fleet.summary())
     return result

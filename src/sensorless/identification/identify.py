@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from typing import Callable, Iterable, Iterator, Sequence
+from typing import Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -22,14 +22,27 @@ from ..regressor.terms import ModelStructure
 from ..robot import Robot
 from .base import BaseParameters, base_parameters
 from .identifiability import identifiability_report
-from .least_squares import MIN_SINGULAR_RATIO, sample_count_check, solve_least_squares, solve_truncated_svd
+from .least_squares import (
+    MIN_SINGULAR_RATIO,
+    joint_term_inflation,
+    row_weights,
+    sample_count_check,
+    solve_least_squares,
+    solve_truncated_svd,
+)
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
+from .weights import check_weights
 from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
-__all__ = ["identify", "METHODS"]
+__all__ = ["identify", "METHODS", "CONSTRAINT_RESIDUAL_RISE", "JOINT_TERM_MAX_VIF"]
 
 METHODS = ("ols", "wls", "svd", "lmi")
+# lmi: warn when the training residual exceeds the unconstrained fit's by this factor while
+# bounding-ellipsoid constraints are active
+CONSTRAINT_RESIDUAL_RISE = 1.2
+# warn when a joint term's variance inflation factor on the log exceeds this (R² > 99.9 %)
+JOINT_TERM_MAX_VIF = 1e3
 
 
 def identify(
@@ -37,7 +50,7 @@ def identify(
     data: Trajectory | Iterable[Trajectory] | NormalEquations,
     *,
     method: str = "ols",
-    weights: str | Sequence[float] | None = None,
+    weights: str | Sequence[float] | Mapping[str, float] | None = "auto",
     joint_terms: Sequence[str] = ("fv", "fc", "offset", "armature"),
     standard: str = "closest_to_prior",
     chunk: int = 2048,
@@ -52,13 +65,23 @@ def identify(
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
-    ``method``: "ols" or "wls" (two-step WLS with per-joint σ unless ``weights`` gives σ),
+    ``weights`` (every method): ``"auto"`` (default) fits twice, the second time with rows
+    weighted by ``1/σ_r²``, σ_r the per-joint residual of the first, unweighted fit (two-step
+    weighted least squares; for "lmi" and "svd" the first fit is the unconstrained
+    minimum-norm least squares, :func:`~.least_squares.two_step_sigma`); per-joint σ values
+    (row order, or ``{joint: σ}``) weight by ``1/σ²``; None or "none" fits unweighted
+    (ordinary least squares). See :mod:`~.weights`.
+    ``method``: "ols" (= "wls" with the default weights),
     or "svd" (minimum-norm truncated SVD over all standard parameters, relative cut-off
     ``svd_rcond``; the unconstrained baseline for contact identification), or "lmi"
     (physically consistent convex program, :func:`~.lmi.solve_lmi`, regularised toward
     ``prior`` — default the model's own inertials — with ``regularization`` and weight
     ``gamma``; ``gamma="auto"`` picks it by 5-fold cross-validation on the training data,
     :func:`~.lmi.cross_validate_gamma`). ``ellipsoids`` and ``lmi_options`` go to the solver.
+    The γ grid of ``gamma="auto"`` starts at 0; a winner at an edge of the grid, bounding
+    ellipsoids that cost training residual (:data:`CONSTRAINT_RESIDUAL_RISE`, naming the
+    bodies) and joint terms the log cannot separate (:data:`JOINT_TERM_MAX_VIF`) are
+    reported in ``diagnostics["warnings"]`` as :class:`~sensorless.errors.IdentifiabilityWarning`.
     ``standard``: how to pick standard parameters from the base ones, "closest_to_prior"
     (nearest to the model's own inertials) or "min_norm".
 
@@ -76,6 +99,7 @@ def identify(
     """
     _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard)
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
+    weights = check_weights(weights, structure.row_names)
     motion = None
     if not isinstance(data, NormalEquations):
         motion = JointMotion(structure.robot.joint_names)
@@ -106,10 +130,10 @@ def identify(
     w = weights
     if method == "wls" and w is None:
         w = "auto"
-    if w is not None and not isinstance(w, str):
-        w = np.asarray(w, dtype=float)
+    fit_notes: list[str] = []
     if method == "svd":
-        params, svd_rank = solve_truncated_svd(ne, rcond=svd_rcond)
+        row_w = row_weights(ne, w)
+        params, svd_rank = solve_truncated_svd(ne, rcond=svd_rcond, row_weights=row_w)
         base_values = base.base(params)
         sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
         extra = {"svd_rank": svd_rank, "svd_rcond": svd_rcond}
@@ -118,13 +142,15 @@ def identify(
         from .lmi import cross_validate_gamma, solve_lmi
 
         opts = dict(lmi_options or {})
-        row_w = None if w is None or isinstance(w, str) else 1.0 / np.asarray(w) ** 2
+        row_w = row_weights(ne, w)
         extra = {}
         if gamma == "auto":
             cv = cross_validate_gamma(structure, data, period="auto", prior=prior, regularization=regularization,
-                                      ellipsoids=ellipsoids, row_weights=row_w, **opts)
+                                      ellipsoids=ellipsoids, row_weights=row_w, warn=False, **opts)
             gamma = cv.gamma
             extra["gamma_selection"] = cv.to_dict()
+            if cv.edge is not None:
+                fit_notes.append(cv.edge_message())
         lmi = solve_lmi(ne, structure, base=base, prior=prior, regularization=regularization, gamma=float(gamma),
                         ellipsoids=ellipsoids, row_weights=row_w, **opts)
         params = lmi.params
@@ -133,14 +159,28 @@ def identify(
         cond, base_std = float("nan"), []
         extra["lmi"] = lmi.summary()
         extra["gamma"] = float(gamma)
+        cost = _constraint_cost(ne, params, lmi, row_w)
+        if cost is not None:
+            extra["constraint_cost"] = cost
+            if cost["warn"]:
+                fit_notes.append(cost.pop("message"))
+            cost.pop("message", None)
         if prior_note:
             extra["prior_note"] = prior_note
     else:
         sol = solve_least_squares(ne, base, w)
+        row_w = sol.row_weights
         params = _standard(base, sol.base_values, structure, standard)
         base_values, sigma, cond = sol.base_values, sol.sigma, sol.condition_number
         base_std = np.sqrt(np.maximum(sol.base_covariance_diag, 0)).tolist()
         extra = {}
+    if row_w is not None:
+        extra["row_weights"] = dict(zip(structure.row_names, map(float, row_w)))
+    vif = joint_term_inflation(ne, base, row_w, structure.n_body_params)
+    collinear = {k: v for k, v in vif.items() if not v < JOINT_TERM_MAX_VIF}
+    if collinear:
+        extra["joint_term_inflation"] = collinear
+        fit_notes.append(_collinear_note(collinear, ne.n_samples))
     t_solve = time.perf_counter() - t1
     if not np.all(np.isfinite(params)):
         raise SolverError(f"method '{method}' returned non-finite parameters; check the data for extreme values")
@@ -149,7 +189,7 @@ def identify(
     std = base_parameter_uncertainty(ne, base, sig_dof, rcond=MIN_SINGULAR_RATIO)
     noise = float(np.median(sig_dof)) if sig_dof.size else 0.0
     rel, poor = poorly_identified(base, np.asarray(base_values, dtype=float), std, noise)
-    notes = _identifiability_notes(poor, slow, report, structure, base.rank)
+    notes = _identifiability_notes(poor, slow, report, structure, base.rank) + fit_notes
     for note in notes:
         warnings.warn(note, IdentifiabilityWarning, stacklevel=2)
     train = metrics_from_sums(
@@ -182,6 +222,36 @@ def identify(
         **structure.settings(),
     }
     return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings)
+
+
+def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dict | None:
+    """Training residual of the LMI solution over that of the unconstrained least squares, and the
+    bodies whose bounding-ellipsoid constraint is active (density margin < 1e-3); ``warn`` when
+    the residual rose by more than :data:`CONSTRAINT_RESIDUAL_RISE` with such bodies."""
+    margins = {r.name: r.ellipsoid_margin for r in lmi.consistency if np.isfinite(r.ellipsoid_margin)}
+    if not margins:
+        return None
+    wr = np.ones(ne.A.shape[0]) if row_w is None else np.asarray(row_w, dtype=float)
+    free, _ = solve_truncated_svd(ne, rcond=MIN_SINGULAR_RATIO, row_weights=row_w)
+    rss_free = float(wr @ np.maximum(ne.residual_ss(free), 0.0))
+    rss = float(wr @ np.maximum(ne.residual_ss(params), 0.0))
+    ratio = rss / max(rss_free, 1e-300 * max(rss, 1.0))
+    active = [b for b, m in margins.items() if m < 1e-3]
+    warn = bool(active) and ratio > CONSTRAINT_RESIDUAL_RISE
+    msg = (f"the bounding-ellipsoid (density) constraints are active on {', '.join(active)} and the training "
+           f"residual is {ratio:.3g}× that of an unconstrained fit: the ellipsoids probably exclude the real "
+           "bodies; use the automatic ellipsoids grown around the prior (contain_prior=True, i.e. drop "
+           "--no-contain-prior) or none (ellipsoids=False, --ellipsoids none)"
+           if warn else None)
+    return {"residual_ratio": ratio, "active_bodies": active, "warn": warn, "message": msg}
+
+
+def _collinear_note(collinear: dict[str, float], n_samples: int) -> str:
+    worst = ", ".join(f"{k} ({v:.2g})" for k, v in sorted(collinear.items(), key=lambda kv: -kv[1])[:6])
+    return (f"{len(collinear)} joint term(s) cannot be told apart from the other parameters on this log "
+            f"({n_samples} samples; variance inflation > {JOINT_TERM_MAX_VIF:.0f}): {worst}"
+            + (" ..." if len(collinear) > 6 else "")
+            + "; log a longer or richer motion, or drop them (joint_terms / --joint-terms)")
 
 
 def _massless_prior(structure: ModelStructure) -> bool:

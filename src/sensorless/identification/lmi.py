@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import functools
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -47,7 +48,7 @@ import cvxpy as cp
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..errors import DataError, ExcitationError, SolverError
+from ..errors import DataError, ExcitationError, IdentifiabilityWarning, SolverError
 from ..parameters import (
     ConsistencyReport,
     check_physical_consistency,
@@ -85,7 +86,8 @@ __all__ = [
 ]
 
 CONSISTENCY_TOL = 1e-8  # λ_min(J_k) ≥ −tol · ‖J_k‖₂ counts as consistent
-DEFAULT_GAMMAS: tuple[float, ...] = tuple(float(g) for g in np.logspace(-5, 1, 13))  # 1e-5 … 10, half decades
+# 0 (no prior: the data alone, inside the constraints), then 1e-8 … 10 in half decades
+DEFAULT_GAMMAS: tuple[float, ...] = (0.0,) + tuple(float(g) for g in np.logspace(-8, 1, 19))
 _SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "CLARABEL": {},
     "SCS": {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iters": 20_000},
@@ -435,9 +437,36 @@ class GammaSelection:
     score: str
     failures: dict[float, str] = field(default_factory=dict)
 
+    @property
+    def edge(self) -> str | None:
+        """"upper" if the largest γ of the grid won, "lower" if the smallest did and it is
+        not 0 (0 is the natural bound: no prior), else None. An edge means the best γ may
+        lie outside the grid."""
+        g = np.asarray(self.gammas, dtype=float)
+        if len(g) < 2:
+            return None
+        if self.gamma == g.max():
+            return "upper"
+        if self.gamma == g.min() and self.gamma > 0:
+            return "lower"
+        return None
+
+    def edge_message(self) -> str | None:
+        """One-line warning text when :attr:`edge` is set."""
+        if self.edge is None:
+            return None
+        finite = self.scores[np.isfinite(self.scores)]
+        trend = f"held-out {self.score} {finite.min():.3g}" if finite.size else ""
+        if self.edge == "upper":
+            return (f"cross-validation picked the largest γ of its grid ({self.gamma:g}; {trend}): the prior may "
+                    "deserve more weight than the grid allows; extend the grid upward or check the data")
+        return (f"cross-validation picked the smallest γ of its grid ({self.gamma:g}; {trend}) while the score may "
+                "still be falling; extend the grid downward (include 0, no prior)")
+
     def to_dict(self) -> dict:
         return {
             "gamma": self.gamma,
+            "edge": self.edge,
             "gammas": self.gammas.tolist(),
             "scores": self.scores.tolist(),
             "fold_scores": self.fold_scores.tolist(),
@@ -477,11 +506,14 @@ def _scan(
     return out
 
 
-def _pick(gammas: np.ndarray, fold_scores: np.ndarray, score: str, failures: dict) -> GammaSelection:
+def _pick(gammas: np.ndarray, fold_scores: np.ndarray, score: str, failures: dict, warn: bool = True) -> GammaSelection:
     scores = fold_scores.mean(axis=1)
     if not np.any(np.isfinite(scores)):
         raise SolverError(f"no gamma could be solved: {failures}")
-    return GammaSelection(float(gammas[int(np.argmin(scores))]), gammas, scores, fold_scores, score, failures)
+    sel = GammaSelection(float(gammas[int(np.argmin(scores))]), gammas, scores, fold_scores, score, failures)
+    if warn and sel.edge is not None:
+        warnings.warn(sel.edge_message(), IdentifiabilityWarning, stacklevel=3)
+    return sel
 
 
 def select_gamma(
@@ -492,18 +524,21 @@ def select_gamma(
     *,
     score: str = "residual",
     solver: str | None = None,
+    warn: bool = True,
     **build_kwargs: Any,
 ) -> GammaSelection:
     """The γ whose solution on ``ne_train`` has the lowest :func:`validation_score` on ``ne_val``.
 
     ``build_kwargs`` as :func:`solve_lmi` (regularization, constraints, ellipsoids, ...).
-    The program is compiled once; γ is a parameter.
+    The program is compiled once; γ is a parameter. A winner at an edge of the grid
+    (:attr:`GammaSelection.edge`) issues an :class:`~sensorless.errors.IdentifiabilityWarning`
+    unless ``warn=False``.
     """
     gammas = np.asarray(gammas, dtype=float)
     failures: dict[float, str] = {}
     prob = build_lmi(ne_train, structure, **build_kwargs)
     sc = _scan(prob, ne_val, gammas, score, build_kwargs.get("row_weights"), solver, failures)
-    return _pick(gammas, sc[:, None], score, failures)
+    return _pick(gammas, sc[:, None], score, failures, warn)
 
 
 def excitation_period(traj: Trajectory, *, min_period: float = 1.0, threshold: float = 0.95) -> float | None:
@@ -586,6 +621,7 @@ def cross_validate_gamma(
     period: float | str | None = None,
     solver: str | None = None,
     chunk: int = 2048,
+    warn: bool = True,
     **build_kwargs: Any,
 ) -> GammaSelection:
     """K-fold cross-validation of γ on contiguous folds (what ``--gamma auto`` runs).
@@ -599,7 +635,9 @@ def cross_validate_gamma(
     give its ``period`` [s] (or "auto": :func:`excitation_period` of the first trajectory;
     no period found → time blocks) and the blocks are contiguous in phase
     ``(t − t0) mod period`` instead. Precompressed folds may be passed instead of trajectories. The returned γ
-    minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`.
+    minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`. The default
+    grid starts at γ = 0 (no prior); a winner at an edge of the grid warns (``warn``, see
+    :func:`select_gamma`).
     """
     gammas = np.asarray(gammas, dtype=float)
     folds = _split_folds(structure, data, n_folds, chunk, period)
@@ -612,4 +650,4 @@ def cross_validate_gamma(
         train = functools.reduce(NormalEquations.merge, [folds[i] for i in range(len(folds)) if i != f])
         prob = build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs)
         cols.append(_scan(prob, folds[f], gammas, score, build_kwargs.get("row_weights"), solver, failures))
-    return _pick(gammas, np.stack(cols, axis=1), score, failures)
+    return _pick(gammas, np.stack(cols, axis=1), score, failures, warn)

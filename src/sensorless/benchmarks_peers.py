@@ -1,0 +1,300 @@
+"""`sensorless benchmark peers`: the UR5 comparison with figaroh and rigeo, from generated data.
+
+Fixed recipe (``benchmarks/peers.toml``, :data:`DEFAULT_RECIPE`), per seed ``s``:
+
+* robot: UR5 from example-robot-data (6 bodies);
+* truth: every body with mass perturbed as ``m·exp(N(0, 0.1))``, CoM ``+ N(0, 2 cm)`` per
+  axis, principal moments of the inertia about the CoM ``× exp(N(0, 0.2))`` (redrawn until
+  they satisfy the triangle inequalities, so the truth is a physical body) and principal
+  axes rotated by ``exp([ω]×)``, ``ω ~ N(0, 0.2 rad)`` per axis; no friction, no armature;
+* excitation: 5-harmonic Fourier series at 0.1 Hz (:func:`~sensorless.excitation.random_fourier`,
+  random coefficients scaled into the limits) sampled at 100 Hz, training and held-out
+  trajectories drawn with different seeds;
+* torques: RNEA on the truth, plus Gaussian noise of ``level × std_j(τ_train)`` per joint;
+* metric: on the held-out trajectory, ``RMSE_j(τ̂ − τ_true) / std_j(τ_true)`` against the
+  noise-free torque, mean over joints, in %.
+
+Cases: "main" (1 % noise, 2000 samples) and "hard" (5 % noise, 600 samples). Each is fitted
+by ``sensorless identify --method lmi`` and ``--method ols`` with every other option at its
+command-line default (read from the command's signature, so the benchmark follows the
+defaults), and, for reference, LMI with ``--weights none``.
+"""
+
+from __future__ import annotations
+
+import inspect
+import platform
+import time
+import tomllib
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import pinocchio as pin
+
+from .data.trajectory import Trajectory
+from .errors import OptionError
+from .excitation import random_fourier
+from .parameters import check_physical_consistency
+from .robot import Robot, load_robot
+from .simulation import TruthModel, synthetic_trajectory
+
+__all__ = [
+    "DEFAULT_RECIPE",
+    "VARIANTS",
+    "CaseSpec",
+    "PeerCase",
+    "Recipe",
+    "cli_defaults",
+    "held_out_nrmse",
+    "load_recipe",
+    "peer_case",
+    "perturb_inertials",
+    "run_peers",
+]
+
+
+@dataclass(frozen=True)
+class CaseSpec:
+    noise: float  # fraction of the per-joint torque std
+    train_samples: int
+    acceptance_percent: float | None = None
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """The benchmark's fixed recipe (``benchmarks/peers.toml``)."""
+
+    robot: str = "ur5"
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    harmonics: int = 5
+    base_freq: float = 0.1
+    rate: float = 100.0
+    test_samples: int = 2000
+    mass_log_sigma: float = 0.1
+    com_sigma: float = 0.02
+    moment_log_sigma: float = 0.2
+    axis_sigma: float = 0.2
+    cases: dict[str, CaseSpec] = field(default_factory=lambda: {
+        "main": CaseSpec(noise=0.01, train_samples=2000, acceptance_percent=0.53),
+        "hard": CaseSpec(noise=0.05, train_samples=600, acceptance_percent=8.0),
+    })
+    peers: dict[str, Any] = field(default_factory=lambda: {
+        "source": "side-by-side run quoted in issue #13 (figaroh 1.0.2, rigeo 0.2.0)",
+        "main": {"figaroh_1.0.2": 0.53, "rigeo_0.2.0": 0.53},
+        "hard": {"rigeo_0.2.0_box": 8.36},
+    })
+
+
+DEFAULT_RECIPE = Recipe()
+
+
+def load_recipe(path: str | Path | None) -> Recipe:
+    """The recipe from a TOML file (keys as :class:`Recipe`, cases under ``[cases.NAME]``,
+    the perturbation under ``[perturbation]``); None: :data:`DEFAULT_RECIPE`."""
+    if path is None:
+        return DEFAULT_RECIPE
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise OptionError(f"--recipe {path}: cannot read the recipe ({exc})") from None
+    try:
+        pert = doc.pop("perturbation", {})
+        cases = {k: CaseSpec(**v) for k, v in doc.pop("cases").items()}
+        doc["seeds"] = tuple(int(x) for x in doc.get("seeds", DEFAULT_RECIPE.seeds))
+        return Recipe(**doc, **pert, cases=cases)
+    except (TypeError, KeyError, ValueError) as exc:
+        raise OptionError(f"--recipe {path}: bad recipe ({exc}); see benchmarks/peers.toml") from None
+
+
+def perturb_inertials(
+    robot: Robot,
+    rng: np.random.Generator | int = 0,
+    *,
+    mass_sigma: float = 0.1,
+    com_sigma: float = 0.02,
+    moment_sigma: float = 0.2,
+    axis_sigma: float = 0.2,
+) -> Robot:
+    """A copy of ``robot`` with the recipe's perturbed inertials (module docstring).
+
+    Principal moments ``λ`` of the inertia about the CoM become ``λ·exp(N(0, moment_sigma))``,
+    redrawn (up to 100 times, then left unscaled) until ``λ_i ≤ λ_j + λ_k``; the principal
+    axes ``R`` become ``R·exp([ω]×)``, ``ω ~ N(0, axis_sigma)``.
+    """
+    rng = np.random.default_rng(rng)
+    model = robot.model.copy()
+    for j in range(1, model.njoints):
+        I = model.inertias[j]
+        if I.mass <= 0:
+            continue
+        m = I.mass * float(np.exp(rng.normal(0.0, mass_sigma)))
+        c = np.asarray(I.lever) + rng.normal(0.0, com_sigma, 3)
+        lam, R = np.linalg.eigh(np.asarray(I.inertia))
+        for _ in range(100):
+            lam2 = lam * np.exp(rng.normal(0.0, moment_sigma, 3))
+            if np.all(lam2 <= lam2.sum() - lam2):  # triangle inequalities: a real body
+                break
+        else:
+            lam2 = lam
+        R2 = R @ pin.exp3(rng.normal(0.0, axis_sigma, 3))
+        Ic = (R2 * lam2) @ R2.T
+        model.inertias[j] = pin.Inertia(m, c, 0.5 * (Ic + Ic.T))
+    return Robot(model, name=robot.name + "_truth", source=robot.source, actuated_joints=robot.actuated_joints)
+
+
+@dataclass
+class PeerCase:
+    """One generated case: the truth, a noisy training log and a noise-free held-out log."""
+
+    name: str
+    seed: int
+    truth: TruthModel
+    train: Trajectory
+    test: Trajectory  # torques without noise
+    noise_std: np.ndarray
+
+
+def _zero_terms(robot: Robot) -> TruthModel:
+    z = np.zeros(robot.n_actuated)
+    return TruthModel(robot, z, z.copy(), z.copy(), z.copy())
+
+
+def peer_case(name: str, seed: int, robot: Robot | None = None, recipe: Recipe = DEFAULT_RECIPE,
+              train_samples: int | None = None) -> PeerCase:
+    """Generate case ``name`` of ``recipe`` for ``seed`` (seeds: truth 1000 s, training
+    excitation 1000 s + 1, held-out excitation + 2, noise + 3). ``train_samples`` overrides
+    the case's (the reduced test case)."""
+    spec = recipe.cases[name]
+    robot = load_robot(recipe.robot) if robot is None else robot
+    n_train = spec.train_samples if train_samples is None else int(train_samples)
+    base = 1000 * int(seed)
+    truth = _zero_terms(perturb_inertials(robot, base, mass_sigma=recipe.mass_log_sigma, com_sigma=recipe.com_sigma,
+                                          moment_sigma=recipe.moment_log_sigma, axis_sigma=recipe.axis_sigma))
+    exc_train = random_fourier(robot, harmonics=recipe.harmonics, base_freq=recipe.base_freq, rng=base + 1)
+    exc_test = random_fourier(robot, harmonics=recipe.harmonics, base_freq=recipe.base_freq, rng=base + 2)
+    clean = synthetic_trajectory(truth, exc_train.sample(recipe.rate, n_train / recipe.rate))
+    sigma = spec.noise * clean.tau.std(axis=0)
+    rng = np.random.default_rng(base + 3)
+    train = clean.with_(tau=clean.tau + rng.normal(size=clean.tau.shape) * sigma)
+    test = synthetic_trajectory(truth, exc_test.sample(recipe.rate, recipe.test_samples / recipe.rate))
+    return PeerCase(name, int(seed), truth, train, test, sigma)
+
+
+def held_out_nrmse(pred: np.ndarray, case: PeerCase) -> np.ndarray:
+    """Per-joint ``RMSE(τ̂ − τ_true) / std(τ_true)`` on the held-out log, in %."""
+    tau = case.test.tau
+    return 100.0 * np.sqrt(np.mean((pred - tau) ** 2, axis=0)) / tau.std(axis=0)
+
+
+def cli_defaults() -> dict[str, Any]:
+    """The default value of every option of ``sensorless identify`` (from its signature)."""
+    from .cli.core import identify as command
+
+    fn = inspect.unwrap(command)
+    out = {}
+    for name, p in inspect.signature(fn).parameters.items():
+        d = p.default
+        out[name] = getattr(d, "default", d)
+    return out
+
+
+def _fit(case: PeerCase, robot: Robot, method: str, overrides: dict[str, Any] | None = None):
+    """``sensorless identify --method METHOD`` with the command-line defaults (plus
+    ``overrides``), in process on the generated logs: the same option handling
+    (``_structure``, ``_lmi_kwargs``, ``weights_option``) and the same ``identify`` call."""
+    from .cli.core import _lmi_kwargs, _structure
+    from .identification import identify
+    from .identification.weights import weights_option
+
+    o = {**cli_defaults(), **(overrides or {}), "method": method}
+    structure = _structure(robot, o["joint_terms"], o["coulomb_smoothing"], None, None, 0.0, o["contact_mode"])
+    lmi_kw = _lmi_kwargs(robot, structure, method, None, o["regularization"], o["gamma"], o["ellipsoids"],
+                         o["contain_prior"])
+    weights = weights_option(o["weights"], structure.row_names)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = identify(structure, [case.train], method=method, weights=weights, outliers=o["outliers"], **lmi_kw)
+    seconds = time.perf_counter() - t0
+    e = held_out_nrmse(res.predict(case.test), case)
+    reports = check_physical_consistency(res.inertial_parameters, list(robot.body_names))
+    d = res.diagnostics
+    return {
+        "nrmse_percent": float(e.mean()),
+        "nrmse_percent_per_joint": dict(zip(structure.row_names, map(float, e))),
+        "consistent_bodies": {r.name: bool(r.consistent) for r in reports},
+        "all_consistent": all(r.consistent for r in reports),
+        "gamma": d.get("gamma"),
+        "gamma_edge": (d.get("gamma_selection") or {}).get("edge"),
+        "seconds": seconds,
+        "warnings": [str(w.message) for w in caught],
+    }
+
+
+VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "lmi": ("lmi", {}),  # the CLI defaults with --method lmi
+    "ols": ("ols", {}),
+    "lmi_unweighted": ("lmi", {"weights": "none"}),  # reference: the pre-issue-13 weighting
+    "lmi_no_contain_prior": ("lmi", {"contain_prior": False}),  # geometry-only ellipsoids (warns)
+}
+DEFAULT_VARIANTS = ("lmi", "ols", "lmi_unweighted")
+
+
+def run_peers(
+    recipe: Recipe = DEFAULT_RECIPE,
+    *,
+    seeds: tuple[int, ...] | None = None,
+    cases: tuple[str, ...] | None = None,
+    variants: tuple[str, ...] = DEFAULT_VARIANTS,
+    train_samples: int | None = None,
+    console=None,
+    log: Callable[[str], None] | None = None,
+) -> dict:
+    """Run the recipe: every case × seed × variant; per case the mean and worst nRMSE over
+    seeds, whether every body was consistent in every run, and the acceptance verdict of the
+    "lmi" variant (mean over seeds ≤ the case's ``acceptance_percent`` and all consistent)."""
+    say = log or (console.print if console is not None else (lambda _m: None))
+    seeds = recipe.seeds if seeds is None else tuple(seeds)
+    cases = tuple(recipe.cases) if cases is None else tuple(cases)
+    unknown = [c for c in cases if c not in recipe.cases] + [v for v in variants if v not in VARIANTS]
+    if unknown:
+        raise OptionError(f"unknown case(s)/variant(s) {unknown}; cases {list(recipe.cases)}, variants {list(VARIANTS)}")
+    robot = load_robot(recipe.robot)
+    out: dict[str, Any] = {
+        "recipe": {**{k: v for k, v in recipe.__dict__.items() if k not in ("cases", "peers")},
+                   "cases": {k: v.__dict__ for k, v in recipe.cases.items()}, "seeds": list(seeds),
+                   **({"train_samples_override": train_samples} if train_samples else {})},
+        "cli_defaults": {k: v for k, v in cli_defaults().items() if isinstance(v, (str, int, float, bool))},
+        "peers": recipe.peers,
+        "cases": {},
+        "machine": {"platform": platform.platform(), "python": platform.python_version(),
+                    "pinocchio": pin.__version__},
+    }
+    for name in cases:
+        runs: dict[str, list] = {v: [] for v in variants}
+        for seed in seeds:
+            case = peer_case(name, seed, robot, recipe, train_samples)
+            for v in variants:
+                method, overrides = VARIANTS[v]
+                r = _fit(case, robot, method, overrides)
+                runs[v].append({"seed": seed, **r})
+                say(f"{name} seed {seed} {v:15s} nRMSE {r['nrmse_percent']:.3f} %  consistent {r['all_consistent']}"
+                    + (f"  γ {r['gamma']:.3g}" if r["gamma"] is not None else "") + f"  ({r['seconds']:.1f} s)")
+        summary = {}
+        for v, rs in runs.items():
+            e = np.array([r["nrmse_percent"] for r in rs])
+            summary[v] = {"mean_nrmse_percent": float(e.mean()), "worst_nrmse_percent": float(e.max()),
+                          "all_consistent": all(r["all_consistent"] for r in rs), "runs": rs}
+        limit = recipe.cases[name].acceptance_percent
+        lmi = summary.get("lmi")
+        out["cases"][name] = {
+            **summary,
+            "acceptance_percent": limit,
+            "passed": None if lmi is None or limit is None else
+            bool(lmi["mean_nrmse_percent"] <= limit and lmi["worst_nrmse_percent"] <= limit and lmi["all_consistent"]),
+        }
+    return out
