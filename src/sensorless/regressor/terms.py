@@ -143,6 +143,26 @@ class ModelStructure:
                 Wb[i] = f(model, data, Q[i], V[i], A[i])[rows]
         return Wb
 
+    def row_body_columns(self) -> list[tuple[int, int]]:
+        """Per kept row, the column range (c0, c1) of the body block that can be non-zero.
+
+        Row v (a dof of joint j) of the joint-torque regressor only sees the bodies of the
+        subtree of j: τ_j = S_jᵀ Σ_{b ∈ subtree(j)} f_b(π_b). Pinocchio numbers joints
+        depth-first, so the subtree is the joint range j … j + |subtree(j)| − 1, i.e. body
+        columns 10(j−1) … 10(j−1+|subtree(j)|).
+        """
+        m = self.robot.model
+        owner = np.empty(m.nv, dtype=int)
+        for j in range(1, m.njoints):
+            owner[m.idx_vs[j] : m.idx_vs[j] + m.nvs[j]] = j
+        out = []
+        for v in self._row_idx:
+            j = int(owner[v])
+            sub = list(m.subtrees[j])
+            assert sub == list(range(j, j + len(sub))), "Pinocchio joints are numbered depth-first"
+            out.append((10 * (j - 1), 10 * (j - 1 + len(sub))))
+        return out
+
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """Joint-term block, shape (N, n_actuated, n_terms): [v, sgn v, 1, v̇] per actuated joint."""
         v = V[:, self._act]
