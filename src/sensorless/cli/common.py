@@ -182,9 +182,11 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
     """A URDF/MJCF/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
     motor coordinates, a transmission's coordinate robot)."""
     from ..robot import load_robot
-    from ..robots.dvrk_psm import PSM_NAMES, psm_robot
+    from ..robots.names import PSM_NAMES
 
     if str(robot).lower() in PSM_NAMES:
+        from ..robots.dvrk_psm import psm_robot
+
         if lock or floating:
             raise SensorlessError(f"--robot {robot}: --lock and --floating-base do not apply to the PSM model")
         return psm_robot()
