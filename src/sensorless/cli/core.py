@@ -518,6 +518,33 @@ def bench_contact_cmd(
     console.print(f"wrote {out}")
 
 
+@bench_app.command("speed")
+@guarded
+def bench_speed_cmd(
+    samples: int = typer.Option(100_000, help="samples of the in-memory compression log (UR5 and Panda)"),
+    memory_sizes: str = typer.Option("100000,1000000", help="comma-separated sizes of the streamed peak-memory runs"),
+    contact_samples: int = typer.Option(100_000, help="Solo12 samples for projector vs pinv loop"),
+    identify_samples: int = typer.Option(100_000, help="samples of the UR5 log given to `sensorless identify`"),
+    repeats: int = typer.Option(3, help="interleaved repetitions (best of)"),
+    out: Path = typer.Option(Path("benchmarks/results/speed.json")),
+) -> None:
+    """Compression vs a bare regressor call, peak memory, contact projector vs pinv, CLI start-up and identify."""
+    from ..bench_speed import bench_speed
+    from ..identification.result import write_json_atomic
+
+    if min(samples, contact_samples, identify_samples, repeats) < 1:
+        raise OptionError("--samples, --contact-samples, --identify-samples and --repeats must be >= 1")
+    try:
+        sizes = tuple(int(float(x)) for x in memory_sizes.split(","))
+    except ValueError:
+        raise OptionError(f"--memory-sizes must be comma-separated sample counts, got '{memory_sizes}'") from None
+    res = bench_speed(n_compress=samples, memory_sizes=sizes, n_contact=contact_samples, n_identify=identify_samples,
+                      repeats=repeats, console=console)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")
+
+
 @bench_app.command("lmi")
 @guarded
 def bench_lmi_cmd(

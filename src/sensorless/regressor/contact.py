@@ -478,8 +478,7 @@ class ContactStructure(ModelStructure):
         Q, V, A = self.state(traj)
         flags = self.contacts(traj)
         y = self._joint_target(traj)
-        W = ModelStructure.evaluate(self, Q, V, A)
-        p = W.shape[2]
+        p = self.n_params
         patterns, inverse = np.unique(flags, axis=0, return_inverse=True)
         for k, pattern in enumerate(patterns):
             idx = np.flatnonzero(inverse.ravel() == k)
@@ -487,15 +486,19 @@ class ContactStructure(ModelStructure):
             J = contact_jacobians(self.robot, [self._fids[i] for i in on], [self.contact_dims[i] for i in on],
                                   Q[idx], np.ones((len(idx), len(on)), bool), self.contact_offset)
             B, exact = null_space_basis(J, self.rcond)
-            if exact.any():
-                Bt = B[exact].transpose(0, 2, 1)
-                z = np.einsum("nki,ni->nk", Bt, y[idx[exact]])
-                Z = np.matmul(Bt, W[idx[exact]])
-                ne.add_pooled(Z.reshape(-1, p), z.ravel(), np.einsum("nik,nk->ni", B[exact], z))
-            if not exact.all():
-                P = null_space_projector(J[~exact], self.rcond)
-                Py = np.einsum("nij,nj->ni", P, y[idx[~exact]])
-                ne.add_pooled(np.matmul(P, W[idx[~exact]]).reshape(-1, p), Py.ravel(), Py)
+            for sel, basis in ((exact, True), (~exact, False)):
+                if not sel.any():
+                    continue
+                rows = idx if sel.all() else idx[sel]
+                W = ModelStructure.evaluate(self, Q[rows], V[rows], A[rows])  # (n, nv, p), this group only
+                if basis:
+                    Bt = (B if sel.all() else B[sel]).transpose(0, 2, 1)
+                    z = np.matmul(Bt, y[rows][:, :, None])[:, :, 0]
+                    ne.add_pooled(np.matmul(Bt, W).reshape(-1, p), z.ravel(), np.matmul(Bt.transpose(0, 2, 1), z[:, :, None])[:, :, 0])
+                else:  # dependent or nearly dependent contact rows: the projector
+                    P = null_space_projector(J[sel], self.rcond)
+                    Py = np.matmul(P, y[rows][:, :, None])[:, :, 0]
+                    ne.add_pooled(np.matmul(P, W).reshape(-1, p), Py.ravel(), Py)
 
     def torques(self, params: np.ndarray, traj: Trajectory, chunk: int = 4096) -> np.ndarray:
         """Predicted mapped effort: P W π (projected) or W π (wrench), shape (N, n_rows)."""
