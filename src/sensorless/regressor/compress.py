@@ -12,8 +12,8 @@ without a second pass over the data. Range statistics of y are kept for NRMSE.
 
 Speed (the fold is the only O(N p²) work besides the regressor itself):
 
-* each A_r is accumulated with BLAS SYRK (:func:`syrk_fold`: the upper triangle of MᵀM, mirrored
-  once per chunk), not a general product;
+* each A_r is accumulated with BLAS SYRK on a column-major block (the upper triangle of MᵀM only,
+  mirrored once at the end of :func:`compress`), not a general product;
 * row r of Pinocchio's joint-torque regressor is zero outside the bodies of the subtree of
   r's joint (τ_j = S_jᵀ Σ_{b ∈ subtree(j)} f_b(π_b)); Pinocchio numbers joints depth-first, so
   that is one contiguous column range per row (:meth:`ModelStructure.row_body_columns`) and only
@@ -21,18 +21,19 @@ Speed (the fold is the only O(N p²) work besides the regressor itself):
 * BLAS is pinned to one thread while compressing (threadpoolctl): the chunk products are small,
   and threaded BLAS under CPU contention was measured 39× slower;
 * with ``overlap=True`` the fold of chunk k runs in a helper thread (BLAS releases the GIL)
-  while the Python loop evaluates the regressor of chunk k + 1 (double buffering).
+  while the Python loop evaluates the regressor of chunk k + 1 (double buffering); by default
+  only when a core is idle.
 """
 
 from __future__ import annotations
 
+import os
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Iterator
 
 import numpy as np
-from scipy.linalg.blas import dsyrk
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError
@@ -41,17 +42,30 @@ from .terms import ModelStructure
 __all__ = ["NormalEquations", "compress", "iter_trajectories", "one_blas_thread", "syrk_fold"]
 
 
+def _dsyrk():
+    from scipy.linalg.blas import dsyrk  # imported on use (CLI start-up)
+
+    return dsyrk
+
+
+def _mirror(U: np.ndarray) -> np.ndarray:
+    """The symmetric matrix whose upper triangle is that of U."""
+    return np.triu(U) + np.triu(U, 1).T
+
+
 def syrk_fold(M: np.ndarray) -> np.ndarray:
     """MᵀM for M (n, k) by BLAS SYRK on the upper triangle, returned as the full symmetric (k, k).
 
     ``dsyrk`` with ``trans=0`` on the Fortran view ``M.T`` (k, n) computes a·aᵀ = MᵀM without copying a
-    C-contiguous M; only the upper triangle is computed and it is mirrored here.
+    C-contiguous M (``trans=1`` on a column-major M is used when M is already column-major); only the
+    upper triangle is computed and it is mirrored here.
     """
-    M = np.ascontiguousarray(M, dtype=float)
+    M = np.asarray(M, dtype=float)
     if M.shape[0] == 0:
         return np.zeros((M.shape[1], M.shape[1]))
-    U = dsyrk(1.0, M.T, trans=0, lower=0)
-    return np.triu(U) + np.triu(U, 1).T
+    if M.flags.f_contiguous and not M.flags.c_contiguous:
+        return _mirror(_dsyrk()(1.0, M, trans=1, lower=0))
+    return _mirror(_dsyrk()(1.0, np.ascontiguousarray(M).T, trans=0, lower=0))
 
 
 @contextmanager
@@ -91,13 +105,15 @@ class NormalEquations:
         self._stats(y)
 
     def add_blocks(self, Wb: np.ndarray, F: np.ndarray, act_rows: np.ndarray, y: np.ndarray,
-                   body_columns: list[tuple[int, int]] | None = None) -> None:
+                   body_columns: list[tuple[int, int]] | None = None, *, upper_only: bool = False) -> None:
         """Fold a chunk given as blocks: body regressor Wb (n, rows, nb), joint features
         F (n, n_act, nt) that sit on row ``act_rows[k]`` in columns nb + k·nt … (k+1)·nt.
 
         Equivalent to :meth:`add` on the assembled regressor. Per row r only the body columns
         ``body_columns[r] = (c0, c1)`` (the others must be zero; default: all) and that row's joint
-        terms are gathered into one contiguous block M_r and folded by SYRK (:func:`syrk_fold`).
+        terms are gathered into one column-major block M_r, and the upper triangle of M_rᵀM_r is
+        added by BLAS SYRK. ``upper_only`` leaves the lower triangles to one :meth:`mirror_upper`
+        after the last chunk (what :func:`compress` does); otherwise A stays symmetric.
         """
         n, rows, nb = Wb.shape
         nt = F.shape[2]
@@ -105,23 +121,28 @@ class NormalEquations:
         for r in range(rows):
             c0, c1 = body_columns[r] if body_columns is not None else (0, nb)
             k = term_of_row.get(r)
-            if k is None:
-                M = Wb[:, r, c0:c1]
-                idx = np.arange(c0, c1)
-            else:
-                M = np.concatenate([Wb[:, r, c0:c1], F[:, k, :]], axis=1)
-                idx = np.r_[c0:c1, nb + k * nt : nb + (k + 1) * nt]
-            if idx.size == 0:
+            kt = 0 if k is None else nt
+            if c1 - c0 + kt == 0:
                 continue
-            M = np.ascontiguousarray(M)
-            if idx.size == idx[-1] - idx[0] + 1:  # contiguous columns: plain slices
-                s = slice(int(idx[0]), int(idx[-1]) + 1)
-                self.A[r, s, s] += syrk_fold(M)
-                self.b[r, s] += M.T @ y[:, r]
+            M = np.empty((n, c1 - c0 + kt), order="F")  # SYRK reads columns: column-major is its fast layout
+            M[:, : c1 - c0] = Wb[:, r, c0:c1]
+            if kt:
+                M[:, c1 - c0 :] = F[:, k, :]
+            U = _dsyrk()(1.0, M, trans=1, lower=0)  # upper triangle of MᵀM
+            if kt and c1 < nb + k * nt:  # body block and term block are not adjacent: scatter
+                idx = np.r_[c0:c1, nb + k * nt : nb + (k + 1) * nt]
+                self.A[r][np.ix_(idx, idx)] += U if upper_only else _mirror(U)
+                self.b[r, idx] += y[:, r] @ M
             else:
-                self.A[r][np.ix_(idx, idx)] += syrk_fold(M)
-                self.b[r, idx] += M.T @ y[:, r]
+                sl = slice(c0, c1 + kt)
+                self.A[r, sl, sl] += U if upper_only else _mirror(U)
+                self.b[r, sl] += y[:, r] @ M
         self._stats(y)
+
+    def mirror_upper(self) -> None:
+        """Complete each A_r from its upper triangle (after folds with ``upper_only``)."""
+        for r in range(self.A.shape[0]):
+            self.A[r] = _mirror(self.A[r])
 
     def add_pooled(self, Z: np.ndarray, z: np.ndarray, y_rows: np.ndarray) -> None:
         """Fold equations whose rows are not kept apart: Z (m, p), z (m,) add ZᵀZ, Zᵀz and ‖z‖²
@@ -185,7 +206,7 @@ def compress(
     progress: Callable[[int], None] | None = None,
     client=None,
     reader=None,
-    overlap: bool = True,
+    overlap: bool | None = None,
 ) -> NormalEquations:
     """Evaluate the regressor chunk by chunk and fold it into :class:`NormalEquations`.
 
@@ -199,7 +220,9 @@ def compress(
     cannot be used raises its typed error; to skip such files instead, use ``compress_files``.
 
     BLAS runs on one thread throughout; ``overlap`` folds chunk k in a helper thread while
-    chunk k + 1 is evaluated (see the module docstring).
+    chunk k + 1 is evaluated (see the module docstring). ``None``: overlap when a core is idle
+    (1-min load average below cores − 1); on a busy machine the thread only competes for the GIL.
+    The sums do not depend on it (same folds, same order).
     """
     if client is not None:
         from .distributed import compress_files
@@ -208,6 +231,8 @@ def compress(
     ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
     own_fold = hasattr(structure, "fold")  # structures with their own row map (e.g. contacts)
     cols = None if own_fold else structure.row_body_columns()
+    if overlap is None:
+        overlap = _idle_core()
     seen = False
     with one_blas_thread(), (ThreadPoolExecutor(1) if overlap and not own_fold else _NoPool()) as pool:
         bufs = [np.empty((chunk, structure.n_rows, structure.n_body_params)) for _ in range(2 if pool else 1)]
@@ -239,12 +264,22 @@ def compress(
                 f.result()
     if not seen:
         raise DataError("no trajectory was given")
+    if not own_fold:
+        ne.mirror_upper()
     return ne
+
+
+def _idle_core() -> bool:
+    cores = os.cpu_count() or 1
+    try:
+        return cores > 1 and os.getloadavg()[0] < cores - 1
+    except OSError:  # pragma: no cover - no load average on this platform
+        return cores > 1
 
 
 def _fold_chunk(ne: NormalEquations, Wb, F, act_rows, y, cols) -> None:
     """One chunk into ``ne`` (runs in the helper thread with ``overlap``; folds are sequential)."""
-    ne.add_blocks(Wb, F, act_rows, y, cols)
+    ne.add_blocks(Wb, F, act_rows, y, cols, upper_only=True)
 
 
 class _NoPool:
