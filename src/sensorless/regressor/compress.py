@@ -12,8 +12,9 @@ without a second pass over the data. Range statistics of y are kept for NRMSE.
 
 Speed (the fold is the only O(N p²) work besides the regressor itself):
 
-* each A_r is accumulated with BLAS SYRK on a column-major block (the upper triangle of MᵀM only,
-  mirrored once at the end of :func:`compress`), not a general product;
+* each A_r is accumulated from strided views of the chunk, no copies: ``M.T @ M``, which NumPy
+  hands to BLAS SYRK, for the body block, and small products for the joint-term blocks (the lower
+  cross block is mirrored once at the end of :func:`compress`);
 * row r of Pinocchio's joint-torque regressor is zero outside the bodies of the subtree of
   r's joint (τ_j = S_jᵀ Σ_{b ∈ subtree(j)} f_b(π_b)); Pinocchio numbers joints depth-first, so
   that is one contiguous column range per row (:meth:`ModelStructure.row_body_columns`) and only
@@ -111,32 +112,32 @@ class NormalEquations:
 
         Equivalent to :meth:`add` on the assembled regressor. Per row r only the body columns
         ``body_columns[r] = (c0, c1)`` (the others must be zero; default: all) and that row's joint
-        terms are gathered into one column-major block M_r, and the upper triangle of M_rᵀM_r is
-        added by BLAS SYRK. ``upper_only`` leaves the lower triangles to one :meth:`mirror_upper`
-        after the last chunk (what :func:`compress` does); otherwise A stays symmetric.
+        terms are folded, as three products on strided views of Wb and F (no copies): the body block
+        MᵀM (NumPy calls BLAS SYRK for ``M.T @ M``), the cross block MᵀF_r and F_rᵀF_r.
+        ``upper_only`` skips the lower cross block, left to one :meth:`mirror_upper` after the last
+        chunk (what :func:`compress` does); otherwise A stays symmetric.
         """
         n, rows, nb = Wb.shape
         nt = F.shape[2]
         term_of_row = {int(r): k for k, r in enumerate(act_rows)}
         for r in range(rows):
             c0, c1 = body_columns[r] if body_columns is not None else (0, nb)
+            M, yr, Ar = Wb[:, r, c0:c1], y[:, r], self.A[r]
+            if c1 > c0:
+                Ar[c0:c1, c0:c1] += M.T @ M
+                self.b[r, c0:c1] += yr @ M
             k = term_of_row.get(r)
-            kt = 0 if k is None else nt
-            if c1 - c0 + kt == 0:
+            if k is None or nt == 0:
                 continue
-            M = np.empty((n, c1 - c0 + kt), order="F")  # SYRK reads columns: column-major is its fast layout
-            M[:, : c1 - c0] = Wb[:, r, c0:c1]
-            if kt:
-                M[:, c1 - c0 :] = F[:, k, :]
-            U = _dsyrk()(1.0, M, trans=1, lower=0)  # upper triangle of MᵀM
-            if kt and c1 < nb + k * nt:  # body block and term block are not adjacent: scatter
-                idx = np.r_[c0:c1, nb + k * nt : nb + (k + 1) * nt]
-                self.A[r][np.ix_(idx, idx)] += U if upper_only else _mirror(U)
-                self.b[r, idx] += y[:, r] @ M
-            else:
-                sl = slice(c0, c1 + kt)
-                self.A[r, sl, sl] += U if upper_only else _mirror(U)
-                self.b[r, sl] += y[:, r] @ M
+            t = slice(nb + k * nt, nb + (k + 1) * nt)
+            Fk = F[:, k, :]
+            Ar[t, t] += Fk.T @ Fk
+            self.b[r, t] += yr @ Fk
+            if c1 > c0:
+                cross = M.T @ Fk
+                Ar[c0:c1, t] += cross
+                if not upper_only:
+                    Ar[t, c0:c1] += cross.T
         self._stats(y)
 
     def mirror_upper(self) -> None:
