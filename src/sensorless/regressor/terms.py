@@ -134,13 +134,14 @@ class ModelStructure:
         N = Q.shape[0]
         Wb = np.empty((N, self.n_rows, self.n_body_params)) if out is None else out[:N]
         model, data, f = self.robot.model, self.robot.data, pin.computeJointTorqueRegressor
+        # zip over row views and `w[...] =` keep the Python work per sample to the call itself
         if self.n_rows == self.robot.nv:
-            for i in range(N):
-                Wb[i] = f(model, data, Q[i], V[i], A[i])
+            for w, q, v, a in zip(Wb, Q, V, A):
+                w[...] = f(model, data, q, v, a)
         else:
             rows = self._row_idx
-            for i in range(N):
-                Wb[i] = f(model, data, Q[i], V[i], A[i])[rows]
+            for w, q, v, a in zip(Wb, Q, V, A):
+                w[...] = f(model, data, q, v, a)[rows]
         return Wb
 
     def row_body_columns(self) -> list[tuple[int, int]]:
