@@ -220,3 +220,28 @@ def test_plot_window_predicts_only_the_decimated_samples(ur5, tmp_path, monkeypa
     core._plot_window(log, ModelStructure(ur5), {"M": Model()}, tmp_path / "x.png", "t")
     assert seen["n"] == seen["points"] <= core.PLOT_POINTS
     assert seen["t_end"] < log.t[core.PLOT_WINDOW]
+
+
+def test_blockwise_fold_on_a_tree_numbered_breadth_first():
+    """Regression: the subtree columns assumed depth-first numbering (an assertion error on the
+    PSM's coded tree). Joint 4 hangs under joint 2 after sibling 3: the range is a superset, still exact."""
+    from sensorless.robot import Robot
+
+    m = pin.Model()
+    parents = {1: 0, 2: 1, 3: 1, 4: 2}
+    rng = np.random.default_rng(5)
+    for j, par in parents.items():
+        jid = m.addJoint(par, pin.JointModelRY() if j % 2 else pin.JointModelRZ(),
+                         pin.SE3(np.eye(3), rng.normal(size=3) * 0.3), f"j{j}")
+        m.appendBodyToJoint(jid, pin.Inertia.Random(), pin.SE3.Identity())
+    m.lowerPositionLimit, m.upperPositionLimit = -np.pi * np.ones(m.nq), np.pi * np.ones(m.nq)
+    m.velocityLimit, m.effortLimit = 3.0 * np.ones(m.nv), 50.0 * np.ones(m.nv)
+    s = ModelStructure(Robot(m, name="tree"))
+    assert s.row_body_columns()[1] == (10, 40)  # subtree of j2 = {2, 4}: columns 10..40 include j3's zeros
+    Q, V, A = _random_states(s, 100, rng)
+    W = s.evaluate(Q, V, A)
+    y = rng.normal(size=(100, s.n_rows))
+    dense, blocks = NormalEquations.zeros(s.n_rows, s.n_params), NormalEquations.zeros(s.n_rows, s.n_params)
+    dense.add(W, y)
+    blocks.add_blocks(s.body_regressor(Q, V, A), s.joint_features(V, A), s.actuated_rows, y, s.row_body_columns())
+    assert _rel(blocks.A, dense.A) < 1e-12 and _rel(blocks.b, dense.b) < 1e-12

@@ -231,7 +231,10 @@ def compress(
         return compress_files(structure, data, client=client, reader=reader, chunk=chunk, progress=progress).equations
     ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
     own_fold = hasattr(structure, "fold")  # structures with their own row map (e.g. contacts)
-    cols = None if own_fold else structure.row_body_columns()
+    # per-row subtree columns only where the body block is Pinocchio's joint-torque regressor itself
+    # (a transmission's dense regressor couples rows through its drive columns: fold every column)
+    pinocchio_rows = type(structure).body_regressor is ModelStructure.body_regressor
+    cols = structure.row_body_columns() if pinocchio_rows and not own_fold else None
     if overlap is None:
         overlap = _idle_core()
     seen = False

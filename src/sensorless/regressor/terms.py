@@ -148,9 +148,10 @@ class ModelStructure:
         """Per kept row, the column range (c0, c1) of the body block that can be non-zero.
 
         Row v (a dof of joint j) of the joint-torque regressor only sees the bodies of the
-        subtree of j: τ_j = S_jᵀ Σ_{b ∈ subtree(j)} f_b(π_b). Pinocchio numbers joints
-        depth-first, so the subtree is the joint range j … j + |subtree(j)| − 1, i.e. body
-        columns 10(j−1) … 10(j−1+|subtree(j)|).
+        subtree of j: τ_j = S_jᵀ Σ_{b ∈ subtree(j)} f_b(π_b). A child's index is larger than
+        its parent's, so those bodies lie in columns 10(j−1) … 10·max(subtree(j)): one contiguous
+        range (exactly the subtree when joints are numbered depth-first, as Pinocchio's parsers do;
+        a superset with zero columns otherwise).
         """
         m = self.robot.model
         owner = np.empty(m.nv, dtype=int)
@@ -159,9 +160,7 @@ class ModelStructure:
         out = []
         for v in self._row_idx:
             j = int(owner[v])
-            sub = list(m.subtrees[j])
-            assert sub == list(range(j, j + len(sub))), "Pinocchio joints are numbered depth-first"
-            out.append((10 * (j - 1), 10 * (j - 1 + len(sub))))
+            out.append((10 * (j - 1), 10 * max(m.subtrees[j])))
         return out
 
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
