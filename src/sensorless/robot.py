@@ -15,6 +15,7 @@ Conventions
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -227,7 +228,8 @@ class Robot:
         }
 
 
-def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str]:
+def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str, str | None]:
+    """(model, name, source, URDF path or None) of a model file or an example-robot-data name."""
     path = Path(spec)
     suffix = path.suffix.lower()
     if suffix in {".urdf", ".xml", ".mjcf"}:
@@ -254,7 +256,7 @@ def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str]:
             extra = f" [{' / '.join(captured[:3])[:300]}]" if captured else ""
             raise RobotModelError(f"{spec}: Pinocchio could not parse the model: {detail[:400]}{extra}") from None
         check_model(model, str(path))
-        return model, path.stem, str(path)
+        return model, path.stem, str(path), str(path) if suffix == ".urdf" else None
     import example_robot_data as erd
 
     if spec not in erd.robots_loader.ROBOTS:
@@ -262,12 +264,11 @@ def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str]:
             f"'{spec}' is neither a .urdf/.xml file nor an example-robot-data name "
             f"(known names: {sorted(erd.robots_loader.ROBOTS)})"
         )
-    wrapper = erd.load(spec)
-    model = wrapper.model
+    model, urdf = _erd_model(spec)
     if floating_base is False and model.joints[1].shortname() == "JointModelFreeFlyer":
         model.lowerVelocityLimit = -np.abs(model.upperVelocityLimit)
         model = pin.buildReducedModel(model, [1], pin.neutral(model))
-    return model, spec, f"example-robot-data:{spec}"
+    return model, spec, f"example-robot-data:{spec}", urdf
 
 
 def load_robot(
@@ -284,7 +285,7 @@ def load_robot(
     ``actuated_joints`` defaults to every 1-DoF joint. ``armature`` sets rotor inertia
     per joint name when the model file has none.
     """
-    model, name, source = _build(str(spec), floating_base)
+    model, name, source, urdf = _build(str(spec), floating_base)
     if lock_joints:
         # some example-robot-data models set lowerVelocityLimit = +max, which buildReducedModel rejects
         model.lowerVelocityLimit = -np.abs(model.upperVelocityLimit)
@@ -295,18 +296,38 @@ def load_robot(
         ids = [names.index(j) for j in lock_joints]
         model = pin.buildReducedModel(model, ids, pin.neutral(model))
     robot = Robot(model, name=name, source=source, actuated_joints=tuple(actuated_joints or ()))
-    robot.urdf_path = source if source.endswith(".urdf") else _erd_urdf(name) if source.startswith("example") else None
+    robot.urdf_path = urdf
     if armature:
         for j, val in armature.items():
             robot.model.armature[robot.v_index(j)] = float(val)
     return robot
 
 
-def _erd_urdf(name: str) -> str | None:
-    try:
-        import example_robot_data as erd
+def _erd_model(name: str) -> tuple[pin.Model, str | None]:
+    """The kinematic/inertial model of an example-robot-data robot and its URDF path, loaded once.
 
-        loader = erd.robots_loader.ROBOTS[name]
-        return str(getattr(loader(), "df_path", None) or "") or None
-    except Exception:
-        return None
+    ``erd.load`` builds the visual and collision geometry too (meshes: most of its time). For the
+    loaders that only run ``RobotLoader.__init__`` the same model is built here from the URDF path
+    without geometry, with the same SRDF step (rotor parameters → armature, reference postures) and
+    free-flyer limits; loaders with their own ``__init__`` (e.g. ``talos_legs``) go through ``erd.load``.
+    """
+    import example_robot_data as erd
+    from example_robot_data.utils import RobotLoader, getModelPath, readParamsFromSrdf
+
+    loader = erd.robots_loader.ROBOTS[name]
+    if loader.__init__ is not RobotLoader.__init__ or not loader.urdf_filename or loader.sdf_filename:
+        wrapper = loader()
+        return wrapper.robot.model, str(getattr(wrapper, "df_path", None) or "") or None
+    rel = os.path.join(loader.path, loader.urdf_subpath, loader.urdf_filename)
+    root = loader.model_path or getModelPath(rel)
+    urdf = os.path.join(root, rel)
+    model = pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer()) if loader.free_flyer else pin.buildModelFromUrdf(urdf)
+    if loader.srdf_filename:
+        srdf = os.path.join(root, loader.path, loader.srdf_subpath, loader.srdf_filename)
+        readParamsFromSrdf(model, srdf, False, loader.has_rotor_parameters, loader.ref_posture)
+    if loader.free_flyer:  # RobotLoader.addFreeFlyerJointLimits
+        ub, lb = model.upperPositionLimit, model.lowerPositionLimit
+        ub[:7], lb[:7] = 1, -1
+        model.upperPositionLimit, model.lowerPositionLimit = ub, lb
+    return model, urdf
+

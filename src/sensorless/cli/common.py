@@ -53,7 +53,8 @@ def guarded(fn):
             warnings.simplefilter("default")
             warnings.showwarning = _show_warning
             try:
-                return fn(*args, **kwargs)
+                with blas_threads_for_command():
+                    return fn(*args, **kwargs)
             except typer.Exit:
                 raise
             except SensorlessError as exc:
@@ -67,6 +68,31 @@ def guarded(fn):
                 raise typer.Exit(3) from None
 
     return wrapper
+
+
+_BLAS_ENV = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def blas_threads_for_command() -> Iterator[None]:
+    """BLAS on one thread while a command runs, unless the user set ``OPENBLAS_NUM_THREADS`` (or MKL/BLIS).
+
+    The commands' products and factorisations are small (p ≲ a few hundred); threaded BLAS only
+    adds synchronisation, and under CPU contention it was measured 39× slower (a 252×84 QR took
+    0.3 s). NumPy and SciPy each bundle their own OpenBLAS: the loaded ones are limited with
+    threadpoolctl, the ones loaded during the command read the environment variable set here.
+    """
+    if any(v in os.environ for v in _BLAS_ENV):
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield
+    finally:
+        os.environ.pop("OPENBLAS_NUM_THREADS", None)
 
 
 @contextlib.contextmanager
@@ -182,9 +208,11 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
     """A URDF/MJCF/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
     motor coordinates, a transmission's coordinate robot)."""
     from ..robot import load_robot
-    from ..robots.dvrk_psm import PSM_NAMES, psm_robot
+    from ..robots.names import PSM_NAMES
 
     if str(robot).lower() in PSM_NAMES:
+        from ..robots.dvrk_psm import psm_robot
+
         if lock or floating:
             raise SensorlessError(f"--robot {robot}: --lock and --floating-base do not apply to the PSM model")
         return psm_robot()

@@ -93,14 +93,15 @@ def identify(
     workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
                                                      "an address: wait until this many workers are connected"),
     skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "
+                              "held-out log, else of the first training log)"),
 ) -> None:
     """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png, report.html.
 
     --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
     from ..estimators import CADModel
     from ..identification import identify as _identify
-    from ..regressor import ModelStructure
-    from ..report import metrics_table, plot_torques
+    from ..report import metrics_table
 
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
@@ -182,9 +183,9 @@ def identify(
             cols[method.upper()] = m_id
             console.print(metrics_table(f"held-out {Path(p).name}", cols))
         shown = val[0] if val else (train[0] if train else None)
-        if shown is not None:  # with --scheduler, the client may not see the training files
-            plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
-                         structure.row_names, tmp / "torques.png", title=f"{r.name}: {'held-out' if val else 'training'} torques")
+        if plot and shown is not None:  # with --scheduler, the client may not see the training files
+            _plot_window(shown, structure, {method.upper(): result, "CAD": cad}, tmp / "torques.png",
+                         f"{r.name}: {'held-out' if val else 'training'} torques")
         _floating_base_checks(structure, result, doc, train, val, validate)
         _export(result, tmp, doc)
         from ..identification.result import write_json_atomic
@@ -199,6 +200,22 @@ def identify(
              else f"condition number {d['condition_number']:.1f}")
     skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
     console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
+
+
+PLOT_WINDOW = 20_000  # samples of the log shown in torques.png (from its start)
+PLOT_POINTS = 2_000  # points per curve after decimation
+
+
+def _plot_window(traj, structure, models: dict, path: Path, title: str) -> None:
+    """torques.png: measured vs predicted effort on the first ``PLOT_WINDOW`` samples, every k-th sample
+    (≤ ``PLOT_POINTS`` points). Only those samples are predicted (the model is pointwise in q, v, v̇)."""
+    from ..report import plot_torques
+
+    n = min(len(traj), PLOT_WINDOW)
+    part = traj.take(np.arange(0, n, max(1, math.ceil(n / PLOT_POINTS))))
+    span = f"first {part.t[-1] - traj.t[0]:.3g} s" if n < len(traj) else "whole log"
+    plot_torques(part.t, structure.target(part), {k: m.predict(part) for k, m in models.items()},
+                 structure.row_names, path, title=f"{title} ({span}, {len(part)} points)")
 
 
 def _load_training(data, r, prep: dict, skip_bad: bool):
@@ -233,7 +250,6 @@ def _check_identify_options(method, gamma, regularization, coulomb_smoothing, ou
     """OptionError, naming the option, for values no run can use (checked before any work)."""
     from ..data.outliers import OUTLIER_MODES
     from ..identification import METHODS
-    from ..identification.regularizers import REGULARIZERS
 
     if method not in METHODS:
         raise OptionError(f"--method must be one of {', '.join(METHODS)}, got '{method}'")
@@ -244,7 +260,9 @@ def _check_identify_options(method, gamma, regularization, coulomb_smoothing, ou
             raise OptionError(f"--gamma must be a number or 'auto', got '{gamma}'") from None
         if not (math.isfinite(g) and g >= 0):
             raise OptionError(f"--gamma must be a finite number >= 0 or 'auto', got '{gamma}'")
-    if regularization != "none" and regularization not in REGULARIZERS:
+    if regularization not in ("none", "pullback"):  # the default is checked without loading cvxpy
+        from ..identification.regularizers import REGULARIZERS
+    if regularization not in ("none", "pullback") and regularization not in REGULARIZERS:
         raise OptionError(f"--regularization must be one of {', '.join(sorted(REGULARIZERS))}, none; "
                           f"got '{regularization}'")
     if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
@@ -508,6 +526,33 @@ def bench_contact_cmd(
     from ..identification.result import write_json_atomic
 
     res = bench_contact(samples, console=console)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")
+
+
+@bench_app.command("speed")
+@guarded
+def bench_speed_cmd(
+    samples: int = typer.Option(100_000, help="samples of the in-memory compression log (UR5 and Panda)"),
+    memory_sizes: str = typer.Option("100000,1000000", help="comma-separated sizes of the streamed peak-memory runs"),
+    contact_samples: int = typer.Option(100_000, help="Solo12 samples for projector vs pinv loop"),
+    identify_samples: int = typer.Option(100_000, help="samples of the UR5 log given to `sensorless identify`"),
+    repeats: int = typer.Option(3, help="interleaved repetitions (best of)"),
+    out: Path = typer.Option(Path("benchmarks/results/speed.json")),
+) -> None:
+    """Compression vs a bare regressor call, peak memory, contact projector vs pinv, CLI start-up and identify."""
+    from ..bench_speed import bench_speed
+    from ..identification.result import write_json_atomic
+
+    if min(samples, contact_samples, identify_samples, repeats) < 1:
+        raise OptionError("--samples, --contact-samples, --identify-samples and --repeats must be >= 1")
+    try:
+        sizes = tuple(int(float(x)) for x in memory_sizes.split(","))
+    except ValueError:
+        raise OptionError(f"--memory-sizes must be comma-separated sample counts, got '{memory_sizes}'") from None
+    res = bench_speed(n_compress=samples, memory_sizes=sizes, n_contact=contact_samples, n_identify=identify_samples,
+                      repeats=repeats, console=console)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(res, out)
     console.print(f"wrote {out}")

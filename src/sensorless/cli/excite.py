@@ -24,7 +24,7 @@ from .common import (
     path_inputs,
 )
 
-from ..robots.dvrk_psm import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
+from ..robots.names import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
 
 
 def _parse_box(spec: str):

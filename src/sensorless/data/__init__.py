@@ -2,18 +2,32 @@
 
 from __future__ import annotations
 
-from .base_pose import BasePose, clean_base_pose, with_base_pose
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
 from .gains import currents_to_torques, load_gains, resolve_gains
 from .prepare import TrimWindow, prepare, trim_window
-from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
 from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers
-from .integral_filter import LowpassChain, observer_filter
 from .readers import read_trajectory, write_npz
 from .resample import Timing, resample, timing
 from .rosbag import is_rosbag, read_rosbag
 from .trajectory import Trajectory
 from .validation import validate_trajectory
+
+# The modules that load SciPy's interpolation/signal packages or Pinocchio are imported on first use
+_EXPORTS = {
+    **dict.fromkeys(["BasePose", "clean_base_pose", "with_base_pose"], ".base_pose"),
+    **dict.fromkeys(["base_acceleration", "imu_base_acceleration", "imu_frame_base_acceleration"], ".imu"),
+    **dict.fromkeys(["LowpassChain", "observer_filter"], ".integral_filter"),
+}
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
+
+if TYPE_CHECKING:
+    from .base_pose import BasePose, clean_base_pose, with_base_pose
+    from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
+    from .integral_filter import LowpassChain, observer_filter
 
 __all__ = [
     "LowpassChain",

@@ -12,8 +12,6 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-from scipy.interpolate import make_interp_spline
-from scipy.signal import butter, savgol_coeffs, savgol_filter, sosfiltfilt
 
 from ..errors import DataError
 from .trajectory import Trajectory
@@ -91,6 +89,8 @@ def butter_lowpass(x: np.ndarray, cutoff_hz: float, rate_hz: float, order: int =
     The forward-backward pass squares the magnitude response (-6 dB at ``cutoff_hz``,
     effective order ``2 * order``) and has no phase lag.
     """
+    from scipy.signal import butter, sosfiltfilt  # imported on use: scipy.signal costs ~0.4 s at start-up
+
     x = np.asarray(x, dtype=float)
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise DataError(f"sample rate must be positive, got {rate_hz!r} Hz")
@@ -180,6 +180,8 @@ class SavitzkyGolay:
             raise DataError(f"dt must be a positive number of seconds, got {self.dt!r}")
         self.window, self.polyorder, self.dt = int(self.window), int(self.polyorder), float(self.dt)
         pos = self.window - 1 if self.causal else None
+        from scipy.signal import savgol_coeffs
+
         try:
             with np.errstate(all="raise"):
                 self.coeffs = {
@@ -219,6 +221,8 @@ class SavitzkyGolay:
         if x.ndim == 0 or x.shape[0] < w:
             n = 0 if x.ndim == 0 else x.shape[0]
             raise TooFewSamplesError(f"{n} samples are fewer than the Savitzky-Golay window ({w})")
+        from scipy.signal import savgol_filter
+
         if not self.causal:
             return savgol_filter(x, w, self.polyorder, deriv=deriv, delta=self.dt, axis=0, mode="interp")
         y = np.empty_like(x)
@@ -313,6 +317,8 @@ def resample_uniform(traj: Trajectory, rate_hz: float | None = None) -> Trajecto
     """Linear interpolation of every per-sample array onto ``t[0] + k / rate_hz``
     (``k = 0 .. floor(duration * rate_hz)``); default rate is 1 / median dt. The base
     quaternion is renormalised after interpolation."""
+    from scipy.interpolate import make_interp_spline
+
     traj = validate_trajectory(traj, check_units=False)
     rate = traj.rate if rate_hz is None else float(rate_hz)
     if not (np.isfinite(rate) and rate > 0):

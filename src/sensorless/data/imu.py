@@ -30,7 +30,6 @@ which contains the lever arm, the frame rotation and the joint motion in between
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 
 from ..errors import DataError, RobotModelError, ShapeMismatchError
 from .filtering import SavitzkyGolay, _note, _uniform_dt
@@ -90,6 +89,8 @@ def imu_frame_base_acceleration(
 ) -> np.ndarray:
     """(N, 6) LOCAL base acceleration from ``extras["imu_acc"]`` read in the model frame
     ``frame`` (rotation and lever arm from the model, on any body; module docstring)."""
+    import pinocchio as pin  # imported on use (start-up time of the data layer)
+
     if not getattr(robot, "floating_base", False):
         raise RobotModelError(f"{robot.name}: an IMU frame needs a floating-base robot (CLI: --floating-base)")
     if not robot.model.existFrame(frame):

@@ -32,7 +32,6 @@ from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_de
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
 from .filtering import trim as _trim
-from .imu import base_acceleration
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError, validate_trajectory
@@ -229,6 +228,8 @@ def prepare(
         traj = traj.with_(a=a, units=_note(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
                           provenance={**traj.provenance, "a": f"derived: d/dt of logged v, {how}"})
     if base_a:
+        from .imu import base_acceleration  # imported on use: it loads Pinocchio
+
         traj = base_acceleration(traj, window=w)
         traj = traj.with_(provenance={**traj.provenance, "base_a": "derived (base_acceleration)"})
     if decimate and decimate > 1:

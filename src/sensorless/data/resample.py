@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.interpolate import interp1d, make_interp_spline
 
 from ..errors import DataError, TimestampError
 from .filtering import MAX_JITTER
@@ -148,6 +147,8 @@ def resample(
             "or raise the tolerance (--max-gap)", src)
     if tu.size < 2:
         raise TooFewSamplesError("resample: fewer than 2 distinct time stamps", src)
+    from scipy.interpolate import interp1d, make_interp_spline  # imported on use (start-up time)
+
     rel = tu - tu[0]
     n = int(np.floor(rel[-1] * rate + 1e-9)) + 1
     grid = np.arange(n) / rate

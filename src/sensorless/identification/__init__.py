@@ -1,18 +1,12 @@
 """Identification: base parameters, solvers, metrics and results."""
 
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
 from .base import BaseParameters, base_parameters
 from .identifiability import identifiability_report
 from .identify import CONSTRAINT_RESIDUAL_RISE, JOINT_TERM_MAX_VIF, METHODS, identify
-from .constraints import (
-    BodyMassBounds,
-    ComInEllipsoid,
-    DensityRealizable,
-    NonNegativeArmature,
-    NonNegativeFriction,
-    PseudoInertiaPSD,
-    TotalMass,
-    default_constraints,
-)
 from .ellipsoids import PRIOR_COM_MARGIN, PRIOR_SLACK, BoundingEllipsoid, auto_ellipsoids
 from .fleet import identify_files, identify_fleet
 from .least_squares import (
@@ -24,7 +18,6 @@ from .least_squares import (
     solve_truncated_svd,
     two_step_sigma,
 )
-from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
 from .payload import JointConsistency, PayloadEstimate, identify_payload, payload_regressor, point_mass_parameters
 from .result import IdentificationResult
@@ -32,6 +25,28 @@ from .floating_base import base_wrench_metrics, com_cop_check, com_positions, st
 
 from .weights import check_weights, read_weights_file, weights_option
 from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
+
+# cvxpy (~0.4 s to import) is loaded with the LMI modules, on first use (PEP 562)
+__getattr__, __dir__ = lazy_exports(globals(), {
+    **dict.fromkeys(["BodyMassBounds", "ComInEllipsoid", "DensityRealizable", "NonNegativeArmature",
+                     "NonNegativeFriction", "PseudoInertiaPSD", "TotalMass", "default_constraints"], ".constraints"),
+    **dict.fromkeys(["GammaSelection", "LmiSolution", "build_lmi", "cross_validate_gamma", "select_gamma",
+                     "solve_lmi"], ".lmi"),
+})
+
+if TYPE_CHECKING:
+    from .constraints import (
+        BodyMassBounds,
+        ComInEllipsoid,
+        DensityRealizable,
+        NonNegativeArmature,
+        NonNegativeFriction,
+        PseudoInertiaPSD,
+        TotalMass,
+        default_constraints,
+    )
+    from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
+
 
 __all__ = [
     "CONSTRAINT_RESIDUAL_RISE",

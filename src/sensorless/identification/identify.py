@@ -279,8 +279,8 @@ def _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, st
             raise OptionError(f"gamma must be a number >= 0 or 'auto', got {gamma!r}") from None
         if not (math.isfinite(g) and g >= 0):
             raise OptionError(f"gamma must be a finite number >= 0 or 'auto', got {gamma!r}")
-    if regularization is not None and isinstance(regularization, str):
-        from .regularizers import REGULARIZERS
+    if method == "lmi" and regularization is not None and isinstance(regularization, str):
+        from .regularizers import REGULARIZERS  # loads cvxpy: only the LMI uses a regulariser
 
         if regularization not in REGULARIZERS:
             raise OptionError(f"unknown regularization {regularization!r}; choose from {sorted(REGULARIZERS)} or None")

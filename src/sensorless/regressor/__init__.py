@@ -8,6 +8,7 @@ from .contact import (
     contact_jacobians,
     contact_rotations,
     detect_contacts,
+    null_space_basis,
     null_space_projector,
 )
 from .distributed import DistributedError, FleetEquations, LogReader, compress_files, expand_paths
@@ -20,6 +21,7 @@ __all__ = [
     "contact_jacobians",
     "contact_rotations",
     "detect_contacts",
+    "null_space_basis",
     "null_space_projector",
     "JOINT_TERMS",
     "ModelStructure", "NormalEquations", "compress", "iter_trajectories",

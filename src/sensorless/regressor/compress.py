@@ -9,10 +9,28 @@ one set per equation row r (per joint). Memory is O(rows · p²), independent of
 Keeping rows separate lets weighted least squares rescale rows afterwards
 (A = Σ_r A_r / σ_r²) and gives per-joint residuals ‖W_r π − y_r‖² = πᵀA_rπ − 2πᵀb_r + c_r
 without a second pass over the data. Range statistics of y are kept for NRMSE.
+
+Speed (the fold is the only O(N p²) work besides the regressor itself):
+
+* each A_r is accumulated from strided views of the chunk, no copies: ``M.T @ M``, which NumPy
+  hands to BLAS SYRK, for the body block, and small products for the joint-term blocks (the lower
+  cross block is mirrored once at the end of :func:`compress`);
+* row r of Pinocchio's joint-torque regressor is zero outside the bodies of the subtree of
+  r's joint (τ_j = S_jᵀ Σ_{b ∈ subtree(j)} f_b(π_b)); Pinocchio numbers joints depth-first, so
+  that is one contiguous column range per row (:meth:`ModelStructure.row_body_columns`) and only
+  that block and the row's joint terms are folded;
+* BLAS is pinned to one thread while compressing (threadpoolctl): the chunk products are small,
+  and threaded BLAS under CPU contention was measured 39× slower;
+* with ``overlap=True`` the fold of chunk k runs in a helper thread (BLAS releases the GIL)
+  while the Python loop evaluates the regressor of chunk k + 1 (double buffering); by default
+  only when a core is idle.
 """
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Iterator
 
@@ -22,7 +40,43 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError
 from .terms import ModelStructure
 
-__all__ = ["NormalEquations", "compress", "iter_trajectories"]
+__all__ = ["NormalEquations", "compress", "iter_trajectories", "one_blas_thread", "syrk_fold"]
+
+
+def _dsyrk():
+    from scipy.linalg.blas import dsyrk  # imported on use (CLI start-up)
+
+    return dsyrk
+
+
+def _mirror(U: np.ndarray) -> np.ndarray:
+    """The symmetric matrix whose upper triangle is that of U."""
+    return np.triu(U) + np.triu(U, 1).T
+
+
+def syrk_fold(M: np.ndarray) -> np.ndarray:
+    """MᵀM for M (n, k) by BLAS SYRK on the upper triangle, returned as the full symmetric (k, k).
+
+    ``dsyrk`` with ``trans=0`` on the Fortran view ``M.T`` (k, n) computes a·aᵀ = MᵀM without copying a
+    C-contiguous M (``trans=1`` on a column-major M is used when M is already column-major); only the
+    upper triangle is computed and it is mirrored here.
+    """
+    M = np.asarray(M, dtype=float)
+    if M.shape[0] == 0:
+        return np.zeros((M.shape[1], M.shape[1]))
+    if M.flags.f_contiguous and not M.flags.c_contiguous:
+        return _mirror(_dsyrk()(1.0, M, trans=1, lower=0))
+    return _mirror(_dsyrk()(1.0, np.ascontiguousarray(M).T, trans=0, lower=0))
+
+
+@contextmanager
+def one_blas_thread():
+    """BLAS (and OpenMP) limited to one thread inside the block (threadpoolctl), restored after."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
 
 
 @dataclass
@@ -51,28 +105,59 @@ class NormalEquations:
         self.b += np.einsum("rnp,nr->rp", Wt, y)
         self._stats(y)
 
-    def add_blocks(self, Wb: np.ndarray, F: np.ndarray, act_rows: np.ndarray, y: np.ndarray) -> None:
+    def add_blocks(self, Wb: np.ndarray, F: np.ndarray, act_rows: np.ndarray, y: np.ndarray,
+                   body_columns: list[tuple[int, int]] | None = None, *, upper_only: bool = False) -> None:
         """Fold a chunk given as blocks: body regressor Wb (n, rows, nb), joint features
         F (n, n_act, nt) that sit on row ``act_rows[k]`` in columns nb + k·nt … (k+1)·nt.
 
-        Equivalent to :meth:`add` on the assembled regressor, but exploits the sparsity of
-        the joint-term columns (one joint per row) and reads Wb without transposing it.
+        Equivalent to :meth:`add` on the assembled regressor. Per row r only the body columns
+        ``body_columns[r] = (c0, c1)`` (the others must be zero; default: all) and that row's joint
+        terms are folded, as three products on strided views of Wb and F (no copies): the body block
+        MᵀM (NumPy calls BLAS SYRK for ``M.T @ M``), the cross block MᵀF_r and F_rᵀF_r.
+        ``upper_only`` skips the lower cross block, left to one :meth:`mirror_upper` after the last
+        chunk (what :func:`compress` does); otherwise A stays symmetric.
         """
-        nb = Wb.shape[2]
+        n, rows, nb = Wb.shape
         nt = F.shape[2]
-        for r in range(Wb.shape[1]):
-            Wr = Wb[:, r, :]  # strided view, BLAS-compatible
-            self.A[r, :nb, :nb] += Wr.T @ Wr
-            self.b[r, :nb] += Wr.T @ y[:, r]
-        for k, r in enumerate(act_rows):
-            c = slice(nb + k * nt, nb + (k + 1) * nt)
+        term_of_row = {int(r): k for k, r in enumerate(act_rows)}
+        for r in range(rows):
+            c0, c1 = body_columns[r] if body_columns is not None else (0, nb)
+            M, yr, Ar = Wb[:, r, c0:c1], y[:, r], self.A[r]
+            if c1 > c0:
+                Ar[c0:c1, c0:c1] += M.T @ M
+                self.b[r, c0:c1] += yr @ M
+            k = term_of_row.get(r)
+            if k is None or nt == 0:
+                continue
+            t = slice(nb + k * nt, nb + (k + 1) * nt)
             Fk = F[:, k, :]
-            cross = Wb[:, r, :].T @ Fk
-            self.A[r, :nb, c] += cross
-            self.A[r, c, :nb] += cross.T
-            self.A[r, c, c] += Fk.T @ Fk
-            self.b[r, c] += Fk.T @ y[:, r]
+            Ar[t, t] += Fk.T @ Fk
+            self.b[r, t] += yr @ Fk
+            if c1 > c0:
+                cross = M.T @ Fk
+                Ar[c0:c1, t] += cross
+                if not upper_only:
+                    Ar[t, c0:c1] += cross.T
         self._stats(y)
+
+    def mirror_upper(self) -> None:
+        """Complete each A_r from its upper triangle (after folds with ``upper_only``)."""
+        for r in range(self.A.shape[0]):
+            self.A[r] = _mirror(self.A[r])
+
+    def add_pooled(self, Z: np.ndarray, z: np.ndarray, y_rows: np.ndarray) -> None:
+        """Fold equations whose rows are not kept apart: Z (m, p), z (m,) add ZᵀZ, Zᵀz and ‖z‖²
+        spread equally over the R rows (A_r += ZᵀZ / R, …), so every total is exact and each row
+        carries the pooled mean. ``y_rows`` (n, R) feeds the per-row range statistics and the
+        sample count. Used by the contact null-space fold (:class:`~.contact.ContactStructure`)."""
+        R = self.A.shape[0]
+        self.A += syrk_fold(Z) / R
+        self.b += (Z.T @ z) / R
+        self.c += float(z @ z) / R
+        self.y_min = np.minimum(self.y_min, y_rows.min(axis=0))
+        self.y_max = np.maximum(self.y_max, y_rows.max(axis=0))
+        self.y_sum += y_rows.sum(axis=0)
+        self.n_samples += y_rows.shape[0]
 
     def _stats(self, y: np.ndarray) -> None:
         self.c += np.einsum("nr,nr->r", y, y)
@@ -122,6 +207,7 @@ def compress(
     progress: Callable[[int], None] | None = None,
     client=None,
     reader=None,
+    overlap: bool | None = None,
 ) -> NormalEquations:
     """Evaluate the regressor chunk by chunk and fold it into :class:`NormalEquations`.
 
@@ -133,27 +219,76 @@ def compress(
     :class:`~.distributed.LogReader`) and returns partial sums, added by a tree reduction
     (:func:`~.distributed.compress_files`; ``progress(1)`` per finished file). A file that
     cannot be used raises its typed error; to skip such files instead, use ``compress_files``.
+
+    BLAS runs on one thread throughout; ``overlap`` folds chunk k in a helper thread while
+    chunk k + 1 is evaluated (see the module docstring). ``None``: overlap when a core is idle
+    (1-min load average below cores − 1); on a busy machine the thread only competes for the GIL.
+    The sums do not depend on it (same folds, same order).
     """
     if client is not None:
         from .distributed import compress_files
 
         return compress_files(structure, data, client=client, reader=reader, chunk=chunk, progress=progress).equations
     ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
-    buf = np.empty((chunk, structure.n_rows, structure.n_body_params))
+    own_fold = hasattr(structure, "fold")  # structures with their own row map (e.g. contacts)
+    # per-row subtree columns only where the body block is Pinocchio's joint-torque regressor itself
+    # (a transmission's dense regressor couples rows through its drive columns: fold every column)
+    pinocchio_rows = type(structure).body_regressor is ModelStructure.body_regressor
+    cols = structure.row_body_columns() if pinocchio_rows and not own_fold else None
+    if overlap is None:
+        overlap = _idle_core()
     seen = False
-    for traj in iter_trajectories(data):
-        seen = True
-        for part in traj.chunks(chunk):
-            if hasattr(structure, "fold"):  # structures with their own row map (e.g. contacts)
-                structure.fold(ne, part)
+    with one_blas_thread(), (ThreadPoolExecutor(1) if overlap and not own_fold else _NoPool()) as pool:
+        bufs = [np.empty((chunk, structure.n_rows, structure.n_body_params)) for _ in range(2 if pool else 1)]
+        pending = [None, None]
+        k = 0
+        for traj in iter_trajectories(data):
+            seen = True
+            for part in traj.chunks(chunk):
+                if own_fold:
+                    structure.fold(ne, part)
+                    if progress is not None:
+                        progress(len(part))
+                    continue
+                slot = k % len(bufs)
+                if pending[slot] is not None:  # the fold still reading this buffer
+                    pending[slot].result()
+                Q, V, A = structure.state(part)
+                Wb = structure.body_regressor(Q, V, A, out=bufs[slot])
+                args = (Wb, structure.joint_features(V, A), structure.actuated_rows, structure.target(part), cols)
+                if pool:
+                    pending[slot] = pool.submit(_fold_chunk, ne, *args)
+                else:
+                    _fold_chunk(ne, *args)
+                k += 1
                 if progress is not None:
                     progress(len(part))
-                continue
-            Q, V, A = structure.state(part)
-            Wb = structure.body_regressor(Q, V, A, out=buf)
-            ne.add_blocks(Wb, structure.joint_features(V, A), structure.actuated_rows, structure.target(part))
-            if progress is not None:
-                progress(len(part))
+        for f in pending:
+            if f is not None:
+                f.result()
     if not seen:
         raise DataError("no trajectory was given")
+    if not own_fold:
+        ne.mirror_upper()
     return ne
+
+
+def _idle_core() -> bool:
+    cores = os.cpu_count() or 1
+    try:
+        return cores > 1 and os.getloadavg()[0] < cores - 1
+    except OSError:  # pragma: no cover - no load average on this platform
+        return cores > 1
+
+
+def _fold_chunk(ne: NormalEquations, Wb, F, act_rows, y, cols) -> None:
+    """One chunk into ``ne`` (runs in the helper thread with ``overlap``; folds are sequential)."""
+    ne.add_blocks(Wb, F, act_rows, y, cols, upper_only=True)
+
+
+class _NoPool:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False

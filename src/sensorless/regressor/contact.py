@@ -15,6 +15,13 @@ active contacts' rows only; rank-deficient stances (e.g. dependent foot rows) ar
 without a per-sample pinv. A sample with no contact (flight) has P = I: the full
 floating-base equations.
 
+Compression folds the projected equations through an orthonormal null-space basis B
+(nv × k, k = nv − rank Jc: 6 for four point feet on Solo12, 12 for two), since P = B Bᵀ gives
+Σ Wᵀ P W = Σ (BᵀW)ᵀ(BᵀW): k rows per sample instead of nv (see :func:`null_space_basis`,
+``fold_basis``). The k rows are combinations of joints, so the rows are pooled
+(:meth:`~.compress.NormalEquations.add_pooled`); ``fold_basis="projector"`` keeps the nv
+projected rows apart (per-row weights and residuals) at 2–3× the cost.
+
 With measured contact wrenches (force plates, foot F/T) the wrench moves to the known
 side instead: Y π + Sᵀ Φ φ = Sᵀ τ + Jcᵀ f (``mode="wrench"``).
 
@@ -54,6 +61,7 @@ __all__ = [
     "contact_jacobians",
     "contact_rotations",
     "null_space_projector",
+    "null_space_basis",
     "detect_contacts",
     "choose_contact_rows",
     "WRENCH_OFFSETS",
@@ -87,16 +95,42 @@ def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8, method: str = "cho
     eps = rcond**2 * np.maximum(np.trace(G, axis1=1, axis2=2), 1e-300)
     L = np.zeros_like(G)
     X = np.empty_like(Jc)
-    for j in range(m):  # column-wise Cholesky and forward substitution, vectorised over N
-        Lj = L[:, j, :j]
-        ljj = np.sqrt(np.maximum(G[:, j, j] + eps - np.einsum("nk,nk->n", Lj, Lj), eps))
+    for j in range(m):  # column-wise Cholesky and forward substitution, vectorised over N (batched matmul:
+        Lj = L[:, j, None, :j]  # several times faster than einsum on these small stacked matrices)
+        ljj = np.sqrt(np.maximum(G[:, j, j] + eps - np.matmul(Lj, Lj.transpose(0, 2, 1))[:, 0, 0], eps))
         L[:, j, j] = ljj
         if j + 1 < m:
-            L[:, j + 1 :, j] = (G[:, j + 1 :, j] - np.einsum("nik,nk->ni", L[:, j + 1 :, :j], Lj)) / ljj[:, None]
-        X[:, j] = (Jc[:, j] - np.einsum("nk,nkc->nc", Lj, X[:, :j])) / ljj[:, None]
+            L[:, j + 1 :, j] = (G[:, j + 1 :, j] - np.matmul(L[:, j + 1 :, :j], Lj.transpose(0, 2, 1))[:, :, 0]) / ljj[:, None]
+        X[:, j] = (Jc[:, j] - np.matmul(Lj, X[:, :j])[:, 0]) / ljj[:, None]
     P = -np.matmul(X.transpose(0, 2, 1), X)
     P[:, np.arange(nv), np.arange(nv)] += 1.0
     return P
+
+
+def null_space_basis(Jc: np.ndarray, rcond: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal bases B (N, nv, nv − m) of null(Jc) for Jc (N, m, nv), and where they equal the projector.
+
+    Householder QR of Jcᵀ = Q R (LAPACK, batched over samples): B is the last nv − m columns of Q,
+    so Jc B = 0, BᵀB = I and B Bᵀ = I − Jc⁺Jc for Jc of full row rank. ``exact`` (N,) marks the
+    samples where B Bᵀ also equals :func:`null_space_projector` (damping ε = rcond²·‖Jc‖²_F) to
+    1e-8: σ_min(Jc) ≥ 1/‖R⁻¹‖_F ≥ 1e4·rcond·‖Jc‖_F, so ε/σ²_min ≤ 1e-8. Elsewhere (dependent or
+    nearly dependent rows, m ≥ nv) B spans only part of the null space: use the projector there.
+    """
+    N, m, nv = Jc.shape
+    if m == 0:
+        return np.broadcast_to(np.eye(nv), (N, nv, nv)).copy(), np.ones(N, bool)
+    if m >= nv or N == 0:
+        return np.zeros((N, nv, max(nv - m, 0))), np.zeros(N, bool)
+    Q, R = np.linalg.qr(Jc.transpose(0, 2, 1), mode="complete")  # Q (N, nv, nv), R (N, nv, m)
+    R = R[:, :m, :]
+    piv = np.abs(R[:, np.arange(m), np.arange(m)])
+    scale = np.sqrt(np.einsum("nij,nij->n", Jc, Jc))
+    ok = piv.min(axis=1) > 1e4 * rcond * scale
+    R_safe = np.where(ok[:, None, None], R, np.eye(m))
+    Rinv = np.linalg.inv(R_safe)
+    inv_norm = np.sqrt(np.einsum("nij,nij->n", Rinv, Rinv))
+    exact = ok & (1.0 / inv_norm >= 1e4 * rcond * scale)
+    return Q[:, :, m:], exact
 
 
 _EZ_CROSS = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
@@ -210,6 +244,8 @@ class ContactStructure(ModelStructure):
     Contact flags come from ``traj.extras[contact_key]`` (N, n_contacts) or, when absent,
     from :func:`detect_contacts`. ``contact_offset`` is the radius of spherical feet: point
     contacts are taken that far below the foot frame (world z), where the ground touches.
+    ``fold_basis`` (projected mode): ``"nullspace"`` folds k = nv − rank Jc pooled rows per sample
+    (module docstring), ``"projector"`` the nv projected rows kept apart.
     """
 
     contact_frames: tuple[str, ...] = ()
@@ -221,6 +257,7 @@ class ContactStructure(ModelStructure):
     contact_rows: Literal["auto", "base", "all"] = "auto"
     wrench_offset: Literal["none", "net", "foot", "sole"] = "none"
     offset_axes: str = "xy"
+    fold_basis: Literal["nullspace", "projector"] = "nullspace"
     _fids: list[int] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
@@ -241,6 +278,8 @@ class ContactStructure(ModelStructure):
             raise RobotModelError(f"unknown contact mode '{self.mode}'; use 'projected' or 'wrench'")
         if self.contact_rows not in ("auto", "base", "all"):
             raise RobotModelError(f"unknown contact_rows '{self.contact_rows}'; use 'auto', 'base' or 'all'")
+        if self.fold_basis not in ("nullspace", "projector"):
+            raise RobotModelError(f"unknown fold_basis '{self.fold_basis}'; use 'nullspace' or 'projector'")
         if self.wrench_offset not in WRENCH_OFFSETS:
             raise RobotModelError(f"unknown wrench_offset '{self.wrench_offset}'; choose from {WRENCH_OFFSETS}")
         if self.mode == "projected" and (self.contact_rows == "base" or self.wrench_offset != "none"):
@@ -425,9 +464,41 @@ class ContactStructure(ModelStructure):
         return self._mapped(traj, with_regressor=False)[1]
 
     def fold(self, ne: NormalEquations, traj: Trajectory) -> None:
-        """Add one chunk to the normal equations (used by :func:`compress`)."""
-        W, y = self._mapped(traj)
-        ne.add(W, y)
+        """Add one chunk to the normal equations (used by :func:`compress`).
+
+        Projected mode with ``fold_basis="nullspace"``: per contact pattern, Z = BᵀW and z = BᵀSᵀτ
+        (B from :func:`null_space_basis`) are folded pooled, ZᵀZ by one SYRK; samples where B is not
+        exact fold P W and P Sᵀτ instead. Either way the summed normal equations are those of the
+        projected rows, Σ WᵀPW and Σ WᵀP Sᵀτ; the range statistics are those of P Sᵀτ.
+        """
+        if self.mode != "projected" or self.fold_basis == "projector":
+            W, y = self._mapped(traj)
+            ne.add(W, y)
+            return
+        Q, V, A = self.state(traj)
+        flags = self.contacts(traj)
+        y = self._joint_target(traj)
+        p = self.n_params
+        patterns, inverse = np.unique(flags, axis=0, return_inverse=True)
+        for k, pattern in enumerate(patterns):
+            idx = np.flatnonzero(inverse.ravel() == k)
+            on = np.flatnonzero(pattern)
+            J = contact_jacobians(self.robot, [self._fids[i] for i in on], [self.contact_dims[i] for i in on],
+                                  Q[idx], np.ones((len(idx), len(on)), bool), self.contact_offset)
+            B, exact = null_space_basis(J, self.rcond)
+            for sel, basis in ((exact, True), (~exact, False)):
+                if not sel.any():
+                    continue
+                rows = idx if sel.all() else idx[sel]
+                W = ModelStructure.evaluate(self, Q[rows], V[rows], A[rows])  # (n, nv, p), this group only
+                if basis:
+                    Bt = (B if sel.all() else B[sel]).transpose(0, 2, 1)
+                    z = np.matmul(Bt, y[rows][:, :, None])[:, :, 0]
+                    ne.add_pooled(np.matmul(Bt, W).reshape(-1, p), z.ravel(), np.matmul(Bt.transpose(0, 2, 1), z[:, :, None])[:, :, 0])
+                else:  # dependent or nearly dependent contact rows: the projector
+                    P = null_space_projector(J[sel], self.rcond)
+                    Py = np.matmul(P, y[rows][:, :, None])[:, :, 0]
+                    ne.add_pooled(np.matmul(P, W).reshape(-1, p), Py.ravel(), Py)
 
     def torques(self, params: np.ndarray, traj: Trajectory, chunk: int = 4096) -> np.ndarray:
         """Predicted mapped effort: P W π (projected) or W π (wrench), shape (N, n_rows)."""
@@ -465,6 +536,7 @@ class ContactStructure(ModelStructure):
             "contact_rows": "base" if self.base_rows_only else "all",
             "wrench_offset": self.wrench_offset,
             "offset_axes": self.offset_axes,
+            "fold_basis": self.fold_basis,
         }
 
     @classmethod
@@ -475,5 +547,5 @@ class ContactStructure(ModelStructure):
             contact_dims=tuple(settings.get("contact_dims", ())), mode=settings.get("contact_mode", "projected"),
             rcond=settings.get("rcond", 1e-7), contact_offset=settings.get("contact_offset", 0.0),
             contact_rows=settings.get("contact_rows", "all"), wrench_offset=settings.get("wrench_offset", "none"),
-            offset_axes=settings.get("offset_axes", "xy"),
+            offset_axes=settings.get("offset_axes", "xy"), fold_basis=settings.get("fold_basis", "nullspace"),
         )

@@ -134,14 +134,34 @@ class ModelStructure:
         N = Q.shape[0]
         Wb = np.empty((N, self.n_rows, self.n_body_params)) if out is None else out[:N]
         model, data, f = self.robot.model, self.robot.data, pin.computeJointTorqueRegressor
+        # zip over row views and `w[...] =` keep the Python work per sample to the call itself
         if self.n_rows == self.robot.nv:
-            for i in range(N):
-                Wb[i] = f(model, data, Q[i], V[i], A[i])
+            for w, q, v, a in zip(Wb, Q, V, A):
+                w[...] = f(model, data, q, v, a)
         else:
             rows = self._row_idx
-            for i in range(N):
-                Wb[i] = f(model, data, Q[i], V[i], A[i])[rows]
+            for w, q, v, a in zip(Wb, Q, V, A):
+                w[...] = f(model, data, q, v, a)[rows]
         return Wb
+
+    def row_body_columns(self) -> list[tuple[int, int]]:
+        """Per kept row, the column range (c0, c1) of the body block that can be non-zero.
+
+        Row v (a dof of joint j) of the joint-torque regressor only sees the bodies of the
+        subtree of j: τ_j = S_jᵀ Σ_{b ∈ subtree(j)} f_b(π_b). A child's index is larger than
+        its parent's, so those bodies lie in columns 10(j−1) … 10·max(subtree(j)): one contiguous
+        range (exactly the subtree when joints are numbered depth-first, as Pinocchio's parsers do;
+        a superset with zero columns otherwise).
+        """
+        m = self.robot.model
+        owner = np.empty(m.nv, dtype=int)
+        for j in range(1, m.njoints):
+            owner[m.idx_vs[j] : m.idx_vs[j] + m.nvs[j]] = j
+        out = []
+        for v in self._row_idx:
+            j = int(owner[v])
+            out.append((10 * (j - 1), 10 * max(m.subtrees[j])))
+        return out
 
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """Joint-term block, shape (N, n_actuated, n_terms): [v, sgn v, 1, v̇] per actuated joint."""

@@ -24,7 +24,8 @@ def plot_torques(
     import matplotlib.pyplot as plt
 
     n = len(joints)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 1.6 * n + 0.8), sharex=True, squeeze=False)
+    height = 1.6 * n + 0.8
+    fig, axes = plt.subplots(n, 1, figsize=(9, height), sharex=True, squeeze=False)
     t = np.asarray(t) - t[0]
     for j, ax in enumerate(axes[:, 0]):
         ax.plot(t, measured[:, j], color="k", lw=1.0, label="measured")
@@ -36,6 +37,8 @@ def plot_torques(
     axes[-1, 0].set_xlabel("time [s]")
     if title:
         fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
+    # fixed margins in inches: tight_layout renders the figure once more just to measure it (~0.3 s)
+    fig.subplots_adjust(left=0.9 / 9, right=1 - 0.15 / 9, bottom=0.5 / height, top=1 - (0.4 if title else 0.15) / height,
+                        hspace=0.12)
     fig.savefig(path, dpi=110)
     plt.close(fig)

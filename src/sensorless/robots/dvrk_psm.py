@@ -170,8 +170,7 @@ def _frames() -> list[tuple[str, str, pin.SE3]]:
 PSM_FRAMES = ("rcm", "tool_tip")
 """Operational frames of the PSM tree besides one frame per joint (see :func:`psm_tree`)."""
 
-PSM_NAMES = ("dvrk_psm", "dvrk-psm", "psm")
-"""Names the command line accepts for the PSM model (``--robot dvrk_psm``)."""
+from .names import PSM_NAMES  # noqa: E402  (names the command line accepts for the PSM model)
 
 
 def psm_tree() -> tuple[Robot, np.ndarray]:

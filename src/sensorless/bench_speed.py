@@ -1,0 +1,220 @@
+"""Speed at the limit and CLI latency (issue 13 items 3–4), run through ``sensorless benchmark speed``.
+
+Every ratio is measured in the same run, interleaved and best-of-``repeats``, because the machine
+may be shared (its load average is recorded before and after):
+
+* compression µs/sample of an in-memory log vs a bare Python ``pin.computeJointTorqueRegressor``
+  loop over the same states (goal ≤ 1.3×), with and without the overlap thread;
+* peak traced memory of a streamed identification at each size in ``memory_sizes`` (goal: flat);
+* the batched contact projector vs a per-sample ``numpy.linalg.pinv`` loop on the same Solo12
+  Jacobians (goal ≥ 15×), and contact compression with the null-space fold vs the 18-row projector;
+* ``sensorless --help`` wall time (goal < 0.5 s) and a ``sensorless identify`` call on a UR5 log
+  end to end (goal < 2.5 s), as subprocesses of this Python with the same ``sys.path``.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["bench_speed"]
+
+GOALS = {
+    "compression_over_bare_regressor": "<= 1.3",
+    "peak_memory_ratio_largest_over_smallest": "<= 1.10",
+    "projector_speedup_vs_pinv_loop": ">= 15",
+    "help_seconds": "< 0.5",
+    "identify_cli_seconds": "< 2.5",
+}
+
+
+def _fourier_log(robot, n: int, seed: int = 0):
+    """An in-memory n-sample synthetic log (UR5-style: 5 harmonics at 0.1 Hz, 1 kHz, noise 0.1 N·m)."""
+    from .data.trajectory import Trajectory
+    from .excitation import random_fourier
+    from .simulation import perturbed_truth, streamed_fourier_log
+
+    truth = perturbed_truth(robot, rng=seed)
+    parts = list(streamed_fourier_log(truth, random_fourier(robot, rng=seed + 1, base_freq=0.1), rate=1000.0,
+                                      n_samples=n, noise_std=0.1, rng=seed))
+    cat = lambda k: np.concatenate([getattr(p, k) for p in parts])  # noqa: E731
+    return Trajectory(t=cat("t"), q=cat("q"), v=cat("v"), a=cat("a"), tau=cat("tau"),
+                      joint_names=parts[0].joint_names, source=f"<benchmark {robot.name}>")
+
+
+def _best(fns: dict, repeats: int) -> dict:
+    """Best wall time of each callable, the callables interleaved ``repeats`` times."""
+    best = dict.fromkeys(fns, np.inf)
+    for _ in range(repeats):
+        for k, f in fns.items():
+            t = time.perf_counter()
+            f()
+            best[k] = min(best[k], time.perf_counter() - t)
+    return best
+
+
+def bench_compression(robot_name: str, n: int, repeats: int) -> dict:
+    import pinocchio as pin
+
+    from .regressor import ModelStructure, compress
+    from .robot import load_robot
+
+    lock = ["panda_finger_joint1", "panda_finger_joint2"] if robot_name == "panda" else ()
+    robot = load_robot(robot_name, lock_joints=lock)
+    log = _fourier_log(robot, n)
+    s = ModelStructure(robot)
+    Q, V, A = s.state(log)
+    m, d, f = robot.model, robot.data, pin.computeJointTorqueRegressor
+
+    def bare():
+        for i in range(n):
+            f(m, d, Q[i], V[i], A[i])
+
+    best = _best({"bare": bare, "overlap": lambda: compress(s, log, overlap=True),
+                  "sequential": lambda: compress(s, log, overlap=False)}, repeats)
+    us = {k: 1e6 * v / n for k, v in best.items()}
+    return {
+        "robot": robot_name, "n_samples": n, "n_params": s.n_params, "rows": s.n_rows,
+        "bare_regressor_us": us["bare"], "compression_us": {"overlap": us["overlap"], "sequential": us["sequential"]},
+        "compression_over_bare_regressor": {"overlap": us["overlap"] / us["bare"],
+                                            "sequential": us["sequential"] / us["bare"]},
+        "best_of": repeats,
+    }
+
+
+def bench_memory(robot_name: str, sizes: list[int]) -> dict:
+    from .bench import bench_identify
+
+    res = bench_identify(robot_name, sizes)
+    keep = ("n_samples", "wall_seconds", "compression_seconds", "per_sample_us", "peak_traced_memory_mb")
+    return {"robot": robot_name, "runs": [{k: r[k] for k in keep} for r in res["runs"]],
+            "peak_memory_ratio_largest_over_smallest": res["peak_memory_ratio_largest_over_smallest"]}
+
+
+def bench_contact_speed(n: int, n_compress: int, repeats: int) -> dict:
+    from .bench import FEET, _contact_log
+    from .regressor import ContactStructure, compress
+    from .regressor.contact import contact_jacobians, null_space_basis, null_space_projector
+    from .robot import load_robot
+
+    robot = load_robot("solo12")
+    s = ContactStructure(robot, contact_frames=FEET)
+    log = _contact_log(robot, s, n, seed=0)
+    Q, _, _ = s.state(log)
+    flags = s.contacts(log)
+    groups = []
+    for pattern in np.unique(flags, axis=0):
+        idx = np.flatnonzero((flags == pattern).all(axis=1))
+        on = np.flatnonzero(pattern)
+        groups.append(contact_jacobians(robot, [s._fids[i] for i in on], [3] * len(on), Q[idx],
+                                        np.ones((len(idx), len(on)), bool)))
+    eye = np.eye(robot.nv)
+
+    def batched(fn):
+        def run():
+            for J in groups:
+                for a in range(0, len(J), 2048):
+                    fn(J[a : a + 2048], s.rcond)
+        return run
+
+    def pinv_loop():
+        for J in groups:
+            for Ji in J:
+                eye - np.linalg.pinv(Ji) @ Ji
+
+    best = _best({"projector": batched(null_space_projector), "basis": batched(null_space_basis)}, repeats)
+    t = time.perf_counter()
+    pinv_loop()  # once: 10^5 SVDs
+    best["pinv_loop"] = time.perf_counter() - t
+    sub = log.take(np.r_[0 : n_compress // 2, n // 2 : n // 2 + n_compress // 2])
+    proj = ContactStructure(robot, contact_frames=FEET, fold_basis="projector")
+    comp = _best({"nullspace": lambda: compress(s, sub), "projector": lambda: compress(proj, sub)}, max(1, repeats - 1))
+    exact = np.concatenate([null_space_basis(J, s.rcond)[1] for J in groups])
+    return {
+        "robot": "solo12", "n_samples": n, "contact_patterns": "50 % all four feet, 50 % trot diagonal pairs",
+        "projector_batched_us": 1e6 * best["projector"] / n,
+        "null_space_basis_us": 1e6 * best["basis"] / n,
+        "pinv_loop_us": 1e6 * best["pinv_loop"] / n,
+        "projector_speedup_vs_pinv_loop": best["pinv_loop"] / best["projector"],
+        "basis_speedup_vs_pinv_loop": best["pinv_loop"] / best["basis"],
+        "basis_exact_fraction": float(exact.mean()),
+        "compression": {"n_samples": len(sub), "nullspace_us": 1e6 * comp["nullspace"] / len(sub),
+                        "projector_us": 1e6 * comp["projector"] / len(sub),
+                        "speedup": comp["projector"] / comp["nullspace"]},
+    }
+
+
+def _cli(args: list[str], env: dict) -> float:
+    t = time.perf_counter()
+    r = subprocess.run([sys.executable, "-c", "from sensorless.cli import app; app()", *args], env=env,
+                       capture_output=True, text=True)
+    dt = time.perf_counter() - t
+    if r.returncode != 0:
+        raise RuntimeError(f"sensorless {' '.join(args)} failed: {r.stderr.strip()[-500:]}")
+    return dt
+
+
+def bench_cli(n_identify: int, repeats: int) -> dict:
+    from .data.readers import write_npz
+    from .robot import load_robot
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    out: dict = {"help_seconds": [], "identify_cli_seconds": {"plot": [], "no_plot": []}}
+    with tempfile.TemporaryDirectory() as tmp:
+        log = write_npz(_fourier_log(load_robot("ur5"), n_identify), Path(tmp) / "ur5.npz")
+        _cli(["--help"], env)  # warm the file cache once
+        for k in range(repeats):
+            out["help_seconds"].append(_cli(["--help"], env))
+            for key, extra in (("plot", []), ("no_plot", ["--no-plot"])):
+                out["identify_cli_seconds"][key].append(_cli(
+                    ["identify", "--robot", "ur5", "--data", str(log), "--out", str(Path(tmp) / f"o{k}{key}"), *extra], env))
+    return {
+        "n_samples_identify": n_identify,
+        "command": f"sensorless identify --robot ur5 --data <{n_identify}-sample npz> --out DIR [--no-plot]",
+        "help_seconds": {"best": min(out["help_seconds"]), "median": float(np.median(out["help_seconds"]))},
+        "identify_cli_seconds": {k: {"best": min(v), "median": float(np.median(v))}
+                                 for k, v in out["identify_cli_seconds"].items()},
+        "runs": repeats,
+    }
+
+
+def bench_speed(*, n_compress: int = 100_000, memory_sizes=(100_000, 1_000_000), n_contact: int = 100_000,
+                n_identify: int = 100_000, repeats: int = 3, console=None) -> dict:
+    """All figures of the speed benchmark as one JSON-able dict (see the module docstring)."""
+    from .io import versions
+
+    def say(msg):
+        if console is not None:
+            console.print(msg, highlight=False)
+
+    load0 = os.getloadavg()
+    res: dict = {"benchmark": "speed", "goals": GOALS}
+    res["compression"] = [bench_compression(r, n_compress, repeats) for r in ("ur5", "panda")]
+    for c in res["compression"]:
+        say(f"compression {c['robot']}: {c['compression_us']['overlap']:.2f} µs/sample (overlap), "
+            f"{c['compression_us']['sequential']:.2f} (sequential) vs bare regressor {c['bare_regressor_us']:.2f} "
+            f"→ {c['compression_over_bare_regressor']['overlap']:.2f}× / {c['compression_over_bare_regressor']['sequential']:.2f}×")
+    res["memory"] = bench_memory("ur5", list(memory_sizes))
+    say(f"peak memory {[round(r['peak_traced_memory_mb'], 1) for r in res['memory']['runs']]} MiB at "
+        f"{list(memory_sizes)} samples (ratio {res['memory']['peak_memory_ratio_largest_over_smallest']:.3f})")
+    res["contact"] = bench_contact_speed(n_contact, min(n_contact, 20_000), repeats)
+    c = res["contact"]
+    say(f"contact projector {c['projector_batched_us']:.2f} µs/sample vs pinv loop {c['pinv_loop_us']:.1f} → "
+        f"{c['projector_speedup_vs_pinv_loop']:.1f}×; null-space basis {c['null_space_basis_us']:.2f} µs; contact "
+        f"compression {c['compression']['nullspace_us']:.1f} µs (null space) vs {c['compression']['projector_us']:.1f} (projector)")
+    res["cli"] = bench_cli(n_identify, repeats)
+    cl = res["cli"]
+    say(f"--help {cl['help_seconds']['best']:.2f} s; identify {n_identify} samples: "
+        f"{cl['identify_cli_seconds']['plot']['best']:.2f} s (plot), {cl['identify_cli_seconds']['no_plot']['best']:.2f} s (--no-plot)")
+    res["machine"] = {"cpu_count": os.cpu_count(), "platform": platform.platform(),
+                      "load_average_1_5_15min": {"start": list(load0), "end": list(os.getloadavg())},
+                      "blas_threads": 1, "compiled_kernel": False}
+    res["versions"] = versions()
+    return res
