@@ -29,7 +29,7 @@ from ..robots.dvrk_psm import PSM_NAMES  # noqa: E402  (re-exported: names `--ro
 
 def _parse_box(spec: str):
     """'FRAME:xmin,ymin,zmin:xmax,ymax,zmax' with '-' for an open side."""
-    from ..excitation_design import CartesianBox
+    from ..excitation import CartesianBox
 
     parts = spec.split(":")
     if len(parts) != 3:
@@ -89,7 +89,7 @@ def excite(
 
     The samples written are checked against the excitation limits and the robot model's own
     limits; a trajectory that leaves them is refused (exit 2, nothing written)."""
-    from ..excitation_design import ExcitationLimits, check_export, design_excitation
+    from ..excitation import ExcitationLimits, check_export, design_excitation
     from ..regressor import ModelStructure
 
     _check_options(harmonics=harmonics, base_freq=base_freq, n_samples=n_samples, maxiter=maxiter, seed=seed,
