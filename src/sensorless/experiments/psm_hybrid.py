@@ -1,6 +1,6 @@
 """Hybrid residual on the real dVRK PSM: is physical + learned residual better on a new trajectory?
 
-Data: the WPI logs (:func:`~sensorless.robots.dvrk_psm_study.psm_split_paths`). The physical
+Data: the WPI logs (:func:`~sensorless.experiments.psm_identification.psm_split_paths`). The physical
 model is the study's OLS model identified on ``one_results`` (Coulomb smoothing ε by
 cross-validation on it, or given). Rows of the report, NRMSE per coordinate on ``two_results``:
 
@@ -29,7 +29,7 @@ import numpy as np
 from ..identification import identify, torque_metrics
 from ..learning import HybridModel, ParameterModel, ValidatedHybridModel
 from ..robots.dvrk_psm import psm_structure, read_psm_log
-from ..robots.dvrk_psm_study import psm_split_paths, select_smoothing
+from .psm_identification import psm_split_paths, select_smoothing
 
 __all__ = ["psm_hybrid_study"]
 
