@@ -3,7 +3,6 @@
 from .fits import (
     AsymmetricSolution,
     asymmetric_least_squares,
-    benchmark_asymmetric_fit,
     fit_asymmetric,
     fit_current_model,
     fit_least_squares,
@@ -25,7 +24,6 @@ __all__ = [
     "MotorModel",
     "PiecewiseLinearModel",
     "asymmetric_least_squares",
-    "benchmark_asymmetric_fit",
     "fit_asymmetric",
     "fit_current_model",
     "fit_least_squares",
