@@ -27,7 +27,8 @@ from typing import Sequence
 import numpy as np
 
 from ..identification import identify, torque_metrics
-from ..learning import HybridModel, ParameterModel, ValidatedHybridModel
+from ..estimators import PhysicalModel
+from ..learning import HybridModel, ValidatedHybridModel
 from ..robots.dvrk_psm import psm_structure, read_psm_log
 from .psm_identification import psm_split_paths, select_smoothing
 
@@ -52,7 +53,7 @@ def psm_hybrid_study(
         warnings.simplefilter("ignore")  # identifiability notes of the folds are not the point here
         eps = select_smoothing(one)[0] if smoothing == "cv" else float(smoothing)
         s = psm_structure(coulomb_smoothing=eps)
-        phys = ParameterModel(s, identify(s, one, method="ols").parameters)
+        phys = PhysicalModel.from_parameters(s, identify(s, one, method="ols").parameters)
     names, y = list(s.row_names), s.target(two)
     kw = dict(hidden=tuple(hidden), window=window, epochs=epochs, seed=seed, fit_physical=False)
 

@@ -31,7 +31,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, DataWarning
 from ..regressor.compress import iter_trajectories
 from .features import Standardizer, WindowFeatures
-from .mlp import build_network, deterministic_torch, train_network
+from .mlp import TrainConfig, build_network, deterministic_torch, train_network
 from .models import HybridModel
 
 __all__ = ["ValidatedHybridModel", "residual_scale"]
@@ -60,12 +60,29 @@ class ValidatedHybridModel(HybridModel):
     ``validation_`` (what was held out). The rest as :class:`HybridModel`.
     """
 
-    def __init__(self, physical_model, *, val_fraction: float = 0.3, min_gain: float = 0.02, **kwargs) -> None:
-        super().__init__(physical_model, **kwargs)
-        self.val_fraction, self.min_gain = float(val_fraction), float(min_gain)
+    def __init__(
+        self,
+        physical_model,
+        *,
+        val_fraction: float = 0.3,
+        min_gain: float = 0.02,
+        window: int = 10,
+        stride: int = 1,
+        hidden: Sequence[int] = (256, 256),
+        activation: str = "relu",
+        per_joint: bool = True,
+        use_model_torque: bool = True,
+        fit_physical: bool | None = None,
+        train: TrainConfig | None = None,
+        **train_options,
+    ) -> None:
+        super().__init__(physical_model, window=window, stride=stride, hidden=hidden, activation=activation,
+                         per_joint=per_joint, use_model_torque=use_model_torque, fit_physical=fit_physical,
+                         train=train, **train_options)
+        self.val_fraction, self.min_gain = val_fraction, min_gain
 
-    def get_params(self) -> dict:
-        return {**super().get_params(), "val_fraction": self.val_fraction, "min_gain": self.min_gain}
+    def _saved_params(self) -> dict:
+        return {**super()._saved_params(), "val_fraction": float(self.val_fraction), "min_gain": float(self.min_gain)}
 
     def _split(self, trajs: list[Trajectory], validation) -> tuple[list[Trajectory], list[Trajectory], str]:
         if validation is not None:
