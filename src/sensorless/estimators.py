@@ -66,12 +66,23 @@ class TorqueModel(ABC):
     # ---- scikit-learn's parameter protocol ------------------------------------------------
     @classmethod
     def _init_signature(cls) -> tuple[list[str], str | None]:
-        """(named ``__init__`` parameters, name of the ``**kwargs`` parameter or None)."""
-        params = list(inspect.signature(cls.__init__).parameters.values())[1:]
-        if any(p.kind is p.VAR_POSITIONAL for p in params):
-            raise SensorlessError(f"{cls.__name__}.__init__ must not take *args (scikit-learn's estimator rules)")
-        var = next((p.name for p in params if p.kind is p.VAR_KEYWORD), None)
-        return [p.name for p in params if p.kind is not p.VAR_KEYWORD], var
+        """(named ``__init__`` parameters, name of the stored ``**kwargs`` dict or None).
+
+        A ``**kwargs`` parameter literally named ``kwargs`` is forwarded to the parent class's
+        ``__init__``, whose parameters are then collected too; any other name (e.g.
+        ``train_options``) is a dict of extra hyper-parameters stored under that name."""
+        names: list[str] = []
+        for klass in cls.__mro__:
+            if "__init__" not in vars(klass) or klass is TorqueModel:
+                continue
+            params = list(inspect.signature(vars(klass)["__init__"]).parameters.values())[1:]
+            if any(p.kind is p.VAR_POSITIONAL for p in params):
+                raise SensorlessError(f"{klass.__name__}.__init__ must not take *args (scikit-learn's estimator rules)")
+            names += [p.name for p in params if p.kind is not p.VAR_KEYWORD and p.name not in names]
+            var = next((p.name for p in params if p.kind is p.VAR_KEYWORD), None)
+            if var != "kwargs":
+                return names, var
+        return names, None
 
     def get_params(self, deep: bool = True) -> dict[str, Any]:
         """The hyper-parameters, as given to ``__init__`` (``**kwargs`` flattened in); with

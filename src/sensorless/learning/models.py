@@ -371,7 +371,8 @@ class HybridModel(_Network):
         return hasattr(self.physical_model, "structure_") and (
             hasattr(self.physical_model, "parameters_") or hasattr(self.physical_model, "net_"))
 
-    def fit(self, data: Trajectory | Iterable[Trajectory], physical_data=None) -> HybridModel:
+    def _fit_physical(self, data, physical_data) -> list[Trajectory]:
+        """The training trajectories, after fitting the physical model when asked or needed."""
         trajs = list(iter_trajectories(data))
         if not trajs:
             raise DataError("no trajectory was given")
@@ -381,6 +382,10 @@ class HybridModel(_Network):
             if self.fit_physical is False:
                 raise SensorlessError("the physical model is not fitted (fit_physical=False)")
             self.physical_model.fit(trajs)
+        return trajs
+
+    def fit(self, data: Trajectory | Iterable[Trajectory], physical_data=None) -> HybridModel:
+        trajs = self._fit_physical(data, physical_data)
         phys = [self.physical_model.predict(t) for t in trajs]
         Y = np.vstack([self._target(t) - p for t, p in zip(trajs, phys)])
         self.features_ = WindowFeatures(self.window, self.stride)

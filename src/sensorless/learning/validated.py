@@ -23,7 +23,7 @@ r_θ is
 from __future__ import annotations
 
 import warnings
-from typing import Iterable, Sequence
+from typing import Iterable
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, DataWarning
 from ..regressor.compress import iter_trajectories
 from .features import Standardizer, WindowFeatures
-from .mlp import TrainConfig, build_network, deterministic_torch, train_network
+from .mlp import build_network, deterministic_torch, train_network
 from .models import HybridModel
 
 __all__ = ["ValidatedHybridModel", "residual_scale"]
@@ -60,25 +60,9 @@ class ValidatedHybridModel(HybridModel):
     ``validation_`` (what was held out). The rest as :class:`HybridModel`.
     """
 
-    def __init__(
-        self,
-        physical_model,
-        *,
-        val_fraction: float = 0.3,
-        min_gain: float = 0.02,
-        window: int = 10,
-        stride: int = 1,
-        hidden: Sequence[int] = (256, 256),
-        activation: str = "relu",
-        per_joint: bool = True,
-        use_model_torque: bool = True,
-        fit_physical: bool | None = None,
-        train: TrainConfig | None = None,
-        **train_options,
-    ) -> None:
-        super().__init__(physical_model, window=window, stride=stride, hidden=hidden, activation=activation,
-                         per_joint=per_joint, use_model_torque=use_model_torque, fit_physical=fit_physical,
-                         train=train, **train_options)
+    def __init__(self, physical_model, *, val_fraction: float = 0.3, min_gain: float = 0.02, **kwargs) -> None:
+        """``kwargs``: :class:`HybridModel`'s hyper-parameters (part of ``get_params``)."""
+        super().__init__(physical_model, **kwargs)
         self.val_fraction, self.min_gain = val_fraction, min_gain
 
     def _saved_params(self) -> dict:
@@ -102,13 +86,7 @@ class ValidatedHybridModel(HybridModel):
     def fit(self, data: Trajectory | Iterable[Trajectory], physical_data=None, *, validation=None) -> "ValidatedHybridModel":
         """Fit the physical model (as :meth:`HybridModel.fit`), then the residual on the training
         part with early stopping on the held-out part, then α on the held-out part."""
-        trajs = list(iter_trajectories(data))
-        if not trajs:
-            raise DataError("no trajectory was given")
-        if physical_data is not None or self.fit_physical:
-            self.physical_model.fit(physical_data if physical_data is not None else trajs)
-        elif not self._is_fitted():
-            self.physical_model.fit(trajs)
+        trajs = self._fit_physical(data, physical_data)
         train, val, how = self._split(trajs, validation)
         use = self.use_model_torque
         p_tr = [self.physical_model.predict(t) for t in train]
