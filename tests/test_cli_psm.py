@@ -14,7 +14,7 @@ from test_dvrk_psm import psm_motion, psm_truth
 from typer.testing import CliRunner
 
 from sensorless.cli import app
-from sensorless.robots.dvrk_psm_study import paired_payload_logs, write_psm_csv
+from sensorless.experiments.psm_identification import paired_payload_logs, write_psm_csv
 
 COLS = ["--columns", "q=0:7;v=7:14;tau=14:21", "--rate", "200"]
 NOISE = 0.003

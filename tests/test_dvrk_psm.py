@@ -17,7 +17,7 @@ from sensorless.robots import (
     published_parameters,
     read_psm_log,
 )
-from sensorless.robots.dvrk_psm_study import select_smoothing
+from sensorless.experiments.psm_identification import select_smoothing
 
 WPI = REALDATA / "dvrk_psm_wpi"
 RNG = np.random.default_rng(11)

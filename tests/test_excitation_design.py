@@ -14,15 +14,16 @@ from sensorless.cli import app
 from sensorless.cli import excite as _excite  # noqa: F401  (registers `sensorless excite`)
 from sensorless.data import read_trajectory
 from sensorless.errors import ExcitationError
-from sensorless.excitation import FourierTrajectory, random_fourier
-from sensorless.excitation_design import (
+from sensorless.excitation import (
     CartesianBox,
     ExcitationLimits,
-    _Problem,
+    FourierTrajectory,
     design_excitation,
     excitation_metrics,
     random_excitation,
+    random_fourier,
 )
+from sensorless.excitation.design import _Problem
 from sensorless.identification import base_parameters
 from sensorless.regressor import ModelStructure
 

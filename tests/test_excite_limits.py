@@ -13,7 +13,7 @@ from sensorless.cli import app
 from sensorless.data import read_trajectory
 from sensorless.errors import ExcitationError
 from sensorless.excitation import FourierTrajectory, random_fourier
-from sensorless.excitation_design import (
+from sensorless.excitation import (
     ExcitationDesign,
     ExcitationLimits,
     check_export,

@@ -43,7 +43,7 @@ from sensorless.identification.lmi import (
     solve_lmi,
     validation_score,
 )
-from sensorless.identification.lmi_bench import bench_lmi, random_state_equations
+from sensorless.benchmarks.lmi import bench_lmi, random_state_equations
 from sensorless.identification.metrics import torque_metrics
 from sensorless.identification.regularizers import (
     ConstantPullback,

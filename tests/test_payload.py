@@ -177,7 +177,7 @@ def test_paired_no_load_log_cancels_model_error_and_session_offset(psm_case):
     """A wrong model (pitch_end 30 % heavier, CoM moved) and a τ2 session offset bias the plain
     estimate; the paired no-load log (same trajectory) with offsets removes both."""
     s, p, _ = psm_case
-    from sensorless.robots.dvrk_psm_study import SESSION_OFFSET, paired_payload_logs
+    from sensorless.experiments.psm_identification import SESSION_OFFSET, paired_payload_logs
 
     wrong = p.copy()
     k = list(s.robot.body_names).index("pitch_end")
@@ -217,7 +217,7 @@ def test_hac_uncertainty_accounts_for_correlated_noise(psm_case):
     """With noise correlated over 0.5 s the white-noise standard error is far too small; the
     HAC (block sandwich) and bootstrap errors are not, and cover the actual error."""
     s, p, result = psm_case
-    from sensorless.robots.dvrk_psm_study import ar1_noise
+    from sensorless.experiments.psm_identification import ar1_noise
 
     m = 0.2
     pay = pin.Inertia(m, np.array([0.0, 0.0, 0.35]), np.zeros((3, 3)))

@@ -22,6 +22,9 @@ __all__ = [
     "ParameterError",
     "OptionError",
     "OutlierError",
+    "TooFewSamplesError",
+    "DistributedError",
+    "SimulationError",
     "SensorlessWarning",
     "IdentifiabilityWarning",
     "DataWarning",
@@ -71,6 +74,18 @@ class OutlierError(DataError):
 
 class ExcitationError(SensorlessError):
     """Too few samples, or a trajectory that does not excite the parameters (rank)."""
+
+
+class TooFewSamplesError(DataError, ExcitationError):
+    """Fewer samples than required (both a DataError and an ExcitationError)."""
+
+
+class DistributedError(SensorlessError):
+    """The Dask run could not complete: scheduler unreachable, dask missing, a worker lost too often."""
+
+
+class SimulationError(SensorlessError, ValueError):
+    """Invalid simulation settings, an infeasible scenario plan, or a fall with ``on_fall="raise"``."""
 
 
 class SolverError(SensorlessError):

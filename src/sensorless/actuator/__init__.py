@@ -1,37 +1,7 @@
-"""Actuator models of position-controlled joints and their identification."""
+"""Actuator models of position-controlled joints (:mod:`.model`) and their identification (:mod:`.fits`)."""
 
-from .fits import (
-    AsymmetricSolution,
-    asymmetric_least_squares,
-    benchmark_asymmetric_fit,
-    fit_asymmetric,
-    fit_current_model,
-    fit_least_squares,
-    fit_piecewise_linear,
-    fit_two_stage,
-    unsaturated,
-)
-from .model import (
-    CurrentModel,
-    MotorModel,
-    PiecewiseLinearModel,
-    over_estimation,
-    over_estimation_fraction,
-)
+from . import fits, model
+from .fits import *  # noqa: F403
+from .model import *  # noqa: F403
 
-__all__ = [
-    "AsymmetricSolution",
-    "CurrentModel",
-    "MotorModel",
-    "PiecewiseLinearModel",
-    "asymmetric_least_squares",
-    "benchmark_asymmetric_fit",
-    "fit_asymmetric",
-    "fit_current_model",
-    "fit_least_squares",
-    "fit_piecewise_linear",
-    "fit_two_stage",
-    "unsaturated",
-    "over_estimation",
-    "over_estimation_fraction",
-]
+__all__ = [*fits.__all__, *model.__all__]

@@ -3,10 +3,27 @@
 Each command group lives in its own module and registers itself on :data:`app`.
 """
 
-from . import contact_id, core, excite, hybrid_force, monitor, payload, torque_control  # noqa: F401  (each module registers its commands)
+from . import contact_id, core, excite, hybrid_force, monitor, payload, psm, torque_control  # noqa: F401  (each module registers its commands)
+import typer
+
 from .common import app, atomic_outdir, guarded
 
 __all__ = ["app", "atomic_outdir", "guarded", "main"]
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"sensorless {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="print the version and exit"),
+) -> None:
+    """Dynamic models for robots without torque or force sensors."""
 
 
 def main() -> None:  # pragma: no cover

@@ -566,7 +566,7 @@ def bench_lmi_cmd(
     out: Path = typer.Option(Path("benchmarks/results/lmi.json")),
 ) -> None:
     """Setup and solve time of the physically consistent (LMI) program from compressed data."""
-    from ..identification.lmi_bench import bench_lmi
+    from ..benchmarks.lmi import bench_lmi
     from ..identification.result import write_json_atomic
 
     res = bench_lmi(robots=tuple(robots.split(",")), solvers=tuple(solvers.split(",")))

@@ -77,13 +77,13 @@ def estimate_force(
     F = (Jᵀ)⁺ (τ_measured − τ_model − τ_residual), damped near singularities."""
     from ..estimation.force import CartesianForceEstimator
     from ..estimators import load_parameters
-    from ..learning.models import ParameterModel
+    from ..estimators import PhysicalModel
 
     output_file(out, path_inputs(robot, model, data, residual))
     r = load_robot_arg(robot, lock, False)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
-    phys = ParameterModel(structure, params)
+    phys = PhysicalModel.from_parameters(structure, params)
     opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
                                savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
     (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,

@@ -44,7 +44,7 @@ def bench_actuator_fit(
     out: Path = typer.Option(Path("benchmarks/results/actuator_fit.json")),
 ) -> None:
     """Asymmetric-penalty actuator fit (Newton, exact optimality on the active set): wall time on N samples."""
-    from ..actuator.fits import benchmark_asymmetric_fit
+    from ..benchmarks.actuator import benchmark_asymmetric_fit
     from ..errors import DataError
     from ..identification.result import write_json_atomic
 

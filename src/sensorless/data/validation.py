@@ -15,11 +15,11 @@ import numpy as np
 
 from ..errors import (
     DataError,
-    ExcitationError,
     JointNameError,
     NonFiniteError,
     ShapeMismatchError,
     TimestampError,
+    TooFewSamplesError,
     UnitsError,
 )
 from .trajectory import Trajectory, as_float_array
@@ -40,10 +40,6 @@ _MAX_REVOLUTE_V = 100.0  # rad/s
 #: No SI signal of a robot log (rad, m, rad/s, N·m, N, A) reaches this magnitude; beyond it the
 #: values are in the wrong unit or corrupt, and their squares would overflow the normal equations.
 MAX_ABS_VALUE = 1e9
-
-
-class TooFewSamplesError(DataError, ExcitationError):
-    """Fewer samples than required (both a DataError and an ExcitationError)."""
 
 
 def validate_trajectory(

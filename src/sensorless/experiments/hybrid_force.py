@@ -33,7 +33,8 @@ from ..estimation.force import CartesianForceEstimator
 from ..identification import identify, torque_metrics
 from ..identification.payload import identify_payload
 from ..identification.result import versions, write_json_atomic
-from ..learning import HybridModel, LearnedTorqueModel, ParameterModel
+from ..estimators import PhysicalModel
+from ..learning import HybridModel, LearnedTorqueModel
 from ..regressor import ModelStructure
 from ..simulation.surgical_arm import TIP_FRAME
 from ..simulation.trocar import make_datasets, payload_log
@@ -201,7 +202,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, console: Console | None =
 
     # (a) workspace mismatch ---------------------------------------------------------
     t0 = time.perf_counter()
-    model_a = ParameterModel(structure, identify(structure, split_a).parameters)
+    model_a = PhysicalModel.from_parameters(structure, identify(structure, split_a).parameters)
     learn_a = LearnedTorqueModel(robot, seed=seed, **net_opts, **train_opts).fit(split_a)
     m_model, m_learn = model_a.score(split_b), learn_a.score(split_b)
     timings["a_workspace_mismatch"] = time.perf_counter() - t0
@@ -211,7 +212,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, console: Console | None =
     # (b) trocar torque ---------------------------------------------------------------
     t0 = time.perf_counter()
     ident = identify(structure, free)
-    phys = ParameterModel(structure, ident.parameters)
+    phys = PhysicalModel.from_parameters(structure, ident.parameters)
     hybrid = HybridModel(phys, per_joint=cfg["hybrid_per_joint"], seed=seed, **net_opts, **train_opts).fit(tro_train)
     meas = _stack(tro_test, structure.target)
     p_model, p_hybrid = _stack(tro_test, phys.predict), _stack(tro_test, hybrid.predict)

@@ -1,6 +1,6 @@
 """Hybrid residual on the real dVRK PSM: is physical + learned residual better on a new trajectory?
 
-Data: the WPI logs (:func:`~sensorless.robots.dvrk_psm_study.psm_split_paths`). The physical
+Data: the WPI logs (:func:`~sensorless.experiments.psm_identification.psm_split_paths`). The physical
 model is the study's OLS model identified on ``one_results`` (Coulomb smoothing ε by
 cross-validation on it, or given). Rows of the report, NRMSE per coordinate on ``two_results``:
 
@@ -27,9 +27,10 @@ from typing import Sequence
 import numpy as np
 
 from ..identification import identify, torque_metrics
-from ..learning import HybridModel, ParameterModel, ValidatedHybridModel
+from ..estimators import PhysicalModel
+from ..learning import HybridModel, ValidatedHybridModel
 from ..robots.dvrk_psm import psm_structure, read_psm_log
-from ..robots.dvrk_psm_study import psm_split_paths, select_smoothing
+from .psm_identification import psm_split_paths, select_smoothing
 
 __all__ = ["psm_hybrid_study"]
 
@@ -52,7 +53,7 @@ def psm_hybrid_study(
         warnings.simplefilter("ignore")  # identifiability notes of the folds are not the point here
         eps = select_smoothing(one)[0] if smoothing == "cv" else float(smoothing)
         s = psm_structure(coulomb_smoothing=eps)
-        phys = ParameterModel(s, identify(s, one, method="ols").parameters)
+        phys = PhysicalModel.from_parameters(s, identify(s, one, method="ols").parameters)
     names, y = list(s.row_names), s.target(two)
     kw = dict(hidden=tuple(hidden), window=window, epochs=epochs, seed=seed, fit_physical=False)
 

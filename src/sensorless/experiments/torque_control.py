@@ -64,6 +64,7 @@ from ..simulation.position_controlled import (
     simulate,
     swing_trajectory,
 )
+from .torque_control_figures import SHORT, figures
 
 __all__ = [
     "CONFIGS",
@@ -79,7 +80,6 @@ __all__ = [
 ]
 
 K6_VALUES = (1.0, 0.5, 0.25, 0.1)
-SHORT = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
 
 
 @dataclass
@@ -390,97 +390,6 @@ def check_acceptance(results: dict) -> dict:
     }
 
 
-def _figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[str]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    files = []
-    # estimator
-    t, tau, tau_hat = est_fig
-    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-    for j, ax in enumerate(axs.T.ravel()):
-        ax.plot(t, tau[:, j], "k", lw=1, label="true")
-        ax.plot(t, tau_hat[:, j], "r--", lw=1, label="F/T + IMU estimate")
-        ax.set_title(SHORT[j])
-        ax.set_ylabel("Nm")
-    axs[0, 0].legend()
-    fig.tight_layout()
-    fig.savefig(out / "estimator.png", dpi=110)
-    plt.close(fig)
-    files.append("estimator.png")
-    # fits
-    tau, dq, y = fit_fig
-    fig, axs = plt.subplots(2, 3, figsize=(13, 7))
-    for j, ax in enumerate(axs.ravel()):
-        idx = np.random.default_rng(0).choice(tau.shape[0], min(6000, tau.shape[0]), replace=False)
-        ax.scatter(tau[idx, j], 1e3 * (y[idx, j] - models["asymmetric"].k_v[j] * dq[idx, j]), s=1, c="0.6")
-        xs = np.linspace(tau[:, j].min(), tau[:, j].max(), 50)
-        for name, style in (("least_squares", "b-"), ("asymmetric", "r-")):
-            m = models[name]
-            ax.plot(xs, 1e3 * m.k_tau[j] * xs, style, label=f"{name}: Kτ={m.k_tau[j]:.2e}")
-        ax.set_title(SHORT[j])
-        ax.set_xlabel("τ̂ [Nm]")
-        ax.set_ylabel("Δq − Kv q̇ [mrad]")
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "actuator_fits.png", dpi=110)
-    plt.close(fig)
-    files.append("actuator_fits.png")
-    # tracking
-    t, q_ref, logs = track["t"], track["q_ref"], track["logs"]
-    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-    for j, ax in enumerate(axs.T.ravel()):
-        for name, style in (("position", "k-"), ("torque_p_K6=1", "r-"), ("torque_p_K6=0.25", "g-"), ("torque_pi_K6=0.25", "b--")):
-            if name in logs:
-                ax.plot(t, np.degrees(q_ref[:, j] - logs[name].q_true[:, j]), style, lw=0.8, label=name)
-        ax.set_title(SHORT[j])
-        ax.set_ylabel("error [deg]")
-    axs[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "tracking.png", dpi=110)
-    plt.close(fig)
-    files.append("tracking.png")
-    # force
-    fig, ax = plt.subplots(figsize=(9, 4))
-    ax.plot(force["t"], force["f_d"], "k", lw=1.5, label="desired")
-    for name, lg in force["logs"].items():
-        ax.plot(force["t"], lg.contact[:, 2], lw=0.8, label=name)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("vertical contact force [N]")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "force_tracking.png", dpi=110)
-    plt.close(fig)
-    files.append("force_tracking.png")
-    # open loop: travel after release at the highest speed, and the hip-roll release
-    summ = openl["summary"]
-    fig, axs = plt.subplots(1, 2, figsize=(12, 4))
-    key = next(k for k in next(iter(summ.values())) if k.startswith("travel"))
-    x = np.arange(6)
-    for i, (mname, c) in enumerate((("least_squares", "b"), ("asymmetric", "r"))):
-        if mname in summ:
-            axs[0].bar(x + (i - 0.5) * 0.4, [summ[mname][key][j] for j in JOINTS], 0.4, color=c, label=mname)
-    axs[0].set_xticks(x, SHORT, rotation=20)
-    axs[0].set_ylabel("travel after release [deg]")
-    axs[0].set_title(key.replace("_", " "))
-    axs[0].legend()
-    for mname, c in (("least_squares", "b"), ("asymmetric", "r")):
-        lg = openl["logs"].get(f"release_{JOINTS[1]}/{mname}")
-        if lg is not None:
-            axs[1].plot(lg.t, np.degrees(lg.q_true[:, 1] - Q_AIR[1]), c, label=mname)
-    axs[1].set_title("hip roll released, zero feedback")
-    axs[1].set_xlabel("t [s]")
-    axs[1].set_ylabel("deviation [deg]")
-    axs[1].legend()
-    fig.tight_layout()
-    fig.savefig(out / "open_loop.png", dpi=110)
-    plt.close(fig)
-    files.append("open_loop.png")
-    return files
-
-
 def _table_b(res: dict) -> Table:
     tab = Table(title="(b) swing tracking error [deg]: mean / max")
     tab.add_column("controller")
@@ -556,7 +465,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, console: Console | None =
     n_fig = min(len(lg0), int(8 / cfg.dt))
     est_fig = (lg0.t[:n_fig], data["sinusoids"]["tau_true"][:n_fig], data["sinusoids"]["tau"][:n_fig])
     cat = {k: np.vstack([d[k] for d in trimmed.values()]) for k in ("tau", "dq", "delta_q")}
-    files = _figures(out, est_fig, (cat["tau"], cat["dq"], cat["delta_q"]), b_fig, c_fig, d_fig, models)
+    files = figures(out, est_fig, (cat["tau"], cat["dq"], cat["delta_q"]), b_fig, c_fig, d_fig, models)
     timings["total"] = time.perf_counter() - t_all
     results = {
         "study": "torque control of a position-controlled leg without joint-torque sensors (Del Prete et al. 2016)",

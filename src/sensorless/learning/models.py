@@ -8,7 +8,8 @@
 * :class:`MLPTorqueModel` — configurable black box (default 5 × 2048, LeakyReLU) with
   user-supplied ``features(traj)`` and ``targets(traj)`` callables, e.g. actuation from
   a legged robot's sensor measurements.
-* :class:`ParameterModel` — fixed (structure, parameters), e.g. from ``load_parameters``.
+* :func:`ParameterModel` — old name of :meth:`~sensorless.estimators.PhysicalModel.from_parameters`
+  (fixed structure and parameters, e.g. from ``load_parameters``).
 
 All networks are trained by :func:`~sensorless.learning.mlp.train_network` (Adam,
 ReduceLROnPlateau, early stopping on a block validation split, seeded) on standardised
@@ -25,8 +26,8 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..data.trajectory import Trajectory
+from ..estimators import PhysicalModel, TorqueModel
 from ..errors import DataError, SensorlessError
-from ..identification.metrics import TorqueMetrics, torque_metrics
 from ..regressor.compress import iter_trajectories
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
@@ -78,10 +79,21 @@ class _CallableFeatures:
         return {"callable": getattr(self.fn, "__qualname__", repr(self.fn)), "scaler": self.scaler.to_dict()}
 
 
-class _Network:
-    """Shared machinery: standardise, build, train, predict, save/load a network."""
+class _Network(TorqueModel):
+    """Shared machinery: standardise, build, train, predict, save/load a network.
 
-    kind: str = "mlp"
+    Training settings: ``train`` (a :class:`TrainConfig`) with ``train_options`` overriding
+    its fields; both are hyper-parameters, :attr:`train_config` is what training uses."""
+
+    @property
+    def train_config(self) -> TrainConfig:
+        return _train_config(self.train, self.train_options)
+
+    def target(self, traj: Trajectory) -> np.ndarray:
+        return self._target(traj)
+
+    def row_names(self) -> list[str]:
+        return list(self.output_names_)
 
     def _fit_xy(self, X: np.ndarray, Y: np.ndarray, hidden, activation: str, kind: str, window: int) -> None:
         self.y_scaler_ = Standardizer().fit(Y)
@@ -104,7 +116,7 @@ class _Network:
             "type": type(self).__name__, "architecture": self.architecture_, "features": self.features_.to_dict(),
             "target_scaler": self.y_scaler_.to_dict(), "train": self.train_config.to_dict(),
             "history": {k: v for k, v in self.history_.items()}, "output_names": list(self.output_names_),
-            "params": self.get_params(),
+            "params": self._saved_params(),
         }
 
     def save(self, directory: str | Path) -> Path:
@@ -119,9 +131,10 @@ class _Network:
         self.y_scaler_ = Standardizer.from_dict(meta["target_scaler"])
         self.history_ = meta.get("history", {})
         self.output_names_ = list(meta["output_names"])
-        self.train_config = TrainConfig(**meta["train"])
+        self.train, self.train_options = TrainConfig(**meta["train"]), {}
 
-    def get_params(self) -> dict:  # pragma: no cover - overridden
+    def _saved_params(self) -> dict:  # pragma: no cover - overridden
+        """The hyper-parameters written to model.json (JSON types)."""
         return {}
 
 
@@ -168,14 +181,15 @@ class MLPTorqueModel(_Network):
         train: TrainConfig | None = None,
         **train_options,
     ) -> None:
-        self.hidden, self.activation = tuple(int(h) for h in hidden), activation
+        self.hidden, self.activation = hidden, activation
         self.features, self.targets = features, targets
-        self.window, self.stride, self.per_joint = int(window), int(stride), bool(per_joint)
-        self.output_names = list(output_names) if output_names is not None else None
-        self.train_config = _train_config(train, train_options)
+        self.window, self.stride, self.per_joint = window, stride, per_joint
+        self.output_names = output_names
+        self.train, self.train_options = train, train_options
+        _train_config(train, train_options)  # unknown options fail here, nothing is changed
 
-    def get_params(self) -> dict:
-        return {"hidden": list(self.hidden), "activation": self.activation, "window": self.window, "stride": self.stride,
+    def _saved_params(self) -> dict:
+        return {"hidden": [int(h) for h in self.hidden], "activation": self.activation, "window": self.window, "stride": self.stride,
                 "per_joint": self.per_joint, "features": getattr(self.features, "__qualname__", None),
                 "targets": getattr(self.targets, "__qualname__", None)}
 
@@ -220,9 +234,6 @@ class MLPTorqueModel(_Network):
         if not hasattr(self, "features_"):
             raise SensorlessError(f"{type(self).__name__} is not fitted; call fit() first")
         return self._predict_x(self.features_.transform(traj))
-
-    def score(self, traj: Trajectory) -> TorqueMetrics:
-        return torque_metrics(self._target(traj), self.predict(traj), self.output_names_)
 
     @classmethod
     def load(cls, directory: str | Path, features: FeatureFn | None = None, targets: FeatureFn | None = None) -> MLPTorqueModel:
@@ -271,18 +282,24 @@ class LearnedTorqueModel(MLPTorqueModel):
             raise SensorlessError(f"unknown kind '{kind}'; choose 'mlp' or 'lstm'")
         super().__init__(hidden, activation, window=window, stride=stride, per_joint=per_joint, train=train, **train_options)
         self.robot, self.kind = robot, kind
-        if robot is not None:
-            self.structure_ = ModelStructure(robot, joint_terms=())
-            self.output_names = list(self.structure_.row_names)
 
-    def get_params(self) -> dict:
-        return {**super().get_params(), "kind": self.kind}
+    def _saved_params(self) -> dict:
+        return {**super()._saved_params(), "kind": self.kind}
+
+    def _rows(self) -> ModelStructure:
+        """The robot's actuated rows (targets in model order)."""
+        if getattr(self, "structure_", None) is None:
+            self.structure_ = ModelStructure(self.robot, joint_terms=())
+        return self.structure_
+
+    def _names(self, traj: Trajectory, n_out: int) -> list[str]:
+        return list(self._rows().row_names) if self.robot is not None else super()._names(traj, n_out)
 
     def _kind(self) -> str:
         return "lstm" if self.kind == "lstm" else super()._kind()
 
     def _target(self, traj: Trajectory) -> np.ndarray:
-        return self.structure_.target(traj) if self.robot is not None else super()._target(traj)
+        return self._rows().target(traj) if self.robot is not None else super()._target(traj)
 
     @classmethod
     def load(cls, directory: str | Path, robot: Robot | None = None) -> LearnedTorqueModel:  # type: ignore[override]
@@ -296,22 +313,9 @@ class LearnedTorqueModel(MLPTorqueModel):
             return obj
 
 
-class ParameterModel:
-    """A fixed parametric model (structure, parameters): τ̂ = W(q, q̇, q̈) π."""
-
-    def __init__(self, structure: ModelStructure, parameters: np.ndarray) -> None:
-        self.structure_, self.parameters_ = structure, np.asarray(parameters, dtype=float)
-        if self.parameters_.shape != (structure.n_params,):
-            raise SensorlessError(f"expected {structure.n_params} parameters, got {self.parameters_.shape}")
-
-    def fit(self, data=None) -> ParameterModel:
-        return self
-
-    def predict(self, traj: Trajectory) -> np.ndarray:
-        return self.structure_.torques(self.parameters_, traj)
-
-    def score(self, traj: Trajectory) -> TorqueMetrics:
-        return torque_metrics(self.structure_.target(traj), self.predict(traj), self.structure_.row_names)
+def ParameterModel(structure: ModelStructure, parameters: np.ndarray) -> PhysicalModel:
+    """A fixed parametric model τ̂ = W(q, q̇, q̈) π: :meth:`PhysicalModel.from_parameters` (old name)."""
+    return PhysicalModel.from_parameters(structure, parameters)
 
 
 class HybridModel(_Network):
@@ -340,13 +344,14 @@ class HybridModel(_Network):
         **train_options,
     ) -> None:
         self.physical_model = physical_model
-        self.window, self.stride = int(window), int(stride)
-        self.hidden, self.activation = tuple(int(h) for h in hidden), activation
-        self.per_joint, self.use_model_torque, self.fit_physical = bool(per_joint), bool(use_model_torque), fit_physical
-        self.train_config = _train_config(train, train_options)
+        self.window, self.stride = window, stride
+        self.hidden, self.activation = hidden, activation
+        self.per_joint, self.use_model_torque, self.fit_physical = per_joint, use_model_torque, fit_physical
+        self.train, self.train_options = train, train_options
+        _train_config(train, train_options)  # unknown options fail here, nothing is changed
 
-    def get_params(self) -> dict:
-        return {"window": self.window, "stride": self.stride, "hidden": list(self.hidden), "activation": self.activation,
+    def _saved_params(self) -> dict:
+        return {"window": self.window, "stride": self.stride, "hidden": [int(h) for h in self.hidden], "activation": self.activation,
                 "per_joint": self.per_joint, "use_model_torque": self.use_model_torque}
 
     @property
@@ -366,7 +371,8 @@ class HybridModel(_Network):
         return hasattr(self.physical_model, "structure_") and (
             hasattr(self.physical_model, "parameters_") or hasattr(self.physical_model, "net_"))
 
-    def fit(self, data: Trajectory | Iterable[Trajectory], physical_data=None) -> HybridModel:
+    def _fit_physical(self, data, physical_data) -> list[Trajectory]:
+        """The training trajectories, after fitting the physical model when asked or needed."""
         trajs = list(iter_trajectories(data))
         if not trajs:
             raise DataError("no trajectory was given")
@@ -376,6 +382,10 @@ class HybridModel(_Network):
             if self.fit_physical is False:
                 raise SensorlessError("the physical model is not fitted (fit_physical=False)")
             self.physical_model.fit(trajs)
+        return trajs
+
+    def fit(self, data: Trajectory | Iterable[Trajectory], physical_data=None) -> HybridModel:
+        trajs = self._fit_physical(data, physical_data)
         phys = [self.physical_model.predict(t) for t in trajs]
         Y = np.vstack([self._target(t) - p for t, p in zip(trajs, phys)])
         self.features_ = WindowFeatures(self.window, self.stride)
@@ -396,9 +406,6 @@ class HybridModel(_Network):
     def predict(self, traj: Trajectory) -> np.ndarray:
         phys = self.physical_model.predict(traj)
         return phys + self.predict_residual(traj, phys)
-
-    def score(self, traj: Trajectory) -> TorqueMetrics:
-        return torque_metrics(self._target(traj), self.predict(traj), self.output_names_)
 
     @classmethod
     def load(cls, directory: str | Path, physical_model) -> HybridModel:

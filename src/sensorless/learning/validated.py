@@ -23,7 +23,7 @@ r_θ is
 from __future__ import annotations
 
 import warnings
-from typing import Iterable, Sequence
+from typing import Iterable
 
 import numpy as np
 
@@ -61,11 +61,12 @@ class ValidatedHybridModel(HybridModel):
     """
 
     def __init__(self, physical_model, *, val_fraction: float = 0.3, min_gain: float = 0.02, **kwargs) -> None:
+        """``kwargs``: :class:`HybridModel`'s hyper-parameters (part of ``get_params``)."""
         super().__init__(physical_model, **kwargs)
-        self.val_fraction, self.min_gain = float(val_fraction), float(min_gain)
+        self.val_fraction, self.min_gain = val_fraction, min_gain
 
-    def get_params(self) -> dict:
-        return {**super().get_params(), "val_fraction": self.val_fraction, "min_gain": self.min_gain}
+    def _saved_params(self) -> dict:
+        return {**super()._saved_params(), "val_fraction": float(self.val_fraction), "min_gain": float(self.min_gain)}
 
     def _split(self, trajs: list[Trajectory], validation) -> tuple[list[Trajectory], list[Trajectory], str]:
         if validation is not None:
@@ -85,13 +86,7 @@ class ValidatedHybridModel(HybridModel):
     def fit(self, data: Trajectory | Iterable[Trajectory], physical_data=None, *, validation=None) -> "ValidatedHybridModel":
         """Fit the physical model (as :meth:`HybridModel.fit`), then the residual on the training
         part with early stopping on the held-out part, then α on the held-out part."""
-        trajs = list(iter_trajectories(data))
-        if not trajs:
-            raise DataError("no trajectory was given")
-        if physical_data is not None or self.fit_physical:
-            self.physical_model.fit(physical_data if physical_data is not None else trajs)
-        elif not self._is_fitted():
-            self.physical_model.fit(trajs)
+        trajs = self._fit_physical(data, physical_data)
         train, val, how = self._split(trajs, validation)
         use = self.use_model_torque
         p_tr = [self.physical_model.predict(t) for t in train]

@@ -45,17 +45,13 @@ from typing import Any, Callable, Iterator, Sequence
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..errors import DataError, SensorlessError
+from ..errors import DataError, DistributedError, SensorlessError
 from .compress import NormalEquations, compress
 from .terms import ModelStructure
 
 __all__ = ["DistributedError", "FleetEquations", "LogReader", "compress_files", "connect", "expand_paths"]
 
 _GLOB_CHARS = frozenset("*?[")
-
-
-class DistributedError(SensorlessError):
-    """The Dask run could not complete: scheduler unreachable, dask missing, a worker lost too often."""
 
 
 # ---- what travels to the workers -----------------------------------------------------------

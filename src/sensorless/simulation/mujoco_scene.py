@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 import pinocchio as pin
+from scipy.spatial.transform import Rotation
 
 from ..errors import RobotModelError, ShapeMismatchError
 from ..robot import Robot
@@ -65,19 +66,9 @@ def default_foot_frames(robot: Robot) -> tuple[str, ...]:
 
 
 def quat_to_matrix(quat_xyzw: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) from unit quaternions (..., 4) ordered ``[x y z w]``."""
-    x, y, z, w = np.moveaxis(np.asarray(quat_xyzw, dtype=float), -1, 0)
-    R = np.empty(x.shape + (3, 3))
-    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    R[..., 0, 1] = 2 * (x * y - z * w)
-    R[..., 0, 2] = 2 * (x * z + y * w)
-    R[..., 1, 0] = 2 * (x * y + z * w)
-    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    R[..., 1, 2] = 2 * (y * z - x * w)
-    R[..., 2, 0] = 2 * (x * z - y * w)
-    R[..., 2, 1] = 2 * (y * z + x * w)
-    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
+    """Rotation matrices (..., 3, 3) from unit quaternions (..., 4) ordered ``[x y z w]`` (SciPy)."""
+    q = np.asarray(quat_xyzw, dtype=float)
+    return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
 
 
 @dataclass

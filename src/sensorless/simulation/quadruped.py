@@ -51,30 +51,31 @@ import inspect
 import time
 import warnings
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
-from ..data.imu import gravity_in_base
 from ..data.trajectory import Trajectory
-from ..errors import RobotModelError, SensorlessError
+from ..errors import RobotModelError, SimulationError
+from ..regressor.terms import JOINT_TERMS
 from ..robot import Robot, load_robot
-from .mujoco_scene import MujocoScene, build_scene, mj_to_pin_state
-from .quadruped_plans import SCENARIOS, _Context, _Plan, _rpy_rate_to_omega, _rpy_to_matrix
+from .mujoco_scene import MujocoScene, build_scene
+from .quadruped_control import Controller, LegIK, references
+from .quadruped_log import Episode, NoiseSpec, SimulationTruth, assemble
+from .quadruped_plans import SCENARIOS, _Context
 from .quadruped_profiles import PROFILES, QuadrupedProfile, profile_for, quadruped_robot, spot_mjcf
 from .synthetic import TruthModel, perturbed_truth
 
 __all__ = [
+    "JOINT_TERMS",
     "PROFILES",
     "SCENARIOS",
     "NoiseSpec",
     "QuadrupedProfile",
     "SimulationError",
     "SimulationTruth",
-    "benchmark_simulation",
     "dataset",
     "make_truth",
     "quadruped_robot",
@@ -82,33 +83,6 @@ __all__ = [
     "simulate",
     "stance_residual",
 ]
-
-JOINT_TERMS = ("fv", "fc", "offset", "armature")
-
-
-class SimulationError(SensorlessError, ValueError):
-    """Invalid simulation settings, an infeasible scenario plan, or a fall with ``on_fall="raise"``."""
-
-
-# ---------------------------------------------------------------------------------------
-# settings
-# ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class NoiseSpec:
-    """Standard deviations of the white Gaussian noise added to the logged signals."""
-
-    q: float = 1e-4  # rad (encoder)
-    v: float = 1e-2  # rad/s
-    tau: float = 0.02  # N·m (motor current x torque constant)
-    base_position: float = 1e-3  # m
-    base_orientation: float = 2e-3  # rad (random rotation vector, base frame)
-    base_linear_velocity: float = 1e-2  # m/s
-    base_angular_velocity: float = 1e-2  # rad/s
-    imu_acc: float = 3e-2  # m/s² (accelerometer at the base origin, base axes)
-
-    @classmethod
-    def none(cls) -> NoiseSpec:
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def make_truth(robot: Robot, truth_seed: int = 0, profile: QuadrupedProfile | None = None, **perturb) -> TruthModel:
@@ -126,222 +100,6 @@ def make_truth(robot: Robot, truth_seed: int = 0, profile: QuadrupedProfile | No
     truth.offset = np.zeros(n)
     truth.robot.name = robot.name + "_truth"
     return truth
-
-
-# ---------------------------------------------------------------------------------------
-# ground truth
-# ---------------------------------------------------------------------------------------
-@dataclass
-class SimulationTruth:
-    """What only the simulation knows, at the logged instants (noiseless).
-
-    Joint arrays are in ``truth.robot.joint_names`` order; base twist/acceleration in the
-    base frame (LOCAL); ``contact_forces`` are the floor's forces on each foot in the world
-    frame (N, n_feet, 3); ``friction_torque`` is the joint friction MuJoCo applied
-    (−fv v − friction loss), so ``M v̇ + h = Sᵀ(tau + friction_torque) + Jcᵀ f`` holds
-    with the contact forces applied at the contact points (sphere bottoms).
-    ``parameters`` is ``truth.parameters(joint_terms)`` (layout of
-    ``ModelStructure(truth.robot, joint_terms=joint_terms)``).
-    """
-
-    truth: TruthModel
-    parameters: np.ndarray
-    joint_terms: tuple[str, ...]
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    tau: np.ndarray
-    base_q: np.ndarray
-    base_v: np.ndarray
-    base_a: np.ndarray
-    contact: np.ndarray
-    contact_forces: np.ndarray
-    contact_points: np.ndarray
-    foot_height: np.ndarray
-    friction_torque: np.ndarray
-    foot_frames: tuple[str, ...]
-    foot_radius: float
-    noise: NoiseSpec
-    scenario: str
-    settings: dict[str, Any]
-    fell: bool = False
-    fall_time: float | None = None
-    wall_time: float = 0.0
-
-    @property
-    def robot(self) -> Robot:
-        return self.truth.robot
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
-
-    def trajectory(self) -> Trajectory:
-        """The noiseless log (q, v, a, tau, base state, contact flags) as a Trajectory."""
-        return Trajectory(
-            t=self.t,
-            q=self.q,
-            v=self.v,
-            a=self.a,
-            tau=self.tau,
-            base_q=self.base_q,
-            base_v=self.base_v,
-            base_a=self.base_a,
-            joint_names=self.truth.robot.joint_names,
-            extras={"contact": self.contact, "foot_height": self.foot_height, "contact_forces": self.contact_forces},
-            source=f"<mujoco truth {self.scenario}>",
-        )
-
-    def take(self, index) -> SimulationTruth:
-        per_sample = [
-            "t",
-            "q",
-            "v",
-            "a",
-            "tau",
-            "base_q",
-            "base_v",
-            "base_a",
-            "contact",
-            "contact_forces",
-            "contact_points",
-            "foot_height",
-            "friction_torque",
-        ]
-        return replace(self, **{k: getattr(self, k)[index] for k in per_sample})
-
-    def summary(self) -> dict[str, Any]:
-        r = self.truth.robot
-        return {
-            "scenario": self.scenario,
-            "samples": len(self),
-            "duration": float(self.t[-1] - self.t[0]) if len(self) else 0.0,
-            "fell": self.fell,
-            "fall_time": self.fall_time,
-            "contact_fraction": self.contact.mean(axis=0).tolist() if len(self) else [],
-            "total_mass": float(sum(r.model.inertias[j].mass for j in range(1, r.model.njoints))),
-            "fv": self.truth.fv.tolist(),
-            "fc": self.truth.fc.tolist(),
-            "armature": self.truth.armature.tolist(),
-            "noise": asdict(self.noise),
-            "settings": self.settings,
-            "wall_time": self.wall_time,
-        }
-
-
-# ---------------------------------------------------------------------------------------
-# inverse kinematics and references
-# ---------------------------------------------------------------------------------------
-class _LegIK:
-    """Damped Newton IK of foot-centre positions in the base frame (base at the identity)."""
-
-    def __init__(self, robot: Robot, feet: Sequence[str]):
-        self.model = robot.model
-        self.data = self.model.createData()
-        self.fids = [robot.frame_id(f) for f in feet]
-        self.jq = np.array([robot.q_index(n) for n in robot.joint_names])
-        self.jv = np.array([robot.v_index(n) for n in robot.joint_names])
-        self.legs = []
-        for fid in self.fids:
-            joint = self.model.frames[fid].parentJoint
-            sup = [j for j in self.model.supports[joint].tolist() if j > 1]
-            self.legs.append(np.array([self.model.joints[j].idx_v for j in sup]))
-        if len({leg.size for leg in self.legs}) != 1:
-            raise RobotModelError("leg IK needs the same number of joints in every leg")
-        self.legs_q = np.concatenate(
-            [
-                [
-                    self.model.joints[j].idx_q
-                    for j in self.model.supports[self.model.frames[f].parentJoint].tolist()
-                    if j > 1
-                ]
-                for f in self.fids
-            ]
-        )
-        self.q = pin.neutral(self.model)
-
-    def positions(self, qj: np.ndarray) -> np.ndarray:
-        q = self.q
-        q[self.jq] = qj
-        pin.framesForwardKinematics(self.model, self.data, q)
-        return np.array([self.data.oMf[f].translation for f in self.fids])
-
-    def solve(
-        self, targets: np.ndarray, qj: np.ndarray, tol: float = 1e-7, max_iter: int = 50
-    ) -> tuple[np.ndarray, float]:
-        m, d, q = self.model, self.data, self.q
-        q[self.jq] = qj
-        err = np.inf
-        eye = 1e-8 * np.eye(3)
-        for _ in range(max_iter):
-            pin.computeJointJacobians(m, d, q)
-            pin.updateFramePlacements(m, d)
-            e = targets - np.array([d.oMf[f].translation for f in self.fids])
-            err = float(np.abs(e).max())
-            if err < tol:
-                break
-            J = np.array(
-                [
-                    pin.getFrameJacobian(m, d, f, pin.LOCAL_WORLD_ALIGNED)[:3, leg]
-                    for f, leg in zip(self.fids, self.legs)
-                ]
-            )
-            JJt = J @ J.transpose(0, 2, 1) + eye
-            dq = np.einsum("fji,fj->fi", J, np.linalg.solve(JJt, e[..., None])[..., 0])
-            q[self.legs_q] += np.clip(dq, -0.3, 0.3).ravel()
-        return q[self.jq].copy(), err
-
-
-@dataclass
-class _References:
-    p: np.ndarray
-    R: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    w: np.ndarray
-    dw: np.ndarray
-    q: np.ndarray
-    dq: np.ndarray
-    ddq: np.ndarray
-    stance: np.ndarray
-    ik_error: float
-
-
-def _references(ctx: _Context, plan: _Plan, q_stand: np.ndarray, stride: int) -> _References:
-    from scipy.interpolate import CubicSpline
-
-    t = ctx.t
-    dt = t[1] - t[0]
-    R = _rpy_to_matrix(plan.base_rpy)
-    v = np.gradient(plan.base_pos, dt, axis=0, edge_order=2)
-    a = np.gradient(v, dt, axis=0, edge_order=2)
-    drpy = np.gradient(plan.base_rpy, dt, axis=0, edge_order=2)
-    w = _rpy_rate_to_omega(plan.base_rpy, drpy)
-    dw = np.gradient(w, dt, axis=0, edge_order=2)
-    ik = _LegIK(ctx.robot, ctx.profile.feet)
-    idx = np.unique(np.r_[np.arange(0, t.size, stride), t.size - 1])
-    qs = np.empty((idx.size, q_stand.size))
-    qj = q_stand.copy()
-    worst, t_worst = 0.0, 0.0
-    for n, k in enumerate(idx):
-        targets = (plan.feet[k] - plan.base_pos[k]) @ R[k]  # Rᵀ (p_foot − p_base), row-wise
-        qj, err = ik.solve(targets, qj)
-        if err > worst:
-            worst, t_worst = err, t[k] - ctx.t0
-        qs[n] = qj
-    if worst > 1e-4:
-        raise SimulationError(
-            f"the scenario plan asks for unreachable foot positions (IK error {worst:.3g} m at t = {t_worst:.2f} s); "
-            "reduce its speed, step length or amplitude"
-        )
-    if stride == 1:
-        q = qs
-        dq = np.gradient(q, dt, axis=0, edge_order=2)
-        ddq = np.gradient(dq, dt, axis=0, edge_order=2)
-    else:
-        sp = CubicSpline(t[idx], qs, axis=0)
-        q, dq, ddq = sp(t), sp(t, 1), sp(t, 2)
-    return _References(plan.base_pos, R, v, a, w, dw, q, dq, ddq, plan.stance, worst)
 
 
 # ---------------------------------------------------------------------------------------
@@ -437,14 +195,14 @@ def simulate(
     t_grid = np.arange(n_steps + pad + 1) * dt
 
     q_stand = _stand_configuration(nominal, prof)
-    ik = _LegIK(nominal, prof.feet)
+    ik = LegIK(nominal, prof.feet)
     feet_b = ik.positions(q_stand)
     height = prof.foot_radius - float(feet_b[:, 2].mean())
     ctx = _Context(nominal, prof, feet_b, height, t_grid, settle)
     plan = SCENARIOS[scenario](ctx, plan_rng, **scenario_kwargs)
-    ref = _references(ctx, plan, q_stand, ik_stride)
+    ref = references(ctx, plan, q_stand, ik_stride)
 
-    ctrl = _Controller(nominal, scene, prof, ref)
+    ctrl = Controller(nominal, scene, prof, ref)
     m, d = scene.model, scene.make_data()
     q0 = nominal.full_configuration(ref.q[0], np.r_[plan.base_pos[0], pin.Quaternion(ref.R[0]).coeffs()])
     scene.set_state(d, q0[0])
@@ -508,27 +266,12 @@ def simulate(
             n_done = max(n_done - 1, 0)  # the last period was cut short
     L = {k: v[:n_done] for k, v in L.items()}
     wall = time.perf_counter() - wall0
-    traj, gt = _assemble(
-        scenario,
-        scene,
-        truth,
-        nominal,
-        plan,
-        ref,
-        L,
-        noise,
-        noise_rng,
-        log_rate,
-        decim,
-        sim_rate,
-        settle,
-        seed,
-        truth_seed,
-        scenario_kwargs,
-        fell,
-        fall_time,
-        wall,
+    episode = Episode(
+        scenario=scenario, scene=scene, truth=truth, nominal=nominal, plan=plan, ref=ref, log=L, log_rate=log_rate,
+        sim_rate=sim_rate, settle=settle, seed=seed, truth_seed=truth_seed, kwargs=scenario_kwargs, fell=fell,
+        fall_time=fall_time, wall=wall,
     )
+    traj, gt = assemble(episode, noise, noise_rng)
     gt.settings["tau_log"] = tau_log
     return traj, gt
 
@@ -555,249 +298,6 @@ def _contacts(scene: MujocoScene, d: mujoco.MjData) -> tuple[np.ndarray, np.ndar
         if hit.size:
             points[hit[0]] = c.pos  # sphere–plane: one contact per foot
     return flags, forces, points
-
-
-class _Controller:
-    """Inverse-dynamics tracking of the plan with stance-force distribution (nominal model)."""
-
-    def __init__(self, robot: Robot, scene: MujocoScene, prof: QuadrupedProfile, ref: _References):
-        self.model = robot.model.copy()
-        self.data = self.model.createData()
-        self.fids = [robot.frame_id(f) for f in prof.feet]
-        nq, nv = self.model.nq, self.model.nv
-        jq = np.array([robot.q_index(n) for n in robot.joint_names])
-        jv = np.array([robot.v_index(n) for n in robot.joint_names])
-        contiguous = (
-            np.array_equal(jq, np.arange(7, nq))
-            and np.array_equal(jv, np.arange(6, nv))
-            and np.array_equal(scene.qpos_adr, np.arange(7, nq))
-            and np.array_equal(scene.dof_adr, np.arange(6, nv))
-        )
-        if not contiguous:
-            raise RobotModelError("the quadruped controller needs 1-DoF joints below the free flyer, in model order")
-        self.act_cols = np.array([robot.joint_names.index(j) for j in robot.actuated_joints])
-        self.lo, self.hi = -scene.torque_limit, scene.torque_limit
-        self.prof = prof
-        self.ref = ref
-        self.base = scene.base_body
-        self.q = pin.neutral(self.model)
-        self.v = np.zeros(nv)
-        self.acc = np.zeros(nv)
-        self.mu = prof.friction_coefficient * 0.8
-        self.reg = 1e-6 * np.eye(6)
-
-    def __call__(self, k: int, d: mujoco.MjData) -> np.ndarray:
-        ref, prof = self.ref, self.prof
-        q, v, acc = self.q, self.v, self.acc
-        qpos, qvel = d.qpos, d.qvel
-        q[:3] = qpos[:3]
-        q[3:6] = qpos[4:7]
-        q[6] = qpos[3]
-        q[7:] = qpos[7:]
-        R = d.xmat[self.base].reshape(3, 3)  # base orientation (kinematics of mj_step1)
-        vw = qvel[:3]
-        wl = qvel[3:6]
-        vl = vw @ R
-        v[:3] = vl
-        v[3:6] = wl
-        v[6:] = qvel[6:]
-        model, data = self.model, self.data
-        pin.computeAllTerms(model, data, q, v)
-        pin.updateFramePlacements(model, data)
-        M, h = data.M, data.nle
-        # base: PD towards the plan in the world frame, mapped to Pinocchio's LOCAL derivative
-        e_rot = pin.log3(ref.R[k] @ R.T)
-        kp, kd = prof.base_kp, prof.base_kd
-        a_w = ref.a[k] + kp * (ref.p[k] - q[:3]) + kd * (ref.v[k] - vw)
-        al_w = ref.dw[k] + kp * e_rot + kd * (ref.w[k] - R @ wl)
-        wx, wy, wz = wl
-        vx, vy, vz = vl
-        acc[:3] = a_w @ R - (wy * vz - wz * vy, wz * vx - wx * vz, wx * vy - wy * vx)
-        acc[3:6] = al_w @ R
-        acc[6:] = ref.ddq[k]
-        stance = ref.stance[k]
-        if stance.any():
-            tau_full = M @ acc + h
-            Jc = np.concatenate(
-                [
-                    pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
-                    for fid, s in zip(self.fids, stance)
-                    if s
-                ]
-            )
-            A = Jc[:, :6]
-            G = A.T @ A
-            G += self.reg * (np.trace(G) + 1e-6)
-            f = (A @ np.linalg.solve(G, tau_full[:6])).reshape(-1, 3)
-            fz = np.maximum(f[:, 2], 0.0)
-            n = np.sqrt(f[:, 0] ** 2 + f[:, 1] ** 2)
-            scale = np.minimum(1.0, self.mu * fz / (n + 1e-12))
-            f[:, 0] *= scale
-            f[:, 1] *= scale
-            f[:, 2] = fz
-            tau_j = tau_full[6:] - f.ravel() @ Jc[:, 6:]
-        else:  # flight: base acceleration that the joint motion implies
-            ab = -np.linalg.solve(M[:6, :6], M[:6, 6:] @ acc[6:] + h[:6])
-            tau_j = M[6:, :6] @ ab + M[6:, 6:] @ acc[6:] + h[6:]
-        tau_j += prof.kp * (ref.q[k] - q[7:]) + prof.kd * (ref.dq[k] - v[6:])
-        return np.minimum(np.maximum(tau_j[self.act_cols], self.lo), self.hi)
-
-
-def _small_rotation_quat(rotvec: np.ndarray) -> np.ndarray:
-    """Quaternions [x y z w] of rotation vectors (N, 3)."""
-    ang = np.linalg.norm(rotvec, axis=1, keepdims=True)
-    half = 0.5 * ang
-    s = np.where(ang > 1e-12, np.sin(half) / np.maximum(ang, 1e-300), 0.5)
-    return np.concatenate([rotvec * s, np.cos(half)], axis=1)
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of [x y z w] quaternions, batched."""
-    ax, ay, az, aw = a.T
-    bx, by, bz, bw = b.T
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=1,
-    )
-
-
-def _assemble(
-    scenario,
-    scene,
-    truth,
-    nominal,
-    plan,
-    ref,
-    L,
-    noise,
-    rng,
-    log_rate,
-    decim,
-    sim_rate,
-    settle,
-    seed,
-    truth_seed,
-    kwargs,
-    fell,
-    fall_time,
-    wall,
-) -> tuple[Trajectory, SimulationTruth]:
-    r = truth.robot
-    N = L["qpos"].shape[0]
-    t = np.arange(N) / log_rate
-    Q, V, A = mj_to_pin_state(scene, L["qpos"], L["qvel"], L["qacc"]) if N else (np.zeros((0, r.nq)),) * 3
-    if N:
-        jv = [r.v_index(n) for n in r.joint_names]
-        q_true = L["qpos"][:, scene.qpos_adr]
-        v_true, a_true = V[:, jv], A[:, jv]
-        base_q, base_v, base_a = Q[:, :7], V[:, :6], A[:, :6]
-    else:
-        q_true = v_true = a_true = np.zeros((0, len(r.joint_names)))
-        base_q, base_v, base_a = np.zeros((0, 7)), np.zeros((0, 6)), np.zeros((0, 6))
-    cols = [r.joint_names.index(j) for j in r.actuated_joints]
-    tau_true = np.zeros((N, len(r.joint_names)))
-    tau_true[:, cols] = L["act"]
-    fric = np.zeros((N, len(r.joint_names)))
-    fric[:, cols] = L["fric"]
-
-    def noisy(x, s):
-        return x + rng.normal(size=x.shape) * s if s > 0 else x.copy()
-
-    meas_q = noisy(q_true, noise.q)
-    meas_v = noisy(v_true, noise.v)
-    meas_tau = noisy(tau_true, noise.tau)
-    bq = base_q.copy()
-    bq[:, :3] = noisy(base_q[:, :3], noise.base_position)
-    if noise.base_orientation > 0 and N:
-        dq = _small_rotation_quat(rng.normal(size=(N, 3)) * noise.base_orientation)
-        bq[:, 3:] = _quat_mul(base_q[:, 3:], dq)
-        bq[:, 3:] /= np.linalg.norm(bq[:, 3:], axis=1, keepdims=True)
-    bv = base_v.copy()
-    bv[:, :3] = noisy(base_v[:, :3], noise.base_linear_velocity)
-    bv[:, 3:] = noisy(base_v[:, 3:], noise.base_angular_velocity)
-    # accelerometer: specific force Rᵀ(p̈ − g) = a_lin + ω × v_b − Rᵀg (see sensorless.data.imu)
-    specific_force = base_a[:, :3] + np.cross(base_v[:, 3:], base_v[:, :3]) - gravity_in_base(base_q)
-    imu_acc = noisy(specific_force, noise.imu_acc)
-
-    jerr = q_true - ref.q[L["idx"]] if N else np.zeros((0, 1))
-    perr = base_q[:, :3] - ref.p[L["idx"]] if N else np.zeros((0, 3))
-    settings = {
-        "scenario": scenario,
-        "robot": nominal.name,
-        "seed": seed,
-        "truth_seed": truth_seed,
-        "duration": float(N / log_rate),
-        "log_rate": log_rate,
-        "sim_rate": sim_rate,
-        "settle": settle,
-        "torque_limit": float(np.max(scene.torque_limit)),
-        "foot_radius": scene.foot_radius,
-        "joint_coulomb": f"tanh(v/{scene.coulomb_velocity:g})" if scene.coulomb_velocity > 0 else "mujoco_frictionloss",
-        "ik_error": ref.ik_error,
-        "tracking_joint_rms": np.sqrt(np.mean(jerr**2, axis=0)).tolist() if N else [],
-        "tracking_base_position_rms": np.sqrt(np.mean(perr**2, axis=0)).tolist() if N else [],
-        "kwargs": dict(kwargs),
-        "plan": plan.settings,
-        "a": "not logged (None): estimate it from q or v, e.g. sensorless.data.savgol_derivatives",
-    }
-    fell_note = f" FELL at t={fall_time:.2f} s" if fell else ""
-    source = f"<mujoco {nominal.name} {scenario} seed={seed} truth_seed={truth_seed}{fell_note}>"
-    units = {
-        "t": "s",
-        "q": "rad",
-        "v": "rad/s",
-        "tau": "N·m (actuator force + noise)",
-        "base_q": "m, quaternion xyzw",
-        "base_v": "m/s, rad/s (base frame)",
-        "foot_height": "m (foot-sphere bottom above the floor)",
-        "imu_acc": "m/s² (specific force at the base origin, base frame; +9.81 z at rest)",
-    }
-    traj = Trajectory(
-        t=t,
-        q=meas_q,
-        v=meas_v,
-        a=None,
-        tau=meas_tau,
-        base_q=bq,
-        base_v=bv,
-        base_a=None,
-        joint_names=r.joint_names,
-        extras={"contact": L["flags"].copy(), "foot_height": L["height"].copy(), "imu_acc": imu_acc},
-        units=units,
-        source=source,
-    )
-    gt = SimulationTruth(
-        truth=truth,
-        parameters=truth.parameters(JOINT_TERMS),
-        joint_terms=JOINT_TERMS,
-        t=t,
-        q=q_true,
-        v=v_true,
-        a=a_true,
-        tau=tau_true,
-        base_q=base_q,
-        base_v=base_v,
-        base_a=base_a,
-        contact=L["flags"],
-        contact_forces=L["forces"],
-        contact_points=L["points"],
-        foot_height=L["height"],
-        friction_torque=fric,
-        foot_frames=scene.foot_frames,
-        foot_radius=scene.foot_radius,
-        noise=noise,
-        scenario=scenario,
-        settings=settings,
-        fell=fell,
-        fall_time=fall_time,
-        wall_time=wall,
-    )
-    return traj, gt
 
 
 def dataset(
@@ -911,22 +411,3 @@ def stance_residual(
         "friction": friction,
         "contact_point": contact_point,
     }
-
-
-def benchmark_simulation(
-    duration: float = 10.0, scenarios: Sequence[str] = ("wobble", "trot", "crawl", "jump"), seed: int = 0
-) -> dict[str, Any]:
-    """Wall time per simulated second for each scenario (Solo12, defaults). JSON-able."""
-    out: dict[str, Any] = {"duration": duration, "scenarios": {}}
-    robot = load_robot("solo12")
-    for name in scenarios:
-        t0 = time.perf_counter()
-        _, gt = simulate(name, robot, duration=duration, seed=seed)
-        wall = time.perf_counter() - t0
-        out["scenarios"][name] = {
-            "wall_s": wall,
-            "wall_per_sim_s": wall / max(gt.settings["duration"], 1e-9),
-            "fell": gt.fell,
-            "samples": len(gt),
-        }
-    return out

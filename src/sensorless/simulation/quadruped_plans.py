@@ -24,37 +24,6 @@ def _minjerk(s: np.ndarray) -> np.ndarray:
     return s**3 * (10 - 15 * s + 6 * s**2)
 
 
-def _rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), batched (K, 3) → (K, 3, 3)."""
-    r, p, y = rpy[:, 0], rpy[:, 1], rpy[:, 2]
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    R = np.empty((rpy.shape[0], 3, 3))
-    R[:, 0, 0] = cy * cp
-    R[:, 0, 1] = cy * sp * sr - sy * cr
-    R[:, 0, 2] = cy * sp * cr + sy * sr
-    R[:, 1, 0] = sy * cp
-    R[:, 1, 1] = sy * sp * sr + cy * cr
-    R[:, 1, 2] = sy * sp * cr - cy * sr
-    R[:, 2, 0] = -sp
-    R[:, 2, 1] = cp * sr
-    R[:, 2, 2] = cp * cr
-    return R
-
-
-def _rpy_rate_to_omega(rpy: np.ndarray, drpy: np.ndarray) -> np.ndarray:
-    """World angular velocity of R = Rz Ry Rx from Euler-angle rates."""
-    p, y = rpy[:, 1], rpy[:, 2]
-    dr, dp, dy = drpy[:, 0], drpy[:, 1], drpy[:, 2]
-    return np.stack(
-        [
-            -np.sin(y) * dp + np.cos(y) * np.cos(p) * dr,
-            np.cos(y) * dp + np.sin(y) * np.cos(p) * dr,
-            dy - np.sin(p) * dr,
-        ],
-        axis=1,
-    )
-
-
 def _sines(
     rng: np.random.Generator, t: np.ndarray, amp: float, freq: tuple[float, float], n: int = 2
 ) -> tuple[np.ndarray, list]:

@@ -1,6 +1,6 @@
 """The WPI dVRK PSM held-out check: identify on ``one_results``, predict ``two_results``.
 
-Protocol (the authors' split): both logs are read with :func:`~.dvrk_psm.read_psm_log`
+Protocol (the authors' split): both logs are read with :func:`~sensorless.robots.dvrk_psm.read_psm_log`
 (zero-phase Butterworth at ``cutoff_hz`` = 5.4 Hz on q, q̇ and effort, q̈ by central
 differences of the filtered q̇, every sample kept). Errors are per coordinate,
 NRMSE = RMSE / (max − min of the measured effort) on ``two_results`` (filtered effort; the
@@ -9,7 +9,7 @@ raw effort is reported too).
 Hyper-parameters are chosen on the *training* log only: the Coulomb smoothing velocity ε
 (sgn → tanh(ṡ/ε)) by contiguous k-fold cross-validation on ``one_results`` (mean NRMSE
 over coordinates). The authors' published parameters (``params.json``) are mapped onto the
-same structure with :func:`~.dvrk_psm.published_parameters` and evaluated on the same data.
+same structure with :func:`~sensorless.robots.dvrk_psm.published_parameters` and evaluated on the same data.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from ..data import Trajectory
 from ..errors import DataError
 from ..identification import identify, torque_metrics
 from ..identification.result import versions
-from .dvrk_psm import psm_structure, published_parameters, read_psm_log
+from ..robots.dvrk_psm import psm_structure, published_parameters, read_psm_log
 
 __all__ = [
     "DEFAULT_SMOOTHING",

@@ -26,9 +26,9 @@ from ..regressor.compress import NormalEquations
 from ..regressor.terms import ModelStructure
 from ..robot import Robot, load_robot
 from ..simulation.synthetic import perturbed_truth
-from .base import _random_states
-from .ellipsoids import resolve_ellipsoids
-from .lmi import build_lmi
+from ..identification.base import _random_states
+from ..identification.ellipsoids import resolve_ellipsoids
+from ..identification.lmi import build_lmi
 
 __all__ = ["bench_lmi", "random_state_equations"]
 

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data.trajectory import Trajectory
-from .errors import ExcitationError
-from .robot import Robot
+from ..data.trajectory import Trajectory
+from ..errors import ExcitationError
+from ..robot import Robot
 
 __all__ = ["FourierTrajectory", "random_fourier"]
 

@@ -1,0 +1,212 @@
+"""Column-oriented logs: CSV (with or without a header row) and Parquet, and the mapping of
+their columns onto Trajectory fields (names, ``{joint}`` patterns, integer indices or ranges)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import DataError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__: list[str] = []
+
+_TIME_COLUMNS = ("t", "time", "times", "timestamp")
+_DEFAULT_PATTERNS = {f: f"{f}_{{joint}}" for f in ("q", "v", "a", "tau", "current", "command")}
+_RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
+
+Columns = Mapping[str, "str | int | Sequence[str | int]"]
+
+
+def _is_number(tok: str) -> bool:
+    try:
+        float(tok)
+        return True
+    except ValueError:
+        return False
+
+
+def _read_csv(path: Path) -> tuple["pd.DataFrame", bool]:
+    """The table and whether it has a header (no header if the first row is all numbers)."""
+    import pandas as pd
+
+    src = str(path)
+    first = None
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
+            for line in fh:
+                if line.strip() and not line.lstrip().startswith("#"):
+                    first = line
+                    break
+    except OSError as exc:
+        raise DataError(f"cannot open: {exc.strerror or exc}", src) from None
+    if first is None:
+        raise DataError("file is empty", src)
+    sep = next((s for s in (",", ";", "\t") if s in first), r"\s+")
+    tokens = [tok.strip().strip("\"'") for tok in (first.split(sep) if sep != r"\s+" else first.split())]
+    header = any(tok and not _is_number(tok) for tok in tokens)
+    try:
+        df = pd.read_csv(
+            path, sep=sep, header=0 if header else None, comment="#", skipinitialspace=True, encoding="utf-8-sig"
+        )
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError) as exc:
+        raise DataError(f"cannot parse as CSV: {str(exc).strip()}", src) from None
+    if header:
+        df.columns = [str(c).strip() for c in df.columns]
+    return df, header
+
+
+def _read_parquet(path: Path) -> "pd.DataFrame":
+    import pandas as pd
+
+    try:
+        df = pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises ArrowInvalid/OSError/... for a bad file
+        raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(path)) from None
+    df.columns = [str(c) for c in df.columns]
+    return df.reset_index() if df.index.name is not None else df.reset_index(drop=True)
+
+
+def _short(items: Sequence[Any], limit: int = 40) -> str:
+    items = list(items)
+    return str(items if len(items) <= limit else items[:limit] + [f"... ({len(items) - limit} more)"])
+
+
+def _names_from_pattern(pattern: str, avail: list) -> list[str]:
+    pre, post = pattern.split("{joint}", 1)
+    rx = re.compile(re.escape(pre) + "(.+)" + re.escape(post) + "$")
+    return [m.group(1) for c in avail if (m := rx.match(str(c)))]
+
+
+def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header: bool, src: str) -> list:
+    """Column labels of ``field`` for one ``columns`` entry."""
+
+    def by_index(i: int) -> Any:
+        if not 0 <= i < len(avail):
+            raise DataError(f"column index {i} (for '{field}') is out of range; the file has {len(avail)} columns", src)
+        return avail[i]
+
+    def one(item: Any) -> Any:
+        if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+            return by_index(int(item))
+        if isinstance(item, str):
+            if not header and item.strip().isdigit():
+                return by_index(int(item))
+            return item
+        raise DataError(f"columns['{field}'] entries must be column names or indices, got {item!r}", src)
+
+    if isinstance(spec, str) and "{joint}" in spec:
+        if not header:
+            raise DataError(f"pattern {spec!r} for '{field}' needs a header row; use an index range like '0:7'", src)
+        if not names:
+            raise DataError(f"pattern {spec!r} for '{field}' needs joint names; pass joint_names=[...]", src)
+        labels = [spec.replace("{joint}", j) for j in names]
+    elif isinstance(spec, str) and (m := _RANGE.match(spec)):
+        start = int(m.group(1) or 0)
+        stop = int(m.group(2) or len(avail))
+        if not 0 <= start < stop <= len(avail):
+            raise DataError(f"column range '{spec}' (for '{field}') does not fit the {len(avail)} columns", src)
+        labels = list(avail[start:stop])
+    elif isinstance(spec, (str, int, np.integer)):
+        labels = [one(spec)]
+    elif isinstance(spec, Sequence):
+        labels = [one(item) for item in spec]
+    else:
+        raise DataError(f"columns['{field}'] must be a list, a '{{joint}}' pattern or a range 'a:b', got {spec!r}", src)
+    missing = [c for c in labels if c not in avail]
+    if missing:
+        raise DataError(f"no column(s) {missing} (for '{field}'); available columns: {_short(avail)}", src)
+    return labels
+
+
+def _numeric(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarray:
+    import pandas as pd
+
+    cols = []
+    for c in labels:
+        s = df[c]
+        if field == "t" and pd.api.types.is_datetime64_any_dtype(s):
+            if s.isna().any():
+                i = int(np.flatnonzero(s.isna().to_numpy())[0])
+                raise DataError(f"missing timestamp in column '{c}' at row {i}", src)
+            cols.append((s - pd.Timestamp(0, tz=getattr(s.dt, "tz", None))).dt.total_seconds().to_numpy(float))
+            continue
+        if pd.api.types.is_bool_dtype(s) or pd.api.types.is_datetime64_any_dtype(s) or pd.api.types.is_complex_dtype(s):
+            raise DataError(f"column '{c}' (for '{field}') holds {s.dtype} values; expected real numbers", src)
+        if pd.api.types.is_numeric_dtype(s):
+            cols.append(s.to_numpy(dtype=float, na_value=np.nan))
+            continue
+        num = pd.to_numeric(s, errors="coerce")
+        text = s.astype(str).str.strip()
+        bad = (num.isna() & s.notna() & (text != "")).to_numpy()
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataError(
+                f"non-numeric value {s.iloc[i]!r} in column '{c}' (for '{field}') at row {i} "
+                f"(0-based data row; {int(bad.sum())} bad cell(s) in this column)",
+                src,
+            )
+        cols.append(num.to_numpy(dtype=float, na_value=np.nan))
+    return np.column_stack(cols) if cols else np.empty((len(df), 0))
+
+
+def _fields_from_frame(
+    df: "pd.DataFrame",
+    src: str,
+    columns: Columns | None,
+    joint_names: Sequence[str] | None,
+    header: bool,
+) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    avail = list(df.columns)
+    if columns is None and not header:
+        raise DataError(
+            "has no header row; say which columns hold what, e.g. "
+            "columns={'q': '0:7', 'v': '7:14', 'tau': '14:21'} (and rate=... Hz if there is no time column)",
+            src,
+        )
+    optional: set[str] = set()
+    if columns is None:
+        spec: dict[str, Any] = dict(_DEFAULT_PATTERNS)
+        optional = set(_DEFAULT_PATTERNS) - {"q"}
+    else:
+        spec = dict(columns)
+        if "q" not in spec:
+            raise DataError("columns has no 'q' entry (joint positions)", src)
+    if header and "t" not in spec:
+        lower = {str(c).lower(): c for c in avail}
+        tcol = next((lower[n] for n in _TIME_COLUMNS if n in lower), None)
+        if tcol is not None:
+            spec["t"] = tcol
+
+    names = list(joint_names) if joint_names is not None else None
+    if names is None:
+        patterns = [f for f in ("q", *spec) if isinstance(spec.get(f), str) and "{joint}" in spec[f]]
+        if patterns and header:
+            names = _names_from_pattern(spec[patterns[0]], avail)
+            if not names:
+                raise DataError(
+                    f"no column matches {spec[patterns[0]]!r} (for '{patterns[0]}'); "
+                    f"available columns: {_short(avail)}; pass columns={{'q': [...], ...}}",
+                    src,
+                )
+
+    raw: dict[str, np.ndarray] = {}
+    for field, entry in spec.items():
+        if field in optional:
+            present = [entry.replace("{joint}", j) in avail for j in names or []]
+            if not any(present):
+                continue
+            if not all(present):
+                absent = [entry.replace("{joint}", j) for j, p in zip(names, present) if not p]
+                raise DataError(f"'{field}' columns incomplete: no column(s) {absent}; available columns: {_short(avail)}", src)
+        labels = _labels(field, entry, avail, names, header, src)
+        if field == "t" and len(labels) != 1:
+            raise DataError(f"'t' must be one column, got {labels}", src)
+        values = _numeric(df, labels, field, src)
+        raw[field] = values[:, 0] if field == "t" else values
+    return raw, names
