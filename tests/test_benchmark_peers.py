@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from sensorless.benchmarks_peers import (
+from sensorless.benchmarks.peers import (
     DEFAULT_RECIPE,
     Recipe,
     cli_defaults,

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 distributed = pytest.importorskip("distributed")
 
-from sensorless.benchmarks_dask import write_fleet_logs  # noqa: E402
+from sensorless.benchmarks.fleet import write_fleet_logs  # noqa: E402
 from sensorless.cli import app  # noqa: E402
 from sensorless.cli.common import load_logs  # noqa: E402
 from sensorless.errors import DataError  # noqa: E402

@@ -20,7 +20,7 @@ import pinocchio as pin
 import pytest
 from typer.testing import CliRunner
 
-from sensorless.bench import FEET, _contact_log
+from sensorless.benchmarks.identify import FEET, _contact_log
 from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.data.trajectory import Trajectory

@@ -482,7 +482,7 @@ def bench_identify(
     out: Path = typer.Option(Path("benchmarks/results/identify.json")),
 ) -> None:
     """Identification wall time, peak memory and per-sample cost vs a bare regressor call."""
-    from ..bench import bench_identify as run
+    from ..benchmarks.identify import bench_identify as run
 
     res = run(robot, [int(float(s)) for s in samples.split(",")], console=console)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -505,7 +505,7 @@ def bench_dask_cmd(
     out: Path = typer.Option(Path("benchmarks/results/dask.json")),
 ) -> None:
     """Dask LocalCluster vs single-process identification from generated Parquet logs (deleted afterwards)."""
-    from ..benchmarks_dask import bench_dask
+    from ..benchmarks.fleet import bench_dask
     from ..identification.result import write_json_atomic
 
     sizes = tuple(int(float(s)) for s in samples.split(","))
@@ -522,7 +522,7 @@ def bench_contact_cmd(
     out: Path = typer.Option(Path("benchmarks/results/contact.json")),
 ) -> None:
     """Contact-projected identification: end-to-end time and projector cost vs a pinv loop."""
-    from ..bench import bench_contact
+    from ..benchmarks.identify import bench_contact
     from ..identification.result import write_json_atomic
 
     res = bench_contact(samples, console=console)
@@ -542,7 +542,7 @@ def bench_speed_cmd(
     out: Path = typer.Option(Path("benchmarks/results/speed.json")),
 ) -> None:
     """Compression vs a bare regressor call, peak memory, contact projector vs pinv, CLI start-up and identify."""
-    from ..bench_speed import bench_speed
+    from ..benchmarks.speed import bench_speed
     from ..identification.result import write_json_atomic
 
     if min(samples, contact_samples, identify_samples, repeats) < 1:
@@ -595,7 +595,7 @@ def bench_peers_cmd(
     """UR5 accuracy vs figaroh/rigeo's published figures: perturbed-truth inertials, random Fourier
     excitation, 1 % (main) and 5 %/600 samples (hard) noise; `identify` with its CLI defaults
     (--method lmi and ols). Held-out nRMSE vs the noise-free torque, mean and worst over seeds."""
-    from ..benchmarks_peers import load_recipe, run_peers
+    from ..benchmarks.peers import load_recipe, run_peers
     from ..identification.result import write_json_atomic
 
     default = recipe == Path("benchmarks/peers.toml") and not recipe.exists()
@@ -606,7 +606,7 @@ def bench_peers_cmd(
         raise OptionError(f"--seeds must be comma-separated integers, got '{seeds}'") from None
     res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None,
                     variants=tuple(v for v in variants.split(",") if v), console=console)
-    res["recipe"]["file"] = "built-in (sensorless.benchmarks_peers.DEFAULT_RECIPE)" if default else str(recipe)
+    res["recipe"]["file"] = "built-in (sensorless.benchmarks.peers.DEFAULT_RECIPE)" if default else str(recipe)
     for name, c in res["cases"].items():
         peers = ", ".join(f"{k} {v} %" for k, v in rec.peers.get(name, {}).items())
         for v in c:

@@ -201,7 +201,7 @@ def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple
 
 def _length_task(model, reader, path: str, skip_bad: bool) -> tuple[int | None, float | None, str | None]:
     """Pass 1 of cross-validation folds: (samples after preprocessing, excitation period, error)."""
-    from ..identification.lmi import excitation_period
+    from ..data.periodicity import excitation_period
 
     structure = _structure(model)
     try:

@@ -16,12 +16,12 @@ import tracemalloc
 import numpy as np
 import pinocchio as pin
 
-from .excitation import random_fourier
-from .identification import identify
-from .identification.result import versions
-from .regressor import ModelStructure
-from .robot import load_robot
-from .simulation import perturbed_truth, streamed_fourier_log
+from ..excitation import random_fourier
+from ..identification import identify
+from ..identification.result import versions
+from ..regressor import ModelStructure
+from ..robot import load_robot
+from ..simulation import perturbed_truth, streamed_fourier_log
 
 __all__ = ["bench_identify", "bare_regressor_cost"]
 
@@ -119,8 +119,8 @@ FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 
 def _contact_log(robot, structure, n: int, seed: int):
     """Random Solo12 states: first half all four feet in contact (stance), second half trot pairs."""
-    from .data.trajectory import Trajectory
-    from .identification.base import _random_states
+    from ..data.trajectory import Trajectory
+    from ..identification.base import _random_states
 
     rng = np.random.default_rng(seed)
     Q, V, A = _random_states(structure, n, rng)
@@ -142,7 +142,7 @@ def bench_contact(n_samples: int = 100_000, seed: int = 0, console=None, methods
     method, and the per-sample cost of the projector: batched (this library) vs a per-sample
     Python loop with ``numpy.linalg.pinv`` on the same Jacobians, timed in the same run.
     """
-    from .regressor import ContactStructure, compress
+    from ..regressor import ContactStructure, compress
 
     robot = load_robot("solo12")
     structure = ContactStructure(robot, contact_frames=FEET)
@@ -159,7 +159,7 @@ def bench_contact(n_samples: int = 100_000, seed: int = 0, console=None, methods
     sub = log.take(np.r_[0:10_000, n_samples // 2 : n_samples // 2 + 10_000] if n_samples >= 40_000 else slice(None))
     Q, _, _ = structure.state(sub)
     flags = structure.contacts(sub)
-    from .regressor.contact import contact_jacobians, null_space_projector
+    from ..regressor.contact import contact_jacobians, null_space_projector
 
     groups = []  # (pattern rows, Jacobians of the active contacts) per contact pattern
     tj = time.perf_counter()

@@ -37,9 +37,9 @@ GOALS = {
 
 def _fourier_log(robot, n: int, seed: int = 0):
     """An in-memory n-sample synthetic log (UR5-style: 5 harmonics at 0.1 Hz, 1 kHz, noise 0.1 N·m)."""
-    from .data.trajectory import Trajectory
-    from .excitation import random_fourier
-    from .simulation import perturbed_truth, streamed_fourier_log
+    from ..data.trajectory import Trajectory
+    from ..excitation import random_fourier
+    from ..simulation import perturbed_truth, streamed_fourier_log
 
     truth = perturbed_truth(robot, rng=seed)
     parts = list(streamed_fourier_log(truth, random_fourier(robot, rng=seed + 1, base_freq=0.1), rate=1000.0,
@@ -63,8 +63,8 @@ def _best(fns: dict, repeats: int) -> dict:
 def bench_compression(robot_name: str, n: int, repeats: int) -> dict:
     import pinocchio as pin
 
-    from .regressor import ModelStructure, compress
-    from .robot import load_robot
+    from ..regressor import ModelStructure, compress
+    from ..robot import load_robot
 
     lock = ["panda_finger_joint1", "panda_finger_joint2"] if robot_name == "panda" else ()
     robot = load_robot(robot_name, lock_joints=lock)
@@ -90,7 +90,7 @@ def bench_compression(robot_name: str, n: int, repeats: int) -> dict:
 
 
 def bench_memory(robot_name: str, sizes: list[int]) -> dict:
-    from .bench import bench_identify
+    from .identify import bench_identify
 
     res = bench_identify(robot_name, sizes)
     keep = ("n_samples", "wall_seconds", "compression_seconds", "per_sample_us", "peak_traced_memory_mb")
@@ -99,10 +99,10 @@ def bench_memory(robot_name: str, sizes: list[int]) -> dict:
 
 
 def bench_contact_speed(n: int, n_compress: int, repeats: int) -> dict:
-    from .bench import FEET, _contact_log
-    from .regressor import ContactStructure, compress
-    from .regressor.contact import contact_jacobians, null_space_basis, null_space_projector
-    from .robot import load_robot
+    from .identify import FEET, _contact_log
+    from ..regressor import ContactStructure, compress
+    from ..regressor.contact import contact_jacobians, null_space_basis, null_space_projector
+    from ..robot import load_robot
 
     robot = load_robot("solo12")
     s = ContactStructure(robot, contact_frames=FEET)
@@ -162,8 +162,8 @@ def _cli(args: list[str], env: dict) -> float:
 
 
 def bench_cli(n_identify: int, repeats: int) -> dict:
-    from .data.readers import write_npz
-    from .robot import load_robot
+    from ..data.readers import write_npz
+    from ..robot import load_robot
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
     out: dict = {"help_seconds": [], "identify_cli_seconds": {"plot": [], "no_plot": []}}
@@ -188,7 +188,7 @@ def bench_cli(n_identify: int, repeats: int) -> dict:
 def bench_speed(*, n_compress: int = 100_000, memory_sizes=(100_000, 1_000_000), n_contact: int = 100_000,
                 n_identify: int = 100_000, repeats: int = 3, console=None) -> dict:
     """All figures of the speed benchmark as one JSON-able dict (see the module docstring)."""
-    from .io import versions
+    from ..io import versions
 
     def say(msg):
         if console is not None:

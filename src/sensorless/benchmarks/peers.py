@@ -34,12 +34,12 @@ from typing import Any, Callable
 import numpy as np
 import pinocchio as pin
 
-from .data.trajectory import Trajectory
-from .errors import OptionError
-from .excitation import random_fourier
-from .parameters import check_physical_consistency
-from .robot import Robot, load_robot
-from .simulation import TruthModel, synthetic_trajectory
+from ..data.trajectory import Trajectory
+from ..errors import OptionError
+from ..excitation import random_fourier
+from ..parameters import check_physical_consistency
+from ..robot import Robot, load_robot
+from ..simulation import TruthModel, synthetic_trajectory
 
 __all__ = [
     "DEFAULT_RECIPE",
@@ -192,7 +192,7 @@ def held_out_nrmse(pred: np.ndarray, case: PeerCase) -> np.ndarray:
 
 def cli_defaults() -> dict[str, Any]:
     """The default value of every option of ``sensorless identify`` (from its signature)."""
-    from .cli.core import identify as command
+    from ..cli.core import identify as command
 
     fn = inspect.unwrap(command)
     out = {}
@@ -206,9 +206,9 @@ def _fit(case: PeerCase, robot: Robot, method: str, overrides: dict[str, Any] | 
     """``sensorless identify --method METHOD`` with the command-line defaults (plus
     ``overrides``), in process on the generated logs: the same option handling
     (``_structure``, ``_lmi_kwargs``, ``weights_option``) and the same ``identify`` call."""
-    from .cli.core import _lmi_kwargs, _structure
-    from .identification import identify
-    from .identification.weights import weights_option
+    from ..cli.core import _lmi_kwargs, _structure
+    from ..identification import identify
+    from ..identification.weights import weights_option
 
     o = {**cli_defaults(), **(overrides or {}), "method": method}
     structure = _structure(robot, o["joint_terms"], o["coulomb_smoothing"], None, None, 0.0, o["contact_mode"])

@@ -68,8 +68,8 @@ def write_fleet_logs(
     """
     import pandas as pd
 
-    from .excitation import random_fourier
-    from .simulation import perturbed_truth
+    from ..excitation import random_fourier
+    from ..simulation import perturbed_truth
 
     period = rate / base_freq
     if abs(period - round(period)) > 1e-9:
@@ -103,8 +103,8 @@ def _warm_up() -> None:
     """Import what reading a log needs, so neither path times its imports."""
     import pyarrow.parquet  # noqa: F401
 
-    from .cli import common  # noqa: F401
-    from .regressor import distributed  # noqa: F401
+    from ..cli import common  # noqa: F401
+    from ..regressor import distributed  # noqa: F401
 
 
 def _status_mb(key: str) -> float:
@@ -153,10 +153,10 @@ def _environ(values: dict):
 
 def _single_process(robot_name: str, files: list[str], method: str) -> dict:
     """The CLI's local path, in a fresh process: load every log, then identify."""
-    from .cli.common import load_logs
-    from .identification import identify
-    from .regressor import ModelStructure
-    from .robot import load_robot
+    from ..cli.common import load_logs
+    from ..identification import identify
+    from ..regressor import ModelStructure
+    from ..robot import load_robot
 
     _warm_up()
     robot = load_robot(robot_name, lock_joints=_lock(robot_name))
@@ -180,9 +180,9 @@ def _dask_run(robot_name: str, files: list[str], method: str, workers: int) -> d
 
     from distributed import Client, LocalCluster
 
-    from .identification import identify_files
-    from .regressor import ModelStructure
-    from .robot import load_robot
+    from ..identification import identify_files
+    from ..regressor import ModelStructure
+    from ..robot import load_robot
 
     structure = ModelStructure(load_robot(robot_name, lock_joints=_lock(robot_name)))
     t0 = time.perf_counter()
@@ -219,8 +219,8 @@ def bench_dask(
     tmp_root: str | None = None,
 ) -> dict:
     """Run the benchmark described in the module docstring; returns a JSON-able dict."""
-    from .identification.result import versions
-    from .robot import load_robot
+    from ..identification.result import versions
+    from ..robot import load_robot
 
     robot = load_robot(robot_name, lock_joints=_lock(robot_name))
     load_start = os.getloadavg()
