@@ -1,10 +1,13 @@
 """Simulated logs of an arm with no torque sensor: motor currents, a jittery ~100 Hz clock,
 and idle segments at the start and the end. Used by docs/arm.md ("Logs of motor currents").
 
-    python examples/current_logged_arm.py OUTDIR [--robot ur5] [--seed 0]
+    python examples/current_logged_arm.py OUTDIR [--robot ur5] [--seed 0] [--stribeck] [--payload KG]
 
 writes OUTDIR/train.csv and OUTDIR/test.csv (two different excitation trajectories of
 the same "true" robot) and OUTDIR/gains.json (the drive gains, joint -> K [N·m/A]).
+``--stribeck`` gives the true robot Stribeck friction (:class:`StribeckTruth`);
+``--payload KG`` also writes OUTDIR/loaded.csv, the train trajectory run again (new
+clock jitter and noise) with a point mass at the tool frame, for ``sensorless drive-gains``.
 
 Each CSV has a header ``time, pos_<joint>..., vel_<joint>..., i_<joint>...``:
 
@@ -21,14 +24,16 @@ Each CSV has a header ``time, pos_<joint>..., vel_<joint>..., i_<joint>...``:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pinocchio as pin
 
 from sensorless.excitation import random_fourier
-from sensorless.robot import load_robot
+from sensorless.robot import Robot, load_robot
 from sensorless.simulation import perturbed_truth
 
 #: Drive gains K [N·m/A] per joint (joint side: torque constant × gear ratio), UR5-like.
@@ -46,20 +51,75 @@ def _ramp(t: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return s, ds, dds
 
 
-def truth_model(robot_name: str = "ur5", seed: int = 0):
+@dataclasses.dataclass
+class StribeckTruth:
+    """A true robot whose joints have Stribeck friction (``base`` carries no Coulomb term):
+
+        τ_f = fc sgn v + (fs − fc) exp(−(v/vs)²) sgn v + fv v + o   (sgn 0 = 0: no friction at rest).
+    """
+
+    base: object  # sensorless.simulation.TruthModel with fc = 0
+    fc: np.ndarray
+    fs: np.ndarray
+    vs: np.ndarray
+
+    @property
+    def robot(self):
+        return self.base.robot
+
+    def torques(self, Q, V, A) -> np.ndarray:
+        v = V[:, self.robot.actuated_v_indices]
+        s = np.sign(v)
+        return self.base.torques(Q, V, A) + self.fc * s + (self.fs - self.fc) * np.exp(-((v / self.vs) ** 2)) * s
+
+
+def stribeck_truth(truth, seed: int = 0, scale: float = 1.0) -> StribeckTruth:
+    """Stribeck friction on a :func:`perturbed_truth`: fc from it (× ``scale``), fs = U(1.3, 2)·fc,
+    vs = U(0.02, 0.1) rad/s."""
+    rng = np.random.default_rng(seed + 7919)
+    n = len(truth.fc)
+    fc = truth.fc * scale
+    return StribeckTruth(dataclasses.replace(truth, fc=np.zeros(n)), fc, fc * rng.uniform(1.3, 2.0, n),
+                         rng.uniform(0.02, 0.1, n))
+
+
+def with_payload(truth, frame: str, mass: float, com=(0.0, 0.0, 0.05)):
+    """The same true robot carrying a point mass ``mass`` [kg] at ``com`` in ``frame``."""
+    inner = truth.base if isinstance(truth, StribeckTruth) else truth
+    r = inner.robot
+    model = r.model.copy()
+    f = model.frames[model.getFrameId(frame)]
+    model.inertias[f.parentJoint] = model.inertias[f.parentJoint] + f.placement.act(
+        pin.Inertia(float(mass), np.asarray(com, dtype=float), np.zeros((3, 3))))
+    loaded = dataclasses.replace(inner, robot=Robot(model, name=r.name + "_payload", source=r.source,
+                                                    actuated_joints=r.actuated_joints))
+    return dataclasses.replace(truth, base=loaded) if isinstance(truth, StribeckTruth) else loaded
+
+
+def truth_model(robot_name: str = "ur5", seed: int = 0, stribeck: bool = False, friction_scale: float = 1.0):
     """The robot and its 'true' model (seeded), shared by the train and test logs."""
     robot = load_robot(robot_name)
-    return robot, perturbed_truth(robot, rng=seed)
+    truth = perturbed_truth(robot, rng=seed)
+    return robot, (stribeck_truth(truth, seed, friction_scale) if stribeck else truth)
+
+
+def drive_gains_for(robot) -> np.ndarray:
+    """UR-like drive gains: :data:`UR5_GAINS` (× 1.3 on a UR10), 8 on other robots."""
+    if robot.n_actuated <= len(UR5_GAINS):
+        return np.asarray(UR5_GAINS[: robot.n_actuated]) * (1.3 if "ur10" in robot.name else 1.0)
+    return np.full(robot.n_actuated, 8.0)
 
 
 def simulate(
     robot, truth, gains, *, seed: int, rate: float = 100.0, motion: float = 20.0, idle_start: float = 2.0,
     idle_end: float = 3.0, ramp: float = 2.0, jitter: float = 0.15, duplicates: int = 3,
-    current_noise: float = 0.01, q_noise: float = 1e-4, v_noise: float = 1e-3,
+    current_noise: float = 0.01, q_noise: float = 1e-4, v_noise: float = 1e-3, motion_seed: int | None = None,
 ) -> pd.DataFrame:
-    """One current-logged run as a table (columns as in the module docstring)."""
+    """One current-logged run as a table (columns as in the module docstring). ``motion_seed``:
+    the excitation's own seed (default ``seed``), so two runs can share a trajectory."""
     rng = np.random.default_rng(seed)
-    fourier = random_fourier(robot, rng=rng, position_fraction=0.3, max_velocity=1.0, max_acceleration=4.0)
+    frng = rng if motion_seed is None else np.random.default_rng(motion_seed)
+    fourier = random_fourier(robot, rng=frng, position_fraction=0.3, max_velocity=1.0, max_acceleration=4.0)
     n = int(round((idle_start + motion + idle_end) * rate))
     period = 1.0 / rate
     true_t = np.maximum.accumulate(np.arange(n) * period + rng.normal(0.0, jitter * period, n))  # sampling instants
@@ -95,14 +155,21 @@ def main(argv=None) -> None:
     p.add_argument("out", type=Path)
     p.add_argument("--robot", default="ur5")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--stribeck", action="store_true", help="Stribeck friction in the true robot")
+    p.add_argument("--payload", type=float, default=None, help="also write loaded.csv: train run with KG at tool0")
     args = p.parse_args(argv)
-    robot, truth = truth_model(args.robot, args.seed)
-    gains = UR5_GAINS[: robot.n_actuated] if robot.n_actuated <= len(UR5_GAINS) else np.full(robot.n_actuated, 8.0)
+    robot, truth = truth_model(args.robot, args.seed, stribeck=args.stribeck)
+    gains = drive_gains_for(robot)
     args.out.mkdir(parents=True, exist_ok=True)
     for name, seed in (("train", args.seed + 1), ("test", args.seed + 2)):
         simulate(robot, truth, gains, seed=seed).to_csv(args.out / f"{name}.csv", index=False)
+    if args.payload:
+        loaded = with_payload(truth, "tool0", args.payload)
+        simulate(robot, loaded, gains, seed=args.seed + 3, motion_seed=args.seed + 1).to_csv(args.out / "loaded.csv",
+                                                                                              index=False)
     (args.out / "gains.json").write_text(json.dumps(dict(zip(robot.joint_names, map(float, gains))), indent=1))
-    print(f"wrote {args.out}/train.csv, test.csv, gains.json ({robot.name}, {robot.n_actuated} joints)")
+    print(f"wrote {args.out}/train.csv, test.csv{', loaded.csv' if args.payload else ''}, gains.json "
+          f"({robot.name}, {robot.n_actuated} joints)")
 
 
 if __name__ == "__main__":

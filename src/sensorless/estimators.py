@@ -78,7 +78,8 @@ class CADModel(_Scored):
         """``like``: score on the same equations as this structure (e.g. a contact projection)."""
         self.robot = robot
         self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
-                           else dataclasses.replace(like, joint_terms=("armature",)))
+                           else dataclasses.replace(like, joint_terms=("armature",), per_joint_terms=None,
+                                                   stribeck_velocity=None))
         self.parameters_ = self.structure_.prior()
 
     def fit(self, data=None) -> "CADModel":
@@ -132,6 +133,17 @@ def _structure_from_settings(settings: dict, robot: Robot) -> ModelStructure:
     if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not (np.isfinite(eps) and eps >= 0):
         raise TypeError(f"settings.coulomb_smoothing must be a number >= 0, got {eps!r}")
     common = {"joint_terms": tuple(terms), "coulomb_smoothing": float(eps)}
+    by_joint = settings.get("joint_terms_by_joint")
+    if by_joint is not None:
+        if not isinstance(by_joint, dict) or not all(isinstance(t, list) for t in by_joint.values()):
+            raise TypeError(f"settings.joint_terms_by_joint must map joints to lists of terms, got {by_joint!r}")
+        common["per_joint_terms"] = {j: tuple(t) for j, t in by_joint.items()}
+    for key, name in (("coulomb_smoothing_by_joint", "coulomb_smoothing"), ("stribeck_velocity", "stribeck_velocity")):
+        val = settings.get(key)
+        if val is not None:
+            if not isinstance(val, dict):
+                raise TypeError(f"settings.{key} must map joints to numbers, got {val!r}")
+            common[name] = val
     if settings.get("contact_frames"):
         from .regressor.contact import ContactStructure
 

@@ -357,7 +357,9 @@ def _export(result, tmp: Path, doc: dict) -> None:
     reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
     bad = [rep.name for rep in reports if not rep.consistent]
     doc["physical_consistency"] = {"inconsistent_bodies": bad, "n_bodies": len(reports)}
-    terms = JointTerms.from_dict(result.joint_terms())
+    from ..parameters import TERM_NAMES
+
+    terms = JointTerms.from_dict({j: {t: v for t, v in d.items() if t in TERM_NAMES} for j, d in result.joint_terms().items()})
     write_joint_terms(terms, tmp / "joint_terms.json")
     try:
         write_urdf(result.robot, result.inertial_parameters, tmp / "model.urdf", joint_terms=terms)

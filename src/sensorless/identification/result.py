@@ -50,7 +50,7 @@ class IdentificationResult:
     def joint_terms(self) -> dict[str, dict[str, float]]:
         s = self.structure
         return {
-            j: {t: float(self.parameters[s.joint_term_index(j, t)]) for t in s.joint_terms}
+            j: {t: float(self.parameters[s.joint_term_index(j, t)]) for t in s.terms_of(j)}
             for j in s.robot.actuated_joints
         }
 

@@ -1,0 +1,258 @@
+"""Joint friction: noise-aware Coulomb smoothing and the Stribeck velocity search.
+
+Friction model of joint j (linear terms are regressor columns, see
+:mod:`sensorless.regressor.terms`):
+
+    τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o.
+
+**Coulomb smoothing ε from noise.** The noise of a signal x is the high-frequency part
+of it, the residual of a Savitzky–Golay fit, r = x − S x. For white noise of std σ,
+var r = σ² (1 − c₀) with c₀ the centre coefficient of the smoother, so
+σ̂ = 1.4826 · MAD(r) / √(1 − c₀) (robust to the motion's own residual at reversals).
+A robot at rest has v = noise, so the model torque fs · tanh(n/ε) chatters with std
+≈ fs σ_v / ε (ε ≫ σ_v). ε is chosen as
+
+    ε = max(k σ_v, fs σ_v / σ_τ),   capped at ``max_fraction`` · P95(|v|),
+
+i.e. at least k (default 3) velocity-noise stds, and large enough that the chatter at
+rest stays below the torque noise σ_τ (estimated the same way from τ); fs is the friction
+at v → 0 of a first fit. ε = 0 (sgn) when v has no noise.
+
+**Stribeck velocity.** vs enters nonlinearly. With the rigid-body part fixed at a first
+fit, the friction residual of each joint, r_j = τ_j − [Y π]_j − Ia_j v̇_j, is linear in
+(fc, fs − fc, fv, o) for a given vs; the vs minimising the least-squares residual over a
+log-spaced grid is kept (variable projection, one dimension per joint), then everything
+is identified again with vs fixed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Iterable, Sequence
+
+import numpy as np
+from scipy.signal import savgol_coeffs, savgol_filter
+
+from ..data.trajectory import Trajectory
+from ..errors import DataError
+from ..regressor.terms import ModelStructure, _in_robot_order
+
+__all__ = [
+    "FrictionFit",
+    "coulomb_smoothing_from_noise",
+    "friction_curve",
+    "friction_residual",
+    "identify_friction",
+    "search_stribeck_velocity",
+    "signal_noise",
+]
+
+#: relative grid of Stribeck velocities (× P95 |v| of the joint)
+STRIBECK_GRID = np.geomspace(0.005, 0.5, 25)
+#: the Stribeck bump must be wider than the Coulomb smoothing (vs ≥ this × ε): a narrower
+#: one would only fit the sign chatter of a joint at rest
+MIN_STRIBECK_OVER_SMOOTHING = 3.0
+
+
+def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndarray:
+    """Per-column white-noise std of ``x`` (N, n) from its Savitzky–Golay residual (module docstring)."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.shape[0] < window + 2:
+        raise DataError(f"{x.shape[0]} samples are too few to estimate the noise (need > {window + 2})")
+    r = x - savgol_filter(x, window, polyorder, axis=0, mode="interp")
+    c0 = savgol_coeffs(window, polyorder)[window // 2]
+    r = r[window:-window] if x.shape[0] > 3 * window else r
+    mad = np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+    return 1.4826 * mad / np.sqrt(1.0 - c0)
+
+
+def _pooled_noise(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """Noise std pooled over logs (sample-count weighted variance)."""
+    s = [(signal_noise(a), len(a)) for a in arrays if len(a) > 30]
+    if not s:
+        raise DataError("no log is long enough (> 30 samples) to estimate the noise")
+    n = sum(k for _, k in s)
+    return np.sqrt(sum(k * sig**2 for sig, k in s) / n)
+
+
+def coulomb_smoothing_from_noise(
+    sigma_v: np.ndarray, *, sigma_tau: np.ndarray | None = None, static_friction: np.ndarray | None = None,
+    speed: np.ndarray | None = None, factor: float = 3.0, max_fraction: float = 0.1,
+) -> np.ndarray:
+    """ε per joint: ``max(factor σ_v, |fs| σ_v / σ_τ)``, at most ``max_fraction`` of the joint
+    speed ``speed`` (P95 |v|) when given (module docstring)."""
+    sigma_v = np.asarray(sigma_v, dtype=float)
+    eps = factor * sigma_v
+    if sigma_tau is not None and static_friction is not None:
+        st = np.maximum(np.asarray(sigma_tau, dtype=float), 1e-12)
+        eps = np.maximum(eps, np.abs(np.asarray(static_friction, dtype=float)) * sigma_v / st)
+    if speed is not None:
+        eps = np.minimum(eps, max_fraction * np.asarray(speed, dtype=float))
+    return np.where(np.isfinite(eps) & (eps > 0), eps, 0.0)
+
+
+def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajectory, list[int]]:
+    r = structure.robot
+    traj = _in_robot_order(r, traj)
+    return traj, [r.joint_names.index(j) for j in r.actuated_joints]
+
+
+def _friction_params(structure: ModelStructure, params: np.ndarray) -> np.ndarray:
+    """``params`` with everything but the velocity-dependent friction terms and offset zeroed."""
+    p = np.zeros_like(params)
+    for j in structure.robot.actuated_joints:
+        for t in structure.terms_of(j):
+            if t != "armature":
+                k = structure.joint_term_index(j, t)
+                p[k] = params[k]
+    return p
+
+
+def friction_residual(structure: ModelStructure, params: np.ndarray, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """(v, r) per actuated joint, shape (N, n_act): r = τ − (rigid body + armature) prediction,
+    the torque the friction model has to explain."""
+    traj, cols = _act_columns(structure, traj)
+    rigid = params - _friction_params(structure, params)
+    pred = structure.torques(rigid, traj)[:, structure.actuated_rows]
+    meas = structure.target(traj)[:, structure.actuated_rows]
+    return traj.v[:, cols], meas - pred
+
+
+def friction_curve(structure: ModelStructure, params: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Identified friction τ_f(v) per actuated joint for velocities ``v`` (N, n_act)."""
+    v = np.atleast_2d(np.asarray(v, dtype=float))
+    V = np.zeros((v.shape[0], structure.robot.nv))
+    V[:, structure.robot.actuated_v_indices] = v
+    F = structure.joint_features(V, np.zeros_like(V))  # armature column 0 at zero acceleration
+    nt = len(structure.joint_terms)
+    phi = _friction_params(structure, params)[structure.n_body_params:].reshape(structure.robot.n_actuated, nt) \
+        if nt else np.zeros((structure.robot.n_actuated, 0))
+    return np.einsum("nkt,kt->nk", F, phi)
+
+
+def search_stribeck_velocity(
+    v: np.ndarray, r: np.ndarray, *, eps: float, terms: Sequence[str], grid: Sequence[float],
+) -> tuple[float, np.ndarray]:
+    """The vs in ``grid`` whose least-squares fit of r on the joint's friction columns
+    ([v, tanh(v/ε), exp(−(v/vs)²) tanh(v/ε), 1], those in ``terms``) leaves the smallest
+    residual; returns (vs, residual sum of squares per grid point)."""
+    v, r = np.asarray(v, dtype=float), np.asarray(r, dtype=float)
+    ok = np.isfinite(v) & np.isfinite(r)
+    v, r = v[ok], r[ok]
+    sgn = np.tanh(v / eps) if eps > 0 else np.sign(v)
+    fixed = [c for t, c in (("fv", v), ("fc", sgn), ("offset", np.ones_like(v))) if t in terms]
+    sse = np.full(len(grid), np.inf)
+    for i, vs in enumerate(grid):
+        X = np.column_stack(fixed + [np.exp(-((v / vs) ** 2)) * sgn])
+        coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+        sse[i] = float(np.sum((r - X @ coef) ** 2))
+    return float(grid[int(np.argmin(sse))]), sse
+
+
+@dataclasses.dataclass
+class FrictionFit:
+    """How the friction settings were chosen (recorded in ``result.settings["friction"]``)."""
+
+    coulomb_smoothing: dict[str, float]
+    coulomb_smoothing_mode: str
+    velocity_noise: dict[str, float] | None = None
+    torque_noise: dict[str, float] | None = None
+    stribeck_velocity: dict[str, float] | None = None
+    stribeck_search: dict | None = None
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def identify_friction(
+    structure: ModelStructure,
+    train: Iterable[Trajectory],
+    *,
+    coulomb_smoothing: "str | float" = "auto",
+    stribeck_velocity: "str | float | dict" = "auto",
+    factor: float = 3.0,
+    identify_kwargs: dict | None = None,
+):
+    """Identify with noise-aware Coulomb smoothing and searched Stribeck velocities.
+
+    ``coulomb_smoothing``: "auto" (module docstring) or ε for every joint (0 = sgn).
+    ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck`` term) or vs.
+    Runs :func:`~sensorless.identification.identify` once when nothing is automatic, else
+    a first fit, the choice, and the final fit. Returns ``(result, FrictionFit)``.
+    """
+    from .identify import identify
+
+    train = list(train)
+    kw = dict(identify_kwargs or {})
+    joints = list(structure.robot.actuated_joints)
+    has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
+    auto_eps = isinstance(coulomb_smoothing, str)
+    auto_vs = isinstance(stribeck_velocity, str) and bool(has_stribeck)
+    v_all, speed, sigma_v = None, None, None
+    if auto_eps or auto_vs:
+        v_all = [_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in train]
+        speed = np.percentile(np.abs(np.concatenate(v_all)), 95, axis=0)
+        speed = np.where(speed > 0, speed, 1.0)
+    if auto_eps:
+        if coulomb_smoothing != "auto":
+            raise DataError(f"coulomb_smoothing must be 'auto' or a number >= 0, got {coulomb_smoothing!r}")
+        sigma_v = _pooled_noise(v_all)
+        eps = coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor)
+    else:
+        eps = np.full(len(joints), float(coulomb_smoothing))
+    if isinstance(stribeck_velocity, str):
+        if stribeck_velocity != "auto":
+            raise DataError(f"stribeck_velocity must be 'auto' or a number > 0, got {stribeck_velocity!r}")
+        vs = {j: float(0.1 * speed[k]) for k, j in enumerate(joints) if j in has_stribeck} if has_stribeck else None
+    elif isinstance(stribeck_velocity, dict):
+        vs = dict(stribeck_velocity)
+    else:
+        vs = {j: float(stribeck_velocity) for j in has_stribeck} or None
+
+    def build(eps_arr, vs_map) -> ModelStructure:
+        return dataclasses.replace(structure, coulomb_smoothing=dict(zip(joints, map(float, eps_arr))),
+                                   stribeck_velocity=vs_map, per_joint_terms=_per_joint_terms(structure))
+
+    s = build(eps, vs)
+    result = identify(s, train, **kw)
+    fit = FrictionFit(coulomb_smoothing=dict(zip(joints, map(float, eps))),
+                      coulomb_smoothing_mode="auto" if auto_eps else "given",
+                      stribeck_velocity=vs)
+    if not (auto_eps or auto_vs):
+        return result, fit
+    p = result.parameters
+    if auto_eps:
+        sigma_tau = _pooled_noise([s.target(t)[:, s.actuated_rows] for t in train])
+        f0 = np.zeros(len(joints))  # friction at v → 0⁺ without the offset: fc + (fs − fc)
+        for k, j in enumerate(joints):
+            for t in ("fc", "stribeck"):
+                if t in s.terms_of(j):
+                    f0[k] += p[s.joint_term_index(j, t)]
+        eps = coulomb_smoothing_from_noise(sigma_v, sigma_tau=sigma_tau, static_friction=f0, speed=speed, factor=factor)
+        fit.velocity_noise = dict(zip(joints, map(float, sigma_v)))
+        fit.torque_noise = dict(zip(joints, map(float, sigma_tau)))
+        fit.coulomb_smoothing = dict(zip(joints, map(float, eps)))
+    if auto_vs:
+        pairs = [friction_residual(s, p, t) for t in train]
+        V = np.concatenate([a for a, _ in pairs])
+        R = np.concatenate([b for _, b in pairs])
+        fit.stribeck_search = {}
+        for k, j in enumerate(joints):
+            if j not in has_stribeck:
+                continue
+            grid = STRIBECK_GRID * speed[k]
+            grid = grid[grid >= MIN_STRIBECK_OVER_SMOOTHING * eps[k]] if np.any(grid >= MIN_STRIBECK_OVER_SMOOTHING * eps[k]) \
+                else grid[-1:]
+            best, sse = search_stribeck_velocity(V[:, k], R[:, k], eps=float(eps[k]), terms=s.terms_of(j), grid=grid)
+            vs[j] = best
+            fit.stribeck_search[j] = {"grid": grid.tolist(), "sse": sse.tolist()}
+        fit.stribeck_velocity = vs
+    s = build(eps, vs)
+    result = identify(s, train, **kw)
+    return result, fit
+
+
+def _per_joint_terms(structure: ModelStructure):
+    return None if getattr(structure, "per_joint_terms", None) is None else dict(structure.per_joint_terms)
