@@ -117,3 +117,115 @@ def test_real_psm_held_out_nrmse_beats_published_parameters():
     assert np.all(ours <= pub), (ours, pub)  # at least as good as the authors' parameters, every joint
     # the drive-term mapping of the published parameters is sane (insertion, roll, wrist motors)
     assert np.all(pub[2:] < 0.15), pub
+
+
+# ---- issue 11: the PSM as a robot of every command and estimator ------------------------------
+def psm_truth(rng, coulomb_smoothing: float = 0.05):
+    """(structure, parameters) of a physically consistent "true" PSM: random masses, CoMs and
+    inertias on the authors' bodies, small drive terms."""
+    s = psm_structure(coulomb_smoothing=coulomb_smoothing)
+    p = np.zeros(s.n_params)
+    for k in range(s.robot.n_bodies):
+        p[10 * k : 10 * k + 10] = pin.Inertia(rng.uniform(0.2, 1.0), rng.uniform(-0.1, 0.1, 3),
+                                               np.diag(rng.uniform(1e-3, 1e-2, 3))).toDynamicParameters()
+    p[s.n_body_params :] = rng.normal(size=s.n_params - s.n_body_params) * 0.01
+    return s, p
+
+
+def psm_motion(seed: int = 1, duration: float = 20.0, rate: float = 100.0):
+    from sensorless.excitation import random_fourier
+
+    return random_fourier(psm_structure().robot, rng=seed, base_freq=0.2, harmonics=4).sample(rate, duration)
+
+
+def test_psm_has_rcm_and_tool_tip_frames():
+    """rcm: fixed in space for every (q1..q4) and on the instrument axis; tool_tip: on the
+    jaw axis, l_p2y past the wrist-pitch axis, at the end of the shaft."""
+    from sensorless.robots import LENGTHS, PSM_FRAMES
+
+    tree, G = psm_tree()
+    m, d = tree.model, tree.model.createData()
+    assert set(PSM_FRAMES) <= {f.name for f in m.frames}
+    rcm, tip = tree.frame_id("rcm"), tree.frame_id("tool_tip")
+    P, dist, shaft = [], [], []
+    for _ in range(20):
+        th = RNG.uniform(np.r_[-0.6, -0.8, 0.07, -1.0, -0.5, -0.5, -0.5], np.r_[0.1, 0.8, 0.23, 1.0, 0.5, 0.5, 0.5])
+        pin.framesForwardKinematics(m, d, G @ th)
+        roll = d.oMi[tree.joint_id("roll")]
+        p, z = d.oMf[rcm].translation.copy(), roll.rotation[:, 2]
+        P.append(p)
+        dist.append(np.linalg.norm((np.eye(3) - np.outer(z, z)) @ (p - roll.translation)))  # off the shaft axis
+        assert np.allclose(d.oMf[rcm].rotation[:, 2], z, atol=1e-12)  # rcm z = the instrument axis
+        # the shaft end (wrist-pitch axis) is l_tool past the insertion frame, which is l_RCC − q3 from the RCM
+        assert np.linalg.norm(roll.translation - p) == pytest.approx(abs(LENGTHS["l_RCC"] - LENGTHS["l_tool"] - th[2]), abs=1e-12)
+        wrist = d.oMi[tree.joint_id("wrist_pitch")]
+        assert np.linalg.norm(d.oMf[tip].translation - wrist.translation) == pytest.approx(LENGTHS["l_p2y"], abs=1e-12)
+        assert np.allclose(d.oMf[tip].translation, d.oMi[tree.joint_id("jaw_1")].translation, atol=1e-12)
+    assert np.ptp(np.array(P), axis=0).max() < 1e-12  # fixed in space
+    assert max(dist) < 1e-12  # on the instrument axis
+
+
+def test_psm_robot_resolves_frames_and_loads_by_name():
+    """Regression: 'CoordinateRobot' object has no attribute 'frame_id'; --robot dvrk_psm rejected."""
+    from sensorless.cli.common import load_robot_arg
+    from sensorless.robots import psm_robot
+
+    r = load_robot_arg("dvrk_psm", None, None)
+    assert r.joint_names == COORDINATES and r.nv == 7 and r.model.nv == 12
+    assert r.frame_id("tool_tip") == r.tree.frame_id("tool_tip") and r.frame_id("yaw") >= 0
+    with pytest.raises(Exception, match="unknown frame 'nope'"):
+        psm_robot().frame_id("nope")
+    s = r.make_structure("motors", 0.1)
+    assert s.coulomb_smoothing == 0.1 and s.joint_term_index("m5", "inertia") > 0
+    with pytest.raises(Exception, match="drive set"):
+        r.make_structure("fv,fc", 0.0)
+
+
+def test_ellipsoid_points_of_the_psm_bodies():
+    """Regression: IndexError in ellipsoids.body_points (12 tree bodies, 8 identified)."""
+    from sensorless.identification.ellipsoids import auto_ellipsoids, body_points
+
+    r = psm_structure().robot
+    pts = body_points(r)
+    assert list(pts) == list(r.body_names) and len(pts) == 8
+    # the insertion carriage's child joints are not its points; pitch_bottom has its child (pitch_end)
+    assert any(np.allclose(p, psm_tree()[0].model.jointPlacements[psm_tree()[0].joint_id("pitch_end")].translation)
+               for p in pts["pitch_bottom"])
+    # the rcm (an operational point, not material) does not stretch the pitch_bottom body
+    rcm = psm_tree()[0].model.frames[psm_tree()[0].frame_id("rcm")].placement.translation
+    assert not any(np.allclose(p, rcm) for p in pts["pitch_bottom"])
+    assert set(auto_ellipsoids(r, geometry=None)) == set(r.body_names)
+
+
+def test_lmi_with_default_arguments_runs_on_the_psm():
+    """Regression: identify(psm_structure(), log, method="lmi") raised a bare IndexError. The
+    tree is massless, so the default pull toward the model's inertials is dropped (warned and
+    recorded) and the consistent fit matches the data as well as least squares."""
+    from sensorless.identification import identify
+
+    s, p = psm_truth(np.random.default_rng(3))
+    mot = psm_motion(1, 20.0)
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + np.random.default_rng(4).normal(size=(len(mot), 7)) * 1e-3)
+    with pytest.warns(UserWarning, match="no inertial prior"):
+        res = identify(s, log, method="lmi")
+    assert res.diagnostics["lmi"]["consistent"] and "prior_note" in res.diagnostics
+    assert res.settings["regularization"] is None and res.settings["gamma"] == 0.0
+    ols = identify(s, log, method="ols")
+    assert np.all(res.train_metrics.nrmse < 2 * ols.train_metrics.nrmse + 1e-3)
+    pred = res.predict(psm_motion(2, 5.0).with_(tau=np.zeros((500, 7))))
+    assert pred.shape == (500, 7) and np.all(np.isfinite(pred))
+
+
+def test_estimators_accept_the_psm_robot():
+    """PhysicalModel / CADModel build the PSM's own structure from its coordinate robot."""
+    from sensorless.estimators import CADModel, PhysicalModel
+    from sensorless.robots import psm_robot
+
+    s, p = psm_truth(np.random.default_rng(5), coulomb_smoothing=0.0)
+    mot = psm_motion(3, 10.0)
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p)
+    phys = PhysicalModel(psm_robot()).fit(log)
+    assert phys.structure_.settings()["structure"] == "transmission"
+    assert phys.score(log).rmse.max() < 1e-8  # noiseless, the structure contains the truth
+    cad = CADModel(psm_robot())
+    assert np.allclose(cad.predict(log), 0.0)  # the tree carries no inertials and no drive terms

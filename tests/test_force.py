@@ -174,3 +174,70 @@ def test_estimate_force_cli_recovers_a_known_tip_force(tmp_path, panda):
                                    "panda_finger_joint2", "--model", str(tmp_path), "--data", str(tmp_path / "push.npz"),
                                    "--frame", "nope", "--out", str(tmp_path / "x.npz")])
     assert bad.exit_code == 2 and "unknown frame 'nope'" in bad.output
+
+
+# ---- issue 11: frame Jacobians through a transmission (the dVRK PSM in motor coordinates) --------
+def _psm_thetas(n, rng):
+    from sensorless.robots import PSM_LIMITS
+
+    lo, hi = PSM_LIMITS["lower"], PSM_LIMITS["upper"]
+    return rng.uniform(0.7 * lo + 0.3 * hi, 0.3 * lo + 0.7 * hi, (n, 7))
+
+
+def test_psm_frame_jacobian_is_the_derivative_in_motor_coordinates():
+    """J_θ = J_tree · ∂q/∂θ = J_tree G: oracle by central differences of the frame position in θ."""
+    from sensorless.robots import psm_robot
+
+    r = psm_robot()
+    th = _psm_thetas(5, np.random.default_rng(0))
+    J = frame_jacobians(r, th, "tool_tip", "local_world_aligned")
+    assert J.shape == (5, 6, 7)
+    model, data, fid = r.tree.model, r.tree.model.createData(), r.frame_id("tool_tip")
+
+    def pos(t):
+        pin.framesForwardKinematics(model, data, r.G @ t)
+        return data.oMf[fid].translation.copy()
+
+    h = 1e-6
+    for i in range(5):
+        fd = np.stack([(pos(th[i] + h * e) - pos(th[i] - h * e)) / (2 * h) for e in np.eye(7)], axis=1)
+        np.testing.assert_allclose(J[i, :3], fd, atol=1e-7)
+    assert np.abs(J[:, :3, 5:]).max() == 0.0  # the jaw motors do not move the wrist-pitch body
+
+
+def test_psm_tip_force_recovered_from_motor_efforts():
+    """Regression: CartesianForceEstimator crashed on the PSM ('CoordinateRobot' has no frame_id /
+    ShapeMismatchError 12 vs 7). Oracle: RNEA of the tree with the tip force, mapped by Gᵀ."""
+    from sensorless.robots import psm_robot
+
+    r = psm_robot()
+    rng = np.random.default_rng(1)
+    th = _psm_thetas(15, rng)
+    F = rng.normal(size=(15, 3)) * 2.0
+    tau = np.array([r.G.T @ _tau_from_wrench(r.tree, r.G @ th[i], "tool_tip", np.r_[F[i], 0, 0, 0], "local_world_aligned")
+                    for i in range(15)])
+    est = CartesianForceEstimator(r, "tool_tip", "local_world_aligned", components="linear")
+    res = est.from_external_torque(th, tau)
+    np.testing.assert_allclose(res.F, F, atol=1e-8)
+    # only the joints of the arm (drop the wrist motors)
+    est3 = CartesianForceEstimator(r, "tool_tip", joints=["q1", "q2", "q3"])
+    np.testing.assert_allclose(est3.from_external_torque(th, tau).F, F, atol=1e-8)
+
+
+def test_psm_force_estimate_from_a_log_and_model():
+    """estimate(traj, model) on the PSM: the model's torque is removed, the rest mapped to the tip."""
+    from sensorless.learning.models import ParameterModel
+    from sensorless.robots import psm_robot, psm_structure
+
+    s = psm_structure()
+    rng = np.random.default_rng(2)
+    p = rng.normal(size=s.n_params) * 0.01
+    from sensorless.excitation import random_fourier
+
+    mot = random_fourier(s.robot, rng=3, base_freq=0.3, harmonics=3, position_fraction=0.5).sample(50, 2.0)
+    F = np.stack([np.sin(mot.t), np.cos(mot.t), 0.5 + 0 * mot.t], axis=1)
+    tau_ext = np.array([s.G.T @ _tau_from_wrench(s.tree, s.G @ mot.q[i], "tool_tip", np.r_[F[i], 0, 0, 0],
+                                                 "local_world_aligned") for i in range(len(mot))])
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + tau_ext)
+    res = CartesianForceEstimator(psm_robot(), "tool_tip").estimate(log, ParameterModel(s, p))
+    np.testing.assert_allclose(res.F, F, atol=1e-8)

@@ -117,3 +117,144 @@ def test_bad_inputs(panda, panda_case):
         identify_payload(result, log, "nope")
     with pytest.raises(DataError, match="IdentificationResult"):
         identify_payload(object(), log, FRAME)
+
+
+# ---- issue 11: payload on the dVRK PSM (coupled joints), paired no-load log, offsets, per-joint check ----
+from test_dvrk_psm import psm_motion, psm_truth  # noqa: E402
+
+PSM_LINK = "pitch_end"  # the instrument (moved by q1, q2, q3)
+
+
+def _psm_payload_torques(s, mot, frame: str, inertia: pin.Inertia) -> np.ndarray:
+    """Oracle: RNEA of the tree carrying only the payload (merged into the frame's body by
+    Pinocchio), mapped to the coordinates by Gᵀ (RNEA is linear in the inertias)."""
+    model = s.tree.model.copy()
+    for j in range(1, model.njoints):
+        model.inertias[j] = pin.Inertia.Zero()
+    f = model.frames[s.tree.frame_id(frame)]
+    model.inertias[f.parentJoint] = f.placement.act(inertia)
+    data = model.createData()
+    Q, V, A = s.pinocchio_state(mot.q, mot.v, mot.a)
+    return np.array([s.G.T @ pin.rnea(model, data, Q[i], V[i], A[i]) for i in range(len(mot))])
+
+
+@pytest.fixture(scope="module")
+def psm_case():
+    rng = np.random.default_rng(7)
+    s, p = psm_truth(rng)
+    free = psm_motion(1, 15.0)
+    free = free.with_(tau=s.evaluate(free.q, free.v, free.a) @ p + rng.normal(size=(len(free), 7)) * 0.01)
+    return s, p, identify(s, free)
+
+
+def test_psm_payload_regressor_matches_the_merged_tree(psm_case):
+    """Regression: payload_regressor / identify_payload raised AttributeError ('CoordinateRobot'
+    has no 'frame_id') on the PSM. Y_p φ = Gᵀ RNEA(tree with the payload)."""
+    s, _, _ = psm_case
+    mot = psm_motion(4, 1.0)
+    pay = pin.Inertia(0.3, np.array([0.01, -0.02, 0.3]), np.diag([1e-3, 2e-3, 5e-4]))
+    for frame in (PSM_LINK, "tool_tip", "rcm"):
+        Y = payload_regressor(s.robot, mot.q, mot.v, mot.a, frame)
+        assert Y.shape == (len(mot), 7, 10)
+        np.testing.assert_allclose(Y @ pay.toDynamicParameters(), _psm_payload_torques(s, mot, frame, pay), atol=1e-10)
+
+
+@pytest.mark.parametrize("frame,com", [(PSM_LINK, (0.0, 0.0, 0.35)), ("tool_tip", (0.0, 0.0, 0.0))])
+def test_payload_on_the_simulated_psm_within_2_percent(psm_case, frame, com):
+    s, p, result = psm_case
+    m = 0.2
+    pay = pin.Inertia(m, np.array(com), np.zeros((3, 3)))
+    mot = psm_motion(5, 20.0)
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + _psm_payload_torques(s, mot, frame, pay)
+                    + np.random.default_rng(8).normal(size=(len(mot), 7)) * 0.01)
+    est = identify_payload(result, log, frame, mode="com", n_boot=20)
+    assert abs(est.mass - m) / m < 0.02, est
+    assert abs(est.weight - m * 9.81) / (m * 9.81) < 0.02
+    assert 0 < est.mass_std < 0.02 * m and est.consistent
+
+
+def test_paired_no_load_log_cancels_model_error_and_session_offset(psm_case):
+    """A wrong model (pitch_end 30 % heavier, CoM moved) and a τ2 session offset bias the plain
+    estimate; the paired no-load log (same trajectory) with offsets removes both."""
+    s, p, _ = psm_case
+    from sensorless.robots.dvrk_psm_study import SESSION_OFFSET, paired_payload_logs
+
+    wrong = p.copy()
+    k = list(s.robot.body_names).index("pitch_end")
+    wrong[10 * k : 10 * k + 4] *= [1.3, 1.6, 1.6, 1.6]
+    m = 0.1
+    nl, ld = paired_payload_logs(s, p, psm_motion(6, 30.0), pin.Inertia(m, np.array([0.0, 0.0, 0.35]), np.zeros((3, 3))),
+                                 PSM_LINK, noise_std=np.full(7, 0.01), corr_seconds=0.05, seed=2)
+    model = (s, wrong)
+    plain = identify_payload(model, ld, PSM_LINK, mode="com", n_boot=0)
+    paired = identify_payload(model, ld, PSM_LINK, no_load=nl, offsets="auto", mode="com", n_boot=0)
+    assert abs(plain.mass - m) / m > 0.2  # the test is not vacuous
+    assert abs(paired.mass - m) / m < 0.05, paired
+    # the auto offsets: fitted where they are distinguishable from the payload (not on the insertion)
+    assert "q3" not in paired.settings["offsets"] and "q2" in paired.settings["offsets"]
+    assert paired.diagnostics["offset_variance_inflation"]["q3"] > 2.0
+    assert paired.offsets[1] == pytest.approx(SESSION_OFFSET[1], abs=0.02)
+
+
+def test_a_joint_contradicting_the_others_is_flagged(psm_case):
+    s, p, result = psm_case
+    m = 0.3
+    pay = pin.Inertia(m, np.array([0.0, 0.0, 0.0]), np.zeros((3, 3)))
+    mot = psm_motion(9, 20.0)
+    tau_p = _psm_payload_torques(s, mot, "tool_tip", pay)
+    base = s.evaluate(mot.q, mot.v, mot.a) @ p + np.random.default_rng(10).normal(size=(len(mot), 7)) * 0.005
+    good = identify_payload(result, mot.with_(tau=base + tau_p), "tool_tip", mode="com", n_boot=0)
+    assert good.flagged_joints == [] and all(np.isfinite(c.z) for c in good.per_joint)
+    bad_tau = base + tau_p
+    bad_tau[:, 1] += 0.6 * tau_p[:, 1]  # q2 sees 60 % more payload torque (a wrong drive gain)
+    bad = identify_payload(result, mot.with_(tau=bad_tau), "tool_tip", mode="com", n_boot=0)
+    assert bad.flagged_joints == ["q2"], [c.to_dict() for c in bad.per_joint]
+    q2 = bad.per_joint[1]
+    assert q2.mass > q2.others_mass and abs(q2.others_mass - m) / m < 0.1
+
+
+def test_hac_uncertainty_accounts_for_correlated_noise(psm_case):
+    """With noise correlated over 0.5 s the white-noise standard error is far too small; the
+    HAC (block sandwich) and bootstrap errors are not, and cover the actual error."""
+    s, p, result = psm_case
+    from sensorless.robots.dvrk_psm_study import ar1_noise
+
+    m = 0.2
+    pay = pin.Inertia(m, np.array([0.0, 0.0, 0.35]), np.zeros((3, 3)))
+    errs, z = [], []
+    for seed in range(4):
+        mot = psm_motion(11, 30.0)
+        noise = ar1_noise(len(mot), np.full(7, 0.03), 0.5, mot.dt, np.random.default_rng(seed))
+        log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + _psm_payload_torques(s, mot, PSM_LINK, pay) + noise)
+        est = identify_payload(result, log, PSM_LINK, mode="com", n_boot=100, block_seconds=2.0, seed=seed)
+        assert est.mass_std_hac > 2.5 * est.mass_std_analytic
+        assert est.mass_std_bootstrap > 2.5 * est.mass_std_analytic
+        z.append((est.mass - m) / est.mass_std)
+    assert max(abs(x) for x in z) < 3.5, z
+
+
+def test_paired_log_errors(psm_case):
+    s, p, result = psm_case
+    mot = psm_motion(12, 3.0)
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p)
+    with pytest.raises(DataError, match="row by row"):
+        identify_payload(result, log, PSM_LINK, no_load=log.take(slice(0, 200)), n_boot=0)
+    other = psm_motion(13, 3.0)
+    with pytest.raises(DataError, match="not the same trajectory") as exc:
+        identify_payload(result, log, PSM_LINK, no_load=other.with_(tau=log.tau), n_boot=0)
+    assert "sample" in str(exc.value) and "joint 'q" in str(exc.value)
+    with pytest.raises(DataError, match="pair them"):
+        identify_payload(result, log, PSM_LINK, no_load=[log, log], n_boot=0)
+    with pytest.raises(DataError, match="unknown joint"):
+        identify_payload(result, log, PSM_LINK, offsets=["q9"], n_boot=0)
+
+
+def test_no_payload_in_com_mode_terminates_at_zero(psm_case):
+    """With no payload the point-mass CoM c = (m c)/m is noise over noise: the fit (and every
+    bootstrap resample) must stop at m = 0 instead of iterating to an overflow."""
+    s, p, result = psm_case
+    mot = psm_motion(14, 10.0)
+    log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + np.random.default_rng(15).normal(size=(len(mot), 7)) * 0.01)
+    est = identify_payload(result, log, PSM_LINK, mode="com", n_boot=50)
+    assert est.mass < 5 * est.mass_std + 1e-3 and np.isfinite(est.mass_std)
+    assert np.isfinite(est.diagnostics["mass_unconstrained"])

@@ -62,7 +62,8 @@ class PhysicalModel(_Scored):
         return {"method": self.method, "joint_terms": list(self.joint_terms), **self.identify_kwargs}
 
     def fit(self, data) -> "PhysicalModel":
-        self.structure_ = ModelStructure(self.robot, joint_terms=self.joint_terms)
+        make = getattr(self.robot, "make_structure", None)  # a transmission's coordinate robot (e.g. the PSM)
+        self.structure_ = make(self.joint_terms) if make else ModelStructure(self.robot, joint_terms=self.joint_terms)
         self.result_: IdentificationResult = identify(self.structure_, data, method=self.method, **self.identify_kwargs)
         self.parameters_ = self.result_.parameters
         return self
@@ -77,8 +78,13 @@ class CADModel(_Scored):
     def __init__(self, robot: Robot, like: ModelStructure | None = None) -> None:
         """``like``: score on the same equations as this structure (e.g. a contact projection)."""
         self.robot = robot
-        self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
-                           else dataclasses.replace(like, joint_terms=("armature",), per_joint_terms=None,
+        if like is not None and like.settings().get("structure") == "transmission":
+            self.structure_ = like  # its prior has zero drive terms: the tree's inertials only
+        elif like is None and hasattr(robot, "make_structure"):
+            self.structure_ = robot.make_structure(None)
+        else:
+            self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
+                               else dataclasses.replace(like, joint_terms=("armature",), per_joint_terms=None,
                                                    stribeck_velocity=None))
         self.parameters_ = self.structure_.prior()
 
@@ -102,7 +108,7 @@ def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructu
         values = doc["parameters"]
         if not isinstance(settings, dict) or not isinstance(values, dict):
             raise TypeError("'settings' and 'parameters' must be objects")
-        structure = _structure_from_settings(settings, robot)
+        structure = _structure_from_settings(settings, doc, robot)
     except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
         if isinstance(exc, SensorlessError):
             raise ParameterError(f"{path}: {exc}") from None
@@ -125,13 +131,29 @@ def load_parameters(result_json: str | Path, robot: Robot) -> tuple[ModelStructu
     return structure, np.array([float(values[lab]) for lab in structure.labels])
 
 
-def _structure_from_settings(settings: dict, robot: Robot) -> ModelStructure:
+def _structure_from_settings(settings: dict, doc: dict, robot: Robot) -> ModelStructure:
+    file_robot = doc.get("robot", {}).get("name") if isinstance(doc.get("robot"), dict) else None
+    if settings.get("structure") == "transmission":
+        from .regressor.transmission import TransmissionStructure
+
+        tree = getattr(robot, "tree", None)
+        if tree is None:
+            raise ParameterError(f"a model of a coupled-joint robot ('{file_robot}'); "
+                                 f"load it with that robot (e.g. --robot dvrk_psm), not '{robot.name}'")
+        lo, hi = robot.position_limits()
+        structure = TransmissionStructure.from_settings(tree, settings, limits=(lo, hi),
+                                                        velocity_limits=robot.velocity_limits(), name=robot.name)
+        structure.robot.factory = getattr(robot, "factory", None)
+        return structure
     terms = settings["joint_terms"]
     if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
         raise TypeError(f"settings.joint_terms must be a list of names, got {terms!r}")
     eps = settings.get("coulomb_smoothing", 0.0)
     if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not (np.isfinite(eps) and eps >= 0):
         raise TypeError(f"settings.coulomb_smoothing must be a number >= 0, got {eps!r}")
+    if hasattr(robot, "make_structure"):
+        raise ParameterError(f"identified for '{file_robot}' (per-joint model), "
+                             f"not for the coupled-joint robot '{robot.name}'")
     common = {"joint_terms": tuple(terms), "coulomb_smoothing": float(eps)}
     by_joint = settings.get("joint_terms_by_joint")
     if by_joint is not None:

@@ -179,8 +179,15 @@ def model_preprocessing(result_json: Path, **given) -> dict:
 
 
 def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool]):
+    """A URDF/MJCF/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
+    motor coordinates, a transmission's coordinate robot)."""
     from ..robot import load_robot
+    from ..robots.dvrk_psm import PSM_NAMES, psm_robot
 
+    if str(robot).lower() in PSM_NAMES:
+        if lock or floating:
+            raise SensorlessError(f"--robot {robot}: --lock and --floating-base do not apply to the PSM model")
+        return psm_robot()
     return load_robot(robot, lock_joints=lock or (), floating_base=floating)
 
 
@@ -195,4 +202,4 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **o
 
 
 
-ROBOT_HELP = "URDF path, MJCF path, or example-robot-data name (e.g. panda, ur5, solo12)"
+ROBOT_HELP = "URDF path, MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"

@@ -51,7 +51,8 @@ def identify(
     ellipsoids: str = typer.Option("auto", help="lmi: bounding ellipsoids auto | kinematic | none"),
     contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain the prior body"),
     out: Path = typer.Option(..., help="output directory (written atomically)"),
-    joint_terms: str = typer.Option("fv,fc,offset,armature", help="per-joint terms, comma separated"),
+    joint_terms: str = typer.Option("fv,fc,offset,armature", help="per-joint terms, comma separated "
+                                    "(dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
     rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
@@ -253,6 +254,10 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
     terms = tuple(t for t in joint_terms.split(",") if t)
     if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
         raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
+    if hasattr(robot, "make_structure"):  # coupled joints (dvrk_psm): drive terms of its own
+        if contact_frames:
+            raise SensorlessError(f"--contact-frames: '{robot.name}' is a fixed-base coupled-joint model")
+        return robot.make_structure(terms, coulomb_smoothing)
     if not contact_frames:
         if contact_dims:
             raise SensorlessError("--contact-dims needs --contact-frames")
@@ -357,6 +362,13 @@ def _export(result, tmp: Path, doc: dict) -> None:
     reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
     bad = [rep.name for rep in reports if not rep.consistent]
     doc["physical_consistency"] = {"inconsistent_bodies": bad, "n_bodies": len(reports)}
+    if hasattr(result.structure, "drive_values"):  # coupled joints: drive terms, no URDF (result.json is the model)
+        from ..identification.result import write_json_atomic
+
+        write_json_atomic(result.structure.drive_values(result.parameters), tmp / "drive_terms.json")
+        doc["urdf"] = None
+        doc["urdf_error"] = f"'{result.robot.name}' has coupled joints; a URDF cannot hold it (result.json does)"
+        return
     from ..parameters import TERM_NAMES
 
     terms = JointTerms.from_dict({j: {t: v for t, v in d.items() if t in TERM_NAMES} for j, d in result.joint_terms().items()})

@@ -3,13 +3,15 @@
 
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 from typing import List, Optional
 
 import numpy as np
 import typer
 
-from ..errors import ExcitationError
+from ..errors import ExcitationError, OptionError
 from .common import (
     ROBOT_HELP,
     app,
@@ -22,7 +24,7 @@ from .common import (
     path_inputs,
 )
 
-PSM_NAMES = ("dvrk_psm", "dvrk-psm", "psm")
+from ..robots.dvrk_psm import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
 
 
 def _parse_box(spec: str):
@@ -64,7 +66,7 @@ def _check_options(**opts) -> None:
 @app.command()
 @guarded
 def excite(
-    robot: str = typer.Option(..., help=ROBOT_HELP + ", or 'dvrk_psm' (coupled PSM model, motor coordinates)"),
+    robot: str = typer.Option(..., help=ROBOT_HELP),
     out: Path = typer.Option(..., help="output directory (written atomically): excitation.json, trajectory.npz"),
     harmonics: int = typer.Option(5, help="Fourier harmonics per joint"),
     base_freq: float = typer.Option(0.1, help="base frequency f0 [Hz] (period 1/f0)"),
@@ -127,30 +129,66 @@ def excite(
 @experiment_app.command("psm-identify")
 @guarded
 def psm_identify(
-    data: Path = typer.Option(..., help="folder of the WPI dVRK data set (the one holding data/psm/...)"),
-    out: Path = typer.Option(..., help="output directory (written atomically): psm_identification.json"),
+    out: Path = typer.Option(..., help="output directory (written atomically): result.json (loadable by predict, "
+                                       "estimate-force, payload), drive_terms.json, psm_identification.json"),
+    data: Optional[Path] = typer.Option(None, help="folder of the WPI dVRK data set (the one holding data/psm/...)"),
+    train: Optional[Path] = typer.Option(None, help="training log (header-less CSV: q, q̇, effort × 7, 200 Hz)"),
+    test: Optional[Path] = typer.Option(None, help="held-out log, same format"),
+    params: Optional[Path] = typer.Option(None, help="optional: the authors' params.json, for comparison"),
+    save: str = typer.Option("ols", help="which model result.json holds: ols | wls | lmi"),
     cutoff: float = typer.Option(5.4, help="zero-phase low-pass cut-off [Hz] on q, q̇ and effort"),
+    smoothing: str = typer.Option("cv", help="Coulomb smoothing ε [rad/s], or 'cv' (3-fold cross-validation on the "
+                                             "training log; slow)"),
     lmi: bool = typer.Option(False, help="also solve the physically consistent (LMI) problem"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
-    """Identify the PSM on one_results, predict two_results; compare with the published parameters."""
+    """Identify the PSM on --train (or one_results), predict --test (or two_results); compare with
+    the published parameters when given. The same as `sensorless identify --robot dvrk_psm --columns
+    'q=0:7;v=7:14;tau=14:21' --rate 200 --lowpass 5.4`, plus Coulomb smoothing chosen by cross-validation."""
     from rich.table import Table
 
     from ..identification.result import write_json_atomic
     from ..robots.dvrk_psm_study import psm_identification_study
+    from .core import _export
 
-    with atomic_outdir(out, force, inputs=path_inputs(data)) as tmp:
-        with err_console.status("identifying the PSM (smoothing chosen by cross-validation on one_results) …"):
+    if data is None and (train is None or test is None):
+        raise OptionError("give --data (the WPI folder) or both --train and --test")
+    if smoothing != "cv":
+        try:
+            smoothing = float(smoothing)
+            if not (math.isfinite(smoothing) and smoothing >= 0):
+                raise ValueError
+        except ValueError:
+            raise OptionError(f"--smoothing must be a number or 'cv', got '{smoothing}'") from None
+    if save not in ("ols", "wls", "lmi"):
+        raise OptionError(f"--save must be ols, wls or lmi, got '{save}'")
+    with atomic_outdir(out, force, inputs=path_inputs(data, train, test, params)) as tmp:
+        results: dict = {}
+        with err_console.status("identifying the PSM (smoothing chosen by cross-validation on the training log) …"):
             report = psm_identification_study(
-                data, cutoff_hz=cutoff, lmi={"ellipsoids": False, "regularization": None, "gamma": 0.0} if lmi else None
+                data, train=train, test=test, params=params, results=results, cutoff_hz=cutoff, smoothing=smoothing,
+                lmi={"ellipsoids": False, "regularization": None, "gamma": 0.0} if (lmi or save == "lmi") else None,
             )
         write_json_atomic(report, tmp / "psm_identification.json")
-    table = Table(title=f"two_results NRMSE (RMSE / range), identified on one_results, ε = {report['settings']['coulomb_smoothing']:g}")
+        result = results[save]
+        result.settings.update({
+            "data": [report["settings"]["train"]], "validate": [report["settings"]["test"]],
+            "preprocessing": {"columns": {"q": "0:7", "v": "7:14", "tau": "14:21"}, "rate": 200.0, "lowpass": cutoff,
+                              "velocity": "logged", "savgol_window": None, "resample": None, "gains": None,
+                              "max_gap": None},
+        })
+        doc = result.to_dict()
+        doc["validation"] = {report["settings"]["test"]: report["identified"][save]}
+        _export(result, tmp, doc)
+        write_json_atomic(doc, tmp / "result.json")
+    table = Table(title=f"held-out NRMSE (RMSE / range), ε = {report['settings']['coulomb_smoothing']:g}")
     table.add_column("model")
     for c in report["coordinates"]:
         table.add_column(c, justify="right")
-    rows = {**{k.upper(): v for k, v in report["identified"].items()}, "published": report["published"]}
+    rows = {k.upper(): v for k, v in report["identified"].items()}
+    if "published" in report:
+        rows["published"] = report["published"]
     for name, entry in rows.items():
         table.add_row(name, *(f"{entry['test_nrmse'][c]:.4g}" for c in report["coordinates"]))
     console.print(table)
-    console.print(f"wrote {out / 'psm_identification.json'}")
+    console.print(f"wrote {out}/ (result.json: the {save.upper()} model)")

@@ -60,17 +60,24 @@ def _reference(name: str) -> pin.ReferenceFrame:
 
 
 def frame_jacobians(robot: Robot, Q: np.ndarray, frame: str, reference: str = "local_world_aligned") -> np.ndarray:
-    """Frame Jacobians (N, 6, nv) at configurations Q (N, nq), one Pinocchio call per sample."""
+    """Frame Jacobians (N, 6, nv) at configurations Q (N, nq), one Pinocchio call per sample.
+
+    For a robot driven through a transmission (a coordinate robot: tree joints q = Gθ + q₀,
+    e.g. the dVRK PSM in motor coordinates) Q holds the coordinates θ and the Jacobian is
+    mapped to them, J_θ = J_tree(Gθ + q₀) · ∂q/∂θ = J_tree G (so τ_θ = J_θᵀ F = Gᵀ J_treeᵀ F).
+    """
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     if Q.shape[1] != robot.nq:
         raise ShapeMismatchError(f"configurations have {Q.shape[1]} columns, robot '{robot.name}' has nq={robot.nq}")
     fid = robot.frame_id(frame)
     ref = _reference(reference)
     model, data = robot.model, robot.data
-    out = np.empty((Q.shape[0], 6, robot.nv))
+    G = getattr(robot, "G", None) if hasattr(robot, "tree_state") else None
+    Qp = robot.tree_state(Q)[0] if G is not None else Q
+    out = np.empty((Q.shape[0], 6, model.nv))
     for i in range(Q.shape[0]):
-        out[i] = pin.computeFrameJacobian(model, data, Q[i], fid, ref)
-    return out
+        out[i] = pin.computeFrameJacobian(model, data, Qp[i], fid, ref)
+    return out if G is None else out @ G
 
 
 @dataclass

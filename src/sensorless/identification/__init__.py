@@ -18,6 +18,7 @@ from .fleet import identify_files, identify_fleet
 from .least_squares import LeastSquaresSolution, excitation_check, solve_least_squares, solve_truncated_svd
 from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
 from .metrics import TorqueMetrics, torque_metrics
+from .payload import JointConsistency, PayloadEstimate, identify_payload, payload_regressor, point_mass_parameters
 from .result import IdentificationResult
 from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
@@ -50,6 +51,8 @@ __all__ = [
     "solve_lmi",
     "BaseParameters",
     "IdentificationResult",
+    "JointConsistency",
+    "PayloadEstimate",
     "LeastSquaresSolution",
     "METHODS",
     "TorqueMetrics",
@@ -59,6 +62,9 @@ __all__ = [
     "identify",
     "identify_files",
     "identify_fleet",
+    "identify_payload",
+    "payload_regressor",
+    "point_mass_parameters",
     "solve_least_squares",
     "solve_truncated_svd",
     "torque_metrics",

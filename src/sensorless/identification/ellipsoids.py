@@ -179,14 +179,19 @@ def _children(model: pin.Model, jid: int) -> list[int]:
 
 
 def body_points(robot: Robot, geometry: pin.GeometryModel | None = None) -> dict[str, np.ndarray]:
-    """Per body (joint frame): joint origin, child joint origins, attached frames and,
-    with ``geometry``, the corners of each collision shape's local bounding box."""
+    """Per identified body (joint frame): joint origin, child joint origins, attached frames
+    (operational points such as a remote centre of motion excepted: they are not material)
+    and, with ``geometry``, the corners of each collision shape's local bounding box.
+
+    The keys are ``robot.body_names`` in order; for a robot whose identified bodies are a
+    subset of its Pinocchio tree (a transmission's coordinate robot: lumped or massless
+    tree bodies are left out) only those bodies are returned."""
     m = robot.model
     pts: dict[int, list[np.ndarray]] = {j: [np.zeros(3)] for j in range(1, m.njoints)}
     for j in range(1, m.njoints):
         pts[j] += [m.jointPlacements[c].translation.copy() for c in _children(m, j)]
     for f in m.frames:
-        if f.parentJoint >= 1:
+        if f.parentJoint >= 1 and f.type != pin.FrameType.OP_FRAME:
             pts[f.parentJoint].append(f.placement.translation.copy())
     if geometry is not None:
         for go in geometry.geometryObjects:
@@ -201,8 +206,11 @@ def body_points(robot: Robot, geometry: pin.GeometryModel | None = None) -> dict
             corners = np.array(np.meshgrid(*zip(lo, hi))).reshape(3, -1).T
             M = go.placement
             pts[j] += list(corners @ M.rotation.T + M.translation)
-    names = robot.body_names
-    return {names[j - 1]: np.unique(np.round(np.array(p), 12), axis=0) for j, p in pts.items()}
+    tree_names = list(m.names)
+    missing = [b for b in robot.body_names if b not in tree_names[1:]]
+    if missing:
+        raise RobotModelError(f"{robot.name}: bodies {missing} are not joints of its Pinocchio model")
+    return {b: np.unique(np.round(np.array(pts[tree_names.index(b)]), 12), axis=0) for b in robot.body_names}
 
 
 _GEOMETRY_CACHE: dict[tuple, pin.GeometryModel | None] = {}

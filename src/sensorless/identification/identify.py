@@ -80,6 +80,12 @@ def identify(
     if not isinstance(data, NormalEquations):
         motion = JointMotion(structure.robot.joint_names)
         data = _validated(data, structure.robot, outliers, motion)
+    prior_note = None
+    if method == "lmi" and prior is None and regularization is not None and _massless_prior(structure):
+        regularization, gamma = None, 0.0  # a pull toward zero mass everywhere is no prior
+        prior_note = (f"'{structure.robot.name}' has no inertial prior (every identified body is massless): "
+                      "ran without regularisation (regularization=None, gamma=0); pass prior=... to regularise")
+        warnings.warn(prior_note, stacklevel=2)
     if method == "lmi" and gamma == "auto":
         if isinstance(data, NormalEquations):
             raise SolverError("gamma='auto' needs the training trajectories, not precompressed equations")
@@ -128,6 +134,8 @@ def identify(
         cond, base_std = float("nan"), []
         extra["lmi"] = lmi.summary()
         extra["gamma"] = float(gamma)
+        if prior_note:
+            extra["prior_note"] = prior_note
     else:
         sol = solve_least_squares(ne, base, w)
         params = _standard(base, sol.base_values, structure, standard)
@@ -175,6 +183,12 @@ def identify(
         **structure.settings(),
     }
     return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings)
+
+
+def _massless_prior(structure: ModelStructure) -> bool:
+    """True when the model carries no inertials at all (e.g. a kinematic tree such as the PSM's)."""
+    nb = structure.robot.n_bodies
+    return nb > 0 and not np.any(np.asarray(structure.prior())[: 10 * nb : 10] > 0)
 
 
 def _standard(base: BaseParameters, pi_b: np.ndarray, structure: ModelStructure, kind: str) -> np.ndarray:

@@ -194,6 +194,29 @@ class CoordinateRobot:
         m = self.tree.model
         return np.concatenate([m.inertias[int(k) + 1].toDynamicParameters() for k in self._body_ids]) if len(self._body_ids) else np.zeros(0)
 
+    # ---- frames: Jacobians mapped through G ----------------------------------------
+    def frame_id(self, name: str) -> int:
+        """Pinocchio frame index of ``name`` in the tree (RobotModelError if unknown)."""
+        return self.tree.frame_id(name)
+
+    def tree_state(self, theta, dtheta=None, ddtheta=None) -> tuple[np.ndarray, ...]:
+        """Tree arrays Q = Gθ + q₀ (N, nq_tree) and, when given, V = Gθ̇, A = Gθ̈ (N, nv_tree)."""
+        G = getattr(self, "G", None)
+        if G is None:
+            raise RobotModelError(f"{self.name}: coordinate robot without a transmission matrix G")
+        off = getattr(self, "offset", np.zeros(G.shape[0]))
+        out = [self.tree.full_configuration(np.atleast_2d(theta) @ G.T + off)]
+        out += [self.tree.full_velocity(np.atleast_2d(x) @ G.T) for x in (dtheta, ddtheta) if x is not None]
+        return tuple(out)
+
+    def make_structure(self, joint_terms=None, coulomb_smoothing: float = 0.0) -> "TransmissionStructure":
+        """A structure of this robot with another Coulomb smoothing (``joint_terms``: the
+        factory's drive-set name, e.g. the PSM's "authors" / "motors"; None: the factory's default)."""
+        factory = getattr(self, "factory", None)
+        if factory is None:
+            raise RobotModelError(f"{self.name}: no structure factory; build a TransmissionStructure directly")
+        return factory(joint_terms, coulomb_smoothing)
+
     def summary(self) -> dict:
         m = self.tree.model
         return {
@@ -269,6 +292,7 @@ class TransmissionStructure(ModelStructure):
         # ModelStructure's dataclass fields
         self.robot = CoordinateRobot(tree, coordinates, bodies, rows, lo, hi, vel, name=name)
         self.robot.G = G
+        self.robot.offset = self.offset
         self.joint_terms = ()
         self.coulomb_smoothing = float(coulomb_smoothing)
         self.rows = "actuated"
@@ -425,6 +449,21 @@ class TransmissionStructure(ModelStructure):
     @property
     def actuated_rows(self) -> np.ndarray:
         return np.zeros(0, dtype=int)
+
+    @classmethod
+    def from_settings(cls, tree: Robot, settings: Mapping, **kwargs) -> "TransmissionStructure":
+        """Rebuild a structure from its :meth:`settings` (e.g. a ``result.json``) on ``tree``;
+        ``kwargs`` (limits, velocity_limits, name) are passed on."""
+        joints = list(settings.get("tree_joints", ()))
+        if joints != list(tree.joint_names):
+            raise RobotModelError(f"saved tree joints {joints} differ from the model's {list(tree.joint_names)}")
+        try:
+            drives = [DriveTerm(**{k: (tuple(v) if k == "terms" else v) for k, v in d.items()}) for d in settings["drives"]]
+            return cls(tree, np.asarray(settings["G"], float), settings["coordinates"], offset=np.asarray(settings["offset"], float),
+                       drives=drives, bodies=settings["bodies"], rows=settings.get("rows"),
+                       coulomb_smoothing=settings.get("coulomb_smoothing", 0.0), **kwargs)
+        except (KeyError, TypeError) as exc:
+            raise RobotModelError(f"incomplete transmission settings: {exc}") from None
 
     def settings(self) -> dict:
         return {

@@ -72,9 +72,12 @@ __all__ = [
     "LENGTHS",
     "MOTOR_TO_JOINT",
     "PSM_BODIES_AUTHORS",
+    "PSM_FRAMES",
     "PSM_LIMITS",
+    "PSM_NAMES",
     "mdh_placement",
     "psm_drives",
+    "psm_robot",
     "psm_structure",
     "psm_tree",
     "published_parameters",
@@ -143,8 +146,38 @@ def _table():
     ]
 
 
+def _frames() -> list[tuple[str, str, pin.SE3]]:
+    """Operational frames (name, parent joint, placement in the joint frame).
+
+    * ``rcm``: the remote centre of motion, on the instrument axis l_RCC beyond the
+      insertion frame at q3 = 0. It is placed on ``pitch_bottom`` (the body the shaft slides
+      in), so it is fixed in space for every (q1, q2, q3) and its z axis is the instrument
+      axis pointing to the tip. Being the fixed point, its linear Jacobian is zero.
+    * ``tool_tip``: the end of the instrument's wrist, on the wrist-pitch body at the jaw
+      (wrist-yaw) axis, l_p2y beyond the wrist-pitch axis (the shaft ends l_tool past the
+      insertion frame); axes of the jaw frames at zero jaw angle. The jaw length itself is not
+      in the model (tool-specific): forces at the jaw tips act here with their moment arm lost.
+    """
+    L = LENGTHS
+    h = np.pi / 2
+    insertion_zero = mdh_placement(L["l_3"], -h, L["l_2H1"] - L["l_RCC"], 0)  # pitch_end at q3 = 0
+    return [
+        ("rcm", "pitch_bottom", insertion_zero * pin.SE3(np.eye(3), np.array([0.0, 0.0, L["l_RCC"]]))),
+        ("tool_tip", "wrist_pitch", mdh_placement(L["l_p2y"], -h, 0, h)),
+    ]
+
+
+PSM_FRAMES = ("rcm", "tool_tip")
+"""Operational frames of the PSM tree besides one frame per joint (see :func:`psm_tree`)."""
+
+PSM_NAMES = ("dvrk_psm", "dvrk-psm", "psm")
+"""Names the command line accepts for the PSM model (``--robot dvrk_psm``)."""
+
+
 def psm_tree() -> tuple[Robot, np.ndarray]:
-    """The Pinocchio tree (massless bodies; 12 joints) and its coupling matrix G (12 × 7)."""
+    """The Pinocchio tree (massless bodies; 12 joints) and its coupling matrix G (12 × 7).
+
+    Frames: one per joint (same name) plus :data:`PSM_FRAMES` (``rcm``, ``tool_tip``)."""
     model = pin.Model()
     model.name = "dvrk_psm"
     ids: dict[str, int] = {}
@@ -152,6 +185,9 @@ def psm_tree() -> tuple[Robot, np.ndarray]:
     for name, parent, placement, kind, coupling in _table():
         ids[name] = add_body_joint(model, 0 if parent is None else ids[parent], name, placement, kind)
         rules[name] = coupling
+    for name, parent, placement in _frames():
+        jid = ids[parent]
+        model.addFrame(pin.Frame(name, jid, model.getFrameId(parent), placement, pin.FrameType.OP_FRAME))
     # joint limits of the tree induced by the coordinate box (informative only)
     robot = Robot(model, name="dvrk_psm", source="sensorless.robots.dvrk_psm (WPI modified-DH tree)")
     G = coupling_matrix(robot.joint_names, COORDINATES, rules)
@@ -212,11 +248,49 @@ def psm_structure(
             raise RobotModelError(f"bodies must be 'authors', 'all' or a list of names, got '{bodies}'")
         bodies = PSM_BODIES_AUTHORS if bodies == "authors" else tree.body_names
     drive_list = psm_drives(drives, coulomb_smoothing) if isinstance(drives, str) else list(drives)
-    return TransmissionStructure(
+    structure = TransmissionStructure(
         tree, G, COORDINATES, drives=drive_list, bodies=bodies,
         limits=(PSM_LIMITS["lower"], PSM_LIMITS["upper"]), velocity_limits=PSM_LIMITS["velocity"],
         coulomb_smoothing=coulomb_smoothing, name="dvrk_psm",
     )
+    default_drives = drives if isinstance(drives, str) else drive_list
+    structure.robot.factory = lambda terms, eps: psm_structure(bodies, _drive_set(terms, default_drives), eps)
+    return structure
+
+
+# the generic per-joint terms of URDF robots (the CLI default of --joint-terms): the PSM uses a drive set instead
+_URDF_DEFAULT_TERMS = ("fv", "fc", "offset", "armature")
+
+
+def _drive_set(terms, default):
+    """Drive set of a ``--joint-terms`` value: "authors" | "motors"; None or the URDF default → ``default``."""
+    if terms is None:
+        return default
+    if isinstance(terms, str):
+        terms = tuple(t.strip() for t in terms.split(",") if t.strip())
+    terms = tuple(terms)
+    if terms == _URDF_DEFAULT_TERMS:
+        return default
+    if len(terms) == 1 and terms[0] in ("authors", "motors"):
+        return terms[0]
+    raise RobotModelError(
+        f"the dVRK PSM takes a drive set as joint terms: 'authors' (default) or 'motors', got {','.join(terms)!r}"
+    )
+
+
+def psm_robot(
+    bodies: str | Sequence[str] = "authors",
+    drives: str | Sequence[DriveTerm] = "authors",
+    coulomb_smoothing: float = 0.0,
+):
+    """The PSM as a robot in the coordinates (q1, q2, q3, q4, m5, m6, m7): the
+    :class:`~sensorless.regressor.transmission.CoordinateRobot` of :func:`psm_structure`.
+
+    It is what ``--robot dvrk_psm`` loads: logs are read in its coordinates, frames
+    (``tool_tip``, ``rcm``, one per joint) resolve in the tree and their Jacobians are mapped
+    through G, and ``robot.make_structure(drive_set, ε)`` builds its identification structure.
+    """
+    return psm_structure(bodies, drives, coulomb_smoothing).robot
 
 
 def read_psm_log(

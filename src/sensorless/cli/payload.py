@@ -1,0 +1,104 @@
+"""`sensorless payload`: mass, CoM and inertia of a load carried by a known link or frame."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
+import typer
+
+from ..errors import SensorlessError
+from .common import ROBOT_HELP, app, console, guarded, load_logs, load_robot_arg
+
+__all__ = ["payload"]
+
+
+def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
+    if text is None:
+        return None
+    try:
+        v = np.array([float(x) for x in text.split(",")])
+    except ValueError:
+        raise SensorlessError(f"{what} must be three comma-separated numbers, got '{text}'") from None
+    if v.shape != (3,):
+        raise SensorlessError(f"{what} must be three comma-separated numbers, got '{text}'")
+    return v
+
+
+@app.command()
+@guarded
+def payload(
+    robot: str = typer.Option(..., help=ROBOT_HELP),
+    model: Path = typer.Option(..., help="result.json (or its directory) of the robot identified WITHOUT the payload"),
+    data: List[Path] = typer.Option(..., help="log(s) recorded with the payload attached"),
+    frame: str = typer.Option(..., help="link (joint frame) or frame carrying the payload, e.g. tool_tip"),
+    out: Path = typer.Option(..., help="output JSON (written atomically)"),
+    no_load: List[Path] = typer.Option([], help="paired log(s) without the payload: same trajectory, row-aligned, "
+                                               "one per --data; cancels what the model misses"),
+    offsets: str = typer.Option("auto", help="constant torque offset per joint (session drift, recalibration): auto "
+                                             "(where distinguishable from the payload) | all | none | JOINT,JOINT"),
+    mode: str = typer.Option("auto", help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
+    com: Optional[str] = typer.Option(None, help="mode mass: CoM 'x,y,z' [m] in the frame (default the frame origin)"),
+    n_boot: int = typer.Option(200, help="block-bootstrap resamples (0: HAC covariance only)"),
+    block_seconds: float = typer.Option(1.0, help="block length [s] of the HAC covariance and the bootstrap"),
+    flag_sigma: float = typer.Option(3.0, help="flag a joint whose own mass is this many σ from the estimate ..."),
+    flag_rel: float = typer.Option(0.1, help="... and differs from it by more than this fraction"),
+    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21'"),
+    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] (same on every log)"),
+    savgol_window: Optional[int] = typer.Option(None, help="recompute v, a from q with this Savitzky-Golay window"),
+    lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
+    seed: int = typer.Option(0, help="bootstrap seed"),
+    force: bool = typer.Option(False, help="replace --out if it exists"),
+) -> None:
+    """Identify a payload at FRAME from the torque the robot's model does not explain:
+    τ − Wπ̂ = Gᵀ J_fᵀ Φ_f φ (+ per-joint offsets), paired with a no-load log when given.
+    Reports mass (and m·g), CoM, uncertainty (HAC / block bootstrap) and per-joint consistency."""
+    from ..estimators import load_parameters
+    from ..identification.payload import identify_payload
+    from ..identification.result import write_json_atomic
+
+    if out.exists() and not force:
+        raise SensorlessError(f"{out}: output exists; pass --force to replace it")
+    if no_load and len(no_load) != len(data):
+        raise SensorlessError(f"{len(data)} --data log(s) but {len(no_load)} --no-load log(s); pair them one to one")
+    r = load_robot_arg(robot, lock, False)
+    path = model / "result.json" if model.is_dir() else model
+    structure, params = load_parameters(path, r)
+    logs = load_logs(data, r, columns, rate, lowpass, savgol_window, 1)
+    refs = load_logs(no_load, r, columns, rate, lowpass, savgol_window, 1) if no_load else None
+    off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
+                                                           [j.strip() for j in offsets.split(",") if j.strip()])
+    est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
+                           com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
+                           flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
+    doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
+           **est.to_dict()}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(doc, out)
+    _print(est)
+    console.print(f"wrote {out}")
+
+
+def _print(est) -> None:
+    from rich.table import Table
+
+    c, cs = est.com * 1e3, est.com_std * 1e3 if est.com_std is not None else None
+    if est.mass > 0:
+        com = "(" + ", ".join(f"{x:.1f}" + (f" ± {s:.1f}" if cs is not None else "") for x, s in zip(c, cs if cs is not None else c)) + ") mm"
+    else:
+        com = f"undefined (least-squares mass without the m ≥ 0 bound: {est.diagnostics['mass_unconstrained']:.4f} kg)"
+    console.print(f"[bold]payload at '{est.frame}'[/] \\[{est.mode}]: m = {est.mass:.4f} ± {est.mass_std:.4f} kg "
+                  f"(m·g = {est.weight:.3f} ± {est.mass_std * est.gravity:.3f} N), CoM = {com}, "
+                  f"physically consistent: {est.consistent}")
+    table = Table(title="per-joint consistency: mass this joint alone implies vs the other joints (CoM fixed)")
+    for col in ("joint", "mass [kg]", "± σ", "others [kg]", "± σ", "z", "share", "offset", "flag"):
+        table.add_column(col, justify="right")
+    fitted = set(est.settings.get("offsets") or ())
+    for k, j in enumerate(est.per_joint):
+        flag = "[red]CONTRADICTS[/]" if j.flagged else ("ok" if j.informative else "no info")
+        table.add_row(j.joint, f"{j.mass:.4f}", f"{j.std:.4f}", f"{j.others_mass:.4f}", f"{j.others_std:.4f}",
+                      f"{j.z:+.1f}", f"{100 * j.share:.0f} %",
+                      f"{est.offsets[k]:.3g}" if est.offsets is not None and j.joint in fitted else "—", flag)
+    console.print(table)
