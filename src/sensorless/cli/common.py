@@ -9,7 +9,9 @@ import warnings
 from pathlib import Path
 from typing import Iterable, Iterator, List, Optional
 
+import click
 import typer
+from typer.core import TyperCommand
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
@@ -24,6 +26,42 @@ app.add_typer(bench_app, name="benchmark")
 app.add_typer(experiment_app, name="experiment")
 console = Console(stderr=False)
 err_console = Console(stderr=True)
+
+
+class MultiValueCommand(TyperCommand):
+    """A command whose repeatable options (``List[...]``) also take several values after one
+    flag: ``--data a.csv b.csv c.csv`` is ``--data a.csv --data b.csv --data c.csv`` (a shell
+    glob expands to exactly that). Values run until the next token starting with ``-``.
+    Only for commands without positional arguments (nothing else could own a bare token)."""
+
+    def parse_args(self, ctx, args):
+        if not any(isinstance(p, click.Argument) for p in self.params):
+            args = expand_multi_values(args, {o for p in self.params if isinstance(p, click.Option) and p.multiple
+                                              for o in p.opts})
+        return super().parse_args(ctx, args)
+
+
+def expand_multi_values(args: list[str], multi: set[str]) -> list[str]:
+    """``[--data, a, b, --x, 1]`` -> ``[--data, a, --data, b, --x, 1]`` for the flags in ``multi``."""
+    out: list[str] = []
+    cur, need_value = None, False
+    for a in args:
+        if need_value:  # the flag's own first value, whatever it looks like
+            out.append(a)
+            need_value = False
+        elif a == "--":
+            cur = None
+            out.append(a)
+        elif a.startswith("-") and len(a) > 1:
+            name = a.split("=", 1)[0]
+            cur = name if name in multi else None
+            need_value = cur is not None and "=" not in a
+            out.append(a)
+        elif cur is not None:
+            out += [cur, a]
+        else:
+            out.append(a)
+    return out
 
 
 def one_line(text: object, limit: int = 2000) -> str:

@@ -9,7 +9,19 @@ import numpy as np
 import typer
 
 from ..errors import SensorlessError
-from .common import ROBOT_HELP, app, console, guarded, load_logs, load_robot_arg
+from .common import (
+    ROBOT_HELP,
+    MultiValueCommand,
+    app,
+    console,
+    gains_option,
+    guarded,
+    load_logs,
+    load_robot_arg,
+    model_preprocessing,
+    resample_option,
+    trim_option,
+)
 
 __all__ = ["payload"]
 
@@ -26,7 +38,7 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
     return v
 
 
-@app.command()
+@app.command(cls=MultiValueCommand)
 @guarded
 def payload(
     robot: str = typer.Option(..., help=ROBOT_HELP),
@@ -44,10 +56,13 @@ def payload(
     block_seconds: float = typer.Option(1.0, help="block length [s] of the HAC covariance and the bootstrap"),
     flag_sigma: float = typer.Option(3.0, help="flag a joint whose own mass is this many σ from the estimate ..."),
     flag_rel: float = typer.Option(0.1, help="... and differs from it by more than this fraction"),
-    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21'"),
-    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
-    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] (same on every log)"),
-    savgol_window: Optional[int] = typer.Option(None, help="recompute v, a from q with this Savitzky-Golay window"),
+    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' (default: the model's)"),
+    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column (default: the model's)"),
+    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] (default: the model's)"),
+    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window for v̇ (default: the model's)"),
+    gains: Optional[str] = gains_option(),
+    trim: Optional[str] = trim_option(),
+    resample: Optional[str] = resample_option(None),
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     seed: int = typer.Option(0, help="bootstrap seed"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
@@ -66,8 +81,13 @@ def payload(
     r = load_robot_arg(robot, lock, False)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
-    logs = load_logs(data, r, columns, rate, lowpass, savgol_window, 1)
-    refs = load_logs(no_load, r, columns, rate, lowpass, savgol_window, 1) if no_load else None
+    opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
+                               savgol_window=savgol_window, velocity=None, max_gap=None)
+    prep = dict(gains=opts["gains"], trim=trim, resample=opts["resample"] or "auto", velocity=opts["velocity"],
+                max_gap=opts["max_gap"])
+    args = (r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1)
+    logs = load_logs(data, *args, **prep)
+    refs = load_logs(no_load, *args, **prep) if no_load else None
     off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
     est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
@@ -75,6 +95,7 @@ def payload(
                            flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
     doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
            **est.to_dict()}
+    doc.setdefault("settings", {})["preprocessing"] = {**opts, "trim": trim}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out)
     _print(est)

@@ -22,9 +22,29 @@ from .payload import JointConsistency, PayloadEstimate, identify_payload, payloa
 from .result import IdentificationResult
 from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
+from .drive_gains import DriveGains, identify_drive_gains, payload_torque
+from .friction import (
+    FrictionFit,
+    coulomb_smoothing_from_noise,
+    friction_curve,
+    friction_residual,
+    identify_friction,
+    search_stribeck_velocity,
+    signal_noise,
+)
 from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
 __all__ = [
+    "DriveGains",
+    "FrictionFit",
+    "coulomb_smoothing_from_noise",
+    "friction_curve",
+    "friction_residual",
+    "identify_drive_gains",
+    "identify_friction",
+    "payload_torque",
+    "search_stribeck_velocity",
+    "signal_noise",
     "base_wrench_metrics",
     "com_cop_check",
     "com_positions",

@@ -76,8 +76,6 @@ def payload_torque(robot: Robot, traj: Trajectory, frame: str, mass: float, com=
 
 def _currents(robot: Robot, traj: Trajectory) -> np.ndarray:
     """Actuated currents of a log: its ``current`` extra if any, else its ``tau`` column(s)."""
-    from ..regressor.terms import _in_robot_order
-
     cur = (traj.extras or {}).get("current")
     if cur is None:
         cur = traj.tau

@@ -28,6 +28,7 @@ is identified again with vs fixed.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -180,7 +181,7 @@ def identify_friction(
     ``coulomb_smoothing``: "auto" (module docstring) or ε for every joint (0 = sgn).
     ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck`` term) or vs.
     Runs :func:`~sensorless.identification.identify` once when nothing is automatic, else
-    a first fit, the choice, and the final fit. Returns ``(result, FrictionFit)``.
+    a first least-squares fit, the choice, and the final fit with ``identify_kwargs``. Returns ``(result, FrictionFit)``.
     """
     from .identify import identify
 
@@ -216,7 +217,13 @@ def identify_friction(
                                    stribeck_velocity=vs_map, per_joint_terms=_per_joint_terms(structure))
 
     s = build(eps, vs)
-    result = identify(s, train, **kw)
+    if auto_eps or auto_vs:  # the first fit only chooses ε and vs: ordinary least squares is enough
+        first_kw = {k: v for k, v in kw.items() if k in ("weights", "chunk", "progress", "outliers")}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the final fit reports identifiability
+            result = identify(s, train, method="ols", **first_kw)
+    else:
+        result = identify(s, train, **kw)
     fit = FrictionFit(coulomb_smoothing=dict(zip(joints, map(float, eps))),
                       coulomb_smoothing_mode="auto" if auto_eps else "given",
                       stribeck_velocity=vs)

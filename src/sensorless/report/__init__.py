@@ -1,6 +1,7 @@
 """Figures and console tables."""
 
+from .friction_plot import plot_friction
 from .plots import plot_torques
 from .tables import metrics_table
 
-__all__ = ["metrics_table", "plot_torques"]
+__all__ = ["metrics_table", "plot_friction", "plot_torques"]
