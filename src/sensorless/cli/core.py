@@ -148,8 +148,11 @@ def identify(
                     if friction:
                         from ..identification.friction import identify_friction
 
+                        raw = (load_logs(data, r, **{**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto"
+                               else None)  # noise is measured before the low-pass colours it
                         result, fit = identify_friction(structure, train, coulomb_smoothing=coulomb_smoothing,
-                                                        stribeck_velocity=stribeck_velocity, identify_kwargs=kw)
+                                                        stribeck_velocity=stribeck_velocity, identify_kwargs=kw,
+                                                        noise_logs=raw, lowpass_hz=lowpass)
                         structure = result.structure
                         result.settings["friction"] = fit.to_dict()
                     else:

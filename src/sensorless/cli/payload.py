@@ -48,6 +48,9 @@ def payload(
     out: Path = typer.Option(..., help="output JSON (written atomically)"),
     no_load: List[Path] = typer.Option([], help="paired log(s) without the payload: same trajectory, row-aligned, "
                                                "one per --data; cancels what the model misses"),
+    align: str = typer.Option("rows", help="pairing of --no-load with --data: rows (row by row, same length) | time "
+                                           "(no-load log interpolated at the payload log's times from the first "
+                                           "sample; for two separately started recordings)"),
     offsets: str = typer.Option("auto", help="constant torque offset per joint (session drift, recalibration): auto "
                                              "(where distinguishable from the payload) | all | none | JOINT,JOINT"),
     mode: str = typer.Option("auto", help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
@@ -88,6 +91,12 @@ def payload(
     args = (r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1)
     logs = load_logs(data, *args, **prep)
     refs = load_logs(no_load, *args, **prep) if no_load else None
+    if align not in ("rows", "time"):
+        raise SensorlessError(f"--align must be rows or time, got '{align}'")
+    if refs is not None and align == "time":
+        from ..identification.drive_gains import align_pair
+
+        logs, refs = map(list, zip(*(align_pair(a, b) for a, b in zip(logs, refs))))
     off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
     est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,

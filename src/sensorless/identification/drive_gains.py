@@ -31,7 +31,7 @@ from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
 from .payload import payload_regressor, point_mass_parameters
 
-__all__ = ["DriveGains", "identify_drive_gains", "payload_torque"]
+__all__ = ["DriveGains", "align_pair", "identify_drive_gains", "payload_torque"]
 
 #: a joint whose gain has a relative std above this is reported as not identified
 MAX_RELATIVE_STD = 0.2
@@ -103,6 +103,28 @@ def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str
     mask = tl <= tu[-1]
     out = np.column_stack([np.interp(tl, tu, i_u[:, k]) for k in range(i_u.shape[1])])
     return out, mask
+
+
+def align_pair(load: Trajectory, ref: Trajectory) -> tuple[Trajectory, Trajectory]:
+    """Two runs of one trajectory as row-aligned logs: ``ref`` linearly interpolated at the
+    times of ``load`` (both measured from their first sample), both cut to the overlap."""
+    tl, tr = load.t - load.t[0], ref.t - ref.t[0]
+    keep = tl <= tr[-1]
+    if keep.sum() < 2:
+        raise DataError("the two logs do not overlap in time (from their first samples)", ref.source)
+    load = load.take(np.flatnonzero(keep))
+    tl = tl[keep]
+
+    def at(x):
+        if x is None or not hasattr(x, "shape") or x.shape[:1] != (len(tr),):
+            return x
+        flat = np.asarray(x, dtype=float).reshape(len(tr), -1)
+        out = np.column_stack([np.interp(tl, tr, flat[:, k]) for k in range(flat.shape[1])])
+        return out.reshape((len(tl),) + x.shape[1:])
+
+    fields = {k: at(getattr(ref, k)) for k in ("q", "v", "a", "tau", "base_q", "base_v", "base_a")}
+    extras = {k: at(v) for k, v in (ref.extras or {}).items()}
+    return load, ref.with_(t=load.t.copy(), extras=extras, **fields)
 
 
 def _fit(y: np.ndarray, d: np.ndarray, offset: bool) -> tuple[float, float, np.ndarray]:

@@ -9,14 +9,19 @@ Friction model of joint j (linear terms are regressor columns, see
 of it, the residual of a Savitzky–Golay fit, r = x − S x. For white noise of std σ,
 var r = σ² (1 − c₀) with c₀ the centre coefficient of the smoother, so
 σ̂ = 1.4826 · MAD(r) / √(1 − c₀) (robust to the motion's own residual at reversals).
-A robot at rest has v = noise, so the model torque fs · tanh(n/ε) chatters with std
-≈ fs σ_v / ε (ε ≫ σ_v). ε is chosen as
+A robot at rest has v = noise n, so the model torque fs · tanh(n/ε) chatters with std
+≈ fs σ_v / ε (ε ≫ σ_v), fs the friction at v → 0⁺ (fc + (fs − fc)) of a first fit. ε is
 
-    ε = max(k σ_v, fs σ_v / σ_τ),   capped at ``max_fraction`` · P95(|v|),
+    ε = max(k σ_v, fs σ_v / σ_τ),   at most ``max_fraction`` · P95(|v|),
 
-i.e. at least k (default 3) velocity-noise stds, and large enough that the chatter at
-rest stays below the torque noise σ_τ (estimated the same way from τ); fs is the friction
-at v → 0 of a first fit. ε = 0 (sgn) when v has no noise.
+at least k (default 3) velocity-noise stds, and large enough that the predicted chatter
+at rest stays below σ_τ, so the residual at rest, √(σ_τ² + chatter²), is ≈ √2 σ_τ — a
+margin for the noise the estimate misses (resampling, filter edges), the target being
+at most 2 σ_τ (σ_τ: the torque noise, estimated the same way). ε = 0 (sgn) when v has no noise.
+A low-pass filter colours the noise (the estimate above would miss it): the noise is then
+measured on the unfiltered logs (``noise_logs``) and σ_v scaled by √(B/(f_s/2)), B the
+noise bandwidth ∫|H(f)|⁴ df of the zero-phase Butterworth filter at ``lowpass_hz``
+(:func:`lowpass_noise_gain`); σ_τ stays the unfiltered torque noise.
 
 **Stribeck velocity.** vs enters nonlinearly. With the rigid-body part fixed at a first
 fit, the friction residual of each joint, r_j = τ_j − [Y π]_j − Ia_j v̇_j, is linear in
@@ -44,6 +49,7 @@ __all__ = [
     "friction_curve",
     "friction_residual",
     "identify_friction",
+    "lowpass_noise_gain",
     "search_stribeck_velocity",
     "signal_noise",
 ]
@@ -67,6 +73,18 @@ def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndar
     r = r[window:-window] if x.shape[0] > 3 * window else r
     mad = np.median(np.abs(r - np.median(r, axis=0)), axis=0)
     return 1.4826 * mad / np.sqrt(1.0 - c0)
+
+
+def lowpass_noise_gain(cutoff_hz: float, rate_hz: float, order: int = 4) -> float:
+    """Std ratio of white noise after the zero-phase Butterworth low-pass of
+    :func:`sensorless.data.filtering.butter_lowpass` (``sosfiltfilt``: |H|² applied twice)."""
+    from scipy.signal import butter, sosfreqz
+
+    if not (cutoff_hz < rate_hz / 2):
+        return 1.0
+    sos = butter(int(order), cutoff_hz, btype="low", fs=rate_hz, output="sos")
+    _, h = sosfreqz(sos, worN=8192, fs=rate_hz)
+    return float(np.sqrt(np.mean(np.abs(h) ** 4)))
 
 
 def _pooled_noise(arrays: Sequence[np.ndarray]) -> np.ndarray:
@@ -175,11 +193,15 @@ def identify_friction(
     stribeck_velocity: "str | float | dict" = "auto",
     factor: float = 3.0,
     identify_kwargs: dict | None = None,
+    noise_logs: Iterable[Trajectory] | None = None,
+    lowpass_hz: float | None = None,
 ):
     """Identify with noise-aware Coulomb smoothing and searched Stribeck velocities.
 
     ``coulomb_smoothing``: "auto" (module docstring) or ε for every joint (0 = sgn).
     ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck`` term) or vs.
+    ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training logs
+    went through (module docstring); default: the noise of the training logs as they are.
     Runs :func:`~sensorless.identification.identify` once when nothing is automatic, else
     a first least-squares fit, the choice, and the final fit with ``identify_kwargs``. Returns ``(result, FrictionFit)``.
     """
@@ -199,7 +221,10 @@ def identify_friction(
     if auto_eps:
         if coulomb_smoothing != "auto":
             raise DataError(f"coulomb_smoothing must be 'auto' or a number >= 0, got {coulomb_smoothing!r}")
-        sigma_v = _pooled_noise(v_all)
+        raw = list(noise_logs) if noise_logs is not None else train
+        sigma_v = _pooled_noise([_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in raw])
+        if lowpass_hz:
+            sigma_v = sigma_v * lowpass_noise_gain(lowpass_hz, float(np.median([t.rate for t in train])))
         eps = coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor)
     else:
         eps = np.full(len(joints), float(coulomb_smoothing))
@@ -231,7 +256,7 @@ def identify_friction(
         return result, fit
     p = result.parameters
     if auto_eps:
-        sigma_tau = _pooled_noise([s.target(t)[:, s.actuated_rows] for t in train])
+        sigma_tau = _pooled_noise([s.target(t)[:, s.actuated_rows] for t in raw])
         f0 = np.zeros(len(joints))  # friction at v → 0⁺ without the offset: fc + (fs − fc)
         for k, j in enumerate(joints):
             for t in ("fc", "stribeck"):
