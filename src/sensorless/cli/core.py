@@ -193,6 +193,7 @@ def identify(
                 doc["validation"][str(p)]["ols"] = cols["OLS"].to_dict()
             cols[method.upper()] = m_id
             console.print(metrics_table(f"held-out {Path(p).name}", cols))
+        _print_bodies(result)
         shown = val[0] if val else (train[0] if train else None)
         if shown is not None:  # with --scheduler, the client may not see the training files
             plot_torques(shown.t, structure.target(shown), {method.upper(): result.predict(shown), "CAD": cad.predict(shown)},
@@ -241,6 +242,22 @@ def _first_training_log(data, r, prep: dict) -> list:
         return [load_log(data[0], r, **prep)]
     except SensorlessError:
         return []
+
+
+def _print_bodies(result) -> None:
+    """Identified mass per body, named by joint and link (result.json: parameter_links)."""
+    from rich.table import Table
+
+    from ..identification.result import body_links
+
+    links = body_links(result.robot)
+    t = Table(title="identified bodies (parameters 'joint.p' in result.json; 'link.p' in parameter_links)")
+    for col in ("joint", "link", "m [kg]", "CAD m [kg]"):
+        t.add_column(col, justify="right" if "m" in col else "left")
+    pi, pi0 = result.inertial_parameters.reshape(-1, 10), result.robot.inertial_parameters().reshape(-1, 10)
+    for k, b in enumerate(result.robot.body_names):
+        t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}", f"{pi0[k, 0]:.3f}")
+    console.print(t)
 
 
 def _plain(structure) -> bool:

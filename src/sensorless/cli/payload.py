@@ -104,11 +104,52 @@ def payload(
                            flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
     doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
            **est.to_dict()}
+    gain_std = _gain_std(opts["gains"], r)
+    if gain_std is not None:  # identified gains (sensorless drive-gains): their uncertainty enters the mass
+        dm = []
+        for k, rel in enumerate(gain_std):
+            scale = np.ones(r.n_actuated)
+            scale[k] += rel
+            sl = [_scaled(t, r, scale) for t in logs]
+            sr = [_scaled(t, r, scale) for t in refs] if refs is not None else None
+            e = identify_payload((structure, params), sl, frame, no_load=sr, offsets=off, mode=est.mode,
+                                 com=_vector(com, "--com"), n_boot=0, block_seconds=block_seconds, seed=seed)
+            dm.append(e.mass - est.mass)
+        std_g = float(np.sqrt(np.sum(np.square(dm))))
+        doc.update({"mass_std_noise": est.mass_std, "mass_std_gains": std_g,
+                    "mass_std": float(np.hypot(est.mass_std, std_g)),
+                    "mass_sensitivity_to_gains": dict(zip(r.actuated_joints, map(float, dm)))})
+        est.mass_std = doc["mass_std"]
     doc.setdefault("settings", {})["preprocessing"] = {**opts, "trim": trim}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out)
     _print(est)
     console.print(f"wrote {out}")
+
+
+def _gain_std(gains, robot):
+    """Relative std per actuated joint of gains from a `sensorless drive-gains` file, else None."""
+    import json
+
+    if not isinstance(gains, (str, Path)) or not str(gains).lower().endswith(".json") or not Path(gains).is_file():
+        return None
+    try:
+        doc = json.loads(Path(gains).read_text())
+        g, s = doc["gains"], doc["std"]
+        return np.array([float(s[j]) / float(g[j]) if j not in doc.get("from_nominal", []) else 0.0
+                         for j in robot.actuated_joints])
+    except (ValueError, KeyError, TypeError, ZeroDivisionError):
+        return None
+
+
+def _scaled(traj, robot, scale):
+    """``traj`` with the torque of actuated joint k scaled by ``scale[k]`` (a gain perturbed)."""
+    names = list(traj.joint_names)
+    f = np.ones(len(names))
+    for k, j in enumerate(robot.actuated_joints):
+        if j in names:
+            f[names.index(j)] = scale[k]
+    return traj.with_(tau=traj.tau * f)
 
 
 def _print(est) -> None:
