@@ -9,7 +9,6 @@ import warnings
 from pathlib import Path
 from typing import Iterable, Iterator, List, Optional
 
-import click
 import typer
 from typer.core import TyperCommand
 from rich.console import Console
@@ -35,9 +34,9 @@ class MultiValueCommand(TyperCommand):
     Only for commands without positional arguments (nothing else could own a bare token)."""
 
     def parse_args(self, ctx, args):
-        if not any(isinstance(p, click.Argument) for p in self.params):
-            args = expand_multi_values(args, {o for p in self.params if isinstance(p, click.Option) and p.multiple
-                                              for o in p.opts})
+        if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)
+            args = expand_multi_values(args, {o for p in self.params if p.param_type_name == "option"
+                                              and getattr(p, "multiple", False) for o in p.opts})
         return super().parse_args(ctx, args)
 
 

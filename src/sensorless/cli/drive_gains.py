@@ -90,7 +90,8 @@ def drive_gains(
         if nominal is not None:
             written[j] = float(nominal[list(r.actuated_joints).index(j)])
         elif not (np.isfinite(written[j]) and written[j] > 0):
-            raise DataError(f"the pair does not identify the gain of '{j}' (payload torque too small there); "
+            raise DataError(f"the pair does not identify the gain of '{j}' (no or too little payload torque there, "
+                            "or no payload difference between the logs); "
                             "pass --nominal-gains for it, or move the payload's CoM (--com) off that joint's axis",
                             str(loaded))
     doc["gains"] = written

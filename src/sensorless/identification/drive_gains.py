@@ -153,7 +153,7 @@ def _hac_var(y: np.ndarray, e: np.ndarray, L: int, offset: bool) -> float:
         w = 1.0 - lag / (L + 1.0)
         G = u[lag:].T @ u[:-lag]
         S += w * (G + G.T)
-    Xi = np.linalg.inv(X.T @ X)
+    Xi = np.linalg.pinv(X.T @ X)
     return float((Xi @ S @ Xi)[0, 0])
 
 
@@ -186,8 +186,13 @@ def identify_drive_gains(
     joints = list(robot.actuated_joints)
     nj = len(joints)
     c, b, res = np.zeros(nj), np.zeros(nj), np.zeros((n, nj))
+    yrms0 = np.sqrt(np.mean(y**2, axis=0))
+    seen = yrms0 > 1e-9 * max(float(yrms0.max()), 1e-300)  # a joint the payload exerts no torque on: no gain
     for k in range(nj):
-        c[k], b[k], res[:, k] = _fit(y[:, k], d[:, k], offset)
+        if seen[k]:
+            c[k], b[k], res[:, k] = _fit(y[:, k], d[:, k], offset)
+        else:
+            c[k], b[k], res[:, k] = np.nan, float(np.mean(d[:, k])) if offset else 0.0, d[:, k] - np.mean(d[:, k])
     if block_seconds is None:
         lag = max(_decorrelation_lag(res[:, k]) for k in range(nj))
         L = int(max(4 * lag, round(1.0 / dt)))
@@ -204,6 +209,8 @@ def identify_drive_gains(
                               np.stack([y * y, y * d, y, d, np.ones_like(y)], axis=2)]), axis=0)  # (n+1, nj, 5)
     block = cs[starts + L] - cs[starts]  # (n_starts, nj, 5)
     boot_c = np.empty((n_boot, nj))
+    np_err = np.errstate(divide="ignore", invalid="ignore")
+    np_err.__enter__()
     for i in range(n_boot):
         s = block[rng.integers(0, len(starts), n_blocks)].sum(0)  # (nj, 5)
         syy, syd, sy, sd, sn = s.T
@@ -212,13 +219,14 @@ def identify_drive_gains(
         else:
             boot_c[i] = syd / np.maximum(syy, 1e-300)
     std_c_boot = boot_c.std(axis=0, ddof=1)
+    np_err.__exit__(None, None, None)
     std_c = np.maximum(std_c_hac, std_c_boot)
     with np.errstate(divide="ignore", invalid="ignore"):
         K = 1.0 / c
         std_K = std_c / c**2
         lo = 1.0 / (c + 1.96 * std_c)
         hi = np.where(c - 1.96 * std_c > 0, 1.0 / (c - 1.96 * std_c), np.inf)
-    ident = (c > 0) & (std_c < MAX_RELATIVE_STD * np.abs(c))
+    ident = seen & (c > 0) & (std_c < MAX_RELATIVE_STD * np.abs(c))
     yrms = np.sqrt(np.mean(y**2, axis=0))
     return DriveGains(
         joints=joints, gains=K, std=std_K, interval=np.column_stack([lo, hi]), identified=ident, offset=b,

@@ -1,0 +1,154 @@
+"""Issue 17: per-joint terms, Stribeck / noise-aware Coulomb friction, drive gains, --data a b c,
+link names. Reduced versions of the real-arm acceptance (sensorless.experiments.real_arm)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from sensorless.cli import app
+from sensorless.cli.common import expand_multi_values
+from sensorless.data.prepare import load_log
+from sensorless.identification.drive_gains import identify_drive_gains
+from sensorless.identification.friction import (
+    coulomb_smoothing_from_noise,
+    lowpass_noise_gain,
+    search_stribeck_velocity,
+    signal_noise,
+)
+from sensorless.regressor import ModelStructure
+from sensorless.regressor.terms import parse_joint_terms
+from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
+
+COLS = "q=pos_{joint};v=vel_{joint};tau=i_{joint}"
+
+
+@pytest.fixture(scope="module")
+def ur10_logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ur10")
+    robot, truth = truth_model("ur10", 0, stribeck=True, friction_scale=4.0)
+    K = drive_gains_for(robot)
+    kw = dict(motion=10.0, idle_start=1.5, idle_end=1.0, ramp=1.0)
+    simulate(robot, truth, K, seed=1, **kw).to_csv(d / "a.csv", index=False)
+    simulate(robot, truth, K, seed=2, **kw).to_csv(d / "b.csv", index=False)
+    simulate(robot, truth, K, seed=3, motion_seed=30, **kw).to_csv(d / "u.csv", index=False)
+    simulate(robot, with_payload(truth, "tool0", 4.0), K, seed=4, motion_seed=30, **kw).to_csv(d / "l.csv", index=False)
+    (d / "gains.json").write_text(json.dumps(dict(zip(robot.actuated_joints, map(float, K)))))
+    return d, robot, truth, K
+
+
+def test_data_takes_several_values_after_one_flag():
+    multi = {"--data", "--validate"}
+    assert expand_multi_values(["--data", "a", "b", "--out", "o", "--validate", "c", "d"], multi) == [
+        "--data", "a", "--data", "b", "--out", "o", "--validate", "c", "--validate", "d"]
+    assert expand_multi_values(["--data=a", "b", "--force"], multi) == ["--data=a", "--data", "b", "--force"]
+    assert expand_multi_values(["--data", "a", "--data", "b"], multi) == ["--data", "a", "--data", "b"]
+
+
+def test_per_joint_terms_parse_and_name_the_bad_joint_or_term():
+    joints = ("j1", "j2", "j3")
+    assert parse_joint_terms("j1=fv,fc,offset;j3=fv", joints) == {"j1": ("fv", "fc", "offset"), "j2": (), "j3": ("fv",)}
+    assert parse_joint_terms("j1=fv;*=fc", joints)["j2"] == ("fc",)
+    from sensorless.errors import RobotModelError
+
+    with pytest.raises(RobotModelError, match="nope"):
+        parse_joint_terms("nope=fv", joints)
+    with pytest.raises(RobotModelError, match="visc"):
+        parse_joint_terms("j1=visc", joints)
+
+
+@pytest.mark.parametrize("spec,needle", [("elbo=fv", "elbo"), ("elbow_joint=fv,stiction", "stiction")])
+def test_cli_joint_terms_error_names_it_and_writes_nothing(ur10_logs, tmp_path, spec, needle):
+    d, *_ = ur10_logs
+    r = CliRunner().invoke(app, ["identify", "--robot", "ur10", "--data", str(d / "a.csv"), "--columns", COLS,
+                                 "--gains", str(d / "gains.json"), "--joint-terms", spec, "--out", str(tmp_path / "m")])
+    assert r.exit_code == 2 and needle in r.output and "--joint-terms" in r.output
+    assert not (tmp_path / "m").exists()
+
+
+def test_stribeck_velocity_search_recovers_vs():
+    rng = np.random.default_rng(0)
+    v = rng.uniform(-0.6, 0.6, 4000)
+    fc, fs, vs, fv = 2.0, 3.5, 0.05, 0.4
+    r = fc * np.sign(v) + (fs - fc) * np.exp(-((v / vs) ** 2)) * np.sign(v) + fv * v + rng.normal(0, 0.05, v.size)
+    grid = np.geomspace(0.005, 0.3, 40)
+    best, sse = search_stribeck_velocity(v, r, eps=0.0, terms=("fv", "fc", "stribeck"), grid=grid)
+    assert abs(best / vs - 1) < 0.15 and sse.min() < 0.5 * sse.max()
+
+
+def test_noise_estimate_and_smoothing_rule_bound_the_chatter_at_rest():
+    rng = np.random.default_rng(1)
+    t = np.arange(5000) / 100.0
+    sig_v, sig_tau, fs = 1e-3, 0.05, 4.0
+    v = np.column_stack([np.sin(0.7 * t), np.cos(0.3 * t)]) + rng.normal(0, sig_v, (t.size, 2))
+    est = signal_noise(v)
+    assert np.allclose(est, sig_v, rtol=0.1)
+    eps = coulomb_smoothing_from_noise(est, sigma_tau=np.full(2, sig_tau), static_friction=np.full(2, fs))
+    at_rest = fs * np.tanh(rng.normal(0, sig_v, (20000, 2)) / eps)  # model torque of a robot at rest
+    assert np.all(at_rest.std(axis=0) <= 0.6 * sig_tau)  # predicted σ_τ/2: residual √(σ² + chatter²) < 2σ
+    g = lowpass_noise_gain(5.0, 100.0)  # white noise through the zero-phase 5 Hz Butterworth
+    from sensorless.data.filtering import butter_lowpass
+
+    assert abs(butter_lowpass(rng.normal(0, 1, 200000), 5.0, 100.0).std() / g - 1) < 0.05
+
+
+def test_identify_cli_per_joint_terms_auto_friction_saved_and_reloaded(ur10_logs, tmp_path):
+    d, robot, truth, K = ur10_logs
+    out = tmp_path / "m"
+    spec = "wrist_3_joint=fv,offset;*=fv,fc,stribeck,offset,armature"
+    r = CliRunner().invoke(app, ["identify", "--robot", "ur10", "--data", str(d / "a.csv"), str(d / "b.csv"),
+                                 "--columns", COLS, "--gains", str(d / "gains.json"), "--trim", "1.5:-1",
+                                 "--savgol-window", "21", "--lowpass", "5", "--joint-terms", spec, "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "result.json").read_text())
+    assert len(doc["settings"]["data"]) == 2  # --data a b
+    assert set(doc["joint_terms"]["wrist_3_joint"]) == {"fv", "offset"}
+    assert "stribeck" in doc["joint_terms"]["elbow_joint"]
+    fr = doc["settings"]["friction"]
+    assert fr["coulomb_smoothing_mode"] == "auto" and all(e > 0 for e in fr["coulomb_smoothing"].values())
+    assert doc["parameter_links"]["shoulder_pan_joint.m"] == "shoulder_link.m"
+    assert (out / "friction.png").stat().st_size > 10_000
+    from sensorless.estimators import load_parameters
+
+    st, p = load_parameters(out / "result.json", robot)
+    assert st.terms_of("wrist_3_joint") == ("fv", "offset")
+    assert st.smoothing_of("elbow_joint") == pytest.approx(fr["coulomb_smoothing"]["elbow_joint"])
+    # predict reloads it; the first 1.4 s are at rest: residual within 2x the torque noise
+    r = CliRunner().invoke(app, ["predict", "--robot", "ur10", "--model", str(out), "--data", str(d / "b.csv"),
+                                 "--trim", "0:1.4", "--out", str(tmp_path / "idle.npz")])
+    assert r.exit_code == 0, r.output
+    z = np.load(tmp_path / "idle.npz")
+    rms = np.sqrt(np.mean((z["tau_measured"] - z["tau_pred"]) ** 2, axis=0))
+    assert np.all(rms <= 2.0 * K * 0.01), rms / (K * 0.01)
+    sgn = st.__class__(robot, joint_terms=st.per_joint_terms, coulomb_smoothing=0.0,
+                       stribeck_velocity=st.stribeck_velocity)
+    te = load_log(d / "b.csv", robot, COLS, None, 5.0, 21, 1, gains=str(d / "gains.json"), trim="0:1.4")
+    rms_sgn = np.sqrt(np.mean((sgn.target(te) - sgn.torques(p, te)) ** 2, axis=0))
+    assert np.max(rms_sgn / (K * 0.01)) > 5  # sgn(v) would chatter at rest
+
+
+def test_drive_gains_from_a_pair_within_2_percent_and_cli_output_is_a_gains_file(ur10_logs, tmp_path):
+    d, robot, truth, K = ur10_logs
+    u, lo = (load_log(d / f, robot, COLS, None, None, 21, 1, trim="1.5:-1") for f in ("u.csv", "l.csv"))
+    res = identify_drive_gains(robot, u, lo, payload_mass=4.0, payload_frame="tool0", payload_com=(0.06, 0.02, 0.05),
+                               n_boot=200)
+    assert np.all(np.abs(res.gains / K - 1) < 0.02), res.gains / K
+    assert res.identified.all() and np.all(res.std > 0)
+    out = tmp_path / "k.json"
+    r = CliRunner().invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
+                                 str(d / "l.csv"), "--columns", COLS, "--trim", "1.5:-1", "--savgol-window", "21",
+                                 "--payload-mass", "4", "--frame", "tool0", "--com", "0.06,0.02,0.05", "--n-boot", "100",
+                                 "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    from sensorless.data.gains import resolve_gains
+
+    assert np.allclose(resolve_gains(out, robot.actuated_joints), json.loads(out.read_text())["estimated_gains"]
+                       and [json.loads(out.read_text())["gains"][j] for j in robot.actuated_joints])
+    # a payload on the last joint's axis does not see its gain: a typed error naming the joint, no output
+    r = CliRunner().invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
+                                 str(d / "u.csv"), "--columns", COLS, "--payload-mass", "4", "--frame", "tool0",
+                                 "--n-boot", "20", "--out", str(tmp_path / "bad.json")])
+    assert r.exit_code == 2 and "--nominal-gains" in r.output and not (tmp_path / "bad.json").exists()
