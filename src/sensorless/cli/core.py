@@ -43,8 +43,8 @@ from .common import (
 @guarded
 def identify(
     robot: str = typer.Option(..., help=ROBOT_HELP),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5; several after one flag "
-                                         "(--data a.csv b.csv) or repeated"),
+    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
+                                         "folder; several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
     method: str = typer.Option("ols", help="ols | wls | lmi (physically consistent) | svd"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
@@ -97,7 +97,7 @@ def identify(
                                                      "an address: wait until this many workers are connected"),
     skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
 ) -> None:
-    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png.
+    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png, report.html.
 
     --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
     from ..estimators import CADModel
@@ -208,6 +208,9 @@ def identify(
         from ..identification.result import write_json_atomic
 
         write_json_atomic(doc, tmp / "result.json")
+        from ..report.html import write_html_report
+
+        write_html_report(tmp, doc)
     d = result.diagnostics
     extra = (f"γ = {d['gamma']:.3g}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
              f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
@@ -428,7 +431,7 @@ def _lmi_kwargs(robot, structure, method, prior, regularization, gamma, ellipsoi
 def _export(result, tmp: Path, doc: dict) -> None:
     """URDF + joint terms; a model that is not a physical body is reported, not exported."""
     from ..errors import SensorlessError as _E
-    from ..export import write_joint_terms, write_urdf
+    from ..export import write_joint_terms
     from ..parameters import JointTerms, check_physical_consistency
 
     reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
@@ -446,7 +449,9 @@ def _export(result, tmp: Path, doc: dict) -> None:
     terms = JointTerms.from_dict({j: {t: v for t, v in d.items() if t in TERM_NAMES} for j, d in result.joint_terms().items()})
     write_joint_terms(terms, tmp / "joint_terms.json")
     try:
-        write_urdf(result.robot, result.inertial_parameters, tmp / "model.urdf", joint_terms=terms)
+        from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf
+
+        _, doc["urdf_export"] = export_urdf(result.robot, result.inertial_parameters, tmp / "model.urdf", joint_terms=terms)
         doc["urdf"] = "model.urdf"
     except _E as exc:
         doc["urdf"] = None

@@ -11,6 +11,7 @@ from .outliers import check_outliers, drop_outliers, find_outliers, handle_outli
 from .integral_filter import LowpassChain, observer_filter
 from .readers import read_trajectory, write_npz
 from .resample import Timing, resample, timing
+from .rosbag import is_rosbag, read_rosbag
 from .trajectory import Trajectory
 from .validation import validate_trajectory
 
@@ -19,6 +20,8 @@ __all__ = [
     "observer_filter",
     "Trajectory",
     "read_trajectory",
+    "read_rosbag",
+    "is_rosbag",
     "write_npz",
     "validate_trajectory",
     "lowpass",

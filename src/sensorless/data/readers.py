@@ -1,4 +1,4 @@
-"""Read logs (CSV/TXT, NPZ, Parquet, HDF5) into a validated :class:`Trajectory`.
+"""Read logs (CSV/TXT, NPZ, Parquet, HDF5; ROS bags and MCAP via :mod:`.rosbag`) into a validated :class:`Trajectory`.
 
 Fields are ``t, q, v, a, tau`` (plus ``current``, ``command`` → ``extras`` and
 ``base_q, base_v, base_a``). ``columns`` maps a field to where it is stored:
@@ -107,6 +107,13 @@ def read_trajectory(
     src = str(path)
     if not path.exists():
         raise DataError("no such file", src)
+    from .rosbag import is_rosbag, read_rosbag, rosbag_options
+
+    if is_rosbag(path):  # ROS 1/2 bag or MCAP: topics instead of columns (sensorless.data.rosbag)
+        if gains is not None or rate is not None or time_unit is not None:
+            raise DataError("gains, rate and time_unit do not apply to a ROS bag (its stamps are in seconds)", src)
+        return read_rosbag(path, joint_names=joint_names, robot=robot, allow_duplicate_times=allow_duplicate_times,
+                           outliers=outliers, **rosbag_options(columns, src))
     if not path.is_file():
         raise DataError("not a regular file", src)
     kind = SUPPORTED_EXTENSIONS.get(path.suffix.lower())

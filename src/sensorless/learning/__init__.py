@@ -15,6 +15,7 @@ from .mlp import (
     train_network,
 )
 from .models import HybridModel, LearnedTorqueModel, MLPTorqueModel, ParameterModel
+from .validated import ValidatedHybridModel, residual_scale
 
 __all__ = [
     "MLP",
@@ -26,10 +27,12 @@ __all__ = [
     "PerJointMLP",
     "Standardizer",
     "TrainConfig",
+    "ValidatedHybridModel",
     "WindowFeatures",
     "build_network",
     "deterministic_torch",
     "load_network",
+    "residual_scale",
     "save_network",
     "sliding_window",
     "train_network",

@@ -182,9 +182,12 @@ def _validation_mask(n: int, cfg: TrainConfig, rng: np.random.Generator) -> np.n
     return mask
 
 
-def train_network(net: nn.Module, X: np.ndarray, Y: np.ndarray, cfg: TrainConfig) -> dict:
+def train_network(net: nn.Module, X: np.ndarray, Y: np.ndarray, cfg: TrainConfig,
+                  validation: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
     """Fit ``net`` to standardised (X, Y) in place; return the training history.
 
+    ``validation`` = (X_val, Y_val), standardised alike (e.g. another trajectory), replaces the
+    block split of ``X`` for early stopping: every sample of ``X`` is then trained on.
     Call inside :func:`deterministic_torch` (and build ``net`` there) for reproducible weights.
     """
     X = np.asarray(X, dtype=np.float32)
@@ -194,9 +197,13 @@ def train_network(net: nn.Module, X: np.ndarray, Y: np.ndarray, cfg: TrainConfig
     if X.shape[0] < 4:
         raise DataError(f"too few samples to train a network ({X.shape[0]})")
     rng = np.random.default_rng(cfg.seed)
-    val = _validation_mask(X.shape[0], cfg, rng)
-    Xt, Yt = torch.from_numpy(X[~val]), torch.from_numpy(Y[~val])
-    Xv, Yv = torch.from_numpy(X[val]), torch.from_numpy(Y[val])
+    if validation is None:
+        val = _validation_mask(X.shape[0], cfg, rng)
+        Xt, Yt = torch.from_numpy(X[~val]), torch.from_numpy(Y[~val])
+        Xv, Yv = torch.from_numpy(X[val]), torch.from_numpy(Y[val])
+    else:
+        Xt, Yt = torch.from_numpy(X), torch.from_numpy(Y)
+        Xv, Yv = (torch.from_numpy(np.asarray(a, dtype=np.float32)) for a in validation)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=cfg.lr_factor, patience=cfg.lr_patience, min_lr=cfg.min_lr)
     gen = torch.Generator().manual_seed(cfg.seed)
