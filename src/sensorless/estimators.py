@@ -160,7 +160,8 @@ def _structure_from_settings(settings: dict, doc: dict, robot: Robot) -> ModelSt
         if not isinstance(by_joint, dict) or not all(isinstance(t, list) for t in by_joint.values()):
             raise TypeError(f"settings.joint_terms_by_joint must map joints to lists of terms, got {by_joint!r}")
         common["per_joint_terms"] = {j: tuple(t) for j, t in by_joint.items()}
-    for key, name in (("coulomb_smoothing_by_joint", "coulomb_smoothing"), ("stribeck_velocity", "stribeck_velocity")):
+    for key, name in (("coulomb_smoothing_by_joint", "coulomb_smoothing"), ("stribeck_velocity", "stribeck_velocity"),
+                      ("rest_velocity", "rest_velocity")):
         val = settings.get(key)
         if val is not None:
             if not isinstance(val, dict):

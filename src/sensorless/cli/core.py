@@ -83,8 +83,10 @@ def identify(
                                     "confounded with m·g on standing data)"),
     imu_frame: Optional[str] = typer.Option(None, help="model frame of the accelerometer ('imu_acc'): rotation and "
                                             "lever arm from the model, on any body (e.g. imu_link)"),
-    coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: per "
-                                          "joint from the velocity and torque noise (docs/arm.md §7)"),
+    coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
+                                          "the joint's velocity noise (docs/arm.md §7)"),
+    rest_velocity: str = typer.Option("auto", help="δ [rad/s]: |v| ≤ δ is rest, no Coulomb/Stribeck friction there (no "
+                                      "chatter at rest); 0 = off; auto: 5 × the joint's velocity noise (docs/arm.md §7)"),
     stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (1-D search "
                                           "per joint)"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
@@ -104,7 +106,8 @@ def identify(
     from ..identification import identify as _identify
     from ..report import metrics_table, plot_torques
 
-    coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
+    coulomb_smoothing, stribeck_velocity, rest_velocity = _friction_options(coulomb_smoothing, stribeck_velocity,
+                                                                             rest_velocity)
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
@@ -140,7 +143,8 @@ def identify(
             train = _first_training_log(data, r, prep) if not val else []
         else:
             total = sum(len(t) for t in train)
-            friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
+            friction = _plain(structure) and (coulomb_smoothing == "auto" or rest_velocity == "auto"
+                                              or bool(rest_velocity) or "stribeck" in structure.joint_terms)
             with progress_bar() as bar:
                 task = bar.add_task("regressor", total=total * (2 if friction else 1))
                 kw = dict(method=method, progress=lambda n: bar.advance(task, n), outliers="keep", **lmi_kw)
@@ -148,10 +152,12 @@ def identify(
                     if friction:
                         from ..identification.friction import identify_friction
 
-                        raw = (load_logs(data, r, **{**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto"
+                        raw = (load_logs(data, r, **{**prep, "lowpass": None})
+                               if lowpass and "auto" in (coulomb_smoothing, rest_velocity)
                                else None)  # noise is measured before the low-pass colours it
                         result, fit = identify_friction(structure, train, coulomb_smoothing=coulomb_smoothing,
-                                                        stribeck_velocity=stribeck_velocity, identify_kwargs=kw,
+                                                        stribeck_velocity=stribeck_velocity,
+                                                        rest_velocity=rest_velocity, identify_kwargs=kw,
                                                         noise_logs=raw, lowpass_hz=lowpass)
                         structure = result.structure
                         result.settings["friction"] = fit.to_dict()
@@ -270,10 +276,11 @@ def _plain(structure) -> bool:
     return type(structure) is ModelStructure
 
 
-def _friction_options(coulomb_smoothing: str, stribeck_velocity: str):
-    """--coulomb-smoothing / --stribeck-velocity as 'auto' or a number (OptionError otherwise)."""
+def _friction_options(coulomb_smoothing: str, stribeck_velocity: str, rest_velocity: str = "0"):
+    """--coulomb-smoothing / --stribeck-velocity / --rest-velocity as 'auto' or a number (OptionError otherwise)."""
     out = []
-    for flag, text in (("--coulomb-smoothing", coulomb_smoothing), ("--stribeck-velocity", stribeck_velocity)):
+    for flag, text in (("--coulomb-smoothing", coulomb_smoothing), ("--stribeck-velocity", stribeck_velocity),
+                       ("--rest-velocity", rest_velocity)):
         if str(text).strip().lower() == "auto":
             out.append("auto")
             continue

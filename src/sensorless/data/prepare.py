@@ -37,10 +37,21 @@ from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError, validate_trajectory
 
-__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES"]
+__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
+           "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
 
-#: Savitzky–Golay window [samples] when none is given (polynomial order 3).
+#: Savitzky–Golay window [samples] when none is given (polynomial order 3): the larger of this
+#: and DEFAULT_DERIVATIVE_SECONDS at the log's rate (:func:`default_savgol_window`).
 DEFAULT_SAVGOL_WINDOW = 11
+#: default derivative window [s]: 0.2 s (21 samples at 100 Hz) passes motion up to ~6 Hz and
+#: keeps the v̇ noise × inertia of a big joint below its torque noise on a 100 Hz arm
+DEFAULT_DERIVATIVE_SECONDS = 0.2
+
+
+def default_savgol_window(rate: float) -> int:
+    """Default Savitzky–Golay window [samples, odd] at ``rate`` [Hz]: max(11, 0.2 s)."""
+    n = int(round(DEFAULT_DERIVATIVE_SECONDS * float(rate))) if math.isfinite(rate) and rate > 0 else 0
+    return max(DEFAULT_SAVGOL_WINDOW, n + 1 - n % 2)
 VELOCITY_SOURCES = ("logged", "from-q")
 _POLYORDER = 3
 
@@ -167,7 +178,8 @@ def prepare(
     """Trim, resample, low-pass, differentiate and decimate ``traj`` (module docstring).
 
     ``savgol_window`` [samples, odd] re-derives v̇ (and v when it comes from q) even if
-    logged; default :data:`DEFAULT_SAVGOL_WINDOW` when a derivative is missing.
+    logged; default :func:`default_savgol_window` (0.2 s, at least 11 samples) when a
+    derivative is missing.
     """
     src = traj.source
     mode = parse_resample(resample)
@@ -214,7 +226,8 @@ def prepare(
         traj = _lowpass(traj, lowpass)
         traj = traj.with_(provenance={**traj.provenance, "lowpass_hz": float(lowpass)})
 
-    w = int(savgol_window) if savgol_window is not None else DEFAULT_SAVGOL_WINDOW
+    w = int(savgol_window) if savgol_window is not None else default_savgol_window(
+        1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 and np.median(np.diff(traj.t)) > 0 else float("nan"))
     if derive_v:
         traj = savgol_derivatives(traj, window=w, polyorder=_POLYORDER)
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"

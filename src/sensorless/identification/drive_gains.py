@@ -13,6 +13,16 @@ where they belong (regressing y on d would be biased low by the current noise);
 K_j = 1/c_j. The unloaded run is interpolated at the loaded run's times (both measured
 from their first sample; ``align="rows"`` pairs samples by index instead).
 
+Velocity reversals. Friction jumps by about 2 fs where a joint's velocity changes sign;
+the two runs' clocks never line up to the sample (jitter, resampling), so around each
+reversal the difference holds a spike ±2 fs/K that correlates with the payload's inertial
+torque (∝ v̇, largest there) and biases K (several % on a wrist). The samples within
+``reversal_seconds`` (default :data:`REVERSAL_SECONDS`, 0.1 s: a joint accelerating at a few
+rad/s² is then past the Stribeck region, whose steep friction slope turns a clock offset of
+a millisecond into a torque error) of a sign change of v (in either run) are left out of
+that joint's fit, which also drops a joint at rest (v is noise around 0; static friction
+there differs between the runs anyway).
+
 Uncertainty. The residual ε is not white (misalignment between the runs, unmodelled
 load-dependent friction): an i.i.d. bootstrap is far too narrow. Reported are a moving
 block bootstrap (blocks of ``block_seconds``, default: 4 × the lag where the residual
@@ -33,6 +43,8 @@ from .payload import payload_regressor, point_mass_parameters
 
 __all__ = ["DriveGains", "align_pair", "identify_drive_gains", "payload_torque"]
 
+#: samples within this time [s] of a velocity reversal are left out of a joint's fit (module docstring)
+REVERSAL_SECONDS = 0.1
 #: a joint whose gain has a relative std above this is reported as not identified
 MAX_RELATIVE_STD = 0.2
 
@@ -127,6 +139,24 @@ def align_pair(load: Trajectory, ref: Trajectory) -> tuple[Trajectory, Trajector
     return load, ref.with_(t=load.t.copy(), extras=extras, **fields)
 
 
+def _near_reversal(v: np.ndarray, width: int) -> np.ndarray:
+    """(N, n) bool: within ``width`` samples of a sign change of v (column-wise)."""
+    from scipy.ndimage import maximum_filter1d
+
+    s = np.sign(v)
+    change = np.zeros(v.shape, dtype=bool)
+    change[1:] = s[1:] != s[:-1]
+    change[:-1] |= change[1:]
+    return maximum_filter1d(change.astype(np.uint8), size=2 * width + 1, axis=0).astype(bool)
+
+
+def _act_v(robot: Robot, traj: Trajectory) -> "np.ndarray | None":
+    if traj.v is None:
+        return None
+    names = list(traj.joint_names)
+    return np.asarray(traj.v, dtype=float)[:, [names.index(j) for j in robot.actuated_joints]]
+
+
 def _fit(y: np.ndarray, d: np.ndarray, offset: bool) -> tuple[float, float, np.ndarray]:
     X = np.column_stack([y, np.ones_like(y)]) if offset else y[:, None]
     coef, *_ = np.linalg.lstsq(X, d, rcond=None)
@@ -144,9 +174,11 @@ def _decorrelation_lag(e: np.ndarray) -> int:
     return int(below[0]) if below.size else n
 
 
-def _hac_var(y: np.ndarray, e: np.ndarray, L: int, offset: bool) -> float:
-    """Newey–West variance of the slope (Bartlett kernel, bandwidth L)."""
-    X = np.column_stack([y, np.ones_like(y)]) if offset else y[:, None]
+def _hac_var(y: np.ndarray, e: np.ndarray, L: int, offset: bool, use: "np.ndarray | None" = None) -> float:
+    """Newey–West variance of the slope (Bartlett kernel, bandwidth L); samples with
+    ``use`` False are zero rows (left out, their time slot kept)."""
+    one = np.ones_like(y) if use is None else use.astype(float)
+    X = np.column_stack([y, one]) if offset else y[:, None]
     u = X * e[:, None]
     S = u.T @ u
     for lag in range(1, min(L, len(e) - 1) + 1):
@@ -170,6 +202,7 @@ def identify_drive_gains(
     block_seconds: float | None = None,
     n_boot: int = 1000,
     seed: int = 0,
+    reversal_seconds: float | None = None,
 ) -> DriveGains:
     """Drive gains from an unloaded/loaded pair of logs holding currents (module docstring)."""
     if not (np.isfinite(payload_mass) and payload_mass > 0):
@@ -185,14 +218,26 @@ def identify_drive_gains(
     dt = float(np.median(np.diff(loaded.t)))
     joints = list(robot.actuated_joints)
     nj = len(joints)
+    width = max(1, int(round((REVERSAL_SECONDS if reversal_seconds is None else reversal_seconds) / dt)))
+    use = np.ones((n, nj), dtype=bool)  # per joint: away from velocity reversals (module docstring)
+    v_l, v_u = _act_v(robot, loaded), _act_v(robot, unloaded)
+    if v_l is not None:
+        use &= ~_near_reversal(v_l, width)[mask]
+    if v_u is not None:
+        v_u_at, _ = _align(unloaded, loaded, v_u, align)
+        use &= ~_near_reversal(np.nan_to_num(v_u_at), width)[mask]
+    y, d = np.where(use, y, 0.0), np.where(use, d, 0.0)  # a left-out sample weighs 0 in every sum below
     c, b, res = np.zeros(nj), np.zeros(nj), np.zeros((n, nj))
     yrms0 = np.sqrt(np.mean(y**2, axis=0))
-    seen = yrms0 > 1e-9 * max(float(yrms0.max()), 1e-300)  # a joint the payload exerts no torque on: no gain
+    seen = (yrms0 > 1e-9 * max(float(yrms0.max()), 1e-300)) & (use.sum(0) >= 50)  # no payload torque: no gain
     for k in range(nj):
+        u = use[:, k]
         if seen[k]:
-            c[k], b[k], res[:, k] = _fit(y[:, k], d[:, k], offset)
+            c[k], b[k], r = _fit(y[u, k], d[u, k], offset)
         else:
-            c[k], b[k], res[:, k] = np.nan, float(np.mean(d[:, k])) if offset else 0.0, d[:, k] - np.mean(d[:, k])
+            c[k], b[k] = np.nan, float(np.mean(d[u, k])) if offset and u.any() else 0.0
+            r = d[u, k] - b[k]
+        res[u, k] = r
     if block_seconds is None:
         lag = max(_decorrelation_lag(res[:, k]) for k in range(nj))
         L = int(max(4 * lag, round(1.0 / dt)))
@@ -200,13 +245,13 @@ def identify_drive_gains(
         L = int(max(1, round(block_seconds / dt)))
     L = min(L, max(n // 8, 1))
     # HAC std of c, then of K = 1/c (delta method)
-    std_c_hac = np.array([np.sqrt(max(_hac_var(y[:, k], res[:, k], L, offset), 0.0)) for k in range(nj)])
+    std_c_hac = np.array([np.sqrt(max(_hac_var(y[:, k], res[:, k], L, offset, use[:, k]), 0.0)) for k in range(nj)])
     # moving block bootstrap on the normal-equation sums of each block start
     rng = np.random.default_rng(seed)
     starts = np.arange(0, n - L + 1)
     n_blocks = int(np.ceil(n / L))
     cs = np.cumsum(np.vstack([np.zeros((1, nj, 5)),
-                              np.stack([y * y, y * d, y, d, np.ones_like(y)], axis=2)]), axis=0)  # (n+1, nj, 5)
+                              np.stack([y * y, y * d, y, d, use.astype(float)], axis=2)]), axis=0)  # (n+1, nj, 5)
     block = cs[starts + L] - cs[starts]  # (n_starts, nj, 5)
     boot_c = np.empty((n_boot, nj))
     np_err = np.errstate(divide="ignore", invalid="ignore")
@@ -231,6 +276,8 @@ def identify_drive_gains(
     return DriveGains(
         joints=joints, gains=K, std=std_K, interval=np.column_stack([lo, hi]), identified=ident, offset=b,
         diagnostics={"n_samples": n, "block_samples": L, "block_seconds": L * dt,
+                     "samples_used": dict(zip(joints, map(int, use.sum(0)))),
+                     "reversal_samples": width,
                      "payload_torque_rms": dict(zip(joints, map(float, yrms))),
                      "residual_rms_current": dict(zip(joints, map(float, res.std(axis=0)))),
                      "std_hac": dict(zip(joints, map(float, std_c_hac / c**2))),

@@ -5,24 +5,29 @@ Friction model of joint j (linear terms are regressor columns, see
 
     τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o.
 
-**Coulomb smoothing ε from noise.** The noise of a signal x is the high-frequency part
-of it, the residual of a Savitzky–Golay fit, r = x − S x. For white noise of std σ,
-var r = σ² (1 − c₀) with c₀ the centre coefficient of the smoother, so
+**Noise, rest and smoothing (the defaults).** The noise of a signal x is the
+high-frequency part of it, the residual of a Savitzky–Golay fit, r = x − S x. For white
+noise of std σ, var r = σ² (1 − c₀) with c₀ the centre coefficient of the smoother, so
 σ̂ = 1.4826 · MAD(r) / √(1 − c₀) (robust to the motion's own residual at reversals).
-A robot at rest has v = noise n, so the model torque fs · tanh(n/ε) chatters with std
-≈ fs σ_v / ε (ε ≫ σ_v), fs the friction at v → 0⁺ (fc + (fs − fc)) of a first fit. ε is
-
-    ε = max(k σ_v, 2 fs σ_v / σ_τ),   at most ``max_fraction`` · P95(|v|),
-
-at least k (default 3) velocity-noise stds, and large enough that the predicted chatter
-at rest stays below σ_τ / 2 (σ_τ: the torque noise, estimated the same way). The target
-is a residual at rest √(σ_τ² + chatter²) of at most 2 σ_τ; the factor 2 is a margin for
-the velocity noise the white-noise estimate misses (resampling, low-pass edges: measured
-up to 1.5× on the simulated UR10 of :mod:`sensorless.experiments.real_arm`). ε = 0 (sgn) when v has no noise.
 A low-pass filter colours the noise (the estimate above would miss it): the noise is then
 measured on the unfiltered logs (``noise_logs``) and σ_v scaled by √(B/(f_s/2)), B the
 noise bandwidth ∫|H(f)|⁴ df of the zero-phase Butterworth filter at ``lowpass_hz``
-(:func:`lowpass_noise_gain`); σ_τ stays the unfiltered torque noise.
+(:func:`lowpass_noise_gain`).
+
+A robot at rest has v = noise n, and a sliding-friction model fs sgn(n) chatters by fs,
+far above the torque noise on a geared arm (fs of several N·m against σ_τ ~ 0.05 N·m).
+Smoothing alone cannot fix it without blurring the friction in motion (chatter ≈ fs σ_v / ε
+needs ε ≳ 2 fs σ_v / σ_τ, tens of σ_v, wider than a Stribeck bump). So, by default:
+
+* **rest velocity** δ = ``REST_SIGMAS`` σ_v (5): |v| ≤ δ is rest, where the Coulomb and
+  Stribeck columns are 0 (a Gaussian velocity noise exceeds 5 σ once in ~2·10⁶ samples;
+  friction between 0 and δ is lost, δ ≪ any Stribeck velocity);
+* **Coulomb smoothing** ε = ``factor`` σ_v (3): tanh(v/ε) only averages the sign over the
+  velocity noise in motion.
+
+:func:`coulomb_smoothing_from_noise` with ``sigma_tau``/``static_friction`` is the rule for
+a model without a rest gate (``rest_velocity=0``): ε = max(k σ_v, 2 fs σ_v / σ_τ),
+at most ``max_fraction`` · P95(|v|), so that the chatter at rest stays below σ_τ / 2.
 
 **Stribeck velocity.** vs enters nonlinearly. With the rigid-body part fixed at a first
 fit, the friction residual of each joint, r_j = τ_j − [Y π]_j − Ia_j v̇_j, is linear in
@@ -51,12 +56,15 @@ __all__ = [
     "friction_residual",
     "identify_friction",
     "lowpass_noise_gain",
+    "REST_SIGMAS",
     "search_stribeck_velocity",
     "signal_noise",
 ]
 
 #: relative grid of Stribeck velocities (× P95 |v| of the joint)
 STRIBECK_GRID = np.geomspace(0.005, 0.5, 25)
+#: rest velocity δ = REST_SIGMAS · σ_v (module docstring)
+REST_SIGMAS = 5.0
 #: the Stribeck bump must be wider than the Coulomb smoothing (vs ≥ this × ε): a narrower
 #: one would only fit the sign chatter of a joint at rest
 MIN_STRIBECK_OVER_SMOOTHING = 3.0
@@ -181,6 +189,8 @@ class FrictionFit:
     torque_noise: dict[str, float] | None = None
     stribeck_velocity: dict[str, float] | None = None
     stribeck_search: dict | None = None
+    rest_velocity: dict[str, float] | None = None
+    rest_velocity_mode: str = "off"
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -192,19 +202,22 @@ def identify_friction(
     *,
     coulomb_smoothing: "str | float" = "auto",
     stribeck_velocity: "str | float | dict" = "auto",
+    rest_velocity: "str | float" = "auto",
     factor: float = 3.0,
     identify_kwargs: dict | None = None,
     noise_logs: Iterable[Trajectory] | None = None,
     lowpass_hz: float | None = None,
 ):
-    """Identify with noise-aware Coulomb smoothing and searched Stribeck velocities.
+    """Identify with noise-aware Coulomb smoothing, a rest gate and searched Stribeck velocities.
 
-    ``coulomb_smoothing``: "auto" (module docstring) or ε for every joint (0 = sgn).
-    ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck`` term) or vs.
-    ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training logs
-    went through (module docstring); default: the noise of the training logs as they are.
-    Runs :func:`~sensorless.identification.identify` once when nothing is automatic, else
-    a first least-squares fit, the choice, and the final fit with ``identify_kwargs``. Returns ``(result, FrictionFit)``.
+    ``coulomb_smoothing``: "auto" (ε = ``factor`` σ_v, module docstring) or ε for every joint
+    (0 = sgn). ``rest_velocity``: "auto" (δ = :data:`REST_SIGMAS` σ_v) or δ for every joint
+    (0 = no rest gate). ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck``
+    term) or vs. ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training
+    logs went through (module docstring); default: the noise of the training logs as they are.
+    Runs :func:`~sensorless.identification.identify` once when vs is not searched, else a first
+    least-squares fit, the search, and the final fit with ``identify_kwargs``. Returns
+    ``(result, FrictionFit)``.
     """
     from .identify import identify
 
@@ -212,23 +225,25 @@ def identify_friction(
     kw = dict(identify_kwargs or {})
     joints = list(structure.robot.actuated_joints)
     has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
-    auto_eps = isinstance(coulomb_smoothing, str)
+    for name, val in (("coulomb_smoothing", coulomb_smoothing), ("rest_velocity", rest_velocity)):
+        if isinstance(val, str) and val != "auto":
+            raise DataError(f"{name} must be 'auto' or a number >= 0, got {val!r}")
+    auto_eps, auto_rest = isinstance(coulomb_smoothing, str), isinstance(rest_velocity, str)
     auto_vs = isinstance(stribeck_velocity, str) and bool(has_stribeck)
-    v_all, speed, sigma_v = None, None, None
-    if auto_eps or auto_vs:
+    speed, sigma_v = None, None
+    if auto_eps or auto_rest or auto_vs:
         v_all = [_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in train]
         speed = np.percentile(np.abs(np.concatenate(v_all)), 95, axis=0)
         speed = np.where(speed > 0, speed, 1.0)
-    if auto_eps:
-        if coulomb_smoothing != "auto":
-            raise DataError(f"coulomb_smoothing must be 'auto' or a number >= 0, got {coulomb_smoothing!r}")
+    if auto_eps or auto_rest:
         raw = list(noise_logs) if noise_logs is not None else train
         sigma_v = _pooled_noise([_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in raw])
         if lowpass_hz:
             sigma_v = sigma_v * lowpass_noise_gain(lowpass_hz, float(np.median([t.rate for t in train])))
-        eps = coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor)
-    else:
-        eps = np.full(len(joints), float(coulomb_smoothing))
+    eps = (coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor) if auto_eps
+           else np.full(len(joints), float(coulomb_smoothing)))
+    rest = (coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=REST_SIGMAS) if auto_rest
+            else np.full(len(joints), float(rest_velocity)))
     if isinstance(stribeck_velocity, str):
         if stribeck_velocity != "auto":
             raise DataError(f"stribeck_velocity must be 'auto' or a number > 0, got {stribeck_velocity!r}")
@@ -238,53 +253,42 @@ def identify_friction(
     else:
         vs = {j: float(stribeck_velocity) for j in has_stribeck} or None
 
-    def build(eps_arr, vs_map) -> ModelStructure:
-        return dataclasses.replace(structure, coulomb_smoothing=dict(zip(joints, map(float, eps_arr))),
-                                   stribeck_velocity=vs_map, per_joint_terms=_per_joint_terms(structure))
+    def build(vs_map) -> ModelStructure:
+        return dataclasses.replace(structure, coulomb_smoothing=dict(zip(joints, map(float, eps))),
+                                   stribeck_velocity=vs_map, per_joint_terms=_per_joint_terms(structure),
+                                   rest_velocity={j: float(d) for j, d in zip(joints, rest) if d > 0} or None)
 
-    s = build(eps, vs)
-    if auto_eps or auto_vs:  # the first fit only chooses ε and vs: ordinary least squares is enough
-        first_kw = {k: v for k, v in kw.items() if k in ("weights", "chunk", "progress", "outliers")}
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the final fit reports identifiability
-            result = identify(s, train, method="ols", **first_kw)
-    else:
-        result = identify(s, train, **kw)
+    s = build(vs)
     fit = FrictionFit(coulomb_smoothing=dict(zip(joints, map(float, eps))),
-                      coulomb_smoothing_mode="auto" if auto_eps else "given",
-                      stribeck_velocity=vs)
-    if not (auto_eps or auto_vs):
-        return result, fit
-    p = result.parameters
-    if auto_eps:
-        sigma_tau = _pooled_noise([s.target(t)[:, s.actuated_rows] for t in raw])
-        f0 = np.zeros(len(joints))  # friction at v → 0⁺ without the offset: fc + (fs − fc)
-        for k, j in enumerate(joints):
-            for t in ("fc", "stribeck"):
-                if t in s.terms_of(j):
-                    f0[k] += p[s.joint_term_index(j, t)]
-        eps = coulomb_smoothing_from_noise(sigma_v, sigma_tau=sigma_tau, static_friction=f0, speed=speed, factor=factor)
+                      coulomb_smoothing_mode="auto" if auto_eps else "given", stribeck_velocity=vs,
+                      rest_velocity=dict(zip(joints, map(float, rest))),
+                      rest_velocity_mode="auto" if auto_rest else ("given" if np.any(rest > 0) else "off"))
+    if sigma_v is not None:
         fit.velocity_noise = dict(zip(joints, map(float, sigma_v)))
-        fit.torque_noise = dict(zip(joints, map(float, sigma_tau)))
-        fit.coulomb_smoothing = dict(zip(joints, map(float, eps)))
-    if auto_vs:
-        pairs = [friction_residual(s, p, t) for t in train]
-        V = np.concatenate([a for a, _ in pairs])
-        R = np.concatenate([b for _, b in pairs])
-        fit.stribeck_search = {}
-        for k, j in enumerate(joints):
-            if j not in has_stribeck:
-                continue
-            grid = STRIBECK_GRID * speed[k]
-            grid = grid[grid >= MIN_STRIBECK_OVER_SMOOTHING * eps[k]] if np.any(grid >= MIN_STRIBECK_OVER_SMOOTHING * eps[k]) \
-                else grid[-1:]
-            best, sse = search_stribeck_velocity(V[:, k], R[:, k], eps=float(eps[k]), terms=s.terms_of(j), grid=grid)
-            vs[j] = best
-            fit.stribeck_search[j] = {"grid": grid.tolist(), "sse": sse.tolist()}
-        fit.stribeck_velocity = vs
-    s = build(eps, vs)
-    result = identify(s, train, **kw)
-    return result, fit
+        fit.torque_noise = dict(zip(joints, map(float, _pooled_noise([s.target(t)[:, s.actuated_rows] for t in raw]))))
+    if not auto_vs:
+        return identify(s, train, **kw), fit
+    first_kw = {k: v for k, v in kw.items() if k in ("weights", "chunk", "progress", "outliers")}
+    with warnings.catch_warnings():  # the first fit only chooses vs: ordinary least squares is enough
+        warnings.simplefilter("ignore")  # the final fit reports identifiability
+        p = identify(s, train, method="ols", **first_kw).parameters
+    pairs = [friction_residual(s, p, t) for t in train]
+    V = np.concatenate([a for a, _ in pairs])
+    R = np.concatenate([b for _, b in pairs])
+    fit.stribeck_search = {}
+    for k, j in enumerate(joints):
+        if j not in has_stribeck:
+            continue
+        grid = STRIBECK_GRID * speed[k]
+        lo = MIN_STRIBECK_OVER_SMOOTHING * max(eps[k], rest[k])
+        grid = grid[grid >= lo] if np.any(grid >= lo) else grid[-1:]
+        moving = np.abs(V[:, k]) > rest[k]  # the rest samples carry no friction information
+        best, sse = search_stribeck_velocity(V[moving, k], R[moving, k], eps=float(eps[k]), terms=s.terms_of(j),
+                                             grid=grid)
+        vs[j] = best
+        fit.stribeck_search[j] = {"grid": grid.tolist(), "sse": sse.tolist()}
+    fit.stribeck_velocity = vs
+    return identify(build(vs), train, **kw), fit
 
 
 def _per_joint_terms(structure: ModelStructure):

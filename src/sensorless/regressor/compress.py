@@ -151,7 +151,11 @@ def compress(
                 continue
             Q, V, A = structure.state(part)
             Wb = structure.body_regressor(Q, V, A, out=buf)
-            ne.add_blocks(Wb, structure.joint_features(V, A), structure.actuated_rows, structure.target(part))
+            F, y = structure.joint_features(V, A), structure.target(part)
+            keep = structure.fit_mask(V) if hasattr(structure, "fit_mask") else None
+            if keep is not None:  # equations left out of the fit (a joint at rest): zero rows
+                Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.actuated_rows, None], y * keep
+            ne.add_blocks(Wb, F, structure.actuated_rows, y)
             if progress is not None:
                 progress(len(part))
     if not seen:

@@ -14,6 +14,14 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
 
       τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o.
 
+  With a rest velocity δ_j > 0 (``rest_velocity``) the two sign columns are 0 where
+  |v| ≤ δ_j: a joint whose velocity is within the noise of zero is at rest, and a joint
+  at rest has no sliding friction (static friction holds whatever is needed, 0 here), so
+  the model does not chatter through sgn(noise) at rest. The equations of a joint within
+  its rest velocity are also left out of the fit (:meth:`ModelStructure.fit_mask`): the
+  friction there is indeterminate (at rest static friction holds anything in ±fs, and a
+  slow motion lost in the noise has ±fs), so they would only bias the other parameters.
+
 * Terms may differ per joint (``joint_terms={"j1": ("fv",), "*": ("fv", "fc")}``). The
   column block of every joint still holds the union of the terms (same layout for all
   joints); a term a joint does not have is a zero column, so its parameter is fixed at 0
@@ -116,6 +124,7 @@ class ModelStructure:
     rows: Literal["actuated", "all"] | None = None
     per_joint_terms: dict | None = None
     stribeck_velocity: dict | None = None
+    rest_velocity: dict | None = None
     labels: list[str] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -140,6 +149,7 @@ class ModelStructure:
         elif not (np.isfinite(self.coulomb_smoothing) and self.coulomb_smoothing >= 0):
             raise RobotModelError(f"coulomb_smoothing must be a finite number >= 0, got {self.coulomb_smoothing!r}")
         self.stribeck_velocity = _per_joint(self.stribeck_velocity, joints, "stribeck_velocity") or None
+        self.rest_velocity = _per_joint(self.rest_velocity, joints, "rest_velocity") or None
         need = [j for j in joints if "stribeck" in self.terms_of(j)]
         if need:  # vs of joints not given: DEFAULT_STRIBECK_VELOCITY (identification.friction searches it)
             vs = dict(self.stribeck_velocity or {})
@@ -265,13 +275,15 @@ class ModelStructure:
 
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """Joint-term block, shape (N, n_actuated, n_terms): [v, sgn v, e^{−(v/vs)²} sgn v, 1, v̇]
-        per actuated joint (sgn v = tanh(v/ε) for ε > 0); zero where a joint lacks a term."""
+        per actuated joint (sgn v = tanh(v/ε) for ε > 0, and 0 for |v| ≤ δ, the rest velocity);
+        zero where a joint lacks a term."""
         v = V[:, self._act]
         if not self.joint_terms:
             return np.zeros(v.shape + (0,))
         joints = self.robot.actuated_joints
         eps = np.array([self.smoothing_of(j) for j in joints])
-        sgn = (lambda: np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)))
+        rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in joints])
+        sgn = (lambda: np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)) * (np.abs(v) > rest))
         vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
         cols = {
             "fv": lambda: v,
@@ -284,6 +296,19 @@ class ModelStructure:
         if getattr(self, "per_joint_terms", None) is not None:
             F *= self.term_mask[None, :, :]
         return F
+
+    def fit_mask(self, V: np.ndarray) -> "np.ndarray | None":
+        """(N, n_rows) 0/1 weights of the equations in the fit: 0 on a joint's row where
+        |v| ≤ its rest velocity (module docstring); None when no joint has one."""
+        rest = getattr(self, "rest_velocity", None)
+        if not rest:
+            return None
+        keep = np.ones((V.shape[0], self.n_rows))
+        v = V[:, self._act]
+        for k, j in enumerate(self.robot.actuated_joints):
+            if rest.get(j, 0.0) > 0:
+                keep[:, self.actuated_rows[k]] = np.abs(v[:, k]) > rest[j]
+        return keep
 
     @property
     def actuated_rows(self) -> np.ndarray:
@@ -331,6 +356,8 @@ class ModelStructure:
             out["joint_terms_by_joint"] = {j: list(t) for j, t in self.per_joint_terms.items()}
         if getattr(self, "stribeck_velocity", None):
             out["stribeck_velocity"] = dict(self.stribeck_velocity)
+        if getattr(self, "rest_velocity", None):
+            out["rest_velocity"] = dict(self.rest_velocity)
         return out
 
 
