@@ -184,7 +184,7 @@ def max_gap_option(default: Optional[float] = None):
 
 
 def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
-                           decimate, max_gap) -> dict:
+                           decimate, max_gap, rest="auto") -> dict:
     """settings.preprocessing for result.json: the options (gains resolved per joint name,
     column map parsed, gain suffix moved to ``gains``) and each log's provenance."""
     from ..data.gains import split_gain_modifiers
@@ -194,7 +194,7 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
     resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
     return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
             "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
-            "trim": trim, "decimate": decimate}
+            "trim": trim, "decimate": decimate, "rest": rest}
 
 
 def model_preprocessing(result_json: Path, **given) -> dict:

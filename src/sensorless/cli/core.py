@@ -85,8 +85,9 @@ def identify(
                                             "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
                                           "the joint's velocity noise (docs/arm.md §7)"),
-    rest_velocity: str = typer.Option("auto", help="δ [rad/s]: |v| ≤ δ is rest, no Coulomb/Stribeck friction there (no "
-                                      "chatter at rest); 0 = off; auto: 5 × the joint's velocity noise (docs/arm.md §7)"),
+    rest: str = typer.Option("auto", help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
+                             "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
+                             "remembers it) | off (docs/arm.md §7)"),
     stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (1-D search "
                                           "per joint)"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
@@ -106,8 +107,7 @@ def identify(
     from ..identification import identify as _identify
     from ..report import metrics_table, plot_torques
 
-    coulomb_smoothing, stribeck_velocity, rest_velocity = _friction_options(coulomb_smoothing, stribeck_velocity,
-                                                                             rest_velocity)
+    coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
@@ -121,7 +121,8 @@ def identify(
 
     data = [Path(p) for p in expand_paths(data)]
     prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
-                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers)
+                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
+                rest=rest)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior)) as tmp:
         skipped: list = []
         if scheduler is None:
@@ -143,8 +144,7 @@ def identify(
             train = _first_training_log(data, r, prep) if not val else []
         else:
             total = sum(len(t) for t in train)
-            friction = _plain(structure) and (coulomb_smoothing == "auto" or rest_velocity == "auto"
-                                              or bool(rest_velocity) or "stribeck" in structure.joint_terms)
+            friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
             with progress_bar() as bar:
                 task = bar.add_task("regressor", total=total * (2 if friction else 1))
                 kw = dict(method=method, progress=lambda n: bar.advance(task, n), outliers="keep", **lmi_kw)
@@ -153,11 +153,10 @@ def identify(
                         from ..identification.friction import identify_friction
 
                         raw = (load_logs(data, r, **{**prep, "lowpass": None})
-                               if lowpass and "auto" in (coulomb_smoothing, rest_velocity)
+                               if lowpass and coulomb_smoothing == "auto"
                                else None)  # noise is measured before the low-pass colours it
                         result, fit = identify_friction(structure, train, coulomb_smoothing=coulomb_smoothing,
-                                                        stribeck_velocity=stribeck_velocity,
-                                                        rest_velocity=rest_velocity, identify_kwargs=kw,
+                                                        stribeck_velocity=stribeck_velocity, identify_kwargs=kw,
                                                         noise_logs=raw, lowpass_hz=lowpass)
                         structure = result.structure
                         result.settings["friction"] = fit.to_dict()
@@ -171,7 +170,7 @@ def identify(
                                 "preprocessing": preprocessing_settings(
                                     train + val, columns=columns, gains=gains, rate=rate, trim=trim,
                                     resample=resample, lowpass=lowpass, savgol_window=savgol_window,
-                                    velocity=velocity, decimate=decimate, max_gap=max_gap),
+                                    velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest),
                                 "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
                                 if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
         if scheduler is not None or skip_bad:
@@ -276,11 +275,10 @@ def _plain(structure) -> bool:
     return type(structure) is ModelStructure
 
 
-def _friction_options(coulomb_smoothing: str, stribeck_velocity: str, rest_velocity: str = "0"):
-    """--coulomb-smoothing / --stribeck-velocity / --rest-velocity as 'auto' or a number (OptionError otherwise)."""
+def _friction_options(coulomb_smoothing: str, stribeck_velocity: str):
+    """--coulomb-smoothing / --stribeck-velocity as 'auto' or a number (OptionError otherwise)."""
     out = []
-    for flag, text in (("--coulomb-smoothing", coulomb_smoothing), ("--stribeck-velocity", stribeck_velocity),
-                       ("--rest-velocity", rest_velocity)):
+    for flag, text in (("--coulomb-smoothing", coulomb_smoothing), ("--stribeck-velocity", stribeck_velocity)):
         if str(text).strip().lower() == "auto":
             out.append("auto")
             continue

@@ -13,7 +13,10 @@
    v̇ = d/dt v (Savitzky–Golay); only without a logged v are v and v̇ taken from q
    (d/dt q, d²/dt² q). ``velocity="from-q"`` forces the latter. A logged v̇ is kept
    unless ``savgol_window`` is given;
-5. **decimate** (anti-aliased).
+5. **rest** (``rest="auto"``, with a logged v): a joint whose |v| stays within 5 noise stds
+   of zero over the derivative window is at rest, v = v̇ = 0 there
+   (:mod:`sensorless.data.rest`; no friction chatter through sgn(noise) at rest);
+6. **decimate** (anti-aliased).
 
 ``Trajectory.provenance`` records which signals were logged and which derived (and
 how), the drive gains, the trim window, the timing and the resampling.
@@ -33,6 +36,7 @@ from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
 from .filtering import trim as _trim
 from .imu import base_acceleration
+from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError, validate_trajectory
@@ -174,6 +178,7 @@ def prepare(
     decimate: int = 1,
     max_gap: float = DEFAULT_MAX_GAP,
     jitter_tolerance: float = MAX_JITTER,
+    rest: str = "auto",
 ) -> Trajectory:
     """Trim, resample, low-pass, differentiate and decimate ``traj`` (module docstring).
 
@@ -222,6 +227,11 @@ def prepare(
                 f"{' and '.join(steps)} need(s) uniform sampling but resampling is off and the time stamps are not "
                 f"uniform ({now}); use --resample auto (resample='auto') or a rate in Hz", src)
 
+    if rest not in REST_MODES:
+        raise OptionError(f"--rest must be one of {', '.join(REST_MODES)}, got {rest!r}")
+    sigma_v = None
+    if rest == "auto" and not derive_v and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:
+        sigma_v = signal_noise(traj.v)  # before the low-pass colours it (sensorless.data.rest)
     if lowpass:
         traj = _lowpass(traj, lowpass)
         traj = traj.with_(provenance={**traj.provenance, "lowpass_hz": float(lowpass)})
@@ -241,6 +251,8 @@ def prepare(
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
         traj = traj.with_(a=a, units=_note(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
                           provenance={**traj.provenance, "a": f"derived: d/dt of logged v, {how}"})
+    if sigma_v is not None:
+        traj = zero_at_rest(traj, sigma_v, w)
     if base_a:
         traj = base_acceleration(traj, window=w)
         traj = traj.with_(provenance={**traj.provenance, "base_a": "derived (base_acceleration)"})
@@ -270,7 +282,8 @@ def parse_columns(spec: "str | None") -> "dict | None":
     return out
 
 
-PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap")
+PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap",
+                      "rest")
 """Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
 The trim window and decimation belong to one log and are recorded but not reused."""
 
@@ -290,7 +303,7 @@ def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
 
 
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
-             resample="auto", velocity="logged", max_gap=None, outliers: str = "error"):
+             resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
 
     The one preprocessing function of both the local path (``sensorless.cli.common.load_logs``) and the Dask
@@ -313,4 +326,4 @@ def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, ga
     dropped = "outlier" in traj.units.get("processing", "")
     return prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
                    savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
-                   max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap)
+                   max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap, rest=rest or "auto")

@@ -17,13 +17,16 @@ noise bandwidth ∫|H(f)|⁴ df of the zero-phase Butterworth filter at ``lowpas
 A robot at rest has v = noise n, and a sliding-friction model fs sgn(n) chatters by fs,
 far above the torque noise on a geared arm (fs of several N·m against σ_τ ~ 0.05 N·m).
 Smoothing alone cannot fix it without blurring the friction in motion (chatter ≈ fs σ_v / ε
-needs ε ≳ 2 fs σ_v / σ_τ, tens of σ_v, wider than a Stribeck bump). So, by default:
+needs ε ≳ 2 fs σ_v / σ_τ, tens of σ_v, wider than a Stribeck bump). So, by default, rest is
+found in preprocessing (:mod:`sensorless.data.rest`: |v| within 5 σ_v over the derivative
+window → v = v̇ = 0, so sgn v = 0), and here
 
-* **rest velocity** δ = ``REST_SIGMAS`` σ_v (5): |v| ≤ δ is rest, where the Coulomb and
-  Stribeck columns are 0 (a Gaussian velocity noise exceeds 5 σ once in ~2·10⁶ samples;
-  friction between 0 and δ is lost, δ ≪ any Stribeck velocity);
 * **Coulomb smoothing** ε = ``factor`` σ_v (3): tanh(v/ε) only averages the sign over the
-  velocity noise in motion.
+  velocity noise in motion;
+* optionally a per-sample **rest gate** δ (``rest_velocity``: "auto" = ``REST_SIGMAS`` σ_v of
+  the unfiltered logs; default 0 = off): |v| ≤ δ gives no Coulomb/Stribeck friction and is
+  left out of the fit (:class:`~sensorless.regressor.ModelStructure`). Per sample it cannot
+  tell rest from a slow motion (it costs accuracy at reversals); the windowed test can.
 
 :func:`coulomb_smoothing_from_noise` with ``sigma_tau``/``static_friction`` is the rule for
 a model without a rest gate (``rest_velocity=0``): ε = max(k σ_v, 2 fs σ_v / σ_τ),
@@ -43,8 +46,8 @@ import warnings
 from typing import Iterable, Sequence
 
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
 
+from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError
 from ..regressor.terms import ModelStructure, _in_robot_order
@@ -68,20 +71,6 @@ REST_SIGMAS = 5.0
 #: the Stribeck bump must be wider than the Coulomb smoothing (vs ≥ this × ε): a narrower
 #: one would only fit the sign chatter of a joint at rest
 MIN_STRIBECK_OVER_SMOOTHING = 3.0
-
-
-def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndarray:
-    """Per-column white-noise std of ``x`` (N, n) from its Savitzky–Golay residual (module docstring)."""
-    x = np.asarray(x, dtype=float)
-    if x.ndim == 1:
-        x = x[:, None]
-    if x.shape[0] < window + 2:
-        raise DataError(f"{x.shape[0]} samples are too few to estimate the noise (need > {window + 2})")
-    r = x - savgol_filter(x, window, polyorder, axis=0, mode="interp")
-    c0 = savgol_coeffs(window, polyorder)[window // 2]
-    r = r[window:-window] if x.shape[0] > 3 * window else r
-    mad = np.median(np.abs(r - np.median(r, axis=0)), axis=0)
-    return 1.4826 * mad / np.sqrt(1.0 - c0)
 
 
 def lowpass_noise_gain(cutoff_hz: float, rate_hz: float, order: int = 4) -> float:
@@ -202,7 +191,7 @@ def identify_friction(
     *,
     coulomb_smoothing: "str | float" = "auto",
     stribeck_velocity: "str | float | dict" = "auto",
-    rest_velocity: "str | float" = "auto",
+    rest_velocity: "str | float" = 0.0,
     factor: float = 3.0,
     identify_kwargs: dict | None = None,
     noise_logs: Iterable[Trajectory] | None = None,
@@ -237,12 +226,15 @@ def identify_friction(
         speed = np.where(speed > 0, speed, 1.0)
     if auto_eps or auto_rest:
         raw = list(noise_logs) if noise_logs is not None else train
-        sigma_v = _pooled_noise([_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in raw])
+        sigma_v = _logged_velocity_noise(structure, raw)
+        if sigma_v is None:
+            sigma_v = _pooled_noise([_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in raw])
+        sigma_raw = sigma_v
         if lowpass_hz:
             sigma_v = sigma_v * lowpass_noise_gain(lowpass_hz, float(np.median([t.rate for t in train])))
     eps = (coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor) if auto_eps
            else np.full(len(joints), float(coulomb_smoothing)))
-    rest = (coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=REST_SIGMAS) if auto_rest
+    rest = (coulomb_smoothing_from_noise(sigma_raw, speed=speed, factor=REST_SIGMAS) if auto_rest
             else np.full(len(joints), float(rest_velocity)))
     if isinstance(stribeck_velocity, str):
         if stribeck_velocity != "auto":
@@ -289,6 +281,20 @@ def identify_friction(
         fit.stribeck_search[j] = {"grid": grid.tolist(), "sse": sse.tolist()}
     fit.stribeck_velocity = vs
     return identify(build(vs), train, **kw), fit
+
+
+def _logged_velocity_noise(structure: ModelStructure, logs: list) -> "np.ndarray | None":
+    """σ_v per actuated joint measured by the rest detection of every log (its v is 0 at rest
+    afterwards, which would bias a new estimate low), pooled; None if a log has none."""
+    infos = [t.provenance.get("rest") for t in logs]
+    if not infos or any(i is None for i in infos):
+        return None
+    joints = structure.robot.actuated_joints
+    try:
+        var = sum(len(t) * np.array([i["velocity_noise"][j] for j in joints]) ** 2 for t, i in zip(logs, infos))
+    except KeyError:
+        return None
+    return np.sqrt(var / sum(len(t) for t in logs))
 
 
 def _per_joint_terms(structure: ModelStructure):
