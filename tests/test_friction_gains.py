@@ -125,7 +125,7 @@ def test_identify_cli_per_joint_terms_auto_friction_saved_and_reloaded(ur10_logs
     assert np.all(rms <= 2.0 * K * 0.01), rms / (K * 0.01)
     sgn = st.__class__(robot, joint_terms=st.per_joint_terms, coulomb_smoothing=0.0,
                        stribeck_velocity=st.stribeck_velocity)
-    te = load_log(d / "b.csv", robot, COLS, None, 5.0, 21, 1, gains=str(d / "gains.json"), trim="0:1.4")
+    te = load_log(d / "b.csv", robot, COLS, None, 5.0, 21, 1, gains=str(d / "gains.json"), trim="0:1.4", rest="off")
     rms_sgn = np.sqrt(np.mean((sgn.target(te) - sgn.torques(p, te)) ** 2, axis=0))
     assert np.max(rms_sgn / (K * 0.01)) > 5  # sgn(v) would chatter at rest
 
@@ -137,6 +137,8 @@ def test_drive_gains_from_a_pair_within_2_percent_and_cli_output_is_a_gains_file
                                n_boot=200)
     assert np.all(np.abs(res.gains / K - 1) < 0.02), res.gains / K
     assert res.identified.all() and np.all(res.std > 0)
+    used = res.diagnostics["samples_used"]  # samples near velocity reversals are left out, per joint
+    assert all(0.5 * res.diagnostics["n_samples"] < used[j] < res.diagnostics["n_samples"] for j in robot.actuated_joints)
     out = tmp_path / "k.json"
     r = CliRunner().invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
                                  str(d / "l.csv"), "--columns", COLS, "--trim", "1.5:-1", "--savgol-window", "21",
@@ -152,3 +154,51 @@ def test_drive_gains_from_a_pair_within_2_percent_and_cli_output_is_a_gains_file
                                  str(d / "u.csv"), "--columns", COLS, "--payload-mass", "4", "--frame", "tool0",
                                  "--n-boot", "20", "--out", str(tmp_path / "bad.json")])
     assert r.exit_code == 2 and "--nominal-gains" in r.output and not (tmp_path / "bad.json").exists()
+
+
+def test_default_derivative_window_is_0_2_seconds_and_odd():
+    from sensorless.data.prepare import default_savgol_window
+
+    assert default_savgol_window(100.0) == 21 and default_savgol_window(1000.0) == 201
+    assert default_savgol_window(50.0) == 11 and default_savgol_window(float("nan")) == 11  # at least 11
+    assert all(default_savgol_window(r) % 2 == 1 for r in (30.0, 99.0, 125.0, 333.0))
+
+
+def test_rest_detection_zeroes_a_joint_at_rest_but_not_a_reversal():
+    from sensorless.data import Trajectory
+    from sensorless.data.prepare import prepare
+
+    rng = np.random.default_rng(0)
+    rate, sig = 100.0, 1e-3
+    t = np.arange(1000) / rate
+    moving = t >= 3.0
+    v_true = np.where(moving, 0.5 * np.sin(2 * np.pi * 0.5 * (t - 3.0)), 0.0)  # rest 3 s, then reversals
+    q_true = np.cumsum(v_true) / rate
+    v = np.column_stack([v_true, np.zeros_like(t)]) + rng.normal(0, sig, (len(t), 2))  # joint 2 always at rest
+    q = np.column_stack([q_true, np.zeros_like(t)])
+    traj = Trajectory(t=t, q=q, v=v, tau=np.zeros_like(q), joint_names=("j1", "j2"))
+    out = prepare(traj)
+    info = out.provenance["rest"]
+    assert abs(info["velocity_noise"]["j1"] / sig - 1) < 0.15  # the white-noise estimate
+    assert np.all(out.v[t < 2.8, 0] == 0) and np.all(out.a[t < 2.8, 0] == 0) and np.all(out.v[:, 1] == 0)
+    near_reversal = moving & (np.abs(v_true) < 0.05) & (t > 3.5)
+    assert near_reversal.sum() > 10 and np.all(out.v[near_reversal, 0] != 0)  # a reversal is motion
+    assert info["fraction_at_rest"]["j2"] == 1.0 and 0.25 < info["fraction_at_rest"]["j1"] < 0.32
+    assert np.array_equal(prepare(traj, rest="off").v, traj.v)  # off: the logged v as it is
+    with pytest.raises(Exception, match="--rest"):
+        prepare(traj, rest="sometimes")
+
+
+def test_payload_with_every_joint_set_aside_is_no_svd_crash():
+    """Regression (issue 17): payload with nominal, wrong gains raised 'LinAlgError: SVD did not
+    converge' once every joint had been set aside as contradicting (zero weights -> NaN system)."""
+    from sensorless.identification.payload import _Solver, _solve_without
+
+    A = np.eye(10)[None].repeat(3, axis=0) * np.arange(1.0, 4.0)[:, None, None]
+    A = np.concatenate([np.concatenate([A, np.zeros((3, 10, 1))], 2),
+                        np.concatenate([np.zeros((3, 1, 10)), np.ones((3, 1, 1))], 2)], 1)  # 11x11 with an offset
+    b = np.ones((3, 11))
+    solver = _Solver("full", False, None)
+    assert _solve_without(solver, A, b, np.zeros(3), np.ones(3, bool)) is None
+    phi = _solve_without(solver, A, b, np.array([1.0, 0.0, 1.0]), np.ones(3, bool))
+    assert phi is not None and np.all(np.isfinite(phi))

@@ -249,7 +249,7 @@ class _System:
         self.App = np.einsum("r,rij->ij", w, A[:, :10, :10])
         self.bp = np.einsum("r,ri->i", w, b[:, :10])
         self.Apo = (mw[:, None] * A[:, :10, 10]).T  # (10, R), zero columns for rows without offset
-        self.Aoo = np.where(self.mask, w * A[:, 10, 10], 1.0)  # diagonal (R,)
+        self.Aoo = np.where(self.mask & (w > 0), w * A[:, 10, 10], 1.0)  # diagonal (R,); a row set aside: 1
         self.bo = mw * b[:, 10]
         K = self.Apo / self.Aoo
         self.Ar = self.App - K @ self.Apo.T
