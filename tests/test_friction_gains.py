@@ -202,3 +202,41 @@ def test_payload_with_every_joint_set_aside_is_no_svd_crash():
     assert _solve_without(solver, A, b, np.zeros(3), np.ones(3, bool)) is None
     phi = _solve_without(solver, A, b, np.array([1.0, 0.0, 1.0]), np.ones(3, bool))
     assert phi is not None and np.all(np.isfinite(phi))
+
+
+def test_predict_applies_the_models_rest_setting(ur10_logs, tmp_path):
+    """A model identified with --rest off is predicted without rest detection (it chatters at
+    rest through sgn(noise)); the default model does not (test above)."""
+    d, robot, truth, K = ur10_logs
+    out = tmp_path / "m_off"
+    r = CliRunner().invoke(app, ["identify", "--robot", "ur10", "--data", str(d / "a.csv"), "--columns", COLS,
+                                 "--gains", str(d / "gains.json"), "--rest", "off", "--coulomb-smoothing", "0",
+                                 "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert json.loads((out / "result.json").read_text())["settings"]["preprocessing"]["rest"] == "off"
+    r = CliRunner().invoke(app, ["predict", "--robot", "ur10", "--model", str(out), "--data", str(d / "b.csv"),
+                                 "--trim", "0:1.4", "--out", str(tmp_path / "idle.npz")])
+    assert r.exit_code == 0, r.output
+    z = np.load(tmp_path / "idle.npz")
+    rms = np.sqrt(np.mean((z["tau_measured"] - z["tau_pred"]) ** 2, axis=0))
+    assert np.max(rms / (K * 0.01)) > 5
+    r = CliRunner().invoke(app, ["identify", "--robot", "ur10", "--data", str(d / "a.csv"), "--columns", COLS,
+                                 "--rest", "never", "--out", str(tmp_path / "bad")])
+    assert r.exit_code != 0 and "--rest" in r.output and not (tmp_path / "bad").exists()
+
+
+def test_clock_offset_between_two_runs_is_found_from_the_positions():
+    """Two runs of one trajectory, each stamped from its own first sample, are off by that
+    sample's jitter; a 3 ms offset biased shoulder gains by ~1 % before the runs were aligned."""
+    from sensorless.data import Trajectory
+    from sensorless.identification.drive_gains import clock_offset
+
+    t = np.arange(2000) / 100.0
+    f = lambda s: np.column_stack([np.sin(0.7 * s), 0.5 * np.cos(1.3 * s)])  # noqa: E731
+    df = lambda s: np.column_stack([0.7 * np.cos(0.7 * s), -0.65 * np.sin(1.3 * s)])  # noqa: E731
+    ref = Trajectory(t=t, q=f(t), v=df(t), tau=np.zeros((2000, 2)), joint_names=("a", "b"))
+    rng = np.random.default_rng(1)
+    load = Trajectory(t=t + 50.0, q=f(t + 0.003) + rng.normal(0, 1e-4, (2000, 2)), v=df(t + 0.003),
+                      tau=np.zeros((2000, 2)), joint_names=("a", "b"))
+    assert clock_offset(load, ref) == pytest.approx(0.003, abs=1e-4)
+    assert clock_offset(ref, ref) == pytest.approx(0.0, abs=1e-9)

@@ -499,7 +499,7 @@ def predict(
                                savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
     (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                         gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                        max_gap=opts["max_gap"], outliers=outliers)
+                        max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"))
     pred = structure.torques(params, traj)
     if not np.all(np.isfinite(pred)):
         raise SensorlessError(f"{path}: the model predicts non-finite torques on {data}")

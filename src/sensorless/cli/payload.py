@@ -87,7 +87,7 @@ def payload(
     opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
                                savgol_window=savgol_window, velocity=None, max_gap=None)
     prep = dict(gains=opts["gains"], trim=trim, resample=opts["resample"] or "auto", velocity=opts["velocity"],
-                max_gap=opts["max_gap"])
+                max_gap=opts["max_gap"], rest=opts.get("rest"))
     args = (r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1)
     logs = load_logs(data, *args, **prep)
     refs = load_logs(no_load, *args, **prep) if no_load else None

@@ -11,7 +11,8 @@ per joint d_j = c_j y_j + b_j + ε_j with c_j = 1/K_j (and an offset b_j for a c
 offset that changed between the runs) is an ordinary least-squares line with the errors
 where they belong (regressing y on d would be biased low by the current noise);
 K_j = 1/c_j. The unloaded run is interpolated at the loaded run's times (both measured
-from their first sample; ``align="rows"`` pairs samples by index instead).
+from their first sample and then aligned on the positions, :func:`clock_offset`;
+``align="rows"`` pairs samples by index instead).
 
 Velocity reversals. Friction jumps by about 2 fs where a joint's velocity changes sign;
 the two runs' clocks never line up to the sample (jitter, resampling), so around each
@@ -41,7 +42,7 @@ from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
 from .payload import payload_regressor, point_mass_parameters
 
-__all__ = ["DriveGains", "align_pair", "identify_drive_gains", "payload_torque"]
+__all__ = ["DriveGains", "align_pair", "clock_offset", "identify_drive_gains", "payload_torque"]
 
 #: samples within this time [s] of a velocity reversal are left out of a joint's fit (module docstring)
 REVERSAL_SECONDS = 0.1
@@ -112,16 +113,45 @@ def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str
     if align != "time":
         raise DataError(f"align must be 'time' or 'rows', got {align!r}")
     tu, tl = unloaded.t - unloaded.t[0], loaded.t - loaded.t[0]
-    mask = tl <= tu[-1]
+    tl = tl + clock_offset(loaded, unloaded)
+    mask = (tl >= tu[0]) & (tl <= tu[-1])
     out = np.column_stack([np.interp(tl, tu, i_u[:, k]) for k in range(i_u.shape[1])])
     return out, mask
+
+
+def clock_offset(load: Trajectory, ref: Trajectory, iterations: int = 4) -> float:
+    """δ [s] such that ``ref`` at (t − t₀_ref) = (t − t₀_load) + δ is where ``load`` is: two
+    runs of one trajectory started from their first samples are off by that sample's jitter
+    (a few ms), and d/dt of the robot's own torque × a few ms biases a gain by ~1 %. Gauss–
+    Newton on the positions, q_load(t) ≈ q_ref(t + δ): δ += Σ (q_load − q_ref(t + δ)) q̇_ref / Σ q̇_ref²
+    over the samples that move (0 when the runs do not move or have no positions)."""
+    if load.q is None or ref.q is None or ref.v is None or load.q.shape[1] != ref.q.shape[1]:
+        return 0.0
+    tl, tr = load.t - load.t[0], ref.t - ref.t[0]
+    dt = float(np.median(np.diff(tr)))
+    delta = 0.0
+    for _ in range(iterations):
+        t = tl + delta
+        ok = (t >= tr[0]) & (t <= tr[-1])
+        if ok.sum() < 10:
+            return 0.0
+        qr = np.column_stack([np.interp(t[ok], tr, ref.q[:, k]) for k in range(ref.q.shape[1])])
+        vr = np.column_stack([np.interp(t[ok], tr, ref.v[:, k]) for k in range(ref.v.shape[1])])
+        den = float(np.sum(vr**2))
+        if den <= 0:
+            return 0.0
+        step = float(np.sum((load.q[ok] - qr) * vr) / den)
+        delta += float(np.clip(step, -5 * dt, 5 * dt))
+        if abs(step) < 1e-7:
+            break
+    return delta if abs(delta) <= 10 * dt else 0.0
 
 
 def align_pair(load: Trajectory, ref: Trajectory) -> tuple[Trajectory, Trajectory]:
     """Two runs of one trajectory as row-aligned logs: ``ref`` linearly interpolated at the
     times of ``load`` (both measured from their first sample), both cut to the overlap."""
-    tl, tr = load.t - load.t[0], ref.t - ref.t[0]
-    keep = tl <= tr[-1]
+    tl, tr = load.t - load.t[0] + clock_offset(load, ref), ref.t - ref.t[0]
+    keep = (tl >= tr[0]) & (tl <= tr[-1])
     if keep.sum() < 2:
         raise DataError("the two logs do not overlap in time (from their first samples)", ref.source)
     load = load.take(np.flatnonzero(keep))
