@@ -14,7 +14,8 @@
    (d/dt q, d²/dt² q). ``velocity="from-q"`` forces the latter. A logged v̇ is kept
    unless ``savgol_window`` is given;
 5. **rest** (``rest="auto"``, with a logged v): a joint whose |v| stays within 5 noise stds
-   of zero over the derivative window is at rest, v = v̇ = 0 there
+   of zero and whose q moves less than 8 noise stds over the derivative window is at rest,
+   v = v̇ = 0 there
    (:mod:`sensorless.data.rest`; no friction chatter through sgn(noise) at rest);
 6. **decimate** (anti-aliased).
 
@@ -232,6 +233,7 @@ def prepare(
     sigma_v = None
     if rest == "auto" and not derive_v and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:
         sigma_v = signal_noise(traj.v)  # before the low-pass colours it (sensorless.data.rest)
+        sigma_q = signal_noise(traj.q)
     if lowpass:
         traj = _lowpass(traj, lowpass)
         traj = traj.with_(provenance={**traj.provenance, "lowpass_hz": float(lowpass)})
@@ -252,7 +254,7 @@ def prepare(
         traj = traj.with_(a=a, units=_note(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
                           provenance={**traj.provenance, "a": f"derived: d/dt of logged v, {how}"})
     if sigma_v is not None:
-        traj = zero_at_rest(traj, sigma_v, w)
+        traj = zero_at_rest(traj, sigma_v, w, sigma_q)
     if base_a:
         traj = base_acceleration(traj, window=w)
         traj = traj.with_(provenance={**traj.provenance, "base_a": "derived (base_acceleration)"})
