@@ -5,7 +5,8 @@ from __future__ import annotations
 from .base_pose import BasePose, clean_base_pose, with_base_pose
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
 from .gains import currents_to_torques, load_gains, resolve_gains
-from .prepare import TrimWindow, prepare, trim_window
+from .prepare import TrimWindow, default_savgol_window, prepare, trim_window
+from .rest import rest_mask, zero_at_rest
 from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
 from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers
 from .integral_filter import LowpassChain, observer_filter
@@ -15,7 +16,7 @@ from .rosbag import is_rosbag, read_rosbag
 from .trajectory import Trajectory
 from .validation import validate_trajectory
 
-__all__ = [
+__all__ = ["default_savgol_window", "rest_mask", "zero_at_rest", 
     "LowpassChain",
     "observer_filter",
     "Trajectory",
