@@ -196,7 +196,8 @@ class CADModel(_Scored):
             self.structure_ = robot.make_structure(None)
         else:
             self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
-                               else dataclasses.replace(like, joint_terms=("armature",)))
+                               else dataclasses.replace(like, joint_terms=("armature",), per_joint_terms=None,
+                                                   stribeck_velocity=None))
         self.parameters_ = self.structure_.prior()
 
     def fit(self, data=None) -> "CADModel":
@@ -266,6 +267,18 @@ def _structure_from_settings(settings: dict, doc: dict, robot: Robot) -> ModelSt
         raise ParameterError(f"identified for '{file_robot}' (per-joint model), "
                              f"not for the coupled-joint robot '{robot.name}'")
     common = {"joint_terms": tuple(terms), "coulomb_smoothing": float(eps)}
+    by_joint = settings.get("joint_terms_by_joint")
+    if by_joint is not None:
+        if not isinstance(by_joint, dict) or not all(isinstance(t, list) for t in by_joint.values()):
+            raise TypeError(f"settings.joint_terms_by_joint must map joints to lists of terms, got {by_joint!r}")
+        common["per_joint_terms"] = {j: tuple(t) for j, t in by_joint.items()}
+    for key, name in (("coulomb_smoothing_by_joint", "coulomb_smoothing"), ("stribeck_velocity", "stribeck_velocity"),
+                      ("rest_velocity", "rest_velocity")):
+        val = settings.get(key)
+        if val is not None:
+            if not isinstance(val, dict):
+                raise TypeError(f"settings.{key} must map joints to numbers, got {val!r}")
+            common[name] = val
     if settings.get("contact_frames"):
         from .regressor.contact import ContactStructure
 

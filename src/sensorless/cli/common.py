@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Iterable, Iterator, List, Optional
 
 import typer
+from typer.core import TyperCommand
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
@@ -24,6 +25,42 @@ app.add_typer(bench_app, name="benchmark")
 app.add_typer(experiment_app, name="experiment")
 console = Console(stderr=False)
 err_console = Console(stderr=True)
+
+
+class MultiValueCommand(TyperCommand):
+    """A command whose repeatable options (``List[...]``) also take several values after one
+    flag: ``--data a.csv b.csv c.csv`` is ``--data a.csv --data b.csv --data c.csv`` (a shell
+    glob expands to exactly that). Values run until the next token starting with ``-``.
+    Only for commands without positional arguments (nothing else could own a bare token)."""
+
+    def parse_args(self, ctx, args):
+        if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)
+            args = expand_multi_values(args, {o for p in self.params if p.param_type_name == "option"
+                                              and getattr(p, "multiple", False) for o in p.opts})
+        return super().parse_args(ctx, args)
+
+
+def expand_multi_values(args: list[str], multi: set[str]) -> list[str]:
+    """``[--data, a, b, --x, 1]`` -> ``[--data, a, --data, b, --x, 1]`` for the flags in ``multi``."""
+    out: list[str] = []
+    cur, need_value = None, False
+    for a in args:
+        if need_value:  # the flag's own first value, whatever it looks like
+            out.append(a)
+            need_value = False
+        elif a == "--":
+            cur = None
+            out.append(a)
+        elif a.startswith("-") and len(a) > 1:
+            name = a.split("=", 1)[0]
+            cur = name if name in multi else None
+            need_value = cur is not None and "=" not in a
+            out.append(a)
+        elif cur is not None:
+            out += [cur, a]
+        else:
+            out.append(a)
+    return out
 
 
 def one_line(text: object, limit: int = 2000) -> str:
@@ -173,7 +210,7 @@ def max_gap_option(default: Optional[float] = None):
 
 
 def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
-                           decimate, max_gap) -> dict:
+                           decimate, max_gap, rest="auto") -> dict:
     """settings.preprocessing for result.json: the options (gains resolved per joint name,
     column map parsed, gain suffix moved to ``gains``) and each log's provenance."""
     from ..data.gains import split_gain_modifiers
@@ -183,7 +220,7 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
     resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
     return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
             "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
-            "trim": trim, "decimate": decimate}
+            "trim": trim, "decimate": decimate, "rest": rest}
 
 
 def model_preprocessing(result_json: Path, **given) -> dict:

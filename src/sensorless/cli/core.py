@@ -15,6 +15,7 @@ from ..errors import ExcitationError, OptionError, SensorlessError
 from ..io import write_npz_atomic
 from .common import (
     ROBOT_HELP,
+    MultiValueCommand,
     app,
     atomic_outdir,
     bench_app,
@@ -38,12 +39,13 @@ from .common import (
 
 
 
-@app.command()
+@app.command(cls=MultiValueCommand)
 @guarded
 def identify(
     robot: str = typer.Option(..., help=ROBOT_HELP),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag folder"),
-    validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on"),
+    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
+                                         "folder; several after one flag (--data a.csv b.csv) or repeated"),
+    validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
     method: str = typer.Option("ols", help="ols | wls | lmi (physically consistent) | svd"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
     regularization: str = typer.Option("pullback", help="lmi: pullback | entropic | euclidean | none"),
@@ -54,8 +56,9 @@ def identify(
     weights: str = typer.Option("auto", help="per-joint noise weighting, every method: auto (two-step: σ from an "
                                 "unweighted fit's residual) | none | FILE (JSON {joint: σ} or CSV 'joint,σ' rows)"),
     out: Path = typer.Option(..., help="output directory (written atomically)"),
-    joint_terms: str = typer.Option("fv,fc,offset,armature", help="per-joint terms, comma separated "
-                                    "(dvrk_psm: drive set 'authors' (default) or 'motors')"),
+    joint_terms: str = typer.Option("fv,fc,offset,armature", help="joint terms fv,fc,stribeck,offset,armature for every "
+                                    "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
+                                    "listed, else none) (dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
     rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
@@ -83,7 +86,13 @@ def identify(
                                     "confounded with m·g on standing data)"),
     imu_frame: Optional[str] = typer.Option(None, help="model frame of the accelerometer ('imu_acc'): rotation and "
                                             "lever arm from the model, on any body (e.g. imu_link)"),
-    coulomb_smoothing: float = typer.Option(0.0, help="ε [rad/s]: Coulomb term tanh(v/ε) instead of sgn(v); ≈ 2× velocity noise"),
+    coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
+                                          "the joint's velocity noise (docs/arm.md §7)"),
+    rest: str = typer.Option("auto", help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
+                             "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
+                             "remembers it) | off (docs/arm.md §7)"),
+    stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (1-D search "
+                                          "per joint)"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
     outliers: str = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
                                                "warning) | keep"),
@@ -103,6 +112,7 @@ def identify(
     from ..identification import identify as _identify
     from ..report import metrics_table
 
+    coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
@@ -116,7 +126,8 @@ def identify(
 
     data = [Path(p) for p in expand_paths(data)]
     prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
-                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers)
+                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
+                rest=rest)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
         skipped: list = []
         if scheduler is None:
@@ -124,7 +135,7 @@ def identify(
         val = load_logs(validate, r, **prep)
         if imu_frame:
             train, val = (_imu_frame_logs(logs, r, imu_frame, savgol_window) for logs in (train, val))
-        structure = _structure(r, joint_terms, coulomb_smoothing, contact_frames, contact_dims, contact_offset,
+        structure = _structure(r, joint_terms, 0.0 if coulomb_smoothing == "auto" else coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
                                offset_axes=offset_axes, train=train if scheduler is None else None)
         lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
@@ -141,11 +152,25 @@ def identify(
             train = _first_training_log(data, r, prep) if not val else []
         else:
             total = sum(len(t) for t in train)
+            friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
             with progress_bar() as bar:
-                task = bar.add_task("regressor", total=total)
-                try:
-                    result = _identify(structure, train, method=method, progress=lambda n: bar.advance(task, n),
-                                       outliers="keep", weights=row_sigma, **lmi_kw)  # the logs' outliers were handled on reading
+                task = bar.add_task("regressor", total=total * (2 if friction else 1))
+                kw = dict(method=method, progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma,
+                          **lmi_kw)
+                try:  # the logs' outliers were handled on reading
+                    if friction:
+                        from ..identification.friction import identify_friction
+
+                        raw = (load_logs(data, r, **{**prep, "lowpass": None})
+                               if lowpass and coulomb_smoothing == "auto"
+                               else None)  # noise is measured before the low-pass colours it
+                        result, fit = identify_friction(structure, train, coulomb_smoothing=coulomb_smoothing,
+                                                        stribeck_velocity=stribeck_velocity, identify_kwargs=kw,
+                                                        noise_logs=raw, lowpass_hz=lowpass)
+                        structure = result.structure
+                        result.settings["friction"] = fit.to_dict()
+                    else:
+                        result = _identify(structure, train, **kw)
                 except ExcitationError as exc:
                     raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -154,7 +179,7 @@ def identify(
                                 "preprocessing": preprocessing_settings(
                                     train + val, columns=columns, gains=gains, rate=rate, trim=trim,
                                     resample=resample, lowpass=lowpass, savgol_window=savgol_window,
-                                    velocity=velocity, decimate=decimate, max_gap=max_gap),
+                                    velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest),
                                 "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
                                 if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
         if scheduler is not None or skip_bad:
@@ -182,11 +207,17 @@ def identify(
                 doc["validation"][str(p)]["ols"] = cols["OLS"].to_dict()
             cols[method.upper()] = m_id
             console.print(metrics_table(f"held-out {Path(p).name}", cols))
+        _print_bodies(result)
         shown = val[0] if val else (train[0] if train else None)
         if plot and shown is not None:  # with --scheduler, the client may not see the training files
             _plot_window(shown, structure, {method.upper(): result, "CAD": cad}, tmp / "torques.png",
                          f"{r.name}: {'held-out' if val else 'training'} torques")
         _floating_base_checks(structure, result, doc, train, val, validate)
+        if _plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")):
+            from ..report.friction_plot import plot_friction
+
+            plot_friction(structure, result.parameters, train, tmp / "friction.png",
+                          title=f"{r.name}: joint friction (training logs)")
         _export(result, tmp, doc)
         from ..identification.result import write_json_atomic
 
@@ -246,6 +277,46 @@ def _first_training_log(data, r, prep: dict) -> list:
         return []
 
 
+def _print_bodies(result) -> None:
+    """Identified mass per body, named by joint and link (result.json: parameter_links)."""
+    from rich.table import Table
+
+    from ..identification.result import body_links
+
+    links = body_links(result.robot)
+    t = Table(title="identified bodies (parameters 'joint.p' in result.json; 'link.p' in parameter_links)")
+    for col in ("joint", "link", "m [kg]", "CAD m [kg]"):
+        t.add_column(col, justify="right" if "m" in col else "left")
+    pi, pi0 = result.inertial_parameters.reshape(-1, 10), result.robot.inertial_parameters().reshape(-1, 10)
+    for k, b in enumerate(result.robot.body_names):
+        t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}", f"{pi0[k, 0]:.3f}")
+    console.print(t)
+
+
+def _plain(structure) -> bool:
+    """A per-joint ModelStructure (no contact projection, no coupled drives)."""
+    from ..regressor import ModelStructure
+
+    return type(structure) is ModelStructure
+
+
+def _friction_options(coulomb_smoothing: str, stribeck_velocity: str):
+    """--coulomb-smoothing / --stribeck-velocity as 'auto' or a number (OptionError otherwise)."""
+    out = []
+    for flag, text in (("--coulomb-smoothing", coulomb_smoothing), ("--stribeck-velocity", stribeck_velocity)):
+        if str(text).strip().lower() == "auto":
+            out.append("auto")
+            continue
+        try:
+            x = float(text)
+        except ValueError:
+            raise OptionError(f"{flag} must be a number or 'auto', got '{text}'") from None
+        if not (math.isfinite(x) and x >= 0) or (flag == "--stribeck-velocity" and x == 0):
+            raise OptionError(f"{flag} must be a finite number {'>' if 'stribeck' in flag else '>='} 0 or 'auto', got '{text}'")
+        out.append(x)
+    return tuple(out)
+
+
 def _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights="auto") -> None:
     """OptionError, naming the option, for values no run can use (checked before any work)."""
     from ..data.outliers import OUTLIER_MODES
@@ -265,7 +336,7 @@ def _check_identify_options(method, gamma, regularization, coulomb_smoothing, ou
     if regularization not in ("none", "pullback") and regularization not in REGULARIZERS:
         raise OptionError(f"--regularization must be one of {', '.join(sorted(REGULARIZERS))}, none; "
                           f"got '{regularization}'")
-    if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
+    if coulomb_smoothing != "auto" and not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
         raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
     if outliers not in OUTLIER_MODES:
         raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got '{outliers}'")
@@ -278,21 +349,29 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
                train=None):
     """ModelStructure, or ContactStructure when contact frames are given (wrench mode: rows
     chosen from the training logs' torques when ``contact_rows="auto"``, with a message)."""
+    from ..errors import RobotModelError
     from ..regressor import ModelStructure
 
-    terms = tuple(t for t in joint_terms.split(",") if t)
+    terms = joint_terms if "=" in joint_terms else tuple(t.strip() for t in joint_terms.split(",") if t.strip())
     if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
         raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
     if hasattr(robot, "make_structure"):  # coupled joints (dvrk_psm): drive terms of its own
         if contact_frames:
             raise SensorlessError(f"--contact-frames: '{robot.name}' is a fixed-base coupled-joint model")
+        if isinstance(terms, str):
+            raise OptionError(f"--joint-terms per joint ('JOINT=...') is not supported for '{robot.name}' (drive terms)")
         return robot.make_structure(terms, coulomb_smoothing)
     if not contact_frames:
         if contact_dims:
             raise SensorlessError("--contact-dims needs --contact-frames")
         if contact_rows != "auto" or wrench_offset != "none":
             raise SensorlessError("--contact-rows and --wrench-offset need --contact-frames and --contact-mode wrench")
-        return ModelStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing)
+        try:
+            return ModelStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing)
+        except RobotModelError as exc:
+            raise OptionError(f"--joint-terms '{joint_terms}': {exc}") from None
+    if isinstance(terms, str):
+        raise OptionError("--joint-terms per joint ('JOINT=...') is not supported with --contact-frames")
     from ..regressor.contact import ContactStructure
 
     frames = tuple(f.strip() for f in contact_frames.split(",") if f.strip())
@@ -398,7 +477,9 @@ def _export(result, tmp: Path, doc: dict) -> None:
         doc["urdf"] = None
         doc["urdf_error"] = f"'{result.robot.name}' has coupled joints; a URDF cannot hold it (result.json does)"
         return
-    terms = JointTerms.from_dict(result.joint_terms())
+    from ..parameters import TERM_NAMES
+
+    terms = JointTerms.from_dict({j: {t: v for t, v in d.items() if t in TERM_NAMES} for j, d in result.joint_terms().items()})
     write_joint_terms(terms, tmp / "joint_terms.json")
     try:
         from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf
@@ -446,7 +527,7 @@ def predict(
                                savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
     (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                         gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                        max_gap=opts["max_gap"], outliers=outliers)
+                        max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"))
     pred = structure.torques(params, traj)
     if not np.all(np.isfinite(pred)):
         raise SensorlessError(f"{path}: the model predicts non-finite torques on {data}")

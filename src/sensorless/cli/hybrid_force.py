@@ -88,7 +88,7 @@ def estimate_force(
                                savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
     (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                         gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                        max_gap=opts["max_gap"])
+                        max_gap=opts["max_gap"], rest=opts.get("rest"))
     if traj.tau is None:
         raise SensorlessError(f"{data}: the log has no measured torque; force estimation needs it")
     hybrid = None

@@ -87,7 +87,7 @@ def monitor(
     with atomic_outdir(out, force, inputs=path_inputs(robot, model, data)) as tmp:
         (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                             gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                            max_gap=opts["max_gap"])
+                            max_gap=opts["max_gap"], rest=opts.get("rest"))
         dt = _uniform_dt(traj)
         res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
         tau_ext = res.tau_ext

@@ -9,7 +9,19 @@ import numpy as np
 import typer
 
 from ..errors import SensorlessError
-from .common import ROBOT_HELP, app, console, guarded, load_logs, load_robot_arg
+from .common import (
+    ROBOT_HELP,
+    MultiValueCommand,
+    app,
+    console,
+    gains_option,
+    guarded,
+    load_logs,
+    load_robot_arg,
+    model_preprocessing,
+    resample_option,
+    trim_option,
+)
 
 __all__ = ["payload"]
 
@@ -26,7 +38,7 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
     return v
 
 
-@app.command()
+@app.command(cls=MultiValueCommand)
 @guarded
 def payload(
     robot: str = typer.Option(..., help=ROBOT_HELP),
@@ -36,6 +48,9 @@ def payload(
     out: Path = typer.Option(..., help="output JSON (written atomically)"),
     no_load: List[Path] = typer.Option([], help="paired log(s) without the payload: same trajectory, row-aligned, "
                                                "one per --data; cancels what the model misses"),
+    align: str = typer.Option("rows", help="pairing of --no-load with --data: rows (row by row, same length) | time "
+                                           "(no-load log interpolated at the payload log's times from the first "
+                                           "sample; for two separately started recordings)"),
     offsets: str = typer.Option("auto", help="constant torque offset per joint (session drift, recalibration): auto "
                                              "(where distinguishable from the payload) | all | none | JOINT,JOINT"),
     mode: str = typer.Option("auto", help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
@@ -44,10 +59,13 @@ def payload(
     block_seconds: float = typer.Option(1.0, help="block length [s] of the HAC covariance and the bootstrap"),
     flag_sigma: float = typer.Option(3.0, help="flag a joint whose own mass is this many σ from the estimate ..."),
     flag_rel: float = typer.Option(0.1, help="... and differs from it by more than this fraction"),
-    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21'"),
-    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
-    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] (same on every log)"),
-    savgol_window: Optional[int] = typer.Option(None, help="recompute v, a from q with this Savitzky-Golay window"),
+    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' (default: the model's)"),
+    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column (default: the model's)"),
+    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] (default: the model's)"),
+    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window for v̇ (default: the model's)"),
+    gains: Optional[str] = gains_option(),
+    trim: Optional[str] = trim_option(),
+    resample: Optional[str] = resample_option(None),
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     seed: int = typer.Option(0, help="bootstrap seed"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
@@ -66,8 +84,19 @@ def payload(
     r = load_robot_arg(robot, lock, False)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
-    logs = load_logs(data, r, columns, rate, lowpass, savgol_window, 1)
-    refs = load_logs(no_load, r, columns, rate, lowpass, savgol_window, 1) if no_load else None
+    opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
+                               savgol_window=savgol_window, velocity=None, max_gap=None)
+    prep = dict(gains=opts["gains"], trim=trim, resample=opts["resample"] or "auto", velocity=opts["velocity"],
+                max_gap=opts["max_gap"], rest=opts.get("rest"))
+    args = (r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1)
+    logs = load_logs(data, *args, **prep)
+    refs = load_logs(no_load, *args, **prep) if no_load else None
+    if align not in ("rows", "time"):
+        raise SensorlessError(f"--align must be rows or time, got '{align}'")
+    if refs is not None and align == "time":
+        from ..identification.drive_gains import align_pair
+
+        logs, refs = map(list, zip(*(align_pair(a, b) for a, b in zip(logs, refs))))
     off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
     est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
@@ -75,10 +104,52 @@ def payload(
                            flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
     doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
            **est.to_dict()}
+    gain_std = _gain_std(opts["gains"], r)
+    if gain_std is not None:  # identified gains (sensorless drive-gains): their uncertainty enters the mass
+        dm = []
+        for k, rel in enumerate(gain_std):
+            scale = np.ones(r.n_actuated)
+            scale[k] += rel
+            sl = [_scaled(t, r, scale) for t in logs]
+            sr = [_scaled(t, r, scale) for t in refs] if refs is not None else None
+            e = identify_payload((structure, params), sl, frame, no_load=sr, offsets=off, mode=est.mode,
+                                 com=_vector(com, "--com"), n_boot=0, block_seconds=block_seconds, seed=seed)
+            dm.append(e.mass - est.mass)
+        std_g = float(np.sqrt(np.sum(np.square(dm))))
+        doc.update({"mass_std_noise": est.mass_std, "mass_std_gains": std_g,
+                    "mass_std": float(np.hypot(est.mass_std, std_g)),
+                    "mass_sensitivity_to_gains": dict(zip(r.actuated_joints, map(float, dm)))})
+        est.mass_std = doc["mass_std"]
+    doc.setdefault("settings", {})["preprocessing"] = {**opts, "trim": trim}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out)
     _print(est)
     console.print(f"wrote {out}")
+
+
+def _gain_std(gains, robot):
+    """Relative std per actuated joint of gains from a `sensorless drive-gains` file, else None."""
+    import json
+
+    if not isinstance(gains, (str, Path)) or not str(gains).lower().endswith(".json") or not Path(gains).is_file():
+        return None
+    try:
+        doc = json.loads(Path(gains).read_text())
+        g, s = doc["gains"], doc["std"]
+        return np.array([float(s[j]) / float(g[j]) if j not in doc.get("from_nominal", []) else 0.0
+                         for j in robot.actuated_joints])
+    except (ValueError, KeyError, TypeError, ZeroDivisionError):
+        return None
+
+
+def _scaled(traj, robot, scale):
+    """``traj`` with the torque of actuated joint k scaled by ``scale[k]`` (a gain perturbed)."""
+    names = list(traj.joint_names)
+    f = np.ones(len(names))
+    for k, j in enumerate(robot.actuated_joints):
+        if j in names:
+            f[names.index(j)] = scale[k]
+    return traj.with_(tau=traj.tau * f)
 
 
 def _print(est) -> None:

@@ -8,7 +8,8 @@ from .._lazy import lazy_exports
 
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
 from .gains import currents_to_torques, load_gains, resolve_gains
-from .prepare import TrimWindow, prepare, trim_window
+from .prepare import TrimWindow, default_savgol_window, prepare, trim_window
+from .rest import rest_mask, zero_at_rest
 from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers
 from .readers import read_trajectory, write_npz
 from .resample import Timing, resample, timing
@@ -30,6 +31,9 @@ if TYPE_CHECKING:
     from .integral_filter import LowpassChain, observer_filter
 
 __all__ = [
+    "default_savgol_window",
+    "rest_mask",
+    "zero_at_rest",
     "LowpassChain",
     "observer_filter",
     "Trajectory",

@@ -13,7 +13,11 @@
    v̇ = d/dt v (Savitzky–Golay); only without a logged v are v and v̇ taken from q
    (d/dt q, d²/dt² q). ``velocity="from-q"`` forces the latter. A logged v̇ is kept
    unless ``savgol_window`` is given;
-5. **decimate** (anti-aliased).
+5. **rest** (``rest="auto"``, with a logged v): a joint whose |v| stays within 5 noise stds
+   of zero and whose q moves less than 8 noise stds over the derivative window is at rest,
+   v = v̇ = 0 there
+   (:mod:`sensorless.data.rest`; no friction chatter through sgn(noise) at rest);
+6. **decimate** (anti-aliased).
 
 ``Trajectory.provenance`` records which signals were logged and which derived (and
 how), the drive gains, the trim window, the timing and the resampling.
@@ -32,14 +36,26 @@ from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_de
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
 from .filtering import trim as _trim
+from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError, validate_trajectory
 
-__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES"]
+__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
+           "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
 
-#: Savitzky–Golay window [samples] when none is given (polynomial order 3).
+#: Savitzky–Golay window [samples] when none is given (polynomial order 3): the larger of this
+#: and DEFAULT_DERIVATIVE_SECONDS at the log's rate (:func:`default_savgol_window`).
 DEFAULT_SAVGOL_WINDOW = 11
+#: default derivative window [s]: 0.2 s (21 samples at 100 Hz) passes motion up to ~6 Hz and
+#: keeps the v̇ noise × inertia of a big joint below its torque noise on a 100 Hz arm
+DEFAULT_DERIVATIVE_SECONDS = 0.2
+
+
+def default_savgol_window(rate: float) -> int:
+    """Default Savitzky–Golay window [samples, odd] at ``rate`` [Hz]: max(11, 0.2 s)."""
+    n = int(round(DEFAULT_DERIVATIVE_SECONDS * float(rate))) if math.isfinite(rate) and rate > 0 else 0
+    return max(DEFAULT_SAVGOL_WINDOW, n + 1 - n % 2)
 VELOCITY_SOURCES = ("logged", "from-q")
 _POLYORDER = 3
 
@@ -162,11 +178,13 @@ def prepare(
     decimate: int = 1,
     max_gap: float = DEFAULT_MAX_GAP,
     jitter_tolerance: float = MAX_JITTER,
+    rest: str = "auto",
 ) -> Trajectory:
     """Trim, resample, low-pass, differentiate and decimate ``traj`` (module docstring).
 
     ``savgol_window`` [samples, odd] re-derives v̇ (and v when it comes from q) even if
-    logged; default :data:`DEFAULT_SAVGOL_WINDOW` when a derivative is missing.
+    logged; default :func:`default_savgol_window` (0.2 s, at least 11 samples) when a
+    derivative is missing.
     """
     src = traj.source
     mode = parse_resample(resample)
@@ -209,11 +227,18 @@ def prepare(
                 f"{' and '.join(steps)} need(s) uniform sampling but resampling is off and the time stamps are not "
                 f"uniform ({now}); use --resample auto (resample='auto') or a rate in Hz", src)
 
+    if rest not in REST_MODES:
+        raise OptionError(f"--rest must be one of {', '.join(REST_MODES)}, got {rest!r}")
+    sigma_v = None
+    if rest == "auto" and not derive_v and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:
+        sigma_v = signal_noise(traj.v)  # before the low-pass colours it (sensorless.data.rest)
+        sigma_q = signal_noise(traj.q)
     if lowpass:
         traj = _lowpass(traj, lowpass)
         traj = traj.with_(provenance={**traj.provenance, "lowpass_hz": float(lowpass)})
 
-    w = int(savgol_window) if savgol_window is not None else DEFAULT_SAVGOL_WINDOW
+    w = int(savgol_window) if savgol_window is not None else default_savgol_window(
+        1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 and np.median(np.diff(traj.t)) > 0 else float("nan"))
     if derive_v:
         traj = savgol_derivatives(traj, window=w, polyorder=_POLYORDER)
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
@@ -227,6 +252,8 @@ def prepare(
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
         traj = traj.with_(a=a, units=_note(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
                           provenance={**traj.provenance, "a": f"derived: d/dt of logged v, {how}"})
+    if sigma_v is not None:
+        traj = zero_at_rest(traj, sigma_v, w, sigma_q)
     if base_a:
         from .imu import base_acceleration  # imported on use: it loads Pinocchio
 
@@ -258,7 +285,8 @@ def parse_columns(spec: "str | None") -> "dict | None":
     return out
 
 
-PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap")
+PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap",
+                      "rest")
 """Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
 The trim window and decimation belong to one log and are recorded but not reused."""
 
@@ -278,7 +306,7 @@ def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
 
 
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
-             resample="auto", velocity="logged", max_gap=None, outliers: str = "error"):
+             resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
 
     The one preprocessing function of both the local path (``sensorless.cli.common.load_logs``) and the Dask
@@ -301,4 +329,4 @@ def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, ga
     dropped = "outlier" in traj.units.get("processing", "")
     return prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
                    savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
-                   max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap)
+                   max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap, rest=rest or "auto")

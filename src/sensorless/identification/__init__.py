@@ -23,6 +23,16 @@ from .payload import JointConsistency, PayloadEstimate, identify_payload, payloa
 from .result import IdentificationResult
 from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
+from .drive_gains import DriveGains, clock_offset, identify_drive_gains, payload_torque
+from .friction import (
+    FrictionFit,
+    coulomb_smoothing_from_noise,
+    friction_curve,
+    friction_residual,
+    identify_friction,
+    search_stribeck_velocity,
+    signal_noise,
+)
 from .weights import check_weights, read_weights_file, weights_option
 from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
@@ -49,6 +59,17 @@ if TYPE_CHECKING:
 
 
 __all__ = [
+    "clock_offset",
+    "DriveGains",
+    "FrictionFit",
+    "coulomb_smoothing_from_noise",
+    "friction_curve",
+    "friction_residual",
+    "identify_drive_gains",
+    "identify_friction",
+    "payload_torque",
+    "search_stribeck_velocity",
+    "signal_noise",
     "CONSTRAINT_RESIDUAL_RISE",
     "JOINT_TERM_MAX_VIF",
     "PRIOR_COM_MARGIN",

@@ -122,7 +122,8 @@ def identify(
     sample_count_check(ne, base)
     slow: dict[str, float] = {}
     if motion is not None:
-        slow = check_joint_motion(motion, structure.robot, structure.joint_terms)
+        slow = check_joint_motion(motion, structure.robot, {j: structure.terms_of(j) for j in structure.robot.actuated_joints}
+                                  if getattr(structure, "per_joint_terms", None) else structure.joint_terms)
     report = None
     if method in ("svd", "lmi"):
         report = identifiability_report(ne, base, rcond=MIN_SINGULAR_RATIO)

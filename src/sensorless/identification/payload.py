@@ -249,7 +249,7 @@ class _System:
         self.App = np.einsum("r,rij->ij", w, A[:, :10, :10])
         self.bp = np.einsum("r,ri->i", w, b[:, :10])
         self.Apo = (mw[:, None] * A[:, :10, 10]).T  # (10, R), zero columns for rows without offset
-        self.Aoo = np.where(self.mask, w * A[:, 10, 10], 1.0)  # diagonal (R,)
+        self.Aoo = np.where(self.mask & (w > 0), w * A[:, 10, 10], 1.0)  # diagonal (R,); a row set aside: 1
         self.bo = mw * b[:, 10]
         K = self.Apo / self.Aoo
         self.Ar = self.App - K @ self.Apo.T
@@ -328,6 +328,22 @@ class _Solver:
         if prob.status not in ("optimal", "optimal_inaccurate") or x.value is None:
             raise SolverError(f"payload SDP ended with status '{prob.status}'")
         return kappa * np.asarray(x.value) / s
+
+
+def _solve_without(solver, A_r, b_r, w, off_mask) -> "np.ndarray | None":
+    """φ from the joints with weight w > 0, or None when they cannot determine it (a
+    singular or non-finite reduced system, e.g. every joint set aside)."""
+    if not np.any(w > 0):
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sys_x = _System(A_r, b_r, w, off_mask)
+    if not (np.all(np.isfinite(sys_x.Ar)) and np.all(np.isfinite(sys_x.br))):
+        return None
+    try:
+        phi = solver(sys_x.Ar, sys_x.br)[0]
+    except (np.linalg.LinAlgError, ExcitationError, SolverError):
+        return None
+    return phi if np.all(np.isfinite(phi)) else None
 
 
 def _solve_spd(A: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -535,10 +551,14 @@ def identify_payload(
     excluded = np.zeros(rows, bool)
     final: dict[int, JointConsistency] = {}
     phi_ok = phi
+    checks: list = []
     for _ in range(rows):
         if excluded.any():
-            sys_x = _System(A_r, b_r, w * ~excluded, off_mask)
-            phi_ok = solver(sys_x.Ar, sys_x.br)[0]
+            phi_x = _solve_without(solver, A_r, b_r, w * ~excluded, off_mask)
+            if phi_x is None:  # the joints left cannot determine the payload: stop setting joints aside
+                final.update({r: c for r, c in enumerate(checks) if r not in final})
+                break
+            phi_ok = phi_x
         checks = _per_joint(blocks, A_r, b_r, w, phi_ok, cov, off_mask, joints, flag_sigma, flag_rel, excluded)
         bad = [r for r, c in enumerate(checks) if c.flagged and not excluded[r]]
         if not bad:

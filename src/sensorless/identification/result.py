@@ -13,7 +13,7 @@ from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .metrics import TorqueMetrics, torque_metrics
 
-__all__ = ["IdentificationResult", "versions", "write_json_atomic"]
+__all__ = ["IdentificationResult", "body_links", "parameter_links", "versions", "write_json_atomic"]
 
 
 @dataclass
@@ -50,7 +50,7 @@ class IdentificationResult:
     def joint_terms(self) -> dict[str, dict[str, float]]:
         s = self.structure
         return {
-            j: {t: float(self.parameters[s.joint_term_index(j, t)]) for t in s.joint_terms}
+            j: {t: float(self.parameters[s.joint_term_index(j, t)]) for t in s.terms_of(j)}
             for j in s.robot.actuated_joints
         }
 
@@ -95,6 +95,7 @@ class IdentificationResult:
             "robot": self.robot.summary(),
             **({"mass_properties": mass} if mass is not None else {}),
             "parameters": dict(zip(self.labels, map(float, self.parameters))),
+            "parameter_links": parameter_links(self.robot, self.labels),
             "parameters_kind": self.parameters_kind,
             "joint_terms": self.joint_terms(),
             "base_parameters": {
@@ -109,3 +110,29 @@ class IdentificationResult:
 
     def save_json(self, path: str | Path) -> None:
         write_json_atomic(self.to_dict(), path)
+
+
+def body_links(robot) -> dict[str, str]:
+    """{body (joint) name: link name}: the first BODY frame on each joint (URDF link), e.g.
+    ``shoulder_pan_joint`` -> ``shoulder_link``; a joint without one keeps its own name."""
+    import pinocchio as pin
+
+    m = robot.model
+    out = {}
+    for b in robot.body_names:
+        jid = m.getJointId(b) if m.existJointName(b) else None
+        link = next((f.name for f in m.frames if jid is not None and f.parentJoint == jid
+                     and f.type == pin.FrameType.BODY), None)
+        out[b] = link or b
+    return out
+
+
+def parameter_links(robot, labels) -> dict[str, str]:
+    """Each inertial parameter label ``joint.p`` with its link name, ``link.p`` (``shoulder_link.m``)."""
+    links = body_links(robot)
+    out = {}
+    for lab in labels:
+        body, _, p = lab.rpartition(".")
+        if body in links:
+            out[lab] = f"{links[body]}.{p}"
+    return out

@@ -50,7 +50,7 @@ __all__ = [
 MAX_RELATIVE_STD = 1.0
 NO_MOTION = {"revolute": 1e-3, "prismatic": 1e-3}
 LOW_MOTION = {"revolute": 0.05, "prismatic": 0.01}
-_MOTION_TERMS = ("fv", "fc", "armature")  # joint terms that need the joint to move
+_MOTION_TERMS = ("fv", "fc", "stribeck", "armature")  # joint terms that need the joint to move
 
 
 @dataclass
@@ -84,13 +84,16 @@ def _kind(robot, joint: str) -> str:
     return "revolute" if robot.is_revolute(joint) else "prismatic"
 
 
-def check_joint_motion(motion: JointMotion, robot, joint_terms: tuple[str, ...]) -> dict[str, float]:
-    """ExcitationError for a joint that never moves while it has fv/fc/armature terms;
+def check_joint_motion(motion: JointMotion, robot, joint_terms: "tuple[str, ...] | dict") -> dict[str, float]:
+    """ExcitationError for a joint that never moves while it has fv/fc/stribeck/armature terms
+    (``joint_terms``: the same for every joint, or ``{joint: terms}``);
     returns the joints that barely move, ``{joint: range}``."""
     ranges = motion.ranges
-    needs = [t for t in joint_terms if t in _MOTION_TERMS]
+    per_joint = joint_terms if isinstance(joint_terms, dict) else {j: tuple(joint_terms) for j in robot.actuated_joints}
+    needs_of = {j: [t for t in per_joint.get(j, ()) if t in _MOTION_TERMS] for j in robot.actuated_joints}
     still = {j: r for j, r in ranges.items()
-             if j in robot.actuated_joints and needs and r < NO_MOTION[_kind(robot, j)]}
+             if j in robot.actuated_joints and needs_of[j] and r < NO_MOTION[_kind(robot, j)]}
+    needs = sorted({t for j in still for t in needs_of[j]}, key=list(_MOTION_TERMS).index)
     if still:
         desc = ", ".join(f"'{j}' (position range {r:.2g} {'rad' if _kind(robot, j) == 'revolute' else 'm'})"
                          for j, r in still.items())

@@ -255,7 +255,11 @@ def compress(
                     pending[slot].result()
                 Q, V, A = structure.state(part)
                 Wb = structure.body_regressor(Q, V, A, out=bufs[slot])
-                args = (Wb, structure.joint_features(V, A), structure.actuated_rows, structure.target(part), cols)
+                F, y = structure.joint_features(V, A), structure.target(part)
+                keep = structure.fit_mask(V) if hasattr(structure, "fit_mask") else None
+                if keep is not None:  # equations left out of the fit (a joint at rest): zero rows
+                    Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.actuated_rows, None], y * keep
+                args = (Wb, F, structure.actuated_rows, y, cols)
                 if pool:
                     pending[slot] = pool.submit(_fold_chunk, ne, *args)
                 else:

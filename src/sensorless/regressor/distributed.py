@@ -76,13 +76,14 @@ class LogReader:
     velocity: str = "logged"
     max_gap: float | None = None
     outliers: str = "error"
+    rest: str = "auto"
 
     def __call__(self, path: str | Path, robot) -> Trajectory:
         from ..data.prepare import load_log
 
         return load_log(path, robot, self.columns, self.rate, self.lowpass, self.savgol_window, self.decimate,
                         gains=self.gains, trim=self.trim, resample=self.resample, velocity=self.velocity,
-                        max_gap=self.max_gap, outliers=self.outliers)
+                        max_gap=self.max_gap, outliers=self.outliers, rest=self.rest)
 
     def settings(self) -> dict:
         return asdict(self)

@@ -7,8 +7,25 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
 * ``Y`` is Pinocchio's joint-torque regressor (``computeJointTorqueRegressor``), with
   π the stacked body parameters (10 per body, see :mod:`sensorless.parameters`).
 * Joint terms, per actuated joint and in this order when enabled: viscous ``fv``,
-  Coulomb ``fc`` (``sgn`` is ``tanh(v / coulomb_smoothing)`` when a smoothing velocity
-  is given), constant ``offset`` and ``armature`` (reflected rotor inertia).
+  Coulomb ``fc`` (``sgn`` is ``tanh(v / ε_j)`` when a smoothing velocity ε_j > 0 is
+  given), Stribeck ``stribeck`` (column ``exp(−(v/vs_j)²) sgn v``, its parameter is
+  fs − fc; ``vs_j`` is a fixed per-joint velocity, :mod:`sensorless.identification.friction`
+  searches it), constant ``offset`` and ``armature`` (reflected rotor inertia). Together
+
+      τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o.
+
+  With a rest velocity δ_j > 0 (``rest_velocity``) the two sign columns are 0 where
+  |v| ≤ δ_j: a joint whose velocity is within the noise of zero is at rest, and a joint
+  at rest has no sliding friction (static friction holds whatever is needed, 0 here), so
+  the model does not chatter through sgn(noise) at rest. The equations of a joint within
+  its rest velocity are also left out of the fit (:meth:`ModelStructure.fit_mask`): the
+  friction there is indeterminate (at rest static friction holds anything in ±fs, and a
+  slow motion lost in the noise has ±fs), so they would only bias the other parameters.
+
+* Terms may differ per joint (``joint_terms={"j1": ("fv",), "*": ("fv", "fc")}``). The
+  column block of every joint still holds the union of the terms (same layout for all
+  joints); a term a joint does not have is a zero column, so its parameter is fixed at 0
+  (it is not a base parameter) and :meth:`ModelStructure.terms_of` lists the real ones.
 
 The full parameter vector is ``[π (10 · n_bodies), terms of joint 1, terms of joint 2, …]``.
 Which rows of the equation are used (the "row map") is chosen by ``rows``:
@@ -20,7 +37,7 @@ contact module).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, Mapping
 
 import numpy as np
 import pinocchio as pin
@@ -30,29 +47,118 @@ from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
 
-__all__ = ["JOINT_TERMS", "ModelStructure"]
+__all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
 
-JOINT_TERMS = ("fv", "fc", "offset", "armature")
+JOINT_TERMS = ("fv", "fc", "stribeck", "offset", "armature")
+#: Stribeck velocity vs [rad/s or m/s] of a joint whose vs is not given
+DEFAULT_STRIBECK_VELOCITY = 0.1
+
+
+def parse_joint_terms(spec: "str | Mapping | tuple | list", joints: "tuple[str, ...] | list[str]") -> dict[str, tuple[str, ...]]:
+    """Terms per joint from ``"fv,fc"`` (every joint) or ``"j1=fv,fc,offset;j2=fv;*=fv,fc"``
+    (``*``: the joints not listed; without it, unlisted joints get no terms), or a mapping
+    of the same. RobotModelError names an unknown joint or term."""
+    if isinstance(spec, str):
+        if "=" not in spec:
+            spec = {"*": spec}
+        else:
+            parts = {}
+            for item in spec.split(";"):
+                if not item.strip():
+                    continue
+                name, sep, terms = item.partition("=")
+                if not sep:
+                    raise RobotModelError(f"joint terms '{item}': expected JOINT=term,term (e.g. 'wrist_3_joint=fv')")
+                parts[name.strip()] = terms
+            spec = parts
+    if not isinstance(spec, Mapping):
+        spec = {"*": spec}
+    unknown = [j for j in spec if j != "*" and j not in joints]
+    if unknown:
+        raise RobotModelError(f"joint terms name unknown joint(s) {unknown}; actuated joints are {list(joints)}")
+    out = {}
+    for j in joints:
+        terms = spec.get(j, spec.get("*", ()))
+        if isinstance(terms, str):
+            terms = [t.strip() for t in terms.split(",") if t.strip()]
+        bad = [t for t in terms if t not in JOINT_TERMS]
+        if bad:
+            raise RobotModelError(f"unknown joint term(s) {bad} for '{j}'; choose from {JOINT_TERMS}")
+        out[j] = tuple(t for t in JOINT_TERMS if t in terms)
+    return out
+
+
+def _per_joint(value, joints, what: str) -> dict[str, float]:
+    """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        value = {"*": value}
+    unknown = [j for j in value if j != "*" and j not in joints]
+    if unknown:
+        raise RobotModelError(f"{what} names unknown joint(s) {unknown}; actuated joints are {list(joints)}")
+    out = {}
+    for j in joints:
+        x = value.get(j, value.get("*"))
+        if x is None:
+            continue
+        if isinstance(x, bool) or not isinstance(x, (int, float, np.floating, np.integer)) or not (np.isfinite(x) and x >= 0):
+            raise RobotModelError(f"{what} of '{j}' must be a finite number >= 0, got {x!r}")
+        out[j] = float(x)
+    return out
 
 
 @dataclass
 class ModelStructure:
-    """Which columns and rows make up the identification model of a robot."""
+    """Which columns and rows make up the identification model of a robot.
+
+    ``joint_terms``: a tuple (the same terms on every actuated joint), or a per-joint
+    mapping / spec string (:func:`parse_joint_terms`); afterwards ``joint_terms`` is the
+    union and ``per_joint_terms`` the mapping. ``coulomb_smoothing``: ε for every joint, or
+    ``{joint: ε}`` (0 = sgn). ``stribeck_velocity``: vs per joint with a ``stribeck`` term.
+    """
 
     robot: Robot
     joint_terms: tuple[str, ...] = ("fv", "fc", "offset", "armature")
     coulomb_smoothing: float = 0.0
     rows: Literal["actuated", "all"] | None = None
+    per_joint_terms: dict | None = None
+    stribeck_velocity: dict | None = None
+    rest_velocity: dict | None = None
     labels: list[str] = field(init=False)
 
     def __post_init__(self) -> None:
-        bad = [t for t in self.joint_terms if t not in JOINT_TERMS]
-        if bad:
-            raise RobotModelError(f"unknown joint term(s) {bad}; choose from {JOINT_TERMS}")
+        r = self.robot
+        joints = tuple(r.actuated_joints)
+        if isinstance(self.joint_terms, (str, Mapping)):
+            self.per_joint_terms = parse_joint_terms(self.joint_terms, joints)
+        elif self.per_joint_terms is not None:
+            self.per_joint_terms = parse_joint_terms(self.per_joint_terms, joints)
+        else:
+            bad = [t for t in self.joint_terms if t not in JOINT_TERMS]
+            if bad:
+                raise RobotModelError(f"unknown joint term(s) {bad}; choose from {JOINT_TERMS}")
+        if self.per_joint_terms is not None:
+            union = {t for ts in self.per_joint_terms.values() for t in ts}
+            self.joint_terms = tuple(t for t in JOINT_TERMS if t in union)
+            if all(self.per_joint_terms[j] == self.joint_terms for j in joints):
+                self.per_joint_terms = None  # uniform after all
         self.joint_terms = tuple(t for t in JOINT_TERMS if t in self.joint_terms)
+        if isinstance(self.coulomb_smoothing, Mapping):
+            self.coulomb_smoothing = _per_joint(self.coulomb_smoothing, joints, "coulomb_smoothing")
+        elif not (np.isfinite(self.coulomb_smoothing) and self.coulomb_smoothing >= 0):
+            raise RobotModelError(f"coulomb_smoothing must be a finite number >= 0, got {self.coulomb_smoothing!r}")
+        self.stribeck_velocity = _per_joint(self.stribeck_velocity, joints, "stribeck_velocity") or None
+        self.rest_velocity = _per_joint(self.rest_velocity, joints, "rest_velocity") or None
+        need = [j for j in joints if "stribeck" in self.terms_of(j)]
+        if need:  # vs of joints not given: DEFAULT_STRIBECK_VELOCITY (identification.friction searches it)
+            vs = dict(self.stribeck_velocity or {})
+            bad = [j for j in need if vs.get(j, 1.0) <= 0]
+            if bad:
+                raise RobotModelError(f"Stribeck velocity vs of {bad} must be > 0")
+            self.stribeck_velocity = {j: vs.get(j, DEFAULT_STRIBECK_VELOCITY) for j in need}
         if self.rows is None:
             self.rows = "all" if self.robot.floating_base else "actuated"
-        r = self.robot
         self.labels = [f"{b}.{p}" for b in r.body_names for p in PARAMETER_NAMES]
         self.labels += [f"{j}.{t}" for j in r.actuated_joints for t in self.joint_terms]
         self._act = r.actuated_v_indices
@@ -86,6 +192,28 @@ class ModelStructure:
             m.names[j] for j in range(1, m.njoints)
         ]
 
+    def terms_of(self, joint: str) -> tuple[str, ...]:
+        """The joint terms ``joint`` really has (a subset of ``joint_terms``)."""
+        per = getattr(self, "per_joint_terms", None)
+        return tuple(per[joint]) if per is not None else tuple(self.joint_terms)
+
+    @property
+    def term_mask(self) -> np.ndarray:
+        """(n_actuated, n_terms) bool: True where a joint has the term of that column."""
+        return np.array([[t in self.terms_of(j) for t in self.joint_terms] for j in self.robot.actuated_joints],
+                        dtype=bool).reshape(len(self.robot.actuated_joints), len(self.joint_terms))
+
+    @property
+    def fixed_zero_index(self) -> np.ndarray:
+        """Parameter indices of terms a joint does not have (zero columns, fixed at 0)."""
+        return np.array([self.joint_term_index(j, t) for j in self.robot.actuated_joints for t in self.joint_terms
+                         if t not in self.terms_of(j)], dtype=int)
+
+    def smoothing_of(self, joint: str) -> float:
+        """Coulomb smoothing velocity ε of ``joint`` (0: sgn)."""
+        eps = self.coulomb_smoothing
+        return float(eps.get(joint, 0.0)) if isinstance(eps, Mapping) else float(eps)
+
     def joint_term_index(self, joint: str, term: str) -> int:
         k = list(self.robot.actuated_joints).index(joint)
         return self.n_body_params + k * len(self.joint_terms) + self.joint_terms.index(term)
@@ -97,6 +225,8 @@ class ModelStructure:
         if "armature" in self.joint_terms:
             for j, ia in zip(self.robot.actuated_joints, self.robot.armature):
                 p[self.joint_term_index(j, "armature")] = ia
+        if getattr(self, "per_joint_terms", None) is not None:
+            p[self.fixed_zero_index] = 0.0
         return p
 
     # ---- evaluation --------------------------------------------------------------
@@ -164,17 +294,41 @@ class ModelStructure:
         return out
 
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Joint-term block, shape (N, n_actuated, n_terms): [v, sgn v, 1, v̇] per actuated joint."""
+        """Joint-term block, shape (N, n_actuated, n_terms): [v, sgn v, e^{−(v/vs)²} sgn v, 1, v̇]
+        per actuated joint (sgn v = tanh(v/ε) for ε > 0, and 0 for |v| ≤ δ, the rest velocity);
+        zero where a joint lacks a term."""
         v = V[:, self._act]
+        if not self.joint_terms:
+            return np.zeros(v.shape + (0,))
+        joints = self.robot.actuated_joints
+        eps = np.array([self.smoothing_of(j) for j in joints])
+        rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in joints])
+        sgn = (lambda: np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)) * (np.abs(v) > rest))
+        vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
         cols = {
             "fv": lambda: v,
-            "fc": lambda: np.sign(v) if self.coulomb_smoothing <= 0 else np.tanh(v / self.coulomb_smoothing),
+            "fc": sgn,
+            "stribeck": lambda: np.exp(-((v / vs) ** 2)) * sgn(),
             "offset": lambda: np.ones_like(v),
             "armature": lambda: A[:, self._act],
         }
-        if not self.joint_terms:
-            return np.zeros(v.shape + (0,))
-        return np.stack([cols[t]() for t in self.joint_terms], axis=2)
+        F = np.stack([cols[t]() for t in self.joint_terms], axis=2)
+        if getattr(self, "per_joint_terms", None) is not None:
+            F *= self.term_mask[None, :, :]
+        return F
+
+    def fit_mask(self, V: np.ndarray) -> "np.ndarray | None":
+        """(N, n_rows) 0/1 weights of the equations in the fit: 0 on a joint's row where
+        |v| ≤ its rest velocity (module docstring); None when no joint has one."""
+        rest = getattr(self, "rest_velocity", None)
+        if not rest:
+            return None
+        keep = np.ones((V.shape[0], self.n_rows))
+        v = V[:, self._act]
+        for k, j in enumerate(self.robot.actuated_joints):
+            if rest.get(j, 0.0) > 0:
+                keep[:, self.actuated_rows[k]] = np.abs(v[:, k]) > rest[j]
+        return keep
 
     @property
     def actuated_rows(self) -> np.ndarray:
@@ -206,11 +360,25 @@ class ModelStructure:
         return out
 
     def settings(self) -> dict:
-        return {
+        """Round-trips through ``result.json`` (:func:`sensorless.estimators.load_parameters`).
+        ``coulomb_smoothing`` stays one number (the median ε) for older readers; the per-joint
+        values are in ``coulomb_smoothing_by_joint``."""
+        eps = self.coulomb_smoothing
+        out = {
             "joint_terms": list(self.joint_terms),
-            "coulomb_smoothing": self.coulomb_smoothing,
+            "coulomb_smoothing": float(np.median(list(eps.values()))) if isinstance(eps, Mapping) and eps else
+            (0.0 if isinstance(eps, Mapping) else eps),
             "rows": self.rows,
         }
+        if isinstance(eps, Mapping):
+            out["coulomb_smoothing_by_joint"] = dict(eps)
+        if getattr(self, "per_joint_terms", None) is not None:
+            out["joint_terms_by_joint"] = {j: list(t) for j, t in self.per_joint_terms.items()}
+        if getattr(self, "stribeck_velocity", None):
+            out["stribeck_velocity"] = dict(self.stribeck_velocity)
+        if getattr(self, "rest_velocity", None):
+            out["rest_velocity"] = dict(self.rest_velocity)
+        return out
 
 
 def _in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:

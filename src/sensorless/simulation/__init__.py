@@ -6,7 +6,8 @@
   (imported lazily: ``from sensorless.simulation.quadruped import simulate``).
 """
 
+from .current_arm import StribeckTruth, simulate as simulate_current_log, stribeck_truth, with_payload
 from .synthetic import TruthModel, perturbed_truth, streamed_fourier_log, synthetic_trajectory
 from .wrench_log import walking_flags, wrench_log
 
-__all__ = ["TruthModel", "perturbed_truth", "streamed_fourier_log", "synthetic_trajectory", "walking_flags", "wrench_log"]
+__all__ = ["StribeckTruth", "simulate_current_log", "stribeck_truth", "with_payload", "TruthModel", "perturbed_truth", "streamed_fourier_log", "synthetic_trajectory", "walking_flags", "wrench_log"]

@@ -1,0 +1,122 @@
+"""`sensorless drive-gains`: per-joint drive gains τ = K i from an unloaded/loaded pair of logs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
+import typer
+
+from ..errors import DataError, OptionError
+from .common import (
+    ROBOT_HELP,
+    MultiValueCommand,
+    app,
+    console,
+    err_console,
+    guarded,
+    load_logs,
+    load_robot_arg,
+    output_file,
+    path_inputs,
+    resample_option,
+    trim_option,
+)
+
+__all__ = ["drive_gains"]
+
+
+@app.command("drive-gains", cls=MultiValueCommand)
+@guarded
+def drive_gains(
+    robot: str = typer.Option(..., help=ROBOT_HELP),
+    unloaded: Path = typer.Option(..., help="log of a trajectory run without the payload (motor currents)"),
+    loaded: Path = typer.Option(..., help="the same trajectory run with the known payload"),
+    payload_mass: float = typer.Option(..., help="known payload mass [kg]"),
+    frame: str = typer.Option(..., help="link or frame carrying the payload, e.g. tool0"),
+    com: Optional[str] = typer.Option(None, help="payload CoM 'x,y,z' [m] in the frame (default its origin); off the "
+                                                 "last joint's axis, or that joint's gain cannot be seen"),
+    out: Path = typer.Option(..., help="output JSON: {'gains': {joint: K}, intervals, ...}, readable by --gains"),
+    nominal_gains: Optional[str] = typer.Option(None, help="gains written for joints the pair does not identify "
+                                                           "(same forms as --gains)"),
+    columns: Optional[str] = typer.Option(None, help="column map; the currents on 'tau' or 'current', e.g. "
+                                                     "'q=pos_{joint};v=vel_{joint};tau=i_{joint}'"),
+    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz]"),
+    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window for v̇ (from the logged v)"),
+    trim: Optional[str] = trim_option(),
+    resample: str = resample_option(),
+    offset: bool = typer.Option(True, help="fit a current offset per joint (drift between the two runs)"),
+    align: str = typer.Option("time", help="time (interpolate the unloaded run at the loaded run's times, both from "
+                                           "their first sample) | rows"),
+    block_seconds: Optional[float] = typer.Option(None, help="block length [s] of the bootstrap / HAC (default: from "
+                                                             "the residual autocorrelation, >= 1 s)"),
+    n_boot: int = typer.Option(1000, help="moving-block bootstrap resamples"),
+    seed: int = typer.Option(0, help="bootstrap seed"),
+    lock: Optional[List[str]] = typer.Option(None, help="joints to lock"),
+    force: bool = typer.Option(False, help="replace --out if it exists"),
+) -> None:
+    """Identify per-joint drive gains K (τ = K·i) from two runs of one trajectory, without and
+    with a known payload: K_j (i_loaded − i_unloaded)_j = [payload torque]_j, least squares on
+    the currents, 95 % intervals from a moving-block bootstrap and HAC (correlated noise).
+    The output JSON is a gains file for --gains of identify, predict, payload, monitor."""
+    from ..data.gains import resolve_gains
+    from ..identification.drive_gains import identify_drive_gains
+    from ..identification.result import write_json_atomic
+    from .payload import _vector
+
+    if not (np.isfinite(payload_mass) and payload_mass > 0):
+        raise OptionError(f"--payload-mass must be a positive number of kg, got {payload_mass}")
+    if align not in ("time", "rows"):
+        raise OptionError(f"--align must be time or rows, got '{align}'")
+    if n_boot < 10:
+        raise OptionError(f"--n-boot must be at least 10, got {n_boot}")
+    if block_seconds is not None and not (np.isfinite(block_seconds) and block_seconds > 0):
+        raise OptionError(f"--block-seconds must be > 0, got {block_seconds}")
+    if out.exists() and not force:
+        raise OptionError(f"{out}: output exists; pass --force to replace it")
+    output_file(out, path_inputs(robot, unloaded, loaded))
+    r = load_robot_arg(robot, lock, False)
+    c = _vector(com, "--com")
+    u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trim, resample=resample)
+    res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c, offset=offset,
+                               align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed)
+    doc = res.to_dict()
+    written = dict(doc["gains"])
+    nominal = resolve_gains(nominal_gains, r.actuated_joints, "--nominal-gains") if nominal_gains else None
+    missing = [j for j, ok in zip(res.joints, res.identified) if not ok]
+    for j in missing:
+        if nominal is not None:
+            written[j] = float(nominal[list(r.actuated_joints).index(j)])
+        elif not (np.isfinite(written[j]) and written[j] > 0):
+            raise DataError(f"the pair does not identify the gain of '{j}' (no or too little payload torque there, "
+                            "or no payload difference between the logs); "
+                            "pass --nominal-gains for it, or move the payload's CoM (--com) off that joint's axis",
+                            str(loaded))
+    doc["gains"] = written
+    doc["estimated_gains"] = dict(zip(res.joints, map(float, res.gains)))
+    doc["from_nominal"] = missing if nominal is not None else []
+    doc.update({"robot": r.name, "unloaded": str(unloaded), "loaded": str(loaded)})
+    doc["settings"].update({"columns": columns, "trim": trim, "resample": resample, "savgol_window": savgol_window,
+                            "lowpass": lowpass})
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(doc, out)
+    _print(res, missing, nominal is not None)
+    console.print(f"wrote {out}")
+
+
+def _print(res, missing: list, nominal: bool) -> None:
+    from rich.table import Table
+
+    t = Table(title=f"drive gains K [N·m/A] (block {res.diagnostics['block_seconds']:.2f} s, "
+                    f"{res.diagnostics['n_samples']} samples)")
+    for col in ("joint", "K", "± σ", "95 % interval", "offset [A]", "status"):
+        t.add_column(col, justify="right")
+    for k, j in enumerate(res.joints):
+        lo, hi = res.interval[k]
+        t.add_row(j, f"{res.gains[k]:.4g}", f"{res.std[k]:.2g}", f"[{lo:.4g}, {hi:.4g}]", f"{res.offset[k]:.3g}",
+                  "ok" if res.identified[k] else ("[yellow]nominal[/]" if nominal else "[yellow]weak[/]"))
+    console.print(t)
+    if missing:
+        err_console.print(f"[yellow]warning:[/] not identified (relative σ > 20 % or K ≤ 0): {', '.join(missing)}")

@@ -1,0 +1,301 @@
+"""Joint friction: noise-aware Coulomb smoothing and the Stribeck velocity search.
+
+Friction model of joint j (linear terms are regressor columns, see
+:mod:`sensorless.regressor.terms`):
+
+    τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o.
+
+**Noise, rest and smoothing (the defaults).** The noise of a signal x is the
+high-frequency part of it, the residual of a Savitzky–Golay fit, r = x − S x. For white
+noise of std σ, var r = σ² (1 − c₀) with c₀ the centre coefficient of the smoother, so
+σ̂ = 1.4826 · MAD(r) / √(1 − c₀) (robust to the motion's own residual at reversals).
+A low-pass filter colours the noise (the estimate above would miss it): the noise is then
+measured on the unfiltered logs (``noise_logs``) and σ_v scaled by √(B/(f_s/2)), B the
+noise bandwidth ∫|H(f)|⁴ df of the zero-phase Butterworth filter at ``lowpass_hz``
+(:func:`lowpass_noise_gain`).
+
+A robot at rest has v = noise n, and a sliding-friction model fs sgn(n) chatters by fs,
+far above the torque noise on a geared arm (fs of several N·m against σ_τ ~ 0.05 N·m).
+Smoothing alone cannot fix it without blurring the friction in motion (chatter ≈ fs σ_v / ε
+needs ε ≳ 2 fs σ_v / σ_τ, tens of σ_v, wider than a Stribeck bump). So, by default, rest is
+found in preprocessing (:mod:`sensorless.data.rest`: |v| within 5 σ_v over the derivative
+window → v = v̇ = 0, so sgn v = 0), and here
+
+* **Coulomb smoothing** ε = ``factor`` σ_v (3): tanh(v/ε) only averages the sign over the
+  velocity noise in motion;
+* optionally a per-sample **rest gate** δ (``rest_velocity``: "auto" = ``REST_SIGMAS`` σ_v of
+  the unfiltered logs; default 0 = off): |v| ≤ δ gives no Coulomb/Stribeck friction and is
+  left out of the fit (:class:`~sensorless.regressor.ModelStructure`). Per sample it cannot
+  tell rest from a slow motion (it costs accuracy at reversals); the windowed test can.
+
+:func:`coulomb_smoothing_from_noise` with ``sigma_tau``/``static_friction`` is the rule for
+a model without a rest gate (``rest_velocity=0``): ε = max(k σ_v, 2 fs σ_v / σ_τ),
+at most ``max_fraction`` · P95(|v|), so that the chatter at rest stays below σ_τ / 2.
+
+**Stribeck velocity.** vs enters nonlinearly. With the rigid-body part fixed at a first
+fit, the friction residual of each joint, r_j = τ_j − [Y π]_j − Ia_j v̇_j, is linear in
+(fc, fs − fc, fv, o) for a given vs; the vs minimising the least-squares residual over a
+log-spaced grid is kept (variable projection, one dimension per joint), then everything
+is identified again with vs fixed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from ..data.rest import signal_noise
+from ..data.trajectory import Trajectory
+from ..errors import DataError
+from ..regressor.terms import ModelStructure, _in_robot_order
+
+__all__ = [
+    "FrictionFit",
+    "coulomb_smoothing_from_noise",
+    "friction_curve",
+    "friction_residual",
+    "identify_friction",
+    "lowpass_noise_gain",
+    "REST_SIGMAS",
+    "search_stribeck_velocity",
+    "signal_noise",
+]
+
+#: relative grid of Stribeck velocities (× P95 |v| of the joint)
+STRIBECK_GRID = np.geomspace(0.005, 0.5, 25)
+#: rest velocity δ = REST_SIGMAS · σ_v (module docstring)
+REST_SIGMAS = 5.0
+#: the Stribeck bump must be wider than the Coulomb smoothing (vs ≥ this × ε): a narrower
+#: one would only fit the sign chatter of a joint at rest
+MIN_STRIBECK_OVER_SMOOTHING = 3.0
+
+
+def lowpass_noise_gain(cutoff_hz: float, rate_hz: float, order: int = 4) -> float:
+    """Std ratio of white noise after the zero-phase Butterworth low-pass of
+    :func:`sensorless.data.filtering.butter_lowpass` (``sosfiltfilt``: |H|² applied twice)."""
+    from scipy.signal import butter, sosfreqz
+
+    if not (cutoff_hz < rate_hz / 2):
+        return 1.0
+    sos = butter(int(order), cutoff_hz, btype="low", fs=rate_hz, output="sos")
+    _, h = sosfreqz(sos, worN=8192, fs=rate_hz)
+    return float(np.sqrt(np.mean(np.abs(h) ** 4)))
+
+
+def _pooled_noise(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """Noise std pooled over logs (sample-count weighted variance)."""
+    s = [(signal_noise(a), len(a)) for a in arrays if len(a) > 30]
+    if not s:
+        raise DataError("no log is long enough (> 30 samples) to estimate the noise")
+    n = sum(k for _, k in s)
+    return np.sqrt(sum(k * sig**2 for sig, k in s) / n)
+
+
+def coulomb_smoothing_from_noise(
+    sigma_v: np.ndarray, *, sigma_tau: np.ndarray | None = None, static_friction: np.ndarray | None = None,
+    speed: np.ndarray | None = None, factor: float = 3.0, max_fraction: float = 0.1, margin: float = 2.0,
+) -> np.ndarray:
+    """ε per joint: ``max(factor σ_v, margin |fs| σ_v / σ_τ)``, at most ``max_fraction`` of the joint
+    speed ``speed`` (P95 |v|) when given (module docstring)."""
+    sigma_v = np.asarray(sigma_v, dtype=float)
+    eps = factor * sigma_v
+    if sigma_tau is not None and static_friction is not None:
+        st = np.maximum(np.asarray(sigma_tau, dtype=float), 1e-12)
+        eps = np.maximum(eps, margin * np.abs(np.asarray(static_friction, dtype=float)) * sigma_v / st)
+    if speed is not None:
+        eps = np.minimum(eps, max_fraction * np.asarray(speed, dtype=float))
+    return np.where(np.isfinite(eps) & (eps > 0), eps, 0.0)
+
+
+def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajectory, list[int]]:
+    r = structure.robot
+    traj = _in_robot_order(r, traj)
+    return traj, [r.joint_names.index(j) for j in r.actuated_joints]
+
+
+def _friction_params(structure: ModelStructure, params: np.ndarray) -> np.ndarray:
+    """``params`` with everything but the velocity-dependent friction terms and offset zeroed."""
+    p = np.zeros_like(params)
+    for j in structure.robot.actuated_joints:
+        for t in structure.terms_of(j):
+            if t != "armature":
+                k = structure.joint_term_index(j, t)
+                p[k] = params[k]
+    return p
+
+
+def friction_residual(structure: ModelStructure, params: np.ndarray, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """(v, r) per actuated joint, shape (N, n_act): r = τ − (rigid body + armature) prediction,
+    the torque the friction model has to explain."""
+    traj, cols = _act_columns(structure, traj)
+    rigid = params - _friction_params(structure, params)
+    pred = structure.torques(rigid, traj)[:, structure.actuated_rows]
+    meas = structure.target(traj)[:, structure.actuated_rows]
+    return traj.v[:, cols], meas - pred
+
+
+def friction_curve(structure: ModelStructure, params: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Identified friction τ_f(v) per actuated joint for velocities ``v`` (N, n_act)."""
+    v = np.atleast_2d(np.asarray(v, dtype=float))
+    V = np.zeros((v.shape[0], structure.robot.nv))
+    V[:, structure.robot.actuated_v_indices] = v
+    F = structure.joint_features(V, np.zeros_like(V))  # armature column 0 at zero acceleration
+    nt = len(structure.joint_terms)
+    phi = _friction_params(structure, params)[structure.n_body_params:].reshape(structure.robot.n_actuated, nt) \
+        if nt else np.zeros((structure.robot.n_actuated, 0))
+    return np.einsum("nkt,kt->nk", F, phi)
+
+
+def search_stribeck_velocity(
+    v: np.ndarray, r: np.ndarray, *, eps: float, terms: Sequence[str], grid: Sequence[float],
+) -> tuple[float, np.ndarray]:
+    """The vs in ``grid`` whose least-squares fit of r on the joint's friction columns
+    ([v, tanh(v/ε), exp(−(v/vs)²) tanh(v/ε), 1], those in ``terms``) leaves the smallest
+    residual; returns (vs, residual sum of squares per grid point)."""
+    v, r = np.asarray(v, dtype=float), np.asarray(r, dtype=float)
+    ok = np.isfinite(v) & np.isfinite(r)
+    v, r = v[ok], r[ok]
+    sgn = np.tanh(v / eps) if eps > 0 else np.sign(v)
+    fixed = [c for t, c in (("fv", v), ("fc", sgn), ("offset", np.ones_like(v))) if t in terms]
+    sse = np.full(len(grid), np.inf)
+    for i, vs in enumerate(grid):
+        X = np.column_stack(fixed + [np.exp(-((v / vs) ** 2)) * sgn])
+        coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+        sse[i] = float(np.sum((r - X @ coef) ** 2))
+    return float(grid[int(np.argmin(sse))]), sse
+
+
+@dataclasses.dataclass
+class FrictionFit:
+    """How the friction settings were chosen (recorded in ``result.settings["friction"]``)."""
+
+    coulomb_smoothing: dict[str, float]
+    coulomb_smoothing_mode: str
+    velocity_noise: dict[str, float] | None = None
+    torque_noise: dict[str, float] | None = None
+    stribeck_velocity: dict[str, float] | None = None
+    stribeck_search: dict | None = None
+    rest_velocity: dict[str, float] | None = None
+    rest_velocity_mode: str = "off"
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def identify_friction(
+    structure: ModelStructure,
+    train: Iterable[Trajectory],
+    *,
+    coulomb_smoothing: "str | float" = "auto",
+    stribeck_velocity: "str | float | dict" = "auto",
+    rest_velocity: "str | float" = 0.0,
+    factor: float = 3.0,
+    identify_kwargs: dict | None = None,
+    noise_logs: Iterable[Trajectory] | None = None,
+    lowpass_hz: float | None = None,
+):
+    """Identify with noise-aware Coulomb smoothing, a rest gate and searched Stribeck velocities.
+
+    ``coulomb_smoothing``: "auto" (ε = ``factor`` σ_v, module docstring) or ε for every joint
+    (0 = sgn). ``rest_velocity``: "auto" (δ = :data:`REST_SIGMAS` σ_v) or δ for every joint
+    (0 = no rest gate). ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck``
+    term) or vs. ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training
+    logs went through (module docstring); default: the noise of the training logs as they are.
+    Runs :func:`~sensorless.identification.identify` once when vs is not searched, else a first
+    least-squares fit, the search, and the final fit with ``identify_kwargs``. Returns
+    ``(result, FrictionFit)``.
+    """
+    from .identify import identify
+
+    train = list(train)
+    kw = dict(identify_kwargs or {})
+    joints = list(structure.robot.actuated_joints)
+    has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
+    for name, val in (("coulomb_smoothing", coulomb_smoothing), ("rest_velocity", rest_velocity)):
+        if isinstance(val, str) and val != "auto":
+            raise DataError(f"{name} must be 'auto' or a number >= 0, got {val!r}")
+    auto_eps, auto_rest = isinstance(coulomb_smoothing, str), isinstance(rest_velocity, str)
+    auto_vs = isinstance(stribeck_velocity, str) and bool(has_stribeck)
+    speed, sigma_v = None, None
+    if auto_eps or auto_rest or auto_vs:
+        v_all = [_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in train]
+        speed = np.percentile(np.abs(np.concatenate(v_all)), 95, axis=0)
+        speed = np.where(speed > 0, speed, 1.0)
+    if auto_eps or auto_rest:
+        raw = list(noise_logs) if noise_logs is not None else train
+        sigma_v = _logged_velocity_noise(structure, raw)
+        if sigma_v is None:
+            sigma_v = _pooled_noise([_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in raw])
+        sigma_raw = sigma_v
+        if lowpass_hz:
+            sigma_v = sigma_v * lowpass_noise_gain(lowpass_hz, float(np.median([t.rate for t in train])))
+    eps = (coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor) if auto_eps
+           else np.full(len(joints), float(coulomb_smoothing)))
+    rest = (coulomb_smoothing_from_noise(sigma_raw, speed=speed, factor=REST_SIGMAS) if auto_rest
+            else np.full(len(joints), float(rest_velocity)))
+    if isinstance(stribeck_velocity, str):
+        if stribeck_velocity != "auto":
+            raise DataError(f"stribeck_velocity must be 'auto' or a number > 0, got {stribeck_velocity!r}")
+        vs = {j: float(0.1 * speed[k]) for k, j in enumerate(joints) if j in has_stribeck} if has_stribeck else None
+    elif isinstance(stribeck_velocity, dict):
+        vs = dict(stribeck_velocity)
+    else:
+        vs = {j: float(stribeck_velocity) for j in has_stribeck} or None
+
+    def build(vs_map) -> ModelStructure:
+        return dataclasses.replace(structure, coulomb_smoothing=dict(zip(joints, map(float, eps))),
+                                   stribeck_velocity=vs_map, per_joint_terms=_per_joint_terms(structure),
+                                   rest_velocity={j: float(d) for j, d in zip(joints, rest) if d > 0} or None)
+
+    s = build(vs)
+    fit = FrictionFit(coulomb_smoothing=dict(zip(joints, map(float, eps))),
+                      coulomb_smoothing_mode="auto" if auto_eps else "given", stribeck_velocity=vs,
+                      rest_velocity=dict(zip(joints, map(float, rest))),
+                      rest_velocity_mode="auto" if auto_rest else ("given" if np.any(rest > 0) else "off"))
+    if sigma_v is not None:
+        fit.velocity_noise = dict(zip(joints, map(float, sigma_v)))
+        fit.torque_noise = dict(zip(joints, map(float, _pooled_noise([s.target(t)[:, s.actuated_rows] for t in raw]))))
+    if not auto_vs:
+        return identify(s, train, **kw), fit
+    first_kw = {k: v for k, v in kw.items() if k in ("weights", "chunk", "progress", "outliers")}
+    with warnings.catch_warnings():  # the first fit only chooses vs: ordinary least squares is enough
+        warnings.simplefilter("ignore")  # the final fit reports identifiability
+        p = identify(s, train, method="ols", **first_kw).parameters
+    pairs = [friction_residual(s, p, t) for t in train]
+    V = np.concatenate([a for a, _ in pairs])
+    R = np.concatenate([b for _, b in pairs])
+    fit.stribeck_search = {}
+    for k, j in enumerate(joints):
+        if j not in has_stribeck:
+            continue
+        grid = STRIBECK_GRID * speed[k]
+        lo = MIN_STRIBECK_OVER_SMOOTHING * max(eps[k], rest[k])
+        grid = grid[grid >= lo] if np.any(grid >= lo) else grid[-1:]
+        moving = np.abs(V[:, k]) > rest[k]  # the rest samples carry no friction information
+        best, sse = search_stribeck_velocity(V[moving, k], R[moving, k], eps=float(eps[k]), terms=s.terms_of(j),
+                                             grid=grid)
+        vs[j] = best
+        fit.stribeck_search[j] = {"grid": grid.tolist(), "sse": sse.tolist()}
+    fit.stribeck_velocity = vs
+    return identify(build(vs), train, **kw), fit
+
+
+def _logged_velocity_noise(structure: ModelStructure, logs: list) -> "np.ndarray | None":
+    """σ_v per actuated joint measured by the rest detection of every log (its v is 0 at rest
+    afterwards, which would bias a new estimate low), pooled; None if a log has none."""
+    infos = [t.provenance.get("rest") for t in logs]
+    if not infos or any(i is None for i in infos):
+        return None
+    joints = structure.robot.actuated_joints
+    try:
+        var = sum(len(t) * np.array([i["velocity_noise"][j] for j in joints]) ** 2 for t, i in zip(logs, infos))
+    except KeyError:
+        return None
+    return np.sqrt(var / sum(len(t) for t in logs))
+
+
+def _per_joint_terms(structure: ModelStructure):
+    return None if getattr(structure, "per_joint_terms", None) is None else dict(structure.per_joint_terms)
