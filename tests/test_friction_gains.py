@@ -1,5 +1,5 @@
 """Issue 17: per-joint terms, Stribeck / noise-aware Coulomb friction, drive gains, --data a b c,
-link names. Reduced versions of the real-arm acceptance (sensorless.experiments.real_arm)."""
+link names. Reduced versions of the real-arm acceptance (sensorless.benchmarks.real_arm)."""
 
 from __future__ import annotations
 

@@ -206,19 +206,26 @@ def _fit(case: PeerCase, robot: Robot, method: str, overrides: dict[str, Any] | 
     """``sensorless identify --method METHOD`` with the command-line defaults (plus
     ``overrides``), in process on the generated logs: the same option handling
     (``_structure``, ``_lmi_kwargs``, ``weights_option``) and the same ``identify`` call."""
-    from ..cli.core import _lmi_kwargs, _structure
+    from ..cli.core import _friction_options, _lmi_kwargs, _structure
+    from ..identification.friction import identify_friction
     from ..identification import identify
     from ..identification.weights import weights_option
 
     o = {**cli_defaults(), **(overrides or {}), "method": method}
-    structure = _structure(robot, o["joint_terms"], o["coulomb_smoothing"], None, None, 0.0, o["contact_mode"])
+    eps, vs = _friction_options(o["coulomb_smoothing"], o["stribeck_velocity"])
+    structure = _structure(robot, o["joint_terms"], 0.0 if eps == "auto" else eps, None, None, 0.0, o["contact_mode"])
     lmi_kw = _lmi_kwargs(robot, structure, method, None, o["regularization"], o["gamma"], o["ellipsoids"],
                          o["contain_prior"])
     weights = weights_option(o["weights"], structure.row_names)
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = identify(structure, [case.train], method=method, weights=weights, outliers=o["outliers"], **lmi_kw)
+        kw = dict(method=method, weights=weights, outliers=o["outliers"], **lmi_kw)
+        if eps == "auto" or "stribeck" in structure.joint_terms:  # what `identify` does for plain arms
+            res, _ = identify_friction(structure, [case.train], coulomb_smoothing=eps, stribeck_velocity=vs,
+                                       identify_kwargs=kw)
+        else:
+            res = identify(structure, [case.train], **kw)
     seconds = time.perf_counter() - t0
     e = held_out_nrmse(res.predict(case.test), case)
     reports = check_physical_consistency(res.inertial_parameters, list(robot.body_names))

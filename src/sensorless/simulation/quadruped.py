@@ -59,11 +59,10 @@ import pinocchio as pin
 
 from ..data.trajectory import Trajectory
 from ..errors import RobotModelError, SimulationError
-from ..regressor.terms import JOINT_TERMS
 from ..robot import Robot, load_robot
 from .mujoco_scene import MujocoScene, build_scene
 from .quadruped_control import Controller, LegIK, references
-from .quadruped_log import Episode, NoiseSpec, SimulationTruth, assemble
+from .quadruped_log import JOINT_TERMS, Episode, NoiseSpec, SimulationTruth, assemble
 from .quadruped_plans import SCENARIOS, _Context
 from .quadruped_profiles import PROFILES, QuadrupedProfile, profile_for, quadruped_robot, spot_mjcf
 from .synthetic import TruthModel, perturbed_truth

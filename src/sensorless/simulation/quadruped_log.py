@@ -17,12 +17,14 @@ from scipy.spatial.transform import Rotation
 
 from ..data.imu import gravity_in_base
 from ..data.trajectory import Trajectory
-from ..regressor.terms import JOINT_TERMS
 from ..robot import Robot
 from .mujoco_scene import MujocoScene, mj_to_pin_state
 from .quadruped_control import References
 from .quadruped_plans import _Plan
 from .synthetic import TruthModel
+
+#: the joint terms the simulated quadruped has (and its logs' truth parameters are laid out in)
+JOINT_TERMS = ("fv", "fc", "offset", "armature")
 
 __all__ = ["Episode", "NoiseSpec", "SimulationTruth", "assemble"]
 
