@@ -88,7 +88,7 @@ def payload_regressor(robot: Robot, Q: np.ndarray, V: np.ndarray, A: np.ndarray,
     fid = robot.frame_id(frame)
     model, data = robot.model, robot.data
     act = robot.actuated_v_indices
-    G = getattr(robot, "G", None) if hasattr(robot, "tree_state") else None
+    G = robot.transmission_matrix
     if G is not None:
         Q, V, A = robot.tree_state(Q, V, A)
     out = np.empty((Q.shape[0], len(act), 10))

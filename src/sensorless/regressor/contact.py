@@ -54,6 +54,7 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from .compress import NormalEquations
+from .rowmap import ContactNullSpace, RowMap
 from .terms import ModelStructure, _in_robot_order
 
 __all__ = [
@@ -298,6 +299,11 @@ class ContactStructure(ModelStructure):
 
     # ---- sizes ----------------------------------------------------------------------
     @property
+    def row_map(self) -> RowMap:
+        """P(q) = I − Jc⁺Jc per sample (projected), or the kept rows (wrench): :class:`~.rowmap.ContactNullSpace`."""
+        return ContactNullSpace(self)
+
+    @property
     def base_rows_only(self) -> bool:
         return self.contact_rows == "base"
 
@@ -508,7 +514,7 @@ class ContactStructure(ModelStructure):
             Q, V, A = self.state(part)
             W = ModelStructure.evaluate(self, Q, V, A)
             if self.mode == "projected":
-                W = np.matmul(self.projector(Q, self.contacts(part)), W)
+                W = self.row_map.apply(W, Q, self.contacts(part))
             elif self.n_offset_params:
                 flags = self.contacts(part)
                 W[:, :, super().n_params :] = self._offset_columns(Q, self.jacobians(Q, flags), flags)[:, self._row_idx]

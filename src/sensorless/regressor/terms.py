@@ -46,6 +46,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
+from .rowmap import ActuatedRows, RowMap
 
 __all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
 
@@ -191,6 +192,12 @@ class ModelStructure:
         return names + list(self.robot.joint_names) if self.robot.floating_base else [
             m.names[j] for j in range(1, m.njoints)
         ]
+
+    @property
+    def row_map(self) -> RowMap:
+        """The map from the nv rows of the equations of motion to the kept rows
+        (:class:`~.rowmap.ActuatedRows`: the actuated rows, or all rows)."""
+        return ActuatedRows(self._row_idx, tuple(self.row_names))
 
     def terms_of(self, joint: str) -> tuple[str, ...]:
         """The joint terms ``joint`` really has (a subset of ``joint_terms``)."""
@@ -346,6 +353,11 @@ class ModelStructure:
             c = self.n_body_params + k * nt
             W[:, row, c : c + nt] = F[:, k]
         return W
+
+    def fold(self, ne, traj: Trajectory) -> None:
+        """Add one chunk's assembled equations (W, y) to normal equations ``ne``; used by
+        :func:`~.compress.compress` for row maps that change per sample (``row_map.per_sample``)."""
+        ne.add(self.regressor(traj), self.target(traj))
 
     def regressor(self, traj: Trajectory) -> np.ndarray:
         """Regressor of a (short) trajectory, shape (N, n_rows, n_params)."""
