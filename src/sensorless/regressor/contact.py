@@ -53,13 +53,8 @@ import numpy as np
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from .compress import NormalEquations
-from .contact_kinematics import (  # re-exported: contact.null_space_projector etc. keep working
-    contact_jacobians,
-    contact_rotations,
-    detect_contacts,
-    null_space_basis,
-    null_space_projector,
-)
+# re-exported: sensorless.regressor.contact.null_space_projector etc. keep working
+from .contact_kinematics import contact_jacobians, contact_rotations, detect_contacts, null_space_basis, null_space_projector
 from .rowmap import ContactNullSpace, RowMap
 from .terms import ModelStructure, _in_robot_order
 

@@ -55,22 +55,28 @@ def _rows_first(M: np.ndarray, X: np.ndarray) -> np.ndarray:
     return np.einsum("rj,nj...->nr...", M, X, optimize=True)
 
 
+class _NamedRows:
+    """A constant map with named rows (``names``, one per kept row)."""
+
+    names: tuple[str, ...]
+    per_sample = False
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.names)
+
+    @property
+    def row_names(self) -> list[str]:
+        return list(self.names)
+
+
 @dataclass(frozen=True)
-class ActuatedRows:
+class ActuatedRows(_NamedRows):
     """Row selection: kept row r is row ``index[r]`` of the full equation (Sᵀ rows or all rows)."""
 
     index: np.ndarray
     names: tuple[str, ...]
     selects_rows = True
-    per_sample = False
-
-    @property
-    def n_rows(self) -> int:
-        return len(self.index)
-
-    @property
-    def row_names(self) -> list[str]:
-        return list(self.names)
 
     def matrix(self, nv: int) -> np.ndarray:
         """The selection as a 0/1 matrix (n_rows, nv)."""
@@ -83,26 +89,17 @@ class ActuatedRows:
 
 
 @dataclass(frozen=True)
-class TransmissionRows:
+class TransmissionRows(_NamedRows):
     """M = Gᵀ restricted to the kept coordinates: ``GT`` (n_rows, n_tree_joints)."""
 
     GT: np.ndarray
     names: tuple[str, ...]
     selects_rows = False
-    per_sample = False
 
     @classmethod
     def from_coupling(cls, G: np.ndarray, rows: Sequence[int], coordinates: Sequence[str]) -> "TransmissionRows":
         rows = np.asarray(rows, dtype=int)
         return cls(np.ascontiguousarray(np.asarray(G, float)[:, rows].T), tuple(coordinates[i] for i in rows))
-
-    @property
-    def n_rows(self) -> int:
-        return self.GT.shape[0]
-
-    @property
-    def row_names(self) -> list[str]:
-        return list(self.names)
 
     def apply(self, X, Q=None, flags=None):
         return _rows_first(self.GT, np.asarray(X))

@@ -72,11 +72,7 @@ def parse_joint_terms(spec: "str | Mapping | tuple | list", joints: "tuple[str, 
                     raise RobotModelError(f"joint terms '{item}': expected JOINT=term,term (e.g. 'wrist_3_joint=fv')")
                 parts[name.strip()] = terms
             spec = parts
-    if not isinstance(spec, Mapping):
-        spec = {"*": spec}
-    unknown = [j for j in spec if j != "*" and j not in joints]
-    if unknown:
-        raise RobotModelError(f"joint terms name unknown joint(s) {unknown}; actuated joints are {list(joints)}")
+    spec = _by_joint(spec, joints, "joint terms")
     out = {}
     for j in joints:
         terms = spec.get(j, spec.get("*", ()))
@@ -89,15 +85,21 @@ def parse_joint_terms(spec: "str | Mapping | tuple | list", joints: "tuple[str, 
     return out
 
 
-def _per_joint(value, joints, what: str) -> dict[str, float]:
-    """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
-    if value is None:
-        return {}
+def _by_joint(value, joints, what: str) -> Mapping:
+    """``value`` as a mapping {joint or '*': …} ('*' for a single value), checking the joint names."""
     if not isinstance(value, Mapping):
         value = {"*": value}
     unknown = [j for j in value if j != "*" and j not in joints]
     if unknown:
         raise RobotModelError(f"{what} names unknown joint(s) {unknown}; actuated joints are {list(joints)}")
+    return value
+
+
+def _per_joint(value, joints, what: str) -> dict[str, float]:
+    """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
+    if value is None:
+        return {}
+    value = _by_joint(value, joints, what)
     out = {}
     for j in joints:
         x = value.get(j, value.get("*"))
