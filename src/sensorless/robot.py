@@ -25,11 +25,33 @@ import pinocchio as pin
 
 from .errors import JointNameError, RobotModelError
 
-__all__ = ["Robot", "load_robot"]
+__all__ = ["Actuation", "Robot", "load_robot"]
+
+
+class Actuation:
+    """What every robot view shares: the actuated joints' velocity indices, the selection
+    matrix S and the transmission. Subclasses give ``actuated_joints``, ``nv`` and ``v_index``.
+
+    ``transmission_matrix`` is G of joints q = Gθ + q₀ driven by coordinates θ
+    (:class:`~sensorless.regressor.transmission.CoordinateRobot`), None for a plain tree."""
+
+    transmission_matrix: "np.ndarray | None" = None
+
+    @property
+    def actuated_v_indices(self) -> np.ndarray:
+        """Velocity indices of the actuated joints, in ``actuated_joints`` order."""
+        return np.array([self.v_index(j) for j in self.actuated_joints], dtype=int)
+
+    @property
+    def selection(self) -> np.ndarray:
+        """Actuation selection matrix S (n_actuated x nv): tau_full = S^T tau."""
+        S = np.zeros((self.n_actuated, self.nv))
+        S[np.arange(self.n_actuated), self.actuated_v_indices] = 1.0
+        return S
 
 
 @dataclass
-class Robot:
+class Robot(Actuation):
     """Pinocchio model + joint bookkeeping. Build it with :func:`load_robot`."""
 
     model: pin.Model
@@ -107,18 +129,6 @@ class Robot:
 
     def q_index(self, joint: str) -> int:
         return self.model.joints[self.joint_id(joint)].idx_q
-
-    @property
-    def actuated_v_indices(self) -> np.ndarray:
-        """Velocity indices of the actuated joints, in ``actuated_joints`` order."""
-        return np.array([self.v_index(j) for j in self.actuated_joints], dtype=int)
-
-    @property
-    def selection(self) -> np.ndarray:
-        """Actuation selection matrix S (n_actuated x nv): tau_full = S^T tau."""
-        S = np.zeros((self.n_actuated, self.nv))
-        S[np.arange(self.n_actuated), self.actuated_v_indices] = 1.0
-        return S
 
     @property
     def armature(self) -> np.ndarray:

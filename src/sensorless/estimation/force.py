@@ -72,7 +72,7 @@ def frame_jacobians(robot: Robot, Q: np.ndarray, frame: str, reference: str = "l
     fid = robot.frame_id(frame)
     ref = _reference(reference)
     model, data = robot.model, robot.data
-    G = getattr(robot, "G", None) if hasattr(robot, "tree_state") else None
+    G = robot.transmission_matrix
     Qp = robot.tree_state(Q)[0] if G is not None else Q
     out = np.empty((Q.shape[0], 6, model.nv))
     for i in range(Q.shape[0]):

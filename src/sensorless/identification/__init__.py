@@ -40,8 +40,8 @@ from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_mo
 __getattr__, __dir__ = lazy_exports(globals(), {
     **dict.fromkeys(["BodyMassBounds", "ComInEllipsoid", "DensityRealizable", "NonNegativeArmature",
                      "NonNegativeFriction", "PseudoInertiaPSD", "TotalMass", "default_constraints"], ".constraints"),
-    **dict.fromkeys(["GammaSelection", "LmiSolution", "build_lmi", "cross_validate_gamma", "select_gamma",
-                     "solve_lmi"], ".lmi"),
+    **dict.fromkeys(["LmiSolution", "build_lmi", "solve_lmi"], ".lmi"),
+    **dict.fromkeys(["GammaSelection", "cross_validate_gamma", "select_gamma"], ".gamma"),
 })
 
 if TYPE_CHECKING:
@@ -55,7 +55,8 @@ if TYPE_CHECKING:
         TotalMass,
         default_constraints,
     )
-    from .lmi import GammaSelection, LmiSolution, build_lmi, cross_validate_gamma, select_gamma, solve_lmi
+    from .gamma import GammaSelection, cross_validate_gamma, select_gamma
+    from .lmi import LmiSolution, build_lmi, solve_lmi
 
 
 __all__ = [

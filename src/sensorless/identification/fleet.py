@@ -6,7 +6,7 @@ solved on the client by :func:`~.identify.identify` from the summed equations, s
 two-step WLS (σ_r from the per-row OLS residual of the same equations), SVD and LMI with a
 fixed γ are the local computations on the same sums. LMI with ``gamma="auto"`` gets its
 cross-validation folds from the workers too (the same contiguous/phase blocks as
-:func:`~.lmi.cross_validate_gamma` cuts from trajectories).
+:func:`~.gamma.cross_validate_gamma` cuts from trajectories).
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
     cv = None
     if method == "lmi" and kw.get("gamma", 1e-3) == "auto":
         from .least_squares import row_weights
-        from .lmi import cross_validate_gamma
+        from .gamma import cross_validate_gamma
         from .weights import check_weights
 
         row_w = row_weights(fleet.equations, check_weights(kw.get("weights", "auto"), structure.row_names))

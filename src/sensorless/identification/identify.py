@@ -77,7 +77,7 @@ def identify(
     (physically consistent convex program, :func:`~.lmi.solve_lmi`, regularised toward
     ``prior`` — default the model's own inertials — with ``regularization`` and weight
     ``gamma``; ``gamma="auto"`` picks it by 5-fold cross-validation on the training data,
-    :func:`~.lmi.cross_validate_gamma`). ``ellipsoids`` and ``lmi_options`` go to the solver.
+    :func:`~.gamma.cross_validate_gamma`). ``ellipsoids`` and ``lmi_options`` go to the solver.
     The γ grid of ``gamma="auto"`` starts at 0; a winner at an edge of the grid, bounding
     ellipsoids that cost training residual (:data:`CONSTRAINT_RESIDUAL_RISE`, naming the
     bodies) and joint terms the log cannot separate (:data:`JOINT_TERM_MAX_VIF`) are
@@ -140,7 +140,8 @@ def identify(
         extra = {"svd_rank": svd_rank, "svd_rcond": svd_rcond}
         cond, base_std = float("nan"), []
     elif method == "lmi":
-        from .lmi import cross_validate_gamma, solve_lmi
+        from .gamma import cross_validate_gamma
+        from .lmi import solve_lmi
 
         opts = dict(lmi_options or {})
         row_w = row_weights(ne, w)

@@ -40,23 +40,21 @@ from __future__ import annotations
 
 import functools
 import time
-import warnings
 from dataclasses import asdict, dataclass, field
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import cvxpy as cp
 import numpy as np
 
 from ..data.periodicity import excitation_period
-from ..data.trajectory import Trajectory
-from ..errors import DataError, ExcitationError, IdentifiabilityWarning, SolverError
+from ..errors import DataError, ExcitationError, SolverError
 from ..parameters import (
     ConsistencyReport,
     check_physical_consistency,
     from_pseudo_inertia,
     pseudo_inertia,
 )
-from ..regressor.compress import NormalEquations, compress
+from ..regressor.compress import NormalEquations
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .constraints import (
@@ -72,18 +70,14 @@ __all__ = [
     "CONSISTENCY_TOL",
     "DEFAULT_GAMMAS",
     "BodyReport",
-    "GammaSelection",
     "LmiProblem",
     "LmiSolution",
     "available_solvers",
     "body_reports",
     "build_lmi",
-    "cross_validate_gamma",
     "excitation_period",
     "mosek_available",
-    "select_gamma",
     "solve_lmi",
-    "validation_score",
 ]
 
 CONSISTENCY_TOL = 1e-8  # λ_min(J_k) ≥ −tol · ‖J_k‖₂ counts as consistent
@@ -426,204 +420,13 @@ def solve_lmi(
     return prob.solve(gamma, solver=solver, accept_inaccurate=accept_inaccurate, verbose=verbose)
 
 
-# ---- choosing γ ----------------------------------------------------------------------
-@dataclass
-class GammaSelection:
-    """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds))."""
-
-    gamma: float
-    gammas: np.ndarray
-    scores: np.ndarray
-    fold_scores: np.ndarray
-    score: str
-    failures: dict[float, str] = field(default_factory=dict)
-
-    @property
-    def edge(self) -> str | None:
-        """"upper" if the largest γ of the grid won, "lower" if the smallest did and it is
-        not 0 (0 is the natural bound: no prior), else None. An edge means the best γ may
-        lie outside the grid."""
-        g = np.asarray(self.gammas, dtype=float)
-        if len(g) < 2:
-            return None
-        if self.gamma == g.max():
-            return "upper"
-        if self.gamma == g.min() and self.gamma > 0:
-            return "lower"
-        return None
-
-    def edge_message(self) -> str | None:
-        """One-line warning text when :attr:`edge` is set."""
-        if self.edge is None:
-            return None
-        finite = self.scores[np.isfinite(self.scores)]
-        trend = f"held-out {self.score} {finite.min():.3g}" if finite.size else ""
-        if self.edge == "upper":
-            return (f"cross-validation picked the largest γ of its grid ({self.gamma:g}; {trend}): the prior may "
-                    "deserve more weight than the grid allows; extend the grid upward or check the data")
-        return (f"cross-validation picked the smallest γ of its grid ({self.gamma:g}; {trend}) while the score may "
-                "still be falling; extend the grid downward (include 0, no prior)")
-
-    def to_dict(self) -> dict:
-        return {
-            "gamma": self.gamma,
-            "edge": self.edge,
-            "gammas": self.gammas.tolist(),
-            "scores": self.scores.tolist(),
-            "fold_scores": self.fold_scores.tolist(),
-            "score": self.score,
-            "failures": {str(k): v for k, v in self.failures.items()},
-        }
+# γ selection lives in .gamma; the old import paths keep working (lazily: .gamma imports this module)
+_MOVED = ("GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score", "_split_folds", "_scan", "_pick")
 
 
-def validation_score(ne: NormalEquations, params: np.ndarray, score: str = "residual", row_weights=None) -> float:
-    """Held-out error of ``params`` on ``ne``.
+def __getattr__(name: str):
+    if name in _MOVED:
+        from . import gamma
 
-    "residual": ``Σ_r w_r ‖W_r π − y_r‖² / Σ_r w_r ‖y_r‖²``; "nrmse": mean over rows with a
-    non-zero measured range of ``RMSE_r / range_r``.
-    """
-    ss = ne.residual_ss(params)
-    if score == "residual":
-        w = np.ones(len(ss)) if row_weights is None else np.asarray(row_weights, dtype=float)
-        return float(w @ ss / max(w @ ne.c, 1e-300))
-    if score == "nrmse":
-        rng = ne.y_max - ne.y_min
-        ok = rng > 0
-        return float(np.mean(np.sqrt(ss[ok] / max(ne.n_samples, 1)) / rng[ok]))
-    raise ValueError(f"unknown score '{score}'; use 'residual' or 'nrmse'")
-
-
-def _scan(
-    problem: LmiProblem, ne_val: NormalEquations, gammas: np.ndarray, score: str, row_weights, solver, failures
-) -> np.ndarray:
-    out = np.full(len(gammas), np.inf)
-    for i, g in enumerate(gammas):
-        try:
-            sol = problem.solve(float(g), solver=solver)
-        except SolverError as exc:
-            failures[float(g)] = str(exc)
-            continue
-        out[i] = validation_score(ne_val, sol.params, score, row_weights)
-    return out
-
-
-def _pick(gammas: np.ndarray, fold_scores: np.ndarray, score: str, failures: dict, warn: bool = True) -> GammaSelection:
-    scores = fold_scores.mean(axis=1)
-    if not np.any(np.isfinite(scores)):
-        raise SolverError(f"no gamma could be solved: {failures}")
-    sel = GammaSelection(float(gammas[int(np.argmin(scores))]), gammas, scores, fold_scores, score, failures)
-    if warn and sel.edge is not None:
-        warnings.warn(sel.edge_message(), IdentifiabilityWarning, stacklevel=3)
-    return sel
-
-
-def select_gamma(
-    ne_train: NormalEquations,
-    ne_val: NormalEquations,
-    structure: ModelStructure,
-    gammas: Sequence[float] = DEFAULT_GAMMAS,
-    *,
-    score: str = "residual",
-    solver: str | None = None,
-    warn: bool = True,
-    **build_kwargs: Any,
-) -> GammaSelection:
-    """The γ whose solution on ``ne_train`` has the lowest :func:`validation_score` on ``ne_val``.
-
-    ``build_kwargs`` as :func:`solve_lmi` (regularization, constraints, ellipsoids, ...).
-    The program is compiled once; γ is a parameter. A winner at an edge of the grid
-    (:attr:`GammaSelection.edge`) issues an :class:`~sensorless.errors.IdentifiabilityWarning`
-    unless ``warn=False``.
-    """
-    gammas = np.asarray(gammas, dtype=float)
-    failures: dict[float, str] = {}
-    prob = build_lmi(ne_train, structure, **build_kwargs)
-    sc = _scan(prob, ne_val, gammas, score, build_kwargs.get("row_weights"), solver, failures)
-    return _pick(gammas, sc[:, None], score, failures, warn)
-
-
-def _split_folds(
-    structure: ModelStructure,
-    data: Trajectory | Iterable[Trajectory] | Sequence[NormalEquations],
-    n_folds: int,
-    chunk: int,
-    period: float | str | None,
-) -> list[NormalEquations]:
-    items = [data] if isinstance(data, Trajectory) else list(data)
-    if items and all(isinstance(i, NormalEquations) for i in items):
-        if len(items) < 2:
-            raise DataError("cross-validation needs at least 2 folds of normal equations")
-        return items  # type: ignore[return-value]
-    trajs: list[Trajectory] = items  # type: ignore[assignment]
-    total = sum(len(t) for t in trajs)
-    if n_folds < 2 or total < 2 * n_folds:
-        raise DataError(f"cannot split {total} samples into {n_folds} folds (need n_folds >= 2)")
-    if period == "auto":
-        period = excitation_period(trajs[0])
-    if period is not None:
-        if not float(period) > 0:  # type: ignore[arg-type]
-            raise DataError(f"period must be positive, got {period}")
-        folds = []
-        for f in range(n_folds):
-            parts = []
-            for t in trajs:
-                block = np.floor(((t.t - t.t[0]) % period) / period * n_folds).astype(int)  # type: ignore[operator]
-                if np.any(block == f):
-                    parts.append(t.take(block == f))
-            if not parts:
-                raise DataError(f"no sample falls in phase block {f} of {n_folds}; is period={period} s right?")
-            folds.append(compress(structure, parts, chunk=chunk))
-        return folds
-    edges = np.linspace(0, total, n_folds + 1).round().astype(int)
-    starts = np.cumsum([0] + [len(t) for t in trajs])
-    folds = []
-    for f in range(n_folds):
-        parts = []
-        for t, s in zip(trajs, starts[:-1]):
-            lo, hi = max(edges[f] - s, 0), min(edges[f + 1] - s, len(t))
-            if hi > lo:
-                parts.append(t.take(slice(lo, hi)))
-        folds.append(compress(structure, parts, chunk=chunk))
-    return folds
-
-
-def cross_validate_gamma(
-    structure: ModelStructure,
-    data: Trajectory | Iterable[Trajectory] | Sequence[NormalEquations],
-    gammas: Sequence[float] = DEFAULT_GAMMAS,
-    *,
-    n_folds: int = 5,
-    score: str = "residual",
-    period: float | str | None = None,
-    solver: str | None = None,
-    chunk: int = 2048,
-    warn: bool = True,
-    **build_kwargs: Any,
-) -> GammaSelection:
-    """K-fold cross-validation of γ on contiguous folds (what ``--gamma auto`` runs).
-
-    The training samples (one trajectory or several, in order) are cut into ``n_folds``
-    contiguous blocks, each compressed once; fold ``f`` trains on the sum of the other
-    blocks' normal equations (they are additive) and scores on block ``f``
-    (:func:`validation_score`). Contiguous blocks keep neighbouring, correlated samples
-    on one side of the split. A periodic excitation (Fourier series) that was logged for
-    several periods repeats itself, so a time block has a twin in the training folds;
-    give its ``period`` [s] (or "auto": :func:`excitation_period` of the first trajectory;
-    no period found → time blocks) and the blocks are contiguous in phase
-    ``(t − t0) mod period`` instead. Precompressed folds may be passed instead of trajectories. The returned γ
-    minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`. The default
-    grid starts at γ = 0 (no prior); a winner at an edge of the grid warns (``warn``, see
-    :func:`select_gamma`).
-    """
-    gammas = np.asarray(gammas, dtype=float)
-    folds = _split_folds(structure, data, n_folds, chunk, period)
-    ellipsoids = build_kwargs.pop("ellipsoids", None)
-    prior = build_kwargs.get("prior")
-    ell = resolve_ellipsoids(structure.robot, ellipsoids, prior=structure.prior() if prior is None else prior)
-    failures: dict[float, str] = {}
-    cols = []
-    for f in range(len(folds)):
-        train = functools.reduce(NormalEquations.merge, [folds[i] for i in range(len(folds)) if i != f])
-        prob = build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs)
-        cols.append(_scan(prob, folds[f], gammas, score, build_kwargs.get("row_weights"), solver, failures))
-    return _pick(gammas, np.stack(cols, axis=1), score, failures, warn)
+        return getattr(gamma, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

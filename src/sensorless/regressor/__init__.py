@@ -12,9 +12,11 @@ from .contact import (
     null_space_projector,
 )
 from .distributed import DistributedError, FleetEquations, LogReader, compress_files, expand_paths
+from .rowmap import ActuatedRows, ContactNullSpace, RowMap, TransmissionRows
 from .terms import JOINT_TERMS, ModelStructure
 
 __all__ = [
+    "ActuatedRows", "ContactNullSpace", "RowMap", "TransmissionRows",
     "ContactStructure",
     "WRENCH_OFFSETS",
     "choose_contact_rows",

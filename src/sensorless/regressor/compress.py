@@ -230,11 +230,11 @@ def compress(
 
         return compress_files(structure, data, client=client, reader=reader, chunk=chunk, progress=progress).equations
     ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
-    own_fold = hasattr(structure, "fold")  # structures with their own row map (e.g. contacts)
-    # per-row subtree columns only where the body block is Pinocchio's joint-torque regressor itself
-    # (a transmission's dense regressor couples rows through its drive columns: fold every column)
-    pinocchio_rows = type(structure).body_regressor is ModelStructure.body_regressor
-    cols = structure.row_body_columns() if pinocchio_rows and not own_fold else None
+    row_map = structure.row_map
+    own_fold = row_map.per_sample  # a map that changes per sample (contacts): the structure folds its equations
+    # per-row subtree columns only where each kept row is one row of Pinocchio's joint-torque regressor
+    # (a transmission's Gᵀ rows and drive columns couple rows: fold every column)
+    cols = structure.row_body_columns() if row_map.selects_rows and not own_fold else None
     if overlap is None:
         overlap = _idle_core()
     seen = False
@@ -256,7 +256,7 @@ def compress(
                 Q, V, A = structure.state(part)
                 Wb = structure.body_regressor(Q, V, A, out=bufs[slot])
                 F, y = structure.joint_features(V, A), structure.target(part)
-                keep = structure.fit_mask(V) if hasattr(structure, "fit_mask") else None
+                keep = structure.fit_mask(V)
                 if keep is not None:  # equations left out of the fit (a joint at rest): zero rows
                     Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.actuated_rows, None], y * keep
                 args = (Wb, F, structure.actuated_rows, y, cols)

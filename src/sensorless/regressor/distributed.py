@@ -22,7 +22,7 @@ raises is retried ``retries`` times. A file that cannot be used raises its typed
 Two-step WLS needs no second pass over the files: the per-row equations give every row's
 OLS residual ‖W_r π − y_r‖² = πᵀA_rπ − 2πᵀb_r + c_r exactly. LMI with γ chosen by
 cross-validation needs the samples split into folds exactly as
-``identification.lmi._split_folds`` does: pass 1 returns each file's length and excitation
+``identification.gamma._split_folds`` does: pass 1 returns each file's length and excitation
 period, pass 2 folds each file's samples into ``n_folds`` partial equations.
 """
 
@@ -167,7 +167,7 @@ def _named(exc: SensorlessError, path: str) -> SensorlessError:
 
 
 def _fold_parts(traj: Trajectory, n_folds: int, period: float | None, offset: int, total: int):
-    """This file's share of each cross-validation fold, as ``lmi._split_folds`` cuts them:
+    """This file's share of each cross-validation fold, as ``gamma._split_folds`` cuts them:
     phase blocks ``⌊((t − t₀) mod period) / period · n_folds⌋`` per file when a period is
     known, else contiguous blocks of the concatenated samples (``offset`` = samples before this file)."""
     if period is not None:
@@ -292,7 +292,7 @@ def compress_files(
     :class:`LogReader`\\ (): the CLI defaults); it must be picklable. A file that fails raises
     its typed error naming it, unless ``skip_bad`` (then it is listed in ``skipped``).
     ``retries``: Dask retries of a task that raised. ``n_folds`` also returns the
-    cross-validation folds of ``lmi.cross_validate_gamma`` (``period`` as there; this costs
+    cross-validation folds of ``gamma.cross_validate_gamma`` (``period`` as there; this costs
     a first pass that reads every file for its length). ``progress(1)`` is called per finished
     file task (twice per file with folds).
     """

@@ -46,6 +46,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
+from .rowmap import ActuatedRows, RowMap
 
 __all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
 
@@ -71,11 +72,7 @@ def parse_joint_terms(spec: "str | Mapping | tuple | list", joints: "tuple[str, 
                     raise RobotModelError(f"joint terms '{item}': expected JOINT=term,term (e.g. 'wrist_3_joint=fv')")
                 parts[name.strip()] = terms
             spec = parts
-    if not isinstance(spec, Mapping):
-        spec = {"*": spec}
-    unknown = [j for j in spec if j != "*" and j not in joints]
-    if unknown:
-        raise RobotModelError(f"joint terms name unknown joint(s) {unknown}; actuated joints are {list(joints)}")
+    spec = _by_joint(spec, joints, "joint terms")
     out = {}
     for j in joints:
         terms = spec.get(j, spec.get("*", ()))
@@ -88,15 +85,21 @@ def parse_joint_terms(spec: "str | Mapping | tuple | list", joints: "tuple[str, 
     return out
 
 
-def _per_joint(value, joints, what: str) -> dict[str, float]:
-    """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
-    if value is None:
-        return {}
+def _by_joint(value, joints, what: str) -> Mapping:
+    """``value`` as a mapping {joint or '*': …} ('*' for a single value), checking the joint names."""
     if not isinstance(value, Mapping):
         value = {"*": value}
     unknown = [j for j in value if j != "*" and j not in joints]
     if unknown:
         raise RobotModelError(f"{what} names unknown joint(s) {unknown}; actuated joints are {list(joints)}")
+    return value
+
+
+def _per_joint(value, joints, what: str) -> dict[str, float]:
+    """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
+    if value is None:
+        return {}
+    value = _by_joint(value, joints, what)
     out = {}
     for j in joints:
         x = value.get(j, value.get("*"))
@@ -191,6 +194,12 @@ class ModelStructure:
         return names + list(self.robot.joint_names) if self.robot.floating_base else [
             m.names[j] for j in range(1, m.njoints)
         ]
+
+    @property
+    def row_map(self) -> RowMap:
+        """The map from the nv rows of the equations of motion to the kept rows
+        (:class:`~.rowmap.ActuatedRows`: the actuated rows, or all rows)."""
+        return ActuatedRows(self._row_idx, tuple(self.row_names))
 
     def terms_of(self, joint: str) -> tuple[str, ...]:
         """The joint terms ``joint`` really has (a subset of ``joint_terms``)."""
@@ -346,6 +355,11 @@ class ModelStructure:
             c = self.n_body_params + k * nt
             W[:, row, c : c + nt] = F[:, k]
         return W
+
+    def fold(self, ne, traj: Trajectory) -> None:
+        """Add one chunk's assembled equations (W, y) to normal equations ``ne``; used by
+        :func:`~.compress.compress` for row maps that change per sample (``row_map.per_sample``)."""
+        ne.add(self.regressor(traj), self.target(traj))
 
     def regressor(self, traj: Trajectory) -> np.ndarray:
         """Regressor of a (short) trajectory, shape (N, n_rows, n_params)."""

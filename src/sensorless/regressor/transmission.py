@@ -36,8 +36,9 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..errors import DataError, JointNameError, RobotModelError
 from ..parameters import PARAMETER_NAMES
-from ..robot import Robot
+from ..robot import Actuation, Robot
 from .extra_terms import DriveTerm
+from .rowmap import RowMap, TransmissionRows
 from .terms import ModelStructure
 
 __all__ = ["CoordinateRobot", "TransmissionStructure", "add_body_joint", "coupling_matrix"]
@@ -86,7 +87,7 @@ def add_body_joint(
     return jid
 
 
-class CoordinateRobot:
+class CoordinateRobot(Actuation):
     """Robot-like view of a tree driven by independent coordinates.
 
     Joint-level attributes (``joint_names``, ``nv``, limits, ``full_configuration``) refer
@@ -140,14 +141,9 @@ class CoordinateRobot:
     q_index = v_index
 
     @property
-    def actuated_v_indices(self) -> np.ndarray:
-        return np.array([self.v_index(j) for j in self.actuated_joints], dtype=int)
-
-    @property
-    def selection(self) -> np.ndarray:
-        S = np.zeros((self.n_actuated, self.nv))
-        S[np.arange(self.n_actuated), self.actuated_v_indices] = 1.0
-        return S
+    def transmission_matrix(self) -> "np.ndarray | None":
+        """G (n_tree_joints × n_coordinates), or None before a structure sets it."""
+        return getattr(self, "G", None)
 
     @property
     def armature(self) -> np.ndarray:
@@ -301,10 +297,10 @@ class TransmissionStructure(ModelStructure):
             self.labels += d.labels
         self._row_idx = np.array([coordinates.index(r) for r in rows], dtype=int)
         self._act = self._row_idx
-        self._act_row = np.arange(len(rows))
+        self._act_row = np.zeros(0, dtype=int)  # no per-joint term block: drive terms are dense columns
         cols = self.robot.body_indices
         self._tree_cols = (10 * cols[:, None] + np.arange(10)[None, :]).ravel()
-        self._GT = np.ascontiguousarray(G[:, self._row_idx].T)  # (rows, n_tree_joints)
+        self._rows = TransmissionRows.from_coupling(G, self._row_idx, coordinates)  # Gᵀ on the kept rows
         self._drive_slices = []
         c = self.n_body_params
         for d in self.drives:
@@ -328,22 +324,15 @@ class TransmissionStructure(ModelStructure):
         hi = np.where(np.isfinite(hi), hi, np.pi)
         return lo, hi
 
-    # ---- sizes ---------------------------------------------------------------------
-    @property
-    def n_body_params(self) -> int:
-        return 10 * self.robot.n_bodies
-
+    # ---- sizes (n_body_params, n_rows, row_names, prior, state: ModelStructure's on the coordinate robot) ----
     @property
     def n_params(self) -> int:
         return self.n_body_params + sum(d.n_params for d in self.drives)
 
     @property
-    def n_rows(self) -> int:
-        return len(self._row_idx)
-
-    @property
-    def row_names(self) -> list[str]:
-        return [self.coordinates[i] for i in self._row_idx]
+    def row_map(self) -> RowMap:
+        """Gᵀ on the kept coordinates (:class:`~.rowmap.TransmissionRows`)."""
+        return self._rows
 
     def joint_term_index(self, joint: str, term: str) -> int:
         """Index of drive parameter ``term`` (fv, fc, offset, inertia, k, k_rest) of drive ``joint``."""
@@ -360,12 +349,6 @@ class TransmissionStructure(ModelStructure):
             for d, s in zip(self.drives, self._drive_slices)
         }
 
-    def prior(self) -> np.ndarray:
-        """Tree inertials of the identified bodies; zero drive terms."""
-        p = np.zeros(self.n_params)
-        p[: self.n_body_params] = self.robot.inertial_parameters()
-        return p
-
     # ---- coordinates → tree ---------------------------------------------------------
     def joint_values(self, theta: np.ndarray) -> np.ndarray:
         """Tree joint positions q = Gθ + q₀, shape (N, n_tree_joints)."""
@@ -381,17 +364,6 @@ class TransmissionStructure(ModelStructure):
         )
 
     # ---- evaluation -------------------------------------------------------------------
-    def state(self, traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Coordinate arrays (θ, θ̇, θ̈), each (N, n_coordinates), in ``coordinates`` order."""
-        if traj.v is None or traj.a is None:
-            missing = "v" if traj.v is None else "a"
-            raise DataError(
-                f"trajectory has no '{missing}'; compute derivatives first (sensorless.data.savgol_derivatives)",
-                traj.source,
-            )
-        traj = self._ordered(traj)
-        return traj.q.copy(), traj.v.copy(), traj.a.copy()
-
     def target(self, traj: Trajectory) -> np.ndarray:
         """Measured generalised forces of the kept coordinates, (N, n_rows)."""
         if traj.tau is None:
@@ -413,7 +385,7 @@ class TransmissionStructure(ModelStructure):
         cols = self._tree_cols
         for i in range(N):
             Y[i] = f(model, data, Q[i], V[i], A[i])[:, cols]
-        return np.einsum("rj,njp->nrp", self._GT, Y, optimize=True)
+        return self._rows.apply(Y)
 
     def drive_regressor(self, theta, dtheta, ddtheta) -> np.ndarray:
         """Drive-term block, (N, n_rows, n_drive_params): column of term p of drive d is g_d · feature_p."""
@@ -441,14 +413,6 @@ class TransmissionStructure(ModelStructure):
             out[: W.shape[0]] = W
             return out[: W.shape[0]]
         return W
-
-    def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Empty (N, 0, 0): every column is in :meth:`body_regressor`."""
-        return np.zeros((np.atleast_2d(V).shape[0], 0, 0))
-
-    @property
-    def actuated_rows(self) -> np.ndarray:
-        return np.zeros(0, dtype=int)
 
     @classmethod
     def from_settings(cls, tree: Robot, settings: Mapping, **kwargs) -> "TransmissionStructure":
