@@ -26,7 +26,6 @@ from .data.trajectory import Trajectory
 from .errors import ParameterError, SensorlessError
 from .identification.identify import identify
 from .identification.metrics import TorqueMetrics, torque_metrics
-from .identification.result import IdentificationResult
 from .regressor.terms import ModelStructure
 from .robot import Robot
 
