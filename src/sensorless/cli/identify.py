@@ -29,6 +29,20 @@ from .common import (
     trim_option,
     velocity_option,
 )
+from .options import (
+    ContactMode,
+    ContactRows,
+    Ellipsoids,
+    Method,
+    Outliers,
+    Regularization,
+    Rest,
+    Velocity,
+    WrenchOffset,
+    check_config,
+    config_option,
+    resolved_options,
+)
 from .identify_model import _check_identify_options, _friction_options, _lmi_kwargs, _plain, _structure
 from .identify_outputs import _export, _floating_base_checks, _plot_window, _print_bodies
 
@@ -36,15 +50,16 @@ from .identify_outputs import _export, _floating_base_checks, _plot_window, _pri
 @app.command(cls=MultiValueCommand)
 @guarded
 def identify(
+    config: Optional[Path] = config_option(),
     robot: str = typer.Option(..., help=ROBOT_HELP),
     data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
                                          "folder; several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
-    method: str = typer.Option("ols", help="ols | wls | lmi (physically consistent) | svd"),
+    method: Method = typer.Option("ols", help="lmi: physically consistent; svd: minimum-norm truncated SVD"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
-    regularization: str = typer.Option("pullback", help="lmi: pullback | entropic | euclidean | none"),
+    regularization: Regularization = typer.Option("pullback", help="lmi: regulariser toward the prior"),
     gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),
-    ellipsoids: str = typer.Option("auto", help="lmi: bounding ellipsoids auto | kinematic | none"),
+    ellipsoids: Ellipsoids = typer.Option("auto", help="lmi: bounding ellipsoids"),
     contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain any body near the prior "
                                        "(second moments ×4, CoM within 7.5 cm); --no-contain-prior: geometry only"),
     weights: str = typer.Option("auto", help="per-joint noise weighting, every method: auto (two-step: σ from an "
@@ -62,7 +77,7 @@ def identify(
     gains: Optional[str] = gains_option(),
     trim: Optional[str] = trim_option(),
     resample: str = resample_option(),
-    velocity: str = velocity_option(),
+    velocity: Velocity = velocity_option(),
     max_gap: Optional[float] = max_gap_option(),
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
@@ -71,10 +86,11 @@ def identify(
                    "forces, flags from the log's 'contact' columns or detected from foot height/speed"),
     contact_dims: Optional[str] = typer.Option(None, help="per contact frame 3 (point foot) or 6 (flat foot); default 3"),
     contact_offset: float = typer.Option(0.0, help="radius [m] of spherical feet (contact point below the frame)"),
-    contact_mode: str = typer.Option("projected", help="projected (no force sensing) | wrench (log has contact_forces)"),
-    contact_rows: str = typer.Option("auto", help="wrench mode: base (6 floating-base rows; logs without joint "
+    contact_mode: ContactMode = typer.Option("projected", help="projected (no force sensing) | wrench (log has "
+                                             "contact_forces)"),
+    contact_rows: ContactRows = typer.Option("auto", help="wrench mode: base (6 floating-base rows; logs without joint "
                                      "torques) | all (+ torque rows) | auto (base when the logs have no torques)"),
-    wrench_offset: str = typer.Option("none", help="wrench mode: constant wrench bias to identify: none | net | "
+    wrench_offset: WrenchOffset = typer.Option("none", help="wrench mode: constant wrench bias to identify: none | net | "
                                       "foot (world axes, per foot) | sole (force in each sole frame)"),
     offset_axes: str = typer.Option("xy", help="force axes of --wrench-offset (xyz adds the vertical one, "
                                     "confounded with m·g on standing data)"),
@@ -82,14 +98,14 @@ def identify(
                                             "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
                                           "the joint's velocity noise (docs/arm.md §7)"),
-    rest: str = typer.Option("auto", help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
+    rest: Rest = typer.Option("auto", help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
                              "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
                              "remembers it) | off (docs/arm.md §7)"),
     stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (1-D search "
                                           "per joint)"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
-    outliers: str = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
-                                               "warning) | keep"),
+    outliers: Outliers = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
+                                                    "warning) | keep"),
     scheduler: Optional[str] = typer.Option(
         None, help="compress on Dask: 'local' (a LocalCluster on this machine) or a scheduler address "
                    "tcp://HOST:PORT; workers read the --data files themselves (see docs/fleet.md)"),
@@ -105,6 +121,7 @@ def identify(
     from ..estimators import CADModel, PhysicalModel
     from ..report import metrics_table
 
+    check_config()
     coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
@@ -172,6 +189,7 @@ def identify(
                                     velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest),
                                 "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
                                 if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
+        result.settings["config"] = {"file": None if config is None else str(config), "options": resolved_options()}
         if scheduler is not None or skip_bad:
             result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
         for f, e in skipped:
