@@ -31,13 +31,21 @@ class MultiValueCommand(TyperCommand):
     """A command whose repeatable options (``List[...]``) also take several values after one
     flag: ``--data a.csv b.csv c.csv`` is ``--data a.csv --data b.csv --data c.csv`` (a shell
     glob expands to exactly that). Values run until the next token starting with ``-``.
-    Only for commands without positional arguments (nothing else could own a bare token)."""
+    Only for commands without positional arguments (nothing else could own a bare token).
+    Usage errors (a value not among an option's choices, a missing option) are one red line too."""
 
     def parse_args(self, ctx, args):
         if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)
             args = expand_multi_values(args, {o for p in self.params if p.param_type_name == "option"
                                               and getattr(p, "multiple", False) for o in p.opts})
-        return super().parse_args(ctx, args)
+        try:
+            return super().parse_args(ctx, args)
+        except Exception as exc:
+            if type(exc).__name__ not in ("BadParameter", "MissingParameter", "NoSuchOption", "BadOptionUsage",
+                                          "UsageError") or not hasattr(exc, "format_message"):
+                raise
+            _print_line("error:", "bold red", one_line(exc.format_message()).replace("Value error, ", ""))
+            raise typer.Exit(2) from None
 
 
 def expand_multi_values(args: list[str], multi: set[str]) -> list[str]:
