@@ -276,3 +276,59 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **o
 
 
 ROBOT_HELP = "URDF path, MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
+
+
+# ---- the preprocessing options of commands that apply an identified model ------------------
+_MODEL_DEFAULT = " (default: the model's)"
+_PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
+    "columns": (Optional[str], lambda: typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or "
+                                                              "'q=pos_{joint}'" + _MODEL_DEFAULT)),
+    "rate": (Optional[float], lambda: typer.Option(None, help="sample rate [Hz] for logs without a time column"
+                                                              + _MODEL_DEFAULT)),
+    "lowpass": (Optional[float], lambda: typer.Option(None, help="zero-phase low-pass cut-off [Hz]" + _MODEL_DEFAULT)),
+    "savgol_window": (Optional[int], lambda: typer.Option(None, help="Savitzky-Golay window [samples] for v̇"
+                                                                     + _MODEL_DEFAULT)),
+    "gains": (Optional[str], lambda: gains_option()),
+    "trim": (Optional[str], lambda: trim_option()),
+    "resample": (Optional[str], lambda: resample_option(None)),
+    "velocity": (Optional[str], lambda: velocity_option(None)),
+    "max_gap": (Optional[float], lambda: max_gap_option()),
+}
+MODEL_PREPROCESSING = tuple(_PREPROCESSING_OPTIONS)
+
+
+def model_preprocessing_options(names: tuple[str, ...] = MODEL_PREPROCESSING):
+    """Decorator: the command gets the options ``names`` (columns, rate, lowpass, ...; each
+    defaulting to the model's own, result.json settings.preprocessing) in one ``prep`` dict
+    argument instead of one parameter each; one definition for predict, monitor,
+    estimate-force and payload."""
+    import inspect
+
+    def deco(fn):
+        sig = inspect.signature(fn)
+        params = [p for p in sig.parameters.values() if p.name != "prep"]
+        extra = [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=_PREPROCESSING_OPTIONS[n][1](),
+                                   annotation=_PREPROCESSING_OPTIONS[n][0]) for n in names]
+
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            prep = {n: kwargs.pop(n, None) for n in names}
+            return fn(*args, prep=prep, **kwargs)
+
+        wrapper.__signature__ = sig.replace(parameters=[
+            p.replace(kind=inspect.Parameter.KEYWORD_ONLY) for p in params] + extra)
+        wrapper.__annotations__ = {k: v for k, v in getattr(fn, "__annotations__", {}).items() if k != "prep"}
+        return wrapper
+
+    return deco
+
+
+def model_logs(model_path: Path, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
+    """Logs to apply a model to, preprocessed as its training logs were: each option in
+    ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`).
+    Returns (trajectories, the resolved options)."""
+    opts = model_preprocessing(model_path, **{k: v for k, v in prep.items() if k != "trim"})
+    trajs = load_logs(paths, robot, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
+                      gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
+                      velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"))
+    return trajs, opts

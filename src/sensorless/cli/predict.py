@@ -11,45 +11,34 @@ import typer
 
 from ..errors import SensorlessError
 from ..io import write_npz_atomic
+from .options import Outliers
 from .common import (
+    model_logs,
+    model_preprocessing_options,
     ROBOT_HELP,
     app,
     atomic_outdir,
     check_preprocessing,
     console,
-    gains_option,
     guarded,
-    load_logs,
     load_robot_arg,
-    max_gap_option,
-    model_preprocessing,
     output_file,
     path_inputs,
-    resample_option,
-    trim_option,
-    velocity_option,
 )
 
 
 @app.command()
 @guarded
+@model_preprocessing_options()
 def predict(
     robot: str = typer.Option(..., help=ROBOT_HELP),
     model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
     data: Path = typer.Option(..., help="log to predict"),
     out: Path = typer.Option(..., help="output .npz with t, tau_pred (and tau_measured, metrics if available)"),
-    columns: Optional[str] = typer.Option(None, help="column map (default: the model's)"),
-    rate: Optional[float] = typer.Option(None, help="sample rate (Hz) for logs without a time column (default: the model's)"),
-    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window (default: the model's)"),
-    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off in Hz (default: the model's)"),
-    gains: Optional[str] = gains_option(),
-    trim: Optional[str] = trim_option(),
-    resample: Optional[str] = resample_option(None),
-    velocity: Optional[str] = velocity_option(None),
-    max_gap: Optional[float] = max_gap_option(),
     lock: Optional[List[str]] = typer.Option(None),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
-    outliers: str = typer.Option("error", help="gross outliers in the log: error | drop | keep"),
+    outliers: Outliers = typer.Option("error", help="gross outliers in the log"),
+    prep: dict = None,
 ) -> None:
     """Predict joint torques of a log with an identified model. The log is preprocessed as the
     model's training logs were (result.json settings.preprocessing) unless an option says otherwise."""
@@ -57,16 +46,13 @@ def predict(
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
-    check_preprocessing(rate, lowpass, savgol_window, 1)
+    check_preprocessing(prep["rate"], prep["lowpass"], prep["savgol_window"], 1)
     output_file(out, path_inputs(robot, model, data))
     r = load_robot_arg(robot, lock, floating_base)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
-    opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
-                               savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
-    (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
-                        gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                        max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"))
+    (traj,), opts = model_logs(path, [data], r, prep, outliers=outliers)
+    trim = prep["trim"]
     pred = structure.torques(params, traj)
     if not np.all(np.isfinite(pred)):
         raise SensorlessError(f"{path}: the model predicts non-finite torques on {data}")
