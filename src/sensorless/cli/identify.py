@@ -272,7 +272,11 @@ def _first_training_log(data, r, prep: dict) -> list:
 
 
 def _imu_frame_logs(logs, robot, frame: str, savgol_window):
-    """Recompute base_a with the accelerometer in model frame ``frame`` (needs 'imu_acc')."""
+    """Recompute base_a with the accelerometer in model frame ``frame`` (needs 'imu_acc'); the
+    derivative window is --savgol-window, else the library's default at the log's rate
+    (:func:`~sensorless.data.prepare.default_savgol_window`, 0.2 s), as for v̇."""
     from ..data import base_acceleration
+    from ..data.prepare import default_savgol_window
 
-    return [base_acceleration(t, window=savgol_window or 11, robot=robot, imu_frame=frame) for t in logs]
+    return [base_acceleration(t, window=savgol_window or default_savgol_window(1.0 / t.dt), robot=robot,
+                              imu_frame=frame) for t in logs]
