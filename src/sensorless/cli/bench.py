@@ -9,6 +9,7 @@ import typer
 
 from ..errors import OptionError
 from .common import (
+    write_result,
     ROBOT_HELP,
     bench_app,
     console,
@@ -27,13 +28,7 @@ def bench_identify(
     from ..benchmarks.identify import bench_identify as run
 
     res = run(robot, [int(float(s)) for s in samples.split(",")], console=console)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    from ..identification.result import write_json_atomic
-
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
-
-
+    write_result(res, out)
 
 
 @bench_app.command("dask")
@@ -48,13 +43,10 @@ def bench_dask_cmd(
 ) -> None:
     """Dask LocalCluster vs single-process identification from generated Parquet logs (deleted afterwards)."""
     from ..benchmarks.fleet import bench_dask
-    from ..identification.result import write_json_atomic
 
     sizes = tuple(int(float(s)) for s in samples.split(","))
     res = bench_dask(robot, sizes, samples_per_file=samples_per_file, workers=workers, method=method, console=console)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)
 
 
 @bench_app.command("contact")
@@ -65,12 +57,9 @@ def bench_contact_cmd(
 ) -> None:
     """Contact-projected identification: end-to-end time and projector cost vs a pinv loop."""
     from ..benchmarks.identify import bench_contact
-    from ..identification.result import write_json_atomic
 
     res = bench_contact(samples, console=console)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)
 
 
 @bench_app.command("speed")
@@ -85,7 +74,6 @@ def bench_speed_cmd(
 ) -> None:
     """Compression vs a bare regressor call, peak memory, contact projector vs pinv, CLI start-up and identify."""
     from ..benchmarks.speed import bench_speed
-    from ..identification.result import write_json_atomic
 
     if min(samples, contact_samples, identify_samples, repeats) < 1:
         raise OptionError("--samples, --contact-samples, --identify-samples and --repeats must be >= 1")
@@ -95,9 +83,7 @@ def bench_speed_cmd(
         raise OptionError(f"--memory-sizes must be comma-separated sample counts, got '{memory_sizes}'") from None
     res = bench_speed(n_compress=samples, memory_sizes=sizes, n_contact=contact_samples, n_identify=identify_samples,
                       repeats=repeats, console=console)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)
 
 
 @bench_app.command("lmi")
@@ -109,7 +95,6 @@ def bench_lmi_cmd(
 ) -> None:
     """Setup and solve time of the physically consistent (LMI) program from compressed data."""
     from ..benchmarks.lmi import bench_lmi
-    from ..identification.result import write_json_atomic
 
     res = bench_lmi(robots=tuple(robots.split(",")), solvers=tuple(solvers.split(",")))
     for robot, r in res["results"].items():
@@ -118,9 +103,7 @@ def bench_lmi_cmd(
                 f"{robot} ({r['n_bodies']} bodies, {r['n_params']} parameters) {solver}: setup {v.get('setup_seconds', float('nan')):.3f} s, "
                 f"solve {v.get('solve_seconds', float('nan')):.3f} s, {v['status']}, consistent {v.get('consistent')}"
             )
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)
 
 
 @bench_app.command("peers")
@@ -138,7 +121,6 @@ def bench_peers_cmd(
     excitation, 1 % (main) and 5 %/600 samples (hard) noise; `identify` with its CLI defaults
     (--method lmi and ols). Held-out nRMSE vs the noise-free torque, mean and worst over seeds."""
     from ..benchmarks.peers import load_recipe, run_peers
-    from ..identification.result import write_json_atomic
 
     default = recipe == Path("benchmarks/peers.toml") and not recipe.exists()
     rec = load_recipe(None if default else recipe)
@@ -157,6 +139,4 @@ def bench_peers_cmd(
                               f"{c[v]['worst_nrmse_percent']:.3f} %, all bodies consistent: {c[v]['all_consistent']}")
         verdict = {True: "[green]PASS[/]", False: "[red]FAIL[/]", None: "—"}[c["passed"]]
         console.print(f"{name:4s} acceptance (lmi ≤ {c['acceptance_percent']} %, consistent): {verdict}; peers: {peers}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)

@@ -332,3 +332,12 @@ def model_logs(model_path: Path, paths, robot, prep: dict, *, outliers: str = "e
                       gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
                       velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"))
     return trajs, opts
+
+
+def write_result(res: dict, out: Path) -> None:
+    """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
+    from ..identification.result import write_json_atomic
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")

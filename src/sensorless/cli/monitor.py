@@ -12,6 +12,7 @@ import typer
 
 from ..errors import SensorlessError
 from .common import (
+    write_result,
     model_logs,
     model_preprocessing_options,
     ROBOT_HELP,
@@ -132,11 +133,8 @@ def bench_observer(
 ) -> None:
     """Per-sample cost of MomentumObserver.step (streaming) and .run (offline) on UR5, Solo12, dVRK PSM."""
     from ..estimation.momentum import benchmark_observer
-    from ..io import write_json_atomic
 
     res = benchmark_observer(samples)
     for name, v in res["robots"].items():
         console.print(f"{name} (n = {v['n']}): step {v['step_us']:.1f} µs/sample, run {v['run_us']:.1f} µs/sample")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)
