@@ -227,5 +227,5 @@ def test_estimators_accept_the_psm_robot():
     phys = PhysicalModel(psm_robot()).fit(log)
     assert phys.structure_.settings()["structure"] == "transmission"
     assert phys.score(log).rmse.max() < 1e-8  # noiseless, the structure contains the truth
-    cad = CADModel(psm_robot())
+    cad = CADModel(psm_robot()).fit()
     assert np.allclose(cad.predict(log), 0.0)  # the tree carries no inertials and no drive terms

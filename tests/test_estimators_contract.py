@@ -104,7 +104,39 @@ def test_one_scoring_function(panda, logs):
     train, test = logs
     phys = PhysicalModel(panda).fit(train)
     mlp = MLPTorqueModel(hidden=(8,), window=2, **TINY).fit(train)
-    for model in (phys, mlp, CADModel(panda)):
+    for model in (phys, mlp, CADModel(panda).fit()):
         m, ref = model.score(test), score(model, test)
         np.testing.assert_array_equal(m.rmse, ref.rmse)
     np.testing.assert_allclose(phys.score(test).nrmse, phys.result_.evaluate(test).nrmse)
+
+
+def test_cad_model_follows_sklearn_rules_and_clones(panda, logs):
+    """CADModel sets nothing learned in __init__ (``like`` is stored as given); fit builds the
+    prior; clone gives an unfitted copy that predicts the same after fit."""
+    _, test = logs
+    like = ModelStructure(panda, joint_terms=("fv", "fc"))
+    cad = CADModel(panda, like=like)
+    assert _learned_state(cad) == [] and cad.like is like
+    with pytest.raises(AttributeError):
+        cad.predict(test)  # not fitted
+    cad.fit()
+    copy = sklearn_base.clone(cad)
+    assert _learned_state(copy) == [] and set(copy.get_params(deep=False)) == {"robot", "like"}
+    np.testing.assert_array_equal(copy.fit().predict(test), cad.predict(test))
+    # the baseline is the model file's own inertials: W(q, v, a) π_CAD, no friction
+    np.testing.assert_allclose(cad.predict(test), ModelStructure(panda, joint_terms=("armature",)).torques(
+        ModelStructure(panda, joint_terms=("armature",)).prior(), test))
+
+
+def test_physical_model_fits_through_friction_and_precompressed_equations(panda, logs):
+    train, test = logs
+    s = ModelStructure(panda)
+    from sensorless.regressor.compress import compress
+
+    direct = identify(s, train, method="ols")
+    from_ne = PhysicalModel(structure=s, method="ols").fit(compress(s, train))
+    np.testing.assert_allclose(from_ne.parameters_, direct.parameters, rtol=1e-8, atol=1e-10)
+    fr = PhysicalModel(structure=s, method="ols", friction={"coulomb_smoothing": "auto"}).fit(train)
+    assert fr.friction_fit_ is not None and fr.structure_ is fr.result_.structure
+    assert np.all(fr.score(test).nrmse < 0.2)
+    assert _learned_state(sklearn_base.clone(fr)) == []

@@ -423,7 +423,7 @@ def test_kuka_lmi_beats_cad_and_ols_on_a_different_trajectory(kuka, kuka_logs):
     ne = compress(s, train)
     sol = solve_lmi(ne, s, gamma=cv.gamma, ellipsoids=ell, **KUKA_CONFIG)
     ols = identify(s, ne)
-    cad = CADModel(kuka)
+    cad = CADModel(kuka).fit()
     nrmse = lambda p, t: torque_metrics(s.target(t), s.torques(p, t), s.row_names).nrmse
     res = {}
     for i in (2, 3):

@@ -49,7 +49,7 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
     results = {"ols": identify(structure, train, method="ols", weights=None),  # ordinary least squares
                "wls": identify(structure, train, method="wls")}
     results["lmi"] = identify(structure, train, method="lmi", gamma="auto")
-    cad = CADModel(robot)
+    cad = CADModel(robot).fit()
     scores = {"CAD": cad.score(test), **{m.upper(): r.evaluate(test) for m, r in results.items()}}
     console.print(metrics_table("Panda, held-out trajectory", scores, field="rmse"))
     console.print(metrics_table("Panda, held-out trajectory", scores, field="nrmse"))

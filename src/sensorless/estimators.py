@@ -26,7 +26,6 @@ from .data.trajectory import Trajectory
 from .errors import ParameterError, SensorlessError
 from .identification.identify import identify
 from .identification.metrics import TorqueMetrics, torque_metrics
-from .identification.result import IdentificationResult
 from .regressor.terms import ModelStructure
 from .robot import Robot
 
@@ -88,7 +87,7 @@ class TorqueModel(ABC):
         """The hyper-parameters, as given to ``__init__`` (``**kwargs`` flattened in); with
         ``deep``, those of nested models too as ``name__param``."""
         names, var = self._init_signature()
-        out = {n: getattr(self, n, None) for n in names}  # CADModel keeps no copy of `like`
+        out = {n: getattr(self, n, None) for n in names}
         if var is not None:
             out.update(getattr(self, var))
         if deep:
@@ -123,16 +122,17 @@ class TorqueModel(ABC):
         return f"{type(self).__name__}({args})"
 
 
-_Scored = TorqueModel  # the base of CADModel
-
-
 class PhysicalModel(TorqueModel):
     """Identified rigid-body model + joint terms (see :func:`sensorless.identification.identify`).
 
     ``structure``: identify with this structure (default: ``ModelStructure(robot, joint_terms)``,
     or the robot's own ``make_structure``). ``parameters``: a fixed parameter vector in that
     structure's layout; ``fit`` then keeps it and identifies nothing
-    (:meth:`from_parameters`).
+    (:meth:`from_parameters`). ``friction``: keyword arguments of
+    :func:`~sensorless.identification.friction.identify_friction` (noise-aware Coulomb smoothing,
+    Stribeck search); ``fit`` then identifies through it, ``structure_`` is the structure it
+    settled on and ``friction_fit_`` its record. ``fit`` also takes precompressed
+    :class:`~sensorless.regressor.compress.NormalEquations` (not with ``friction``).
     """
 
     def __init__(
@@ -143,6 +143,7 @@ class PhysicalModel(TorqueModel):
         *,
         structure: ModelStructure | None = None,
         parameters: np.ndarray | None = None,
+        friction: dict | None = None,
         **identify_kwargs,
     ) -> None:
         self.robot = robot
@@ -150,6 +151,7 @@ class PhysicalModel(TorqueModel):
         self.joint_terms = joint_terms
         self.structure = structure
         self.parameters = parameters
+        self.friction = friction
         self.identify_kwargs = identify_kwargs
 
     @classmethod
@@ -176,7 +178,15 @@ class PhysicalModel(TorqueModel):
             return self
         if data is None:
             raise ParameterError("PhysicalModel.fit needs trajectories (or fixed parameters=)")
-        self.result_: IdentificationResult = identify(self.structure_, data, method=self.method, **self.identify_kwargs)
+        kwargs = dict(method=self.method, **self.identify_kwargs)
+        if self.friction is not None:
+            from .identification.friction import identify_friction
+
+            self.result_, self.friction_fit_ = identify_friction(self.structure_, data, identify_kwargs=kwargs,
+                                                                 **self.friction)
+            self.structure_ = self.result_.structure
+        else:
+            self.result_ = identify(self.structure_, data, **kwargs)
         self.parameters_ = self.result_.parameters
         return self
 
@@ -184,12 +194,19 @@ class PhysicalModel(TorqueModel):
         return self.structure_.torques(self.parameters_, traj)
 
 
-class CADModel(_Scored):
-    """The robot model file as it is (its inertials and armature, no friction): the baseline."""
+class CADModel(TorqueModel):
+    """The robot model file as it is (its inertials and armature, no friction): the baseline.
+
+    ``like``: score on the same equations as this structure (e.g. a contact projection).
+    Nothing is learned from data; ``fit()`` builds ``structure_`` and ``parameters_`` (the prior).
+    """
 
     def __init__(self, robot: Robot, like: ModelStructure | None = None) -> None:
-        """``like``: score on the same equations as this structure (e.g. a contact projection)."""
         self.robot = robot
+        self.like = like
+
+    def fit(self, data=None) -> "CADModel":
+        like, robot = self.like, self.robot
         if like is not None and like.settings().get("structure") == "transmission":
             self.structure_ = like  # its prior has zero drive terms: the tree's inertials only
         elif like is None and hasattr(robot, "make_structure"):
@@ -199,8 +216,6 @@ class CADModel(_Scored):
                                else dataclasses.replace(like, joint_terms=("armature",), per_joint_terms=None,
                                                    stribeck_velocity=None))
         self.parameters_ = self.structure_.prior()
-
-    def fit(self, data=None) -> "CADModel":
         return self
 
     def predict(self, traj: Trajectory) -> np.ndarray:

@@ -192,7 +192,7 @@ def held_out_nrmse(pred: np.ndarray, case: PeerCase) -> np.ndarray:
 
 def cli_defaults() -> dict[str, Any]:
     """The default value of every option of ``sensorless identify`` (from its signature)."""
-    from ..cli.core import identify as command
+    from ..cli.identify import identify as command
 
     fn = inspect.unwrap(command)
     out = {}
@@ -206,7 +206,7 @@ def _fit(case: PeerCase, robot: Robot, method: str, overrides: dict[str, Any] | 
     """``sensorless identify --method METHOD`` with the command-line defaults (plus
     ``overrides``), in process on the generated logs: the same option handling
     (``_structure``, ``_lmi_kwargs``, ``weights_option``) and the same ``identify`` call."""
-    from ..cli.core import _friction_options, _lmi_kwargs, _structure
+    from ..cli.identify_model import _friction_options, _lmi_kwargs, _structure
     from ..identification.friction import identify_friction
     from ..identification import identify
     from ..identification.weights import weights_option

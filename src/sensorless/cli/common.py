@@ -31,13 +31,21 @@ class MultiValueCommand(TyperCommand):
     """A command whose repeatable options (``List[...]``) also take several values after one
     flag: ``--data a.csv b.csv c.csv`` is ``--data a.csv --data b.csv --data c.csv`` (a shell
     glob expands to exactly that). Values run until the next token starting with ``-``.
-    Only for commands without positional arguments (nothing else could own a bare token)."""
+    Only for commands without positional arguments (nothing else could own a bare token).
+    Usage errors (a value not among an option's choices, a missing option) are one red line too."""
 
     def parse_args(self, ctx, args):
         if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)
             args = expand_multi_values(args, {o for p in self.params if p.param_type_name == "option"
                                               and getattr(p, "multiple", False) for o in p.opts})
-        return super().parse_args(ctx, args)
+        try:
+            return super().parse_args(ctx, args)
+        except Exception as exc:
+            if type(exc).__name__ not in ("BadParameter", "MissingParameter", "NoSuchOption", "BadOptionUsage",
+                                          "UsageError") or not hasattr(exc, "format_message"):
+                raise
+            _print_line("error:", "bold red", one_line(exc.format_message()).replace("Value error, ", ""))
+            raise typer.Exit(2) from None
 
 
 def expand_multi_values(args: list[str], multi: set[str]) -> list[str]:
@@ -268,3 +276,68 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **o
 
 
 ROBOT_HELP = "URDF path, MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
+
+
+# ---- the preprocessing options of commands that apply an identified model ------------------
+_MODEL_DEFAULT = " (default: the model's)"
+_PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
+    "columns": (Optional[str], lambda: typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or "
+                                                              "'q=pos_{joint}'" + _MODEL_DEFAULT)),
+    "rate": (Optional[float], lambda: typer.Option(None, help="sample rate [Hz] for logs without a time column"
+                                                              + _MODEL_DEFAULT)),
+    "lowpass": (Optional[float], lambda: typer.Option(None, help="zero-phase low-pass cut-off [Hz]" + _MODEL_DEFAULT)),
+    "savgol_window": (Optional[int], lambda: typer.Option(None, help="Savitzky-Golay window [samples] for v̇"
+                                                                     + _MODEL_DEFAULT)),
+    "gains": (Optional[str], lambda: gains_option()),
+    "trim": (Optional[str], lambda: trim_option()),
+    "resample": (Optional[str], lambda: resample_option(None)),
+    "velocity": (Optional[str], lambda: velocity_option(None)),
+    "max_gap": (Optional[float], lambda: max_gap_option()),
+}
+MODEL_PREPROCESSING = tuple(_PREPROCESSING_OPTIONS)
+
+
+def model_preprocessing_options(names: tuple[str, ...] = MODEL_PREPROCESSING):
+    """Decorator: the command gets the options ``names`` (columns, rate, lowpass, ...; each
+    defaulting to the model's own, result.json settings.preprocessing) in one ``prep`` dict
+    argument instead of one parameter each; one definition for predict, monitor,
+    estimate-force and payload."""
+    import inspect
+
+    def deco(fn):
+        sig = inspect.signature(fn)
+        params = [p for p in sig.parameters.values() if p.name != "prep"]
+        extra = [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=_PREPROCESSING_OPTIONS[n][1](),
+                                   annotation=_PREPROCESSING_OPTIONS[n][0]) for n in names]
+
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            prep = {n: kwargs.pop(n, None) for n in names}
+            return fn(*args, prep=prep, **kwargs)
+
+        wrapper.__signature__ = sig.replace(parameters=[
+            p.replace(kind=inspect.Parameter.KEYWORD_ONLY) for p in params] + extra)
+        wrapper.__annotations__ = {k: v for k, v in getattr(fn, "__annotations__", {}).items() if k != "prep"}
+        return wrapper
+
+    return deco
+
+
+def model_logs(model_path: Path, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
+    """Logs to apply a model to, preprocessed as its training logs were: each option in
+    ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`).
+    Returns (trajectories, the resolved options)."""
+    opts = model_preprocessing(model_path, **{k: v for k, v in prep.items() if k != "trim"})
+    trajs = load_logs(paths, robot, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
+                      gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
+                      velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"))
+    return trajs, opts
+
+
+def write_result(res: dict, out: Path) -> None:
+    """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
+    from ..identification.result import write_json_atomic
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(res, out)
+    console.print(f"wrote {out}")

@@ -10,22 +10,17 @@ import typer
 from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .common import (
+    model_logs,
+    model_preprocessing_options,
     ROBOT_HELP,
     app,
     atomic_outdir,
     console,
     experiment_app,
-    gains_option,
     guarded,
-    load_logs,
     load_robot_arg,
-    max_gap_option,
-    model_preprocessing,
     output_file,
     path_inputs,
-    resample_option,
-    trim_option,
-    velocity_option,
 )
 
 __all__ = ["estimate_force", "experiment_hybrid_force"]
@@ -50,6 +45,7 @@ def experiment_hybrid_force(
 
 @app.command("estimate-force")
 @guarded
+@model_preprocessing_options()
 def estimate_force(
     robot: str = typer.Option(..., help=ROBOT_HELP),
     model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
@@ -62,16 +58,8 @@ def estimate_force(
     joints: str | None = typer.Option(None, help="comma-separated joints whose torques are used (default all)"),
     sigma_threshold: float = typer.Option(0.01, help="damping starts below this smallest singular value"),
     lambda_max: float = typer.Option(0.02, help="damping at a singularity"),
-    columns: str | None = typer.Option(None, help="column map, e.g. 'q=0:7;tau=14:21' (default: the model's)"),
-    rate: float | None = typer.Option(None, help="sample rate (Hz) for logs without a time column (default: the model's)"),
-    savgol_window: int | None = typer.Option(None, help="Savitzky-Golay window (default: the model's)"),
-    lowpass: float | None = typer.Option(None, help="zero-phase low-pass cut-off in Hz (default: the model's)"),
-    gains: str | None = gains_option(),
-    trim: str | None = trim_option(),
-    resample: str | None = resample_option(None),
-    velocity: str | None = velocity_option(None),
-    max_gap: float | None = max_gap_option(),
     lock: list[str] | None = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
+    prep: dict = None,
 ) -> None:
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:
     F = (Jᵀ)⁺ (τ_measured − τ_model − τ_residual), damped near singularities."""
@@ -84,11 +72,7 @@ def estimate_force(
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
     phys = PhysicalModel.from_parameters(structure, params)
-    opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
-                               savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
-    (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
-                        gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                        max_gap=opts["max_gap"], rest=opts.get("rest"))
+    (traj,), _ = model_logs(path, [data], r, prep)
     if traj.tau is None:
         raise SensorlessError(f"{data}: the log has no measured torque; force estimation needs it")
     hybrid = None

@@ -12,21 +12,17 @@ import typer
 
 from ..errors import SensorlessError
 from .common import (
+    write_result,
+    model_logs,
+    model_preprocessing_options,
     ROBOT_HELP,
     app,
     atomic_outdir,
     bench_app,
     console,
-    gains_option,
     guarded,
-    load_logs,
     load_robot_arg,
-    max_gap_option,
-    model_preprocessing,
     path_inputs,
-    resample_option,
-    trim_option,
-    velocity_option,
 )
 
 __all__ = ["monitor", "bench_observer"]
@@ -44,6 +40,7 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 
 @app.command()
 @guarded
+@model_preprocessing_options()
 def monitor(
     robot: str = typer.Option(..., help=ROBOT_HELP),
     model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
@@ -58,18 +55,10 @@ def monitor(
     order: int = typer.Option(1, help="observer order: 1 (first-order) or 2 (second-order, filtered)"),
     min_duration: float = typer.Option(0.02, help="shortest reported contact [s]"),
     merge_gap: float = typer.Option(0.05, help="merge contacts separated by less than this [s]"),
-    columns: Optional[str] = typer.Option(None, help="column map, as for identify"),
-    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
-    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off in Hz (default: the model's)"),
-    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window (default: the model's)"),
-    gains: Optional[str] = gains_option(),
-    trim: Optional[str] = trim_option(),
-    resample: Optional[str] = resample_option(None),
-    velocity: Optional[str] = velocity_option(None),
-    max_gap: Optional[float] = max_gap_option(),
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
+    prep: dict = None,
 ) -> None:
     """Detect contacts/collisions in a log: momentum observer → per-joint thresholds from a
     quiet segment → contact intervals, peak external torque per joint, Cartesian force at --frame."""
@@ -82,12 +71,8 @@ def monitor(
     if k is not None and k <= 0:
         raise SensorlessError(f"--k must be > 0, got {k}")
     q0, q1 = _parse_quiet(quiet)
-    opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
-                               savgol_window=savgol_window, velocity=velocity, max_gap=max_gap)
     with atomic_outdir(out, force, inputs=path_inputs(robot, model, data)) as tmp:
-        (traj,) = load_logs([data], r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
-                            gains=opts["gains"], trim=trim, resample=opts["resample"], velocity=opts["velocity"],
-                            max_gap=opts["max_gap"], rest=opts.get("rest"))
+        (traj,), opts = model_logs(path, [data], r, prep)
         dt = _uniform_dt(traj)
         res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
         tau_ext = res.tau_ext
@@ -148,11 +133,8 @@ def bench_observer(
 ) -> None:
     """Per-sample cost of MomentumObserver.step (streaming) and .run (offline) on UR5, Solo12, dVRK PSM."""
     from ..estimation.momentum import benchmark_observer
-    from ..io import write_json_atomic
 
     res = benchmark_observer(samples)
     for name, v in res["robots"].items():
         console.print(f"{name} (n = {v['n']}): step {v['step_us']:.1f} µs/sample, run {v['run_us']:.1f} µs/sample")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)

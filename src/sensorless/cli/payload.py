@@ -10,17 +10,14 @@ import typer
 
 from ..errors import SensorlessError
 from .common import (
+    model_logs,
+    model_preprocessing_options,
     ROBOT_HELP,
     MultiValueCommand,
     app,
     console,
-    gains_option,
     guarded,
-    load_logs,
     load_robot_arg,
-    model_preprocessing,
-    resample_option,
-    trim_option,
 )
 
 __all__ = ["payload"]
@@ -40,6 +37,7 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
 
 @app.command(cls=MultiValueCommand)
 @guarded
+@model_preprocessing_options(("columns", "rate", "lowpass", "savgol_window", "gains", "trim", "resample"))
 def payload(
     robot: str = typer.Option(..., help=ROBOT_HELP),
     model: Path = typer.Option(..., help="result.json (or its directory) of the robot identified WITHOUT the payload"),
@@ -59,16 +57,10 @@ def payload(
     block_seconds: float = typer.Option(1.0, help="block length [s] of the HAC covariance and the bootstrap"),
     flag_sigma: float = typer.Option(3.0, help="flag a joint whose own mass is this many σ from the estimate ..."),
     flag_rel: float = typer.Option(0.1, help="... and differs from it by more than this fraction"),
-    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' (default: the model's)"),
-    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column (default: the model's)"),
-    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] (default: the model's)"),
-    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window for v̇ (default: the model's)"),
-    gains: Optional[str] = gains_option(),
-    trim: Optional[str] = trim_option(),
-    resample: Optional[str] = resample_option(None),
     lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
     seed: int = typer.Option(0, help="bootstrap seed"),
     force: bool = typer.Option(False, help="replace --out if it exists"),
+    prep: dict = None,
 ) -> None:
     """Identify a payload at FRAME from the torque the robot's model does not explain:
     τ − Wπ̂ = Gᵀ J_fᵀ Φ_f φ (+ per-joint offsets), paired with a no-load log when given.
@@ -84,13 +76,8 @@ def payload(
     r = load_robot_arg(robot, lock, False)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
-    opts = model_preprocessing(path, columns=columns, gains=gains, rate=rate, resample=resample, lowpass=lowpass,
-                               savgol_window=savgol_window, velocity=None, max_gap=None)
-    prep = dict(gains=opts["gains"], trim=trim, resample=opts["resample"] or "auto", velocity=opts["velocity"],
-                max_gap=opts["max_gap"], rest=opts.get("rest"))
-    args = (r, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1)
-    logs = load_logs(data, *args, **prep)
-    refs = load_logs(no_load, *args, **prep) if no_load else None
+    logs, opts = model_logs(path, data, r, prep)
+    refs = model_logs(path, no_load, r, prep)[0] if no_load else None
     if align not in ("rows", "time"):
         raise SensorlessError(f"--align must be rows or time, got '{align}'")
     if refs is not None and align == "time":
@@ -120,7 +107,7 @@ def payload(
                     "mass_std": float(np.hypot(est.mass_std, std_g)),
                     "mass_sensitivity_to_gains": dict(zip(r.actuated_joints, map(float, dm)))})
         est.mass_std = doc["mass_std"]
-    doc.setdefault("settings", {})["preprocessing"] = {**opts, "trim": trim}
+    doc.setdefault("settings", {})["preprocessing"] = {**opts, "trim": prep["trim"]}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out)
     _print(est)

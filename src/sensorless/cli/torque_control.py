@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import atomic_outdir, bench_app, console, experiment_app, guarded
+from .common import atomic_outdir, bench_app, console, experiment_app, guarded, write_result
 
 
 @experiment_app.command("torque-control")
@@ -46,7 +46,6 @@ def bench_actuator_fit(
     """Asymmetric-penalty actuator fit (Newton, exact optimality on the active set): wall time on N samples."""
     from ..benchmarks.actuator import benchmark_asymmetric_fit
     from ..errors import DataError
-    from ..identification.result import write_json_atomic
 
     if samples < 10:
         raise DataError(f"--samples must be ≥ 10, got {samples}")
@@ -56,6 +55,4 @@ def bench_actuator_fit(
         f"{res['iterations']} Newton iterations, over-estimated {100 * res['over_estimation_fraction']:.1f} % "
         f"(target < {res['target_seconds']:.0f} s: {'met' if res['meets_target'] else 'NOT met'})"
     )
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
+    write_result(res, out)

@@ -13,17 +13,16 @@ from typing import Any
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..identification import identify
-from ..identification.lmi import solve_lmi
 from .contact_id import (
     _checks,
+    _estimators,
     _figure,
+    _fit_all,
     _jsonable,
     _mlp_epochs,
     _parameter_errors,
     _table,
     projected_rmse,
-    sensor_features,
 )
 
 __all__: list[str] = []
@@ -47,7 +46,6 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
     unfiltered projected residual with the simulator's accelerations on the evaluation logs,
     the metric of ``--acceleration simulator`` (identified model scored, not the log).
     """
-    from ..learning.models import MLPTorqueModel
     from ..regressor.compress import NormalEquations
     from ..regressor.integral import filtered_rows, filtered_target
 
@@ -96,25 +94,18 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
     for n in sizes:
         idx = draws[n]
         row: dict[str, Any] = {"n_train": n, "rmse": {}, "rmse_exact_acceleration": {}, "seconds": {}}
-        t = time.perf_counter()
-        lmi = solve_lmi(nes[n], structure, gamma=cfg.gamma, regularization="pullback")
-        row["seconds"]["lmi"] = t_rows + time.perf_counter() - t
-        svd = identify(structure, nes[n], method="svd")
-        mlp = MLPTorqueModel(hidden=cfg.mlp_hidden, activation=cfg.mlp_activation, features=sensor_features,
-                             epochs=_mlp_epochs(cfg, n), seed=cfg.seed, num_threads=2, batch_size=min(256, max(32, n // 8)))
-        t = time.perf_counter()
-        mlp.fit(whole.take(idx))
-        row["seconds"]["mlp"] = time.perf_counter() - t
+        models = _fit_all(_estimators(cfg, structure, n), nes[n], whole.take(idx), t_rows, row["seconds"])
+        lmi, svd, mlp = models["LMI"], models["SVD"], models["MLP"]
         row["mlp_epochs"] = _mlp_epochs(cfg, n)
         mlp_tau = {g: [mlp.predict(tr) for tr, _, _ in v] for g, v in evals.items()}
         filt = {
-            "LMI": lambda g, i, tr, fr: fr.W @ lmi.params,
-            "SVD": lambda g, i, tr, fr: fr.W @ svd.parameters,
+            "LMI": lambda g, i, tr, fr: fr.W @ lmi.parameters_,
+            "SVD": lambda g, i, tr, fr: fr.W @ svd.parameters_,
             "MLP": lambda g, i, tr, fr: filtered_target(structure, tr, mlp_tau[g][i], fc, **fk),
         }
         unf = {
-            "LMI": lambda g, i, tr: structure.torques(lmi.params, tr),
-            "SVD": lambda g, i, tr: structure.torques(svd.parameters, tr),
+            "LMI": lambda g, i, tr: structure.torques(lmi.parameters_, tr),
+            "SVD": lambda g, i, tr: structure.torques(svd.parameters_, tr),
             "MLP": lambda g, i, tr: structure.project(tr, mlp_tau[g][i]),
         }
         for name in filt:
@@ -123,9 +114,10 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
             row["rmse_exact_acceleration"][name] = {
                 g: float(np.mean([projected_rmse(structure, tr, unf[name](g, i, tr), y) for i, (tr, y, _) in enumerate(v)]))
                 for g, v in exact.items()}
-        row["parameters"] = {"LMI": _parameter_errors(structure, lmi.params, true_params),
-                             "SVD": _parameter_errors(structure, svd.parameters, true_params)}
-        row["lmi_status"], row["lmi_consistent"] = lmi.status, lmi.consistent
+        row["parameters"] = {"LMI": _parameter_errors(structure, lmi.parameters_, true_params),
+                             "SVD": _parameter_errors(structure, svd.parameters_, true_params)}
+        row["lmi_status"] = lmi.result_.diagnostics["lmi"]["status"]
+        row["lmi_consistent"] = lmi.result_.diagnostics["lmi"]["consistent"]
         rows.append(row)
         if console is not None:
             r, x = row["rmse"], row["rmse_exact_acceleration"]

@@ -86,7 +86,9 @@ K6_VALUES = (1.0, 0.5, 0.25, 0.1)
 class StudyConfig:
     dt: float = 1e-3
     ident_seconds: float = 40.0  # per protocol (sinusoids, quasi-static air, quasi-static contact)
-    sg_window: int = 51  # offline Savitzky–Golay window (samples), polyorder 3
+    # offline Savitzky–Golay window (samples), polyorder 3: 51 at 1 kHz = 0.05 s, pinned by the study's
+    # figures (data.prepare.default_savgol_window's 0.2 s would be 201 samples and blur the contact steps)
+    sg_window: int = 51
     model_error: float = 0.05
     weight: float = 100.0
     swing_repeats: int = 2

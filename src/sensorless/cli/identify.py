@@ -1,0 +1,282 @@
+"""`sensorless identify`: logs -> identified model (result.json, URDF, plots, report)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from ..errors import ExcitationError, OptionError, SensorlessError
+from .common import (
+    ROBOT_HELP,
+    MultiValueCommand,
+    app,
+    atomic_outdir,
+    check_preprocessing,
+    console,
+    err_console,
+    gains_option,
+    guarded,
+    load_logs,
+    load_robot_arg,
+    max_gap_option,
+    path_inputs,
+    preprocessing_settings,
+    progress_bar,
+    resample_option,
+    trim_option,
+    velocity_option,
+)
+from .options import (
+    ContactMode,
+    ContactRows,
+    Ellipsoids,
+    Method,
+    Outliers,
+    Regularization,
+    Rest,
+    Velocity,
+    WrenchOffset,
+    check_config,
+    config_option,
+    resolved_options,
+)
+from .identify_model import _check_identify_options, _friction_options, _lmi_kwargs, _plain, _structure
+from .identify_outputs import _export, _floating_base_checks, _plot_window, _print_bodies
+
+
+@app.command(cls=MultiValueCommand)
+@guarded
+def identify(
+    config: Optional[Path] = config_option(),
+    robot: str = typer.Option(..., help=ROBOT_HELP),
+    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
+                                         "folder; several after one flag (--data a.csv b.csv) or repeated"),
+    validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
+    method: Method = typer.Option("ols", help="lmi: physically consistent; svd: minimum-norm truncated SVD"),
+    prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
+    regularization: Regularization = typer.Option("pullback", help="lmi: regulariser toward the prior"),
+    gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),
+    ellipsoids: Ellipsoids = typer.Option("auto", help="lmi: bounding ellipsoids"),
+    contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain any body near the prior "
+                                       "(second moments ×4, CoM within 7.5 cm); --no-contain-prior: geometry only"),
+    weights: str = typer.Option("auto", help="per-joint noise weighting, every method: auto (two-step: σ from an "
+                                "unweighted fit's residual) | none | FILE (JSON {joint: σ} or CSV 'joint,σ' rows)"),
+    out: Path = typer.Option(..., help="output directory (written atomically)"),
+    joint_terms: str = typer.Option("fv,fc,offset,armature", help="joint terms fv,fc,stribeck,offset,armature for every "
+                                    "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
+                                    "listed, else none) (dvrk_psm: drive set 'authors' (default) or 'motors')"),
+    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
+    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
+    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window: re-derive v̇ from the logged v "
+                                                       "(v and v̇ from q when v is not logged)"),
+    decimate: int = typer.Option(1, help="keep every n-th sample (after anti-alias filtering)"),
+    gains: Optional[str] = gains_option(),
+    trim: Optional[str] = trim_option(),
+    resample: str = resample_option(),
+    velocity: Velocity = velocity_option(),
+    max_gap: Optional[float] = max_gap_option(),
+    lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
+    floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
+    contact_frames: Optional[str] = typer.Option(
+        None, help="legged robots: comma-separated contact frames (feet); projects out the unknown contact "
+                   "forces, flags from the log's 'contact' columns or detected from foot height/speed"),
+    contact_dims: Optional[str] = typer.Option(None, help="per contact frame 3 (point foot) or 6 (flat foot); default 3"),
+    contact_offset: float = typer.Option(0.0, help="radius [m] of spherical feet (contact point below the frame)"),
+    contact_mode: ContactMode = typer.Option("projected", help="projected (no force sensing) | wrench (log has "
+                                             "contact_forces)"),
+    contact_rows: ContactRows = typer.Option("auto", help="wrench mode: base (6 floating-base rows; logs without joint "
+                                     "torques) | all (+ torque rows) | auto (base when the logs have no torques)"),
+    wrench_offset: WrenchOffset = typer.Option("none", help="wrench mode: constant wrench bias to identify: none | net | "
+                                      "foot (world axes, per foot) | sole (force in each sole frame)"),
+    offset_axes: str = typer.Option("xy", help="force axes of --wrench-offset (xyz adds the vertical one, "
+                                    "confounded with m·g on standing data)"),
+    imu_frame: Optional[str] = typer.Option(None, help="model frame of the accelerometer ('imu_acc'): rotation and "
+                                            "lever arm from the model, on any body (e.g. imu_link)"),
+    coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
+                                          "the joint's velocity noise (docs/arm.md §7)"),
+    rest: Rest = typer.Option("auto", help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
+                             "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
+                             "remembers it) | off (docs/arm.md §7)"),
+    stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (1-D search "
+                                          "per joint)"),
+    force: bool = typer.Option(False, help="replace --out if it exists"),
+    outliers: Outliers = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
+                                                    "warning) | keep"),
+    scheduler: Optional[str] = typer.Option(
+        None, help="compress on Dask: 'local' (a LocalCluster on this machine) or a scheduler address "
+                   "tcp://HOST:PORT; workers read the --data files themselves (see docs/fleet.md)"),
+    workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
+                                                     "an address: wait until this many workers are connected"),
+    skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "
+                              "held-out log, else of the first training log)"),
+) -> None:
+    """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png, report.html.
+
+    --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
+    from ..estimators import CADModel, PhysicalModel
+    from ..report import metrics_table
+
+    check_config()
+    coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
+    _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
+    check_preprocessing(rate, lowpass, savgol_window, decimate)
+    if workers is not None and scheduler is None:
+        raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
+    if scheduler is not None and (imu_frame or contact_mode == "wrench"):
+        raise OptionError("--scheduler does not support --imu-frame or --contact-mode wrench yet; run without it")
+    if floating_base is None and contact_frames:
+        floating_base = True  # contact structures need a floating base; a URDF would load fixed
+    r = load_robot_arg(robot, lock, floating_base)
+    from ..regressor.distributed import LogReader, expand_paths
+
+    data = [Path(p) for p in expand_paths(data)]
+    prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
+                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
+                rest=rest)
+    with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
+        skipped: list = []
+        if scheduler is None:
+            train, data, skipped = _load_training(data, r, prep, skip_bad)
+        val = load_logs(validate, r, **prep)
+        if imu_frame:
+            train, val = (_imu_frame_logs(logs, r, imu_frame, savgol_window) for logs in (train, val))
+        structure = _structure(r, joint_terms, 0.0 if coulomb_smoothing == "auto" else coulomb_smoothing, contact_frames, contact_dims, contact_offset,
+                               contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
+                               offset_axes=offset_axes, train=train if scheduler is None else None)
+        lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
+        from ..identification.weights import weights_option
+
+        row_sigma = weights_option(weights, structure.row_names)
+        fleet = None
+        if scheduler is not None:
+            from .fleet import identify_on_dask
+
+            result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
+                                             {**lmi_kw, "weights": row_sigma})
+            data, skipped = [Path(p) for p in fleet.files], fleet.skipped
+            train = _first_training_log(data, r, prep) if not val else []
+        else:
+            total = sum(len(t) for t in train)
+            friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
+            with progress_bar() as bar:
+                task = bar.add_task("regressor", total=total * (2 if friction else 1))
+                kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma, **lmi_kw)
+                fric = None
+                if friction:
+                    raw = (load_logs(data, r, **{**prep, "lowpass": None})
+                           if lowpass and coulomb_smoothing == "auto"
+                           else None)  # noise is measured before the low-pass colours it
+                    fric = dict(coulomb_smoothing=coulomb_smoothing, stribeck_velocity=stribeck_velocity,
+                                noise_logs=raw, lowpass_hz=lowpass)
+                try:  # the logs' outliers were handled on reading
+                    model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
+                except ExcitationError as exc:
+                    raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
+                result, structure = model.result_, model.structure_
+                if friction:
+                    result.settings["friction"] = model.friction_fit_.to_dict()
+        result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
+                                "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
+                                "columns": columns, "rate": rate,
+                                "preprocessing": preprocessing_settings(
+                                    train + val, columns=columns, gains=gains, rate=rate, trim=trim,
+                                    resample=resample, lowpass=lowpass, savgol_window=savgol_window,
+                                    velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest),
+                                "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
+                                if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
+        result.settings["config"] = {"file": None if config is None else str(config), "options": resolved_options()}
+        if scheduler is not None or skip_bad:
+            result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
+        for f, e in skipped:
+            err_console.print(f"[yellow]warning:[/] skipped {e}", highlight=False, soft_wrap=True)
+        doc = result.to_dict()
+        if scheduler is not None:  # identified on the workers: the same model, for scoring and plots
+            model = PhysicalModel.from_parameters(structure, result.parameters)
+        cad = CADModel(r, like=structure).fit()
+        baseline = None
+        if method != "ols" and val:
+            try:  # unconstrained least squares on the same data, for the comparison table
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
+                    baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma
+                                             ).fit(fleet.equations if fleet is not None else train)
+            except SensorlessError:
+                baseline = None
+        doc["validation"] = {}
+        for p, traj in zip(validate, val):
+            m_id, m_cad = model.score(traj), cad.score(traj)
+            cols = {"CAD": m_cad}
+            doc["validation"][str(p)] = {method: m_id.to_dict(), "cad": m_cad.to_dict()}
+            if baseline is not None:
+                cols["OLS"] = baseline.score(traj)
+                doc["validation"][str(p)]["ols"] = cols["OLS"].to_dict()
+            cols[method.upper()] = m_id
+            console.print(metrics_table(f"held-out {Path(p).name}", cols))
+        _print_bodies(result)
+        shown = val[0] if val else (train[0] if train else None)
+        if plot and shown is not None:  # with --scheduler, the client may not see the training files
+            _plot_window(shown, structure, {method.upper(): model, "CAD": cad}, tmp / "torques.png",
+                         f"{r.name}: {'held-out' if val else 'training'} torques")
+        _floating_base_checks(structure, result, doc, train, val, validate)
+        if _plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")):
+            from ..report.friction_plot import plot_friction
+
+            plot_friction(structure, result.parameters, train, tmp / "friction.png",
+                          title=f"{r.name}: joint friction (training logs)")
+        _export(result, tmp, doc)
+        from ..identification.result import write_json_atomic
+
+        write_json_atomic(doc, tmp / "result.json")
+        from ..report.html import write_html_report
+
+        write_html_report(tmp, doc)
+    d = result.diagnostics
+    extra = (f"γ = {d['gamma']:.3g}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
+             f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
+             else f"condition number {d['condition_number']:.1f}")
+    skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
+    console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
+
+
+def _load_training(data, r, prep: dict, skip_bad: bool):
+    """Local path: every training log in memory; with --skip-bad a file that fails is left out and reported."""
+    if not skip_bad:
+        return load_logs(data, r, **prep), data, []
+    from .common import load_log
+
+    train, used, skipped = [], [], []
+    for p in data:
+        try:
+            train.append(load_log(p, r, **prep))
+            used.append(p)
+        except SensorlessError as exc:
+            skipped.append((str(p), str(exc) if str(p) in str(exc) else f"{p}: {exc}"))
+    if not train:
+        raise SensorlessError("every --data file was skipped: " + "; ".join(e for _, e in skipped))
+    return train, used, skipped
+
+
+def _first_training_log(data, r, prep: dict) -> list:
+    """The first training log for the torque plot, if this machine can read it (else no plot)."""
+    from .common import load_log
+
+    try:
+        return [load_log(data[0], r, **prep)]
+    except SensorlessError:
+        return []
+
+
+def _imu_frame_logs(logs, robot, frame: str, savgol_window):
+    """Recompute base_a with the accelerometer in model frame ``frame`` (needs 'imu_acc'); the
+    derivative window is --savgol-window, else the library's default at the log's rate
+    (:func:`~sensorless.data.prepare.default_savgol_window`, 0.2 s), as for v̇."""
+    from ..data import base_acceleration
+    from ..data.prepare import default_savgol_window
+
+    return [base_acceleration(t, window=savgol_window or default_savgol_window(1.0 / t.dt), robot=robot,
+                              imu_frame=frame) for t in logs]

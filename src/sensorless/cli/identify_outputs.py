@@ -1,0 +1,109 @@
+"""What `sensorless identify` writes and prints besides result.json: plot, bodies, wrench checks, URDF."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .common import (
+    console,
+    err_console,
+)
+
+
+PLOT_WINDOW = 20_000  # samples of the log shown in torques.png (from its start)
+PLOT_POINTS = 2_000  # points per curve after decimation
+
+
+def _plot_window(traj, structure, models: dict, path: Path, title: str) -> None:
+    """torques.png: measured vs predicted effort on the first ``PLOT_WINDOW`` samples, every k-th sample
+    (≤ ``PLOT_POINTS`` points). Only those samples are predicted (the model is pointwise in q, v, v̇)."""
+    from ..report import plot_torques
+
+    n = min(len(traj), PLOT_WINDOW)
+    part = traj.take(np.arange(0, n, max(1, math.ceil(n / PLOT_POINTS))))
+    span = f"first {part.t[-1] - traj.t[0]:.3g} s" if n < len(traj) else "whole log"
+    plot_torques(part.t, structure.target(part), {k: m.predict(part) for k, m in models.items()},
+                 structure.row_names, path, title=f"{title} ({span}, {len(part)} points)")
+
+
+def _print_bodies(result) -> None:
+    """Identified mass per body, named by joint and link (result.json: parameter_links)."""
+    from rich.table import Table
+
+    from ..identification.result import body_links
+
+    links = body_links(result.robot)
+    t = Table(title="identified bodies (parameters 'joint.p' in result.json; 'link.p' in parameter_links)")
+    for col in ("joint", "link", "m [kg]", "CAD m [kg]"):
+        t.add_column(col, justify="right" if "m" in col else "left")
+    pi, pi0 = result.inertial_parameters.reshape(-1, 10), result.robot.inertial_parameters().reshape(-1, 10)
+    for k, b in enumerate(result.robot.body_names):
+        t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}", f"{pi0[k, 0]:.3f}")
+    console.print(t)
+
+
+def _floating_base_checks(structure, result, doc: dict, train, val, validate) -> None:
+    """Measured-wrench identification: bias values, world-axis base-wrench RMSE and the
+    CoM-vs-CoP check on standing windows, per log, into ``doc["floating_base"]``."""
+    from ..regressor.contact import ContactStructure
+
+    if not isinstance(structure, ContactStructure) or structure.mode != "wrench":
+        return
+    from ..identification.floating_base import base_wrench_metrics, com_cop_check
+
+    p = result.parameters
+    fb = {"contact_rows": structure.settings()["contact_rows"], "wrench_offset": structure.offset_values(p),
+          "train": [], "validation": {}}
+    for traj in train:
+        fb["train"].append({"base_wrench": base_wrench_metrics(structure, p, traj),
+                            "com_cop": com_cop_check(structure, p, traj)})
+    for path, traj in zip(validate, val):
+        fb["validation"][str(path)] = {"base_wrench": base_wrench_metrics(structure, p, traj),
+                                       "com_cop": com_cop_check(structure, p, traj)}
+    doc["floating_base"] = fb
+    mass = doc.get("mass_properties") or {}
+    bw = fb["train"][0]["base_wrench"]
+    cc = fb["train"][0]["com_cop"]
+    console.print(
+        f"identified total mass {mass.get('total_mass', float('nan')):.3f} kg (model file "
+        f"{mass.get('urdf_total_mass', float('nan')):.3f} kg); base-wrench RMSE (world) {bw['force_rmse_norm']:.3g} N, "
+        f"{bw['moment_rmse_norm']:.3g} N·m"
+        + (f"; CoM–CoP on standing windows {1e3 * cc['distance_mean']:.1f} mm" if cc["n_samples"] else ""))
+    for traj_doc in fb["train"]:
+        if traj_doc["com_cop"]["ok"] is False:
+            err_console.print(f"[yellow]warning:[/] the identified CoM is {1e3 * traj_doc['com_cop']['distance_mean']:.1f} mm "
+                              "from the measured CoP on standing windows (a wrench bias? try --wrench-offset)")
+
+
+def _export(result, tmp: Path, doc: dict) -> None:
+    """URDF + joint terms; a model that is not a physical body is reported, not exported."""
+    from ..errors import SensorlessError as _E
+    from ..export import write_joint_terms
+    from ..parameters import JointTerms, check_physical_consistency
+
+    reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
+    bad = [rep.name for rep in reports if not rep.consistent]
+    doc["physical_consistency"] = {"inconsistent_bodies": bad, "n_bodies": len(reports)}
+    if hasattr(result.structure, "drive_values"):  # coupled joints: drive terms, no URDF (result.json is the model)
+        from ..identification.result import write_json_atomic
+
+        write_json_atomic(result.structure.drive_values(result.parameters), tmp / "drive_terms.json")
+        doc["urdf"] = None
+        doc["urdf_error"] = f"'{result.robot.name}' has coupled joints; a URDF cannot hold it (result.json does)"
+        return
+    from ..parameters import TERM_NAMES
+
+    terms = JointTerms.from_dict({j: {t: v for t, v in d.items() if t in TERM_NAMES} for j, d in result.joint_terms().items()})
+    write_joint_terms(terms, tmp / "joint_terms.json")
+    try:
+        from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf
+
+        _, doc["urdf_export"] = export_urdf(result.robot, result.inertial_parameters, tmp / "model.urdf", joint_terms=terms)
+        doc["urdf"] = "model.urdf"
+    except _E as exc:
+        doc["urdf"] = None
+        doc["urdf_error"] = str(exc)
+        err_console.print(f"[yellow]warning:[/] no URDF written: {exc}")

@@ -1,0 +1,95 @@
+"""Shared option vocabulary of the commands: choices (enums, listed in ``--help``) and
+``--config run.toml``.
+
+The choice enums are :class:`enum.StrEnum`: a value compares, hashes and formats as its
+string, so the library receives plain strings. Their members mirror the library's own
+tuples (``identification.METHODS``, ``data.outliers.OUTLIER_MODES``, ...; a test checks),
+written out here so that ``--help`` does not import the solvers.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from enum import StrEnum
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from ..errors import OptionError
+
+__all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "ContactMode", "ContactRows",
+           "WrenchOffset", "Rest", "config_option", "check_config", "resolved_options"]
+
+
+def _choices(name: str, values: tuple[str, ...]) -> type[StrEnum]:
+    return StrEnum(name, {v.replace("-", "_"): v for v in values})
+
+
+Method = _choices("Method", ("ols", "wls", "lmi", "svd"))
+Regularization = _choices("Regularization", ("pullback", "entropic", "euclidean", "none"))
+Ellipsoids = _choices("Ellipsoids", ("auto", "kinematic", "none"))
+Outliers = _choices("Outliers", ("error", "drop", "keep"))
+Velocity = _choices("Velocity", ("logged", "from-q"))
+ContactMode = _choices("ContactMode", ("projected", "wrench"))
+ContactRows = _choices("ContactRows", ("auto", "base", "all"))
+WrenchOffset = _choices("WrenchOffset", ("none", "net", "foot", "sole"))
+Rest = _choices("Rest", ("auto", "off"))
+
+_CONFIG_ERROR = "sensorless_config_error"
+
+
+def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
+    """Eager callback: the file's keys become the command's defaults (``ctx.default_map``), so
+    options on the command line win and values are converted like typed ones. A problem is
+    kept for :func:`check_config` (raised inside the command, as one line)."""
+    if value is None or ctx.resilient_parsing:
+        return value
+    try:
+        doc = tomllib.loads(Path(value).read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        ctx.meta[_CONFIG_ERROR] = f"--config {value}: not a readable TOML file ({exc})"
+        return value
+    names = {p.name for p in ctx.command.params if p.name != "config"}
+    table = {str(k).replace("-", "_"): v for k, v in doc.items()}
+    unknown = sorted(k for k in table if k not in names)
+    if unknown:
+        ctx.meta[_CONFIG_ERROR] = (f"--config {value}: unknown key(s) {', '.join(unknown)}; keys are the command's "
+                                   f"options, e.g. method, data, out, savgol_window")
+        return value
+    ctx.default_map = {**(ctx.default_map or {}), **table}
+    return value
+
+
+def config_option():
+    return typer.Option(None, "--config", is_eager=True, callback=_load_config, exists=False,
+                        help="TOML file whose keys are this command's options (method = \"lmi\", data = [\"a.csv\"], "
+                             "savgol_window = 21 ...); options on the command line override it; the resolved "
+                             "options are saved in result.json settings.config")
+
+
+def check_config() -> None:
+    """Raise the problem :func:`_load_config` found in ``--config`` (OptionError, one line)."""
+    from .common import _current_context
+
+    ctx = _current_context()
+    if ctx is not None and ctx.meta.get(_CONFIG_ERROR):
+        raise OptionError(ctx.meta[_CONFIG_ERROR])
+
+
+def resolved_options() -> dict:
+    """The running command's options after the config file and the command line (JSON-ready)."""
+    from .common import _current_context
+
+    ctx = _current_context()
+    if ctx is None:
+        return {}
+
+    def plain(v):
+        if isinstance(v, (list, tuple)):
+            return [plain(x) for x in v]
+        if isinstance(v, StrEnum):
+            return str(v)
+        return v if isinstance(v, (str, int, float, bool)) or v is None else str(v)
+
+    return {k: plain(v) for k, v in ctx.params.items()}

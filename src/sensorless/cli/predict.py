@@ -1,0 +1,80 @@
+"""`sensorless predict` (torques of a log from an identified model) and `sensorless demo`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
+import typer
+
+from ..errors import SensorlessError
+from ..io import write_npz_atomic
+from .options import Outliers
+from .common import (
+    model_logs,
+    model_preprocessing_options,
+    ROBOT_HELP,
+    app,
+    atomic_outdir,
+    check_preprocessing,
+    console,
+    guarded,
+    load_robot_arg,
+    output_file,
+    path_inputs,
+)
+
+
+@app.command()
+@guarded
+@model_preprocessing_options()
+def predict(
+    robot: str = typer.Option(..., help=ROBOT_HELP),
+    model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
+    data: Path = typer.Option(..., help="log to predict"),
+    out: Path = typer.Option(..., help="output .npz with t, tau_pred (and tau_measured, metrics if available)"),
+    lock: Optional[List[str]] = typer.Option(None),
+    floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
+    outliers: Outliers = typer.Option("error", help="gross outliers in the log"),
+    prep: dict = None,
+) -> None:
+    """Predict joint torques of a log with an identified model. The log is preprocessed as the
+    model's training logs were (result.json settings.preprocessing) unless an option says otherwise."""
+    from ..estimators import load_parameters
+    from ..identification.metrics import torque_metrics
+    from ..report import metrics_table
+
+    check_preprocessing(prep["rate"], prep["lowpass"], prep["savgol_window"], 1)
+    output_file(out, path_inputs(robot, model, data))
+    r = load_robot_arg(robot, lock, floating_base)
+    path = model / "result.json" if model.is_dir() else model
+    structure, params = load_parameters(path, r)
+    (traj,), opts = model_logs(path, [data], r, prep, outliers=outliers)
+    trim = prep["trim"]
+    pred = structure.torques(params, traj)
+    if not np.all(np.isfinite(pred)):
+        raise SensorlessError(f"{path}: the model predicts non-finite torques on {data}")
+    arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(structure.row_names),
+              "preprocessing": np.array(json.dumps({**opts, "trim": trim, "signals": traj.provenance}))}
+    if traj.tau is not None:
+        meas = structure.target(traj)
+        arrays["tau_measured"] = meas
+        console.print(metrics_table(Path(data).name, {"model": torque_metrics(meas, pred, structure.row_names)}))
+    write_npz_atomic(out, **arrays)
+    console.print(f"wrote {out}")
+
+
+@app.command()
+@guarded
+def demo(
+    out: Path = typer.Option(Path("demo_output"), help="output directory"),
+    seed: int = typer.Option(0, help="random seed"),
+) -> None:
+    """End-to-end example on a simulated Panda: excite, identify, validate, export."""
+    from ..demo import run_demo
+
+    with atomic_outdir(out, force=True) as tmp:
+        run_demo(tmp, seed=seed, console=console)
+    console.print(f"wrote {out}/")
