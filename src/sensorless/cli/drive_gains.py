@@ -58,7 +58,7 @@ def drive_gains(
     force: bool = typer.Option(False, help="replace --out if it exists"),
 ) -> None:
     """Identify per-joint drive gains K (τ = K·i) from two runs of one trajectory, without and
-    with a known payload: K_j (i_loaded − i_unloaded)_j = [payload torque]_j, least squares on
+    with a known payload: K_j (i_loaded − i_unloaded)_j = τ_payload,j, least squares on
     the currents, 95 % intervals from a moving-block bootstrap and HAC (correlated noise).
     The output JSON is a gains file for --gains of identify, predict, payload, monitor."""
     from ..data.gains import resolve_gains
