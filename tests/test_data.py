@@ -377,8 +377,11 @@ def _sine_traj(rate=200.0, f=1.0, duration=4.0):
 
 def test_savgol_derivatives_of_sine_match_analytic():
     tr, w = _sine_traj()
-    out = savgol_derivatives(tr, polyorder=3)  # default window ~0.1 s = 21 samples
+    out = savgol_derivatives(tr, polyorder=3, window=21)  # 0.1 s at 200 Hz
     assert "savgol" in out.units["processing"]
+    from sensorless.data import default_savgol_window
+
+    assert f"window={default_savgol_window(200.0)}," in savgol_derivatives(tr).units["processing"]  # 0.2 s = 41
     inner = slice(21, -21)
     v_true = w * np.column_stack([np.cos(w * tr.t), -0.5 * np.sin(w * tr.t)])
     a_true = -(w**2) * tr.q

@@ -33,7 +33,7 @@ from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import DataError, ShapeMismatchError, TimestampError
-from .filtering import SavitzkyGolay, _default_window, _note, butter_lowpass
+from .filtering import SavitzkyGolay, _note, default_savgol_window, butter_lowpass
 from .trajectory import Trajectory
 
 __all__ = ["BasePose", "clean_base_pose", "with_base_pose", "ORIENTATION_FORMATS"]
@@ -102,7 +102,7 @@ def clean_base_pose(
     ``t`` (N,) [s], ``position`` (N, 3) [m], ``orientation`` (N, 4|3) in ``orientation_format``.
     The work is done on a uniform grid at ``rate`` (default: the median input rate) over the
     valid span; the output is that grid, or ``t_out`` (any times within the valid samples). ``cutoff_hz=None`` skips the low-pass; ``window`` is the
-    Savitzky–Golay window (default ≈ 0.1 s).
+    Savitzky–Golay window (default: the package's 0.2 s, :func:`~.filtering.default_savgol_window`).
     """
     if orientation_format not in ORIENTATION_FORMATS:
         raise DataError(f"orientation_format must be one of {ORIENTATION_FORMATS}, got {orientation_format!r}", source)
@@ -149,7 +149,7 @@ def clean_base_pose(
         pos = butter_lowpass(pos, cutoff_hz, 1.0 / h, order)
         qs = butter_lowpass(qs, cutoff_hz, 1.0 / h, order)
     qs /= np.linalg.norm(qs, axis=1, keepdims=True)
-    sg = SavitzkyGolay(window=window or _default_window(1.0 / h, polyorder), polyorder=polyorder, dt=h)
+    sg = SavitzkyGolay(window=window or default_savgol_window(1.0 / h), polyorder=polyorder, dt=h)
     dp, ddp = sg.apply(pos, 1), sg.apply(pos, 2)
     dq, ddq = sg.apply(qs, 1), sg.apply(qs, 2)
     conj = qs * np.array([-1.0, -1.0, -1.0, 1.0])

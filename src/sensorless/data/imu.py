@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DataError, RobotModelError, ShapeMismatchError
-from .filtering import SavitzkyGolay, _note, _uniform_dt
+from .filtering import SavitzkyGolay, _note, _uniform_dt, default_savgol_window
 from .trajectory import Trajectory
 
 __all__ = ["IMU_KEY", "base_acceleration", "gravity_in_base", "imu_base_acceleration", "imu_frame_base_acceleration"]
@@ -125,7 +125,7 @@ def imu_frame_base_acceleration(
 
 def base_acceleration(
     traj: Trajectory,
-    window: int = 9,
+    window: int | None = None,
     polyorder: int = 3,
     use_imu: bool = True,
     imu_offset: np.ndarray | None = None,
@@ -142,6 +142,8 @@ def base_acceleration(
     if traj.base_q is None or traj.base_v is None:
         raise DataError("base acceleration needs base_q and base_v (a floating-base log)", traj.source)
     dt = _uniform_dt(traj, "base_acceleration")
+    if window is None:  # the package's one default derivative window (0.2 s)
+        window = default_savgol_window(1.0 / dt)
     sg = SavitzkyGolay(window=window, polyorder=polyorder, dt=dt)
     dv = sg.apply(traj.base_v, deriv=1)
     has_imu = use_imu and IMU_KEY in traj.extras

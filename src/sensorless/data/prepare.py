@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import DataError, OptionError, TimestampError
 from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_derivatives
+from .filtering import DEFAULT_DERIVATIVE_SECONDS, DEFAULT_SAVGOL_WINDOW, default_savgol_window
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
 from .filtering import trim as _trim
@@ -44,18 +45,6 @@ from .validation import TooFewSamplesError, validate_trajectory
 __all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
            "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
 
-#: Savitzky–Golay window [samples] when none is given (polynomial order 3): the larger of this
-#: and DEFAULT_DERIVATIVE_SECONDS at the log's rate (:func:`default_savgol_window`).
-DEFAULT_SAVGOL_WINDOW = 11
-#: default derivative window [s]: 0.2 s (21 samples at 100 Hz) passes motion up to ~6 Hz and
-#: keeps the v̇ noise × inertia of a big joint below its torque noise on a 100 Hz arm
-DEFAULT_DERIVATIVE_SECONDS = 0.2
-
-
-def default_savgol_window(rate: float) -> int:
-    """Default Savitzky–Golay window [samples, odd] at ``rate`` [Hz]: max(11, 0.2 s)."""
-    n = int(round(DEFAULT_DERIVATIVE_SECONDS * float(rate))) if math.isfinite(rate) and rate > 0 else 0
-    return max(DEFAULT_SAVGOL_WINDOW, n + 1 - n % 2)
 VELOCITY_SOURCES = ("logged", "from-q")
 _POLYORDER = 3
 
