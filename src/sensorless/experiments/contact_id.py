@@ -328,12 +328,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
                        else (lambda tr, m=model: structure.project(tr, m.predict(tr))))
             row["rmse"][name] = {g: float(np.mean([projected_rmse(structure, tr, predict(tr), y) for tr, y, _ in v]))
                                  for g, v in evals.items()}
-        lmi, svd = models["LMI"], models["SVD"]
-        row["parameters"] = {"LMI": _parameter_errors(structure, lmi.parameters_, true_params),
-                             "SVD": _parameter_errors(structure, svd.parameters_, true_params)}
-        row["lmi_status"] = lmi.result_.diagnostics["lmi"]["status"]
-        row["lmi_consistent"] = lmi.result_.diagnostics["lmi"]["consistent"]
-        rows.append(row)
+        rows.append(_with_parameters(row, structure, models, true_params))
         if console is not None:
             r = row["rmse"]
             console.print(
@@ -355,8 +350,22 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
         "checks": _checks(rows, floors, true_rmse),
         "wall_seconds": time.perf_counter() - t_start,
     }
+    return _save(results, out, _table(results))
+
+
+def _with_parameters(row: dict, structure: ContactStructure, models: dict, true_params: np.ndarray) -> dict:
+    """``row`` with the LMI and SVD fits' parameter errors and the LMI solver's status."""
+    lmi = models["LMI"]
+    row["parameters"] = {k: _parameter_errors(structure, models[k].parameters_, true_params) for k in ("LMI", "SVD")}
+    row["lmi_status"] = lmi.result_.diagnostics["lmi"]["status"]
+    row["lmi_consistent"] = lmi.result_.diagnostics["lmi"]["consistent"]
+    return row
+
+
+def _save(results: dict, out: Path, table: str) -> dict:
+    """Write ``results.json``, ``table.md`` and the sample-efficiency figure into ``out``; return ``results``."""
     (out / "results.json").write_text(json.dumps(results, indent=2))
-    (out / "table.md").write_text(_table(results))
+    (out / "table.md").write_text(table)
     _figure(results, out / "sample_efficiency.png")
     return results
 
