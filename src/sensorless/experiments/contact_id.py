@@ -400,17 +400,24 @@ def _checks(rows: list[dict], floors: dict, true_rmse: dict) -> dict:
     }
 
 
+_TABLE_HEAD = ("| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|")
+
+
+def _table_line(n_train, label: str, rmse: dict) -> str:
+    """``| n_train | label | validation | OOD trot | OOD jump |`` with RMSEs to 4 decimals."""
+    return f"| {n_train} | {label} | {' | '.join(f'{rmse[g]:.4f}' for g in ('validation', 'ood_trot', 'ood_jump'))} |"
+
+
+def _model_lines(rows: list[dict], key: str = "rmse") -> list[str]:
+    """One table line per training size and model, from ``row[key][model]``."""
+    return [_table_line(r["n_train"], m, r[key][m]) for r in rows for m in ("LMI", "SVD", "MLP")]
+
+
 def _table(res: dict) -> str:
     """Markdown table in the form of the paper's Table I (projected-torque RMSE, N·m)."""
-    lines = ["| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|"]
-    for r in res["rows"]:
-        for m in ("LMI", "SVD", "MLP"):
-            v = r["rmse"][m]
-            lines.append(f"| {r['n_train']} | {m} | {v['validation']:.4f} | {v['ood_trot']:.4f} | {v['ood_jump']:.4f} |")
-    f = res["noise_floor_rmse"]
-    lines.append(f"| — | noise floor | {f['validation']:.4f} | {f['ood_trot']:.4f} | {f['ood_jump']:.4f} |")
-    t = res["true_parameters_rmse"]
-    lines.append(f"| — | true parameters | {t['validation']:.4f} | {t['ood_trot']:.4f} | {t['ood_jump']:.4f} |")
+    lines = [*_TABLE_HEAD, *_model_lines(res["rows"]),
+             _table_line("—", "noise floor", res["noise_floor_rmse"]),
+             _table_line("—", "true parameters", res["true_parameters_rmse"])]
     return "\n".join(lines) + "\n"
 
 

@@ -18,8 +18,11 @@ from .contact_id import (
     _fit_all,
     _jsonable,
     _mlp_epochs,
+    _TABLE_HEAD,
+    _model_lines,
     _save,
     _table,
+    _table_line,
     _with_parameters,
     projected_rmse,
 )
@@ -144,16 +147,9 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
 def _table_exact(res: dict) -> str:
     """The acceleration-free run's extra rows: floors in the filtered space, and the models
     scored unfiltered with the simulator's accelerations (comparable to --acceleration simulator)."""
-    g = ("validation", "ood_trot", "ood_jump")
-    fa, fo = res["noise_floor_all_signals_rmse"], res["formulation_rmse"]
-    lines = [f"| — | noise floor, all signals | {' | '.join(f'{fa[k]:.4f}' for k in g)} |",
-             f"| — | formulation (true parameters, noiseless) | {' | '.join(f'{fo[k]:.4f}' for k in g)} |",
+    lines = [_table_line("—", "noise floor, all signals", res["noise_floor_all_signals_rmse"]),
+             _table_line("—", "formulation (true parameters, noiseless)", res["formulation_rmse"]),
              "", "Unfiltered projected RMSE with the simulator's accelerations on the evaluation logs:", "",
-             "| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|"]
-    for r in res["rows"]:
-        for m in ("LMI", "SVD", "MLP"):
-            v = r["rmse_exact_acceleration"][m]
-            lines.append(f"| {r['n_train']} | {m} | {' | '.join(f'{v[k]:.4f}' for k in g)} |")
-    f = res["noise_floor_exact_acceleration_rmse"]
-    lines.append(f"| — | noise floor | {' | '.join(f'{f[k]:.4f}' for k in g)} |")
+             *_TABLE_HEAD, *_model_lines(res["rows"], "rmse_exact_acceleration"),
+             _table_line("—", "noise floor", res["noise_floor_exact_acceleration_rmse"])]
     return "\n".join(lines) + "\n"
