@@ -39,7 +39,7 @@ from ..errors import OptionError
 from ..excitation import random_fourier
 from ..parameters import check_physical_consistency
 from ..robot import Robot, load_robot
-from ..simulation import TruthModel, synthetic_trajectory
+from ..simulation import TruthModel, map_body_inertias, synthetic_trajectory
 
 __all__ = [
     "DEFAULT_RECIPE",
@@ -126,11 +126,8 @@ def perturb_inertials(
     axes ``R`` become ``R·exp([ω]×)``, ``ω ~ N(0, axis_sigma)``.
     """
     rng = np.random.default_rng(rng)
-    model = robot.model.copy()
-    for j in range(1, model.njoints):
-        I = model.inertias[j]
-        if I.mass <= 0:
-            continue
+
+    def perturbed(I: pin.Inertia) -> pin.Inertia:
         m = I.mass * float(np.exp(rng.normal(0.0, mass_sigma)))
         c = np.asarray(I.lever) + rng.normal(0.0, com_sigma, 3)
         lam, R = np.linalg.eigh(np.asarray(I.inertia))
@@ -142,8 +139,9 @@ def perturb_inertials(
             lam2 = lam
         R2 = R @ pin.exp3(rng.normal(0.0, axis_sigma, 3))
         Ic = (R2 * lam2) @ R2.T
-        model.inertias[j] = pin.Inertia(m, c, 0.5 * (Ic + Ic.T))
-    return Robot(model, name=robot.name + "_truth", source=robot.source, actuated_joints=robot.actuated_joints)
+        return pin.Inertia(m, c, 0.5 * (Ic + Ic.T))
+
+    return map_body_inertias(robot, perturbed)
 
 
 @dataclass

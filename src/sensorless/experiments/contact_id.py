@@ -328,12 +328,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
                        else (lambda tr, m=model: structure.project(tr, m.predict(tr))))
             row["rmse"][name] = {g: float(np.mean([projected_rmse(structure, tr, predict(tr), y) for tr, y, _ in v]))
                                  for g, v in evals.items()}
-        lmi, svd = models["LMI"], models["SVD"]
-        row["parameters"] = {"LMI": _parameter_errors(structure, lmi.parameters_, true_params),
-                             "SVD": _parameter_errors(structure, svd.parameters_, true_params)}
-        row["lmi_status"] = lmi.result_.diagnostics["lmi"]["status"]
-        row["lmi_consistent"] = lmi.result_.diagnostics["lmi"]["consistent"]
-        rows.append(row)
+        rows.append(_with_parameters(row, structure, models, true_params))
         if console is not None:
             r = row["rmse"]
             console.print(
@@ -355,8 +350,22 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
         "checks": _checks(rows, floors, true_rmse),
         "wall_seconds": time.perf_counter() - t_start,
     }
+    return _save(results, out, _table(results))
+
+
+def _with_parameters(row: dict, structure: ContactStructure, models: dict, true_params: np.ndarray) -> dict:
+    """``row`` with the LMI and SVD fits' parameter errors and the LMI solver's status."""
+    lmi = models["LMI"]
+    row["parameters"] = {k: _parameter_errors(structure, models[k].parameters_, true_params) for k in ("LMI", "SVD")}
+    row["lmi_status"] = lmi.result_.diagnostics["lmi"]["status"]
+    row["lmi_consistent"] = lmi.result_.diagnostics["lmi"]["consistent"]
+    return row
+
+
+def _save(results: dict, out: Path, table: str) -> dict:
+    """Write ``results.json``, ``table.md`` and the sample-efficiency figure into ``out``; return ``results``."""
     (out / "results.json").write_text(json.dumps(results, indent=2))
-    (out / "table.md").write_text(_table(results))
+    (out / "table.md").write_text(table)
     _figure(results, out / "sample_efficiency.png")
     return results
 
@@ -391,17 +400,24 @@ def _checks(rows: list[dict], floors: dict, true_rmse: dict) -> dict:
     }
 
 
+_TABLE_HEAD = ("| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|")
+
+
+def _table_line(n_train, label: str, rmse: dict) -> str:
+    """``| n_train | label | validation | OOD trot | OOD jump |`` with RMSEs to 4 decimals."""
+    return f"| {n_train} | {label} | {' | '.join(f'{rmse[g]:.4f}' for g in ('validation', 'ood_trot', 'ood_jump'))} |"
+
+
+def _model_lines(rows: list[dict], key: str = "rmse") -> list[str]:
+    """One table line per training size and model, from ``row[key][model]``."""
+    return [_table_line(r["n_train"], m, r[key][m]) for r in rows for m in ("LMI", "SVD", "MLP")]
+
+
 def _table(res: dict) -> str:
     """Markdown table in the form of the paper's Table I (projected-torque RMSE, N·m)."""
-    lines = ["| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|"]
-    for r in res["rows"]:
-        for m in ("LMI", "SVD", "MLP"):
-            v = r["rmse"][m]
-            lines.append(f"| {r['n_train']} | {m} | {v['validation']:.4f} | {v['ood_trot']:.4f} | {v['ood_jump']:.4f} |")
-    f = res["noise_floor_rmse"]
-    lines.append(f"| — | noise floor | {f['validation']:.4f} | {f['ood_trot']:.4f} | {f['ood_jump']:.4f} |")
-    t = res["true_parameters_rmse"]
-    lines.append(f"| — | true parameters | {t['validation']:.4f} | {t['ood_trot']:.4f} | {t['ood_jump']:.4f} |")
+    lines = [*_TABLE_HEAD, *_model_lines(res["rows"]),
+             _table_line("—", "noise floor", res["noise_floor_rmse"]),
+             _table_line("—", "true parameters", res["true_parameters_rmse"])]
     return "\n".join(lines) + "\n"
 
 

@@ -4,7 +4,6 @@ and the evaluation on the filtered momentum regressor L[P Sᵀτ] = W_f θ
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -16,12 +15,15 @@ from ..data.trajectory import Trajectory
 from .contact_id import (
     _checks,
     _estimators,
-    _figure,
     _fit_all,
     _jsonable,
     _mlp_epochs,
-    _parameter_errors,
+    _TABLE_HEAD,
+    _model_lines,
+    _save,
     _table,
+    _table_line,
+    _with_parameters,
     projected_rmse,
 )
 
@@ -114,11 +116,7 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
             row["rmse_exact_acceleration"][name] = {
                 g: float(np.mean([projected_rmse(structure, tr, unf[name](g, i, tr), y) for i, (tr, y, _) in enumerate(v)]))
                 for g, v in exact.items()}
-        row["parameters"] = {"LMI": _parameter_errors(structure, lmi.parameters_, true_params),
-                             "SVD": _parameter_errors(structure, svd.parameters_, true_params)}
-        row["lmi_status"] = lmi.result_.diagnostics["lmi"]["status"]
-        row["lmi_consistent"] = lmi.result_.diagnostics["lmi"]["consistent"]
-        rows.append(row)
+        rows.append(_with_parameters(row, structure, models, true_params))
         if console is not None:
             r, x = row["rmse"], row["rmse_exact_acceleration"]
             console.print(
@@ -143,25 +141,15 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
         "true_parameters_rmse": true_rmse, "noise_floor_exact_acceleration_rmse": floors_exact, "rows": rows,
         "checks": checks, "wall_seconds": time.perf_counter() - t_start,
     }
-    (out / "results.json").write_text(json.dumps(results, indent=2))
-    (out / "table.md").write_text(_table(results) + _table_exact(results))
-    _figure(results, out / "sample_efficiency.png")
-    return results
+    return _save(results, out, _table(results) + _table_exact(results))
 
 
 def _table_exact(res: dict) -> str:
     """The acceleration-free run's extra rows: floors in the filtered space, and the models
     scored unfiltered with the simulator's accelerations (comparable to --acceleration simulator)."""
-    g = ("validation", "ood_trot", "ood_jump")
-    fa, fo = res["noise_floor_all_signals_rmse"], res["formulation_rmse"]
-    lines = [f"| — | noise floor, all signals | {' | '.join(f'{fa[k]:.4f}' for k in g)} |",
-             f"| — | formulation (true parameters, noiseless) | {' | '.join(f'{fo[k]:.4f}' for k in g)} |",
+    lines = [_table_line("—", "noise floor, all signals", res["noise_floor_all_signals_rmse"]),
+             _table_line("—", "formulation (true parameters, noiseless)", res["formulation_rmse"]),
              "", "Unfiltered projected RMSE with the simulator's accelerations on the evaluation logs:", "",
-             "| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|"]
-    for r in res["rows"]:
-        for m in ("LMI", "SVD", "MLP"):
-            v = r["rmse_exact_acceleration"][m]
-            lines.append(f"| {r['n_train']} | {m} | {' | '.join(f'{v[k]:.4f}' for k in g)} |")
-    f = res["noise_floor_exact_acceleration_rmse"]
-    lines.append(f"| — | noise floor | {' | '.join(f'{f[k]:.4f}' for k in g)} |")
+             *_TABLE_HEAD, *_model_lines(res["rows"], "rmse_exact_acceleration"),
+             _table_line("—", "noise floor", res["noise_floor_exact_acceleration_rmse"])]
     return "\n".join(lines) + "\n"

@@ -22,6 +22,13 @@ def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[st
     import matplotlib.pyplot as plt
 
     files = []
+
+    def save(fig, name: str) -> None:
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=110)
+        plt.close(fig)
+        files.append(name)
+
     # estimator
     t, tau, tau_hat = est_fig
     fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
@@ -31,10 +38,7 @@ def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[st
         ax.set_title(SHORT[j])
         ax.set_ylabel("Nm")
     axs[0, 0].legend()
-    fig.tight_layout()
-    fig.savefig(out / "estimator.png", dpi=110)
-    plt.close(fig)
-    files.append("estimator.png")
+    save(fig, "estimator.png")
     # fits
     tau, dq, y = fit_fig
     fig, axs = plt.subplots(2, 3, figsize=(13, 7))
@@ -49,10 +53,7 @@ def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[st
         ax.set_xlabel("τ̂ [Nm]")
         ax.set_ylabel("Δq − Kv q̇ [mrad]")
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "actuator_fits.png", dpi=110)
-    plt.close(fig)
-    files.append("actuator_fits.png")
+    save(fig, "actuator_fits.png")
     # tracking
     t, q_ref, logs = track["t"], track["q_ref"], track["logs"]
     fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
@@ -63,10 +64,7 @@ def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[st
         ax.set_title(SHORT[j])
         ax.set_ylabel("error [deg]")
     axs[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "tracking.png", dpi=110)
-    plt.close(fig)
-    files.append("tracking.png")
+    save(fig, "tracking.png")
     # force
     fig, ax = plt.subplots(figsize=(9, 4))
     ax.plot(force["t"], force["f_d"], "k", lw=1.5, label="desired")
@@ -75,10 +73,7 @@ def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[st
     ax.set_xlabel("t [s]")
     ax.set_ylabel("vertical contact force [N]")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "force_tracking.png", dpi=110)
-    plt.close(fig)
-    files.append("force_tracking.png")
+    save(fig, "force_tracking.png")
     # open loop: travel after release at the highest speed, and the hip-roll release
     summ = openl["summary"]
     fig, axs = plt.subplots(1, 2, figsize=(12, 4))
@@ -99,8 +94,5 @@ def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[st
     axs[1].set_xlabel("t [s]")
     axs[1].set_ylabel("deviation [deg]")
     axs[1].legend()
-    fig.tight_layout()
-    fig.savefig(out / "open_loop.png", dpi=110)
-    plt.close(fig)
-    files.append("open_loop.png")
+    save(fig, "open_loop.png")
     return files

@@ -268,7 +268,7 @@ def simulate(
     episode = Episode(
         scenario=scenario, scene=scene, truth=truth, nominal=nominal, plan=plan, ref=ref, log=L, log_rate=log_rate,
         sim_rate=sim_rate, settle=settle, seed=seed, truth_seed=truth_seed, kwargs=scenario_kwargs, fell=fell,
-        fall_time=fall_time, wall=wall,
+        fall_time=fall_time, wall_time=wall,
     )
     traj, gt = assemble(episode, noise, noise_rng)
     gt.settings["tau_log"] = tau_log

@@ -9,7 +9,7 @@ specific force Rᵀ(p̈ − g) = a_lin + ω × v_b − Rᵀg (base axes, + noise
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -26,7 +26,7 @@ from .synthetic import TruthModel
 #: the joint terms the simulated quadruped has (and its logs' truth parameters are laid out in)
 JOINT_TERMS = ("fv", "fc", "offset", "armature")
 
-__all__ = ["Episode", "NoiseSpec", "SimulationTruth", "assemble"]
+__all__ = ["Episode", "NoiseSpec", "RunOutcome", "SimulationTruth", "assemble"]
 
 
 @dataclass(frozen=True)
@@ -47,8 +47,18 @@ class NoiseSpec:
         return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
+@dataclass(kw_only=True)
+class RunOutcome:
+    """How a simulated run ended: whether (and when, in s of log time) the robot fell, and the
+    wall-clock seconds it took. Shared by :class:`Episode` and the :class:`SimulationTruth` it yields."""
+
+    fell: bool = False
+    fall_time: float | None = None
+    wall_time: float = 0.0
+
+
 @dataclass
-class SimulationTruth:
+class SimulationTruth(RunOutcome):
     """What only the simulation knows, at the logged instants (noiseless).
 
     Joint arrays are in ``truth.robot.joint_names`` order; base twist/acceleration in the
@@ -81,9 +91,6 @@ class SimulationTruth:
     noise: NoiseSpec
     scenario: str
     settings: dict[str, Any]
-    fell: bool = False
-    fall_time: float | None = None
-    wall_time: float = 0.0
 
     @property
     def robot(self) -> Robot:
@@ -146,7 +153,7 @@ class SimulationTruth:
 
 
 @dataclass
-class Episode:
+class Episode(RunOutcome):
     """One simulated run as recorded: the settings, the scene, the true and nominal robots, the
     plan and references, and ``log`` (per logged sample: ``qpos``, ``qvel``, ``qacc``, ``act``,
     ``fric``, ``flags``, ``forces``, ``points``, ``height``, ``idx`` = reference index)."""
@@ -164,9 +171,6 @@ class Episode:
     seed: int
     truth_seed: int
     kwargs: dict[str, Any]
-    fell: bool = False
-    fall_time: float | None = None
-    wall: float = 0.0
 
 
 def _noisy_orientation(quat_xyzw: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
@@ -283,8 +287,6 @@ def assemble(ep: Episode, noise: NoiseSpec, rng: np.random.Generator) -> tuple[T
         noise=noise,
         scenario=scenario,
         settings=settings,
-        fell=fell,
-        fall_time=fall_time,
-        wall_time=ep.wall,
+        **{f.name: getattr(ep, f.name) for f in fields(RunOutcome)},
     )
     return traj, gt

@@ -10,6 +10,7 @@ so identification tests compare against physics, not against the regressor itsel
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -17,7 +18,7 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..robot import Robot
 
-__all__ = ["TruthModel", "perturbed_truth", "synthetic_trajectory"]
+__all__ = ["TruthModel", "map_body_inertias", "perturbed_truth", "synthetic_trajectory"]
 
 
 @dataclass
@@ -49,6 +50,16 @@ class TruthModel:
         return np.concatenate([self.robot.inertial_parameters(), per_joint.ravel()])
 
 
+def map_body_inertias(robot: Robot, new_inertia: Callable[[pin.Inertia], pin.Inertia]) -> Robot:
+    """A copy ``<name>_truth`` of ``robot`` whose every massive body's inertia ``I`` is
+    ``new_inertia(I)`` (called body by body in joint order; massless bodies are kept)."""
+    model = robot.model.copy()
+    for j in range(1, model.njoints):
+        if model.inertias[j].mass > 0:
+            model.inertias[j] = new_inertia(model.inertias[j])
+    return Robot(model, name=robot.name + "_truth", source=robot.source, actuated_joints=robot.actuated_joints)
+
+
 def perturbed_truth(
     robot: Robot,
     *,
@@ -64,14 +75,12 @@ def perturbed_truth(
     and its rotational inertia about the CoM scaled by the same factor (stays consistent).
     """
     rng = np.random.default_rng(rng)
-    model = robot.model.copy()
-    for j in range(1, model.njoints):
-        I = model.inertias[j]
-        if I.mass <= 0:
-            continue
+
+    def scaled(I: pin.Inertia) -> pin.Inertia:
         s = 1.0 + mass_scale * rng.uniform(-1, 1)
-        model.inertias[j] = pin.Inertia(I.mass * s, I.lever + rng.uniform(-com_shift, com_shift, 3), I.inertia * s)
-    true = Robot(model, name=robot.name + "_truth", source=robot.source, actuated_joints=robot.actuated_joints)
+        return pin.Inertia(I.mass * s, I.lever + rng.uniform(-com_shift, com_shift, 3), I.inertia * s)
+
+    true = map_body_inertias(robot, scaled)
     n = robot.n_actuated
     fv = rng.uniform(0.05, 0.5, n) if friction else np.zeros(n)
     fc = rng.uniform(0.1, 1.0, n) if friction else np.zeros(n)
