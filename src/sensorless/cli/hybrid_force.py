@@ -10,6 +10,7 @@ import typer
 from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .common import (
+    experiment_options,
     model_logs,
     model_preprocessing_options,
     ROBOT_HELP,
@@ -28,12 +29,9 @@ __all__ = ["estimate_force", "experiment_hybrid_force"]
 
 @experiment_app.command("hybrid-force")
 @guarded
-def experiment_hybrid_force(
-    out: Path = typer.Option(Path("results/hybrid_force"), help="output directory (written atomically)"),
-    quick: bool = typer.Option(False, "--quick", help="shorter logs and training (≈1 min on 2 cores)"),
-    seed: int = typer.Option(0, help="random seed (simulation, training, bootstrap)"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
-) -> None:
+@experiment_options("results/hybrid_force", quick="shorter logs and training (≈1 min on 2 cores)",
+                    seed="random seed (simulation, training, bootstrap)")
+def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> None:
     """Model-based vs hybrid vs learning-only force estimation for a simulated PSM-like arm in a trocar
     (Tables II–IV) + payload identification; writes results.json, tables.md and figures."""
     from ..experiments.hybrid_force import run
