@@ -297,9 +297,9 @@ _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
 MODEL_PREPROCESSING = tuple(_PREPROCESSING_OPTIONS)
 
 
-def add_options(options: dict, *, into: Optional[str] = None):
+def add_options(options: dict, *, into: Optional[str] = None, first: bool = False):
     """Decorator: the command gets the options ``options`` (name -> (annotation, option factory)),
-    appended after its own. ``into``: they reach the command as one dict argument of that name;
+    after its own (before them with ``first``). ``into``: they reach the command as one dict argument of that name;
     else by name (a parameter of the command with the same name, declared without default, is
     replaced by the shared option)."""
     import inspect
@@ -317,7 +317,7 @@ def add_options(options: dict, *, into: Optional[str] = None):
                 kwargs[into] = {n: kwargs.pop(n, None) for n in options}
             return fn(*args, **kwargs)
 
-        wrapper.__signature__ = sig.replace(parameters=own + extra)
+        wrapper.__signature__ = sig.replace(parameters=extra + own if first else own + extra)
         wrapper.__annotations__ = {**{k: v for k, v in getattr(fn, "__annotations__", {}).items() if k != into},
                                    **{n: ann for n, (ann, _) in options.items()}}
         return wrapper
@@ -347,6 +347,18 @@ def lock_option(help: str = "joints to lock (e.g. gripper fingers)"):
 
 def floating_base_option():
     return typer.Option(None, "--floating-base/--fixed-base")
+
+
+def model_options(model: str = "result.json (or its directory) from `sensorless identify`"):
+    """Decorator: ``--robot`` and ``--model`` (an identified model, help ``model``) as the first
+    options; one definition for the commands that apply a model."""
+    return add_options({"robot": (str, robot_option), "model": (Path, lambda: typer.Option(..., help=model))},
+                       first=True)
+
+
+def bench_out_option(name: str):
+    """``--out`` of a benchmark: ``benchmarks/results/NAME.json``."""
+    return typer.Option(Path(f"benchmarks/results/{name}.json"))
 
 
 def experiment_options(out: str, quick: str, seed: str):

@@ -10,10 +10,8 @@ import typer
 from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .common import (
-    experiment_options,
     model_logs,
     model_preprocessing_options,
-    ROBOT_HELP,
     app,
     atomic_outdir,
     console,
@@ -22,6 +20,9 @@ from .common import (
     load_robot_arg,
     output_file,
     path_inputs,
+    lock_option,
+    model_options,
+    experiment_options,
 )
 
 __all__ = ["estimate_force", "experiment_hybrid_force"]
@@ -44,9 +45,10 @@ def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> N
 @app.command("estimate-force")
 @guarded
 @model_preprocessing_options()
+@model_options()
 def estimate_force(
-    robot: str = typer.Option(..., help=ROBOT_HELP),
-    model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
+    robot: str,
+    model: Path,
     data: Path = typer.Option(..., help="log with q and measured torque"),
     frame: str = typer.Option(..., help="frame where the force acts (e.g. the tool tip)"),
     reference: str = typer.Option("local_world_aligned", help="world | local | local_world_aligned"),
@@ -56,7 +58,7 @@ def estimate_force(
     joints: str | None = typer.Option(None, help="comma-separated joints whose torques are used (default all)"),
     sigma_threshold: float = typer.Option(0.01, help="damping starts below this smallest singular value"),
     lambda_max: float = typer.Option(0.02, help="damping at a singularity"),
-    lock: list[str] | None = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
+    lock: list[str] | None = lock_option(),
     prep: dict = None,
 ) -> None:
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:

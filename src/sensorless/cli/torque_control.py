@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from .common import atomic_outdir, bench_app, console, experiment_app, experiment_options, guarded, write_result
+from .common import (atomic_outdir, bench_app, bench_out_option, console, experiment_app, experiment_options, guarded,
+                     write_result)
 
 
 @experiment_app.command("torque-control")
@@ -38,7 +39,7 @@ def bench_actuator_fit(
     weight: float = typer.Option(100.0, help="asymmetric weight w"),
     repeats: int = typer.Option(3, help="timed fits (the first one includes buffer allocation)"),
     seed: int = typer.Option(0, help="random seed of the synthetic data"),
-    out: Path = typer.Option(Path("benchmarks/results/actuator_fit.json")),
+    out: Path = bench_out_option("actuator_fit"),
 ) -> None:
     """Asymmetric-penalty actuator fit (Newton, exact optimality on the active set): wall time on N samples."""
     from ..benchmarks.actuator import benchmark_asymmetric_fit
