@@ -159,9 +159,10 @@ def test_estimate_force_cli_recovers_a_known_tip_force(tmp_path, panda):
     err = np.sqrt(((z["force"] - F) ** 2).mean(axis=0))
     assert np.all(err < 0.05 * np.ptp(F, axis=0).clip(min=1.0)), err
     # with a learned residual (trained on free-space data: it should change little)
-    from sensorless.learning import HybridModel, ParameterModel
+    from sensorless.estimators import PhysicalModel
+    from sensorless.learning import HybridModel
 
-    HybridModel(ParameterModel(structure, result.parameters), window=2, hidden=(16,), seed=0, epochs=5).fit(free).save(tmp_path / "res")
+    HybridModel(PhysicalModel.from_parameters(structure, result.parameters), window=2, hidden=(16,), seed=0, epochs=5).fit(free).save(tmp_path / "res")
     out2 = tmp_path / "forces2.npz"
     r = CliRunner().invoke(app, ["estimate-force", "--robot", "panda", "--lock", "panda_finger_joint1", "--lock",
                                  "panda_finger_joint2", "--model", str(tmp_path / "result.json"), "--data", str(tmp_path / "push.npz"),
@@ -226,7 +227,7 @@ def test_psm_tip_force_recovered_from_motor_efforts():
 
 def test_psm_force_estimate_from_a_log_and_model():
     """estimate(traj, model) on the PSM: the model's torque is removed, the rest mapped to the tip."""
-    from sensorless.learning.models import ParameterModel
+    from sensorless.estimators import PhysicalModel
     from sensorless.robots import psm_robot, psm_structure
 
     s = psm_structure()
@@ -239,5 +240,5 @@ def test_psm_force_estimate_from_a_log_and_model():
     tau_ext = np.array([s.G.T @ _tau_from_wrench(s.tree, s.G @ mot.q[i], "tool_tip", np.r_[F[i], 0, 0, 0],
                                                  "local_world_aligned") for i in range(len(mot))])
     log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + tau_ext)
-    res = CartesianForceEstimator(psm_robot(), "tool_tip").estimate(log, ParameterModel(s, p))
+    res = CartesianForceEstimator(psm_robot(), "tool_tip").estimate(log, PhysicalModel.from_parameters(s, p))
     np.testing.assert_allclose(res.F, F, atol=1e-8)

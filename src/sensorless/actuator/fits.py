@@ -30,6 +30,7 @@ from .model import (
     CurrentModel,
     MotorModel,
     PiecewiseLinearModel,
+    _joint_names,
     over_estimation_fraction,
 )
 
@@ -68,9 +69,7 @@ def _prepare(arrays: dict[str, np.ndarray], joint_names: Sequence[str],
             raise NonFiniteError(f"{name} has a non-finite value at sample {i}, column {j}")
         out[name] = a
     n = shape[1]
-    names = tuple(joint_names) or tuple(f"joint{j}" for j in range(n))
-    if len(names) != n:
-        raise ShapeMismatchError(f"{len(names)} joint names for {n} columns")
+    names = _joint_names(joint_names, n, "columns")
     if valid is None:
         out["valid"] = np.ones(shape, bool)
     else:

@@ -40,6 +40,14 @@ def _sgn(x: np.ndarray) -> np.ndarray:
     return np.sign(x)
 
 
+def _joint_names(names, n: int, what: str | None = None) -> tuple[str, ...]:
+    """``names`` as a tuple (default ``joint0 … joint{n-1}``); with ``what``, there must be ``n``."""
+    names = tuple(names) or tuple(f"joint{j}" for j in range(n))
+    if what is not None and len(names) != n:
+        raise ShapeMismatchError(f"{len(names)} joint names for {n} {what}")
+    return names
+
+
 def _cols(x, n: int, what: str) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if x.ndim == 1 and n == 1:
@@ -81,11 +89,7 @@ class MotorModel:
         n = self.k_tau.size
         self.k_v = np.broadcast_to(np.asarray(self.k_v, dtype=float), (n,)).copy()
         self.k_c = np.zeros(n) if self.k_c is None else np.broadcast_to(np.asarray(self.k_c, float), (n,)).copy()
-        if not self.joint_names:
-            self.joint_names = tuple(f"joint{j}" for j in range(n))
-        if len(self.joint_names) != n:
-            raise ShapeMismatchError(f"{len(self.joint_names)} joint names for {n} actuator parameters")
-        self.joint_names = tuple(self.joint_names)
+        self.joint_names = _joint_names(self.joint_names, n, "actuator parameters")
 
     @property
     def n(self) -> int:
@@ -138,7 +142,7 @@ class CurrentModel:
         n = self.k1.size
         self.fv = np.broadcast_to(np.asarray(self.fv, float), (n,)).copy()
         self.fc = np.broadcast_to(np.asarray(self.fc, float), (n,)).copy()
-        self.joint_names = tuple(self.joint_names) or tuple(f"joint{j}" for j in range(n))
+        self.joint_names = _joint_names(self.joint_names, n)
 
     def torque(self, current, dq) -> np.ndarray:
         return self.k1 * np.asarray(current, float) - self.fv * np.asarray(dq, float) - self.fc * _sgn(dq)
@@ -176,7 +180,7 @@ class PiecewiseLinearModel:
         for name in ("c", "s_left", "s_mid", "s_right", "b1", "b2", "k_v"):
             setattr(self, name, np.asarray(getattr(self, name), float).reshape(-1, 2))
         n = self.c.shape[0]
-        self.joint_names = tuple(self.joint_names) or tuple(f"joint{j}" for j in range(n))
+        self.joint_names = _joint_names(self.joint_names, n)
 
     @property
     def n(self) -> int:

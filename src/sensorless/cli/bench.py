@@ -14,6 +14,7 @@ from .common import (
     bench_app,
     console,
     guarded,
+    bench_out_option,
 )
 
 
@@ -22,7 +23,7 @@ from .common import (
 def bench_identify(
     robot: str = typer.Option("panda", help=ROBOT_HELP),
     samples: str = typer.Option("100000,1000000", help="comma-separated sample counts"),
-    out: Path = typer.Option(Path("benchmarks/results/identify.json")),
+    out: Path = bench_out_option("identify"),
 ) -> None:
     """Identification wall time, peak memory and per-sample cost vs a bare regressor call."""
     from ..benchmarks.identify import bench_identify as run
@@ -39,7 +40,7 @@ def bench_dask_cmd(
     samples_per_file: int = typer.Option(100_000, help="samples per generated Parquet file"),
     workers: int = typer.Option(2, help="LocalCluster worker processes (one thread each)"),
     method: str = typer.Option("ols", help="ols | wls"),
-    out: Path = typer.Option(Path("benchmarks/results/dask.json")),
+    out: Path = bench_out_option("dask"),
 ) -> None:
     """Dask LocalCluster vs single-process identification from generated Parquet logs (deleted afterwards)."""
     from ..benchmarks.fleet import bench_dask
@@ -53,7 +54,7 @@ def bench_dask_cmd(
 @guarded
 def bench_contact_cmd(
     samples: int = typer.Option(100_000, help="number of Solo12 stance/trot samples"),
-    out: Path = typer.Option(Path("benchmarks/results/contact.json")),
+    out: Path = bench_out_option("contact"),
 ) -> None:
     """Contact-projected identification: end-to-end time and projector cost vs a pinv loop."""
     from ..benchmarks.identify import bench_contact
@@ -70,7 +71,7 @@ def bench_speed_cmd(
     contact_samples: int = typer.Option(100_000, help="Solo12 samples for projector vs pinv loop"),
     identify_samples: int = typer.Option(100_000, help="samples of the UR5 log given to `sensorless identify`"),
     repeats: int = typer.Option(3, help="interleaved repetitions (best of)"),
-    out: Path = typer.Option(Path("benchmarks/results/speed.json")),
+    out: Path = bench_out_option("speed"),
 ) -> None:
     """Compression vs a bare regressor call, peak memory, contact projector vs pinv, CLI start-up and identify."""
     from ..benchmarks.speed import bench_speed
@@ -91,7 +92,7 @@ def bench_speed_cmd(
 def bench_lmi_cmd(
     robots: str = typer.Option("solo12,talos", help="comma-separated example-robot-data names"),
     solvers: str = typer.Option("CLARABEL,SCS", help="comma-separated cvxpy solver names"),
-    out: Path = typer.Option(Path("benchmarks/results/lmi.json")),
+    out: Path = bench_out_option("lmi"),
 ) -> None:
     """Setup and solve time of the physically consistent (LMI) program from compressed data."""
     from ..benchmarks.lmi import bench_lmi
@@ -115,7 +116,7 @@ def bench_peers_cmd(
     cases: Optional[str] = typer.Option(None, help="comma-separated cases (default: all, main,hard)"),
     variants: str = typer.Option("lmi,ols,lmi_unweighted", help="fits: lmi (CLI defaults, --method lmi), ols "
                                  "(--method ols), lmi_unweighted (--method lmi --weights none), lmi_no_contain_prior"),
-    out: Path = typer.Option(Path("benchmarks/results/peers.json")),
+    out: Path = bench_out_option("peers"),
 ) -> None:
     """UR5 accuracy vs figaroh/rigeo's published figures: perturbed-truth inertials, random Fourier
     excitation, 1 % (main) and 5 %/600 samples (hard) noise; `identify` with its CLI defaults

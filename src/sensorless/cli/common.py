@@ -297,30 +297,79 @@ _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
 MODEL_PREPROCESSING = tuple(_PREPROCESSING_OPTIONS)
 
 
+def add_options(options: dict, *, into: Optional[str] = None, first: bool = False):
+    """Decorator: the command gets the options ``options`` (name -> (annotation, option factory)),
+    after its own (before them with ``first``). ``into``: they reach the command as one dict argument of that name;
+    else by name (a parameter of the command with the same name, declared without default, is
+    replaced by the shared option)."""
+    import inspect
+
+    def deco(fn):
+        sig = inspect.signature(fn)
+        own = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) for p in sig.parameters.values()
+               if p.name != into and p.name not in options]
+        extra = [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=make(), annotation=ann)
+                 for n, (ann, make) in options.items()]
+
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            if into is not None:
+                kwargs[into] = {n: kwargs.pop(n, None) for n in options}
+            return fn(*args, **kwargs)
+
+        wrapper.__signature__ = sig.replace(parameters=extra + own if first else own + extra)
+        wrapper.__annotations__ = {**{k: v for k, v in getattr(fn, "__annotations__", {}).items() if k != into},
+                                   **{n: ann for n, (ann, _) in options.items()}}
+        return wrapper
+
+    return deco
+
+
 def model_preprocessing_options(names: tuple[str, ...] = MODEL_PREPROCESSING):
     """Decorator: the command gets the options ``names`` (columns, rate, lowpass, ...; each
     defaulting to the model's own, result.json settings.preprocessing) in one ``prep`` dict
     argument instead of one parameter each; one definition for predict, monitor,
     estimate-force and payload."""
-    import inspect
+    return add_options({n: _PREPROCESSING_OPTIONS[n] for n in names}, into="prep")
 
-    def deco(fn):
-        sig = inspect.signature(fn)
-        params = [p for p in sig.parameters.values() if p.name != "prep"]
-        extra = [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=_PREPROCESSING_OPTIONS[n][1](),
-                                   annotation=_PREPROCESSING_OPTIONS[n][0]) for n in names]
 
-        @functools.wraps(fn)
-        def wrapper(*args, **kwargs):
-            prep = {n: kwargs.pop(n, None) for n in names}
-            return fn(*args, prep=prep, **kwargs)
+def robot_option():
+    return typer.Option(..., help=ROBOT_HELP)
 
-        wrapper.__signature__ = sig.replace(parameters=[
-            p.replace(kind=inspect.Parameter.KEYWORD_ONLY) for p in params] + extra)
-        wrapper.__annotations__ = {k: v for k, v in getattr(fn, "__annotations__", {}).items() if k != "prep"}
-        return wrapper
 
-    return deco
+def force_option():
+    return typer.Option(False, help="replace --out if it exists")
+
+
+def lock_option(help: str = "joints to lock (e.g. gripper fingers)"):
+    return typer.Option(None, help=help)
+
+
+def floating_base_option():
+    return typer.Option(None, "--floating-base/--fixed-base")
+
+
+def model_options(model: str = "result.json (or its directory) from `sensorless identify`"):
+    """Decorator: ``--robot`` and ``--model`` (an identified model, help ``model``) as the first
+    options; one definition for the commands that apply a model."""
+    return add_options({"robot": (str, robot_option), "model": (Path, lambda: typer.Option(..., help=model))},
+                       first=True)
+
+
+def bench_out_option(name: str):
+    """``--out`` of a benchmark: ``benchmarks/results/NAME.json``."""
+    return typer.Option(Path(f"benchmarks/results/{name}.json"))
+
+
+def experiment_options(out: str, quick: str, seed: str):
+    """Decorator: a study's ``--out`` (default ``out``), ``--quick`` / ``--seed`` (help ``quick``,
+    ``seed``) and ``--force`` options; one definition for the ``experiment`` commands."""
+    return add_options({
+        "out": (Path, lambda: typer.Option(Path(out), help="output directory (written atomically)")),
+        "quick": (bool, lambda: typer.Option(False, "--quick", help=quick)),
+        "seed": (int, lambda: typer.Option(0, help=seed)),
+        "force": (bool, force_option),
+    })
 
 
 def model_logs(model_path: Path, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:

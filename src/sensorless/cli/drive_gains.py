@@ -10,7 +10,6 @@ import typer
 
 from ..errors import DataError, OptionError
 from .common import (
-    ROBOT_HELP,
     MultiValueCommand,
     app,
     console,
@@ -22,6 +21,9 @@ from .common import (
     path_inputs,
     resample_option,
     trim_option,
+    force_option,
+    lock_option,
+    robot_option,
 )
 
 __all__ = ["drive_gains"]
@@ -30,7 +32,7 @@ __all__ = ["drive_gains"]
 @app.command("drive-gains", cls=MultiValueCommand)
 @guarded
 def drive_gains(
-    robot: str = typer.Option(..., help=ROBOT_HELP),
+    robot: str = robot_option(),
     unloaded: Path = typer.Option(..., help="log of a trajectory run without the payload (motor currents)"),
     loaded: Path = typer.Option(..., help="the same trajectory run with the known payload"),
     payload_mass: float = typer.Option(..., help="known payload mass [kg]"),
@@ -54,8 +56,8 @@ def drive_gains(
                                                              "the residual autocorrelation, >= 1 s)"),
     n_boot: int = typer.Option(1000, help="moving-block bootstrap resamples"),
     seed: int = typer.Option(0, help="bootstrap seed"),
-    lock: Optional[List[str]] = typer.Option(None, help="joints to lock"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
+    lock: Optional[List[str]] = lock_option("joints to lock"),
+    force: bool = force_option(),
 ) -> None:
     """Identify per-joint drive gains K (τ = K·i) from two runs of one trajectory, without and
     with a known payload: K_j (i_loaded − i_unloaded)_j = τ_payload,j, least squares on

@@ -10,7 +10,6 @@ import typer
 
 from ..errors import ExcitationError
 from .common import (
-    ROBOT_HELP,
     app,
     atomic_outdir,
     console,
@@ -18,6 +17,9 @@ from .common import (
     guarded,
     load_robot_arg,
     path_inputs,
+    force_option,
+    lock_option,
+    robot_option,
 )
 
 from ..robots.names import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
@@ -62,7 +64,7 @@ def _check_options(**opts) -> None:
 @app.command()
 @guarded
 def excite(
-    robot: str = typer.Option(..., help=ROBOT_HELP),
+    robot: str = robot_option(),
     out: Path = typer.Option(..., help="output directory (written atomically): excitation.json, trajectory.npz"),
     harmonics: int = typer.Option(5, help="Fourier harmonics per joint"),
     base_freq: float = typer.Option(0.1, help="base frequency f0 [Hz] (period 1/f0)"),
@@ -78,8 +80,8 @@ def excite(
     max_acceleration: float = typer.Option(10.0, help="acceleration limit [rad/s²] (URDF robots)"),
     start_at_rest: bool = typer.Option(False, "--start-at-rest/--free-start", help="zero velocity and acceleration at t = 0 (costs some conditioning)"),
     box: List[str] = typer.Option([], help="Cartesian box for a frame: 'FRAME:xmin,ymin,zmin:xmax,ymax,zmax' ('-' = open)"),
-    lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
+    lock: Optional[List[str]] = lock_option(),
+    force: bool = force_option(),
 ) -> None:
     """Optimise a Fourier excitation (joint limits as hard constraints); export coefficients and samples.
 

@@ -12,7 +12,6 @@ from ..io import write_npz_atomic
 from .common import (
     model_logs,
     model_preprocessing_options,
-    ROBOT_HELP,
     app,
     atomic_outdir,
     console,
@@ -21,6 +20,9 @@ from .common import (
     load_robot_arg,
     output_file,
     path_inputs,
+    lock_option,
+    model_options,
+    experiment_options,
 )
 
 __all__ = ["estimate_force", "experiment_hybrid_force"]
@@ -28,12 +30,9 @@ __all__ = ["estimate_force", "experiment_hybrid_force"]
 
 @experiment_app.command("hybrid-force")
 @guarded
-def experiment_hybrid_force(
-    out: Path = typer.Option(Path("results/hybrid_force"), help="output directory (written atomically)"),
-    quick: bool = typer.Option(False, "--quick", help="shorter logs and training (≈1 min on 2 cores)"),
-    seed: int = typer.Option(0, help="random seed (simulation, training, bootstrap)"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
-) -> None:
+@experiment_options("results/hybrid_force", quick="shorter logs and training (≈1 min on 2 cores)",
+                    seed="random seed (simulation, training, bootstrap)")
+def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> None:
     """Model-based vs hybrid vs learning-only force estimation for a simulated PSM-like arm in a trocar
     (Tables II–IV) + payload identification; writes results.json, tables.md and figures."""
     from ..experiments.hybrid_force import run
@@ -46,9 +45,10 @@ def experiment_hybrid_force(
 @app.command("estimate-force")
 @guarded
 @model_preprocessing_options()
+@model_options()
 def estimate_force(
-    robot: str = typer.Option(..., help=ROBOT_HELP),
-    model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
+    robot: str,
+    model: Path,
     data: Path = typer.Option(..., help="log with q and measured torque"),
     frame: str = typer.Option(..., help="frame where the force acts (e.g. the tool tip)"),
     reference: str = typer.Option("local_world_aligned", help="world | local | local_world_aligned"),
@@ -58,7 +58,7 @@ def estimate_force(
     joints: str | None = typer.Option(None, help="comma-separated joints whose torques are used (default all)"),
     sigma_threshold: float = typer.Option(0.01, help="damping starts below this smallest singular value"),
     lambda_max: float = typer.Option(0.02, help="damping at a singularity"),
-    lock: list[str] | None = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
+    lock: list[str] | None = lock_option(),
     prep: dict = None,
 ) -> None:
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:

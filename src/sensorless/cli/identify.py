@@ -10,7 +10,6 @@ import typer
 
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .common import (
-    ROBOT_HELP,
     MultiValueCommand,
     app,
     atomic_outdir,
@@ -28,6 +27,10 @@ from .common import (
     resample_option,
     trim_option,
     velocity_option,
+    force_option,
+    lock_option,
+    floating_base_option,
+    robot_option,
 )
 from .options import (
     ContactMode,
@@ -51,7 +54,7 @@ from .identify_outputs import _export, _floating_base_checks, _plot_window, _pri
 @guarded
 def identify(
     config: Optional[Path] = config_option(),
-    robot: str = typer.Option(..., help=ROBOT_HELP),
+    robot: str = robot_option(),
     data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
                                          "folder; several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
@@ -79,8 +82,8 @@ def identify(
     resample: str = resample_option(),
     velocity: Velocity = velocity_option(),
     max_gap: Optional[float] = max_gap_option(),
-    lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
-    floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
+    lock: Optional[List[str]] = lock_option(),
+    floating_base: Optional[bool] = floating_base_option(),
     contact_frames: Optional[str] = typer.Option(
         None, help="legged robots: comma-separated contact frames (feet); projects out the unknown contact "
                    "forces, flags from the log's 'contact' columns or detected from foot height/speed"),
@@ -103,7 +106,7 @@ def identify(
                              "remembers it) | off (docs/arm.md §7)"),
     stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (1-D search "
                                           "per joint)"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
+    force: bool = force_option(),
     outliers: Outliers = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
                                                     "warning) | keep"),
     scheduler: Optional[str] = typer.Option(

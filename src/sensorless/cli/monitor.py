@@ -15,7 +15,6 @@ from .common import (
     write_result,
     model_logs,
     model_preprocessing_options,
-    ROBOT_HELP,
     app,
     atomic_outdir,
     bench_app,
@@ -23,6 +22,11 @@ from .common import (
     guarded,
     load_robot_arg,
     path_inputs,
+    bench_out_option,
+    force_option,
+    lock_option,
+    floating_base_option,
+    model_options,
 )
 
 __all__ = ["monitor", "bench_observer"]
@@ -41,9 +45,10 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 @app.command()
 @guarded
 @model_preprocessing_options()
+@model_options()
 def monitor(
-    robot: str = typer.Option(..., help=ROBOT_HELP),
-    model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
+    robot: str,
+    model: Path,
     data: Path = typer.Option(..., help="log to monitor (.csv .npz .parquet .h5)"),
     out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json + monitor.npz (written atomically)"),
     frame: Optional[str] = typer.Option(None, help="frame at which to estimate the Cartesian force (damped J⁻ᵀ)"),
@@ -55,9 +60,9 @@ def monitor(
     order: int = typer.Option(1, help="observer order: 1 (first-order) or 2 (second-order, filtered)"),
     min_duration: float = typer.Option(0.02, help="shortest reported contact [s]"),
     merge_gap: float = typer.Option(0.05, help="merge contacts separated by less than this [s]"),
-    lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
-    floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
+    lock: Optional[List[str]] = lock_option(),
+    floating_base: Optional[bool] = floating_base_option(),
+    force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Detect contacts/collisions in a log: momentum observer → per-joint thresholds from a
@@ -129,7 +134,7 @@ def _cartesian_force(dyn, traj, tau_ext, frame: str, reference: str):
 @guarded
 def bench_observer(
     samples: int = typer.Option(2000, help="streaming steps per robot"),
-    out: Path = typer.Option(Path("benchmarks/results/observer.json")),
+    out: Path = bench_out_option("observer"),
 ) -> None:
     """Per-sample cost of MomentumObserver.step (streaming) and .run (offline) on UR5, Solo12, dVRK PSM."""
     from ..estimation.momentum import benchmark_observer

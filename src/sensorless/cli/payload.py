@@ -12,12 +12,14 @@ from ..errors import SensorlessError
 from .common import (
     model_logs,
     model_preprocessing_options,
-    ROBOT_HELP,
     MultiValueCommand,
     app,
     console,
     guarded,
     load_robot_arg,
+    force_option,
+    lock_option,
+    model_options,
 )
 
 __all__ = ["payload"]
@@ -38,9 +40,10 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
 @app.command(cls=MultiValueCommand)
 @guarded
 @model_preprocessing_options(("columns", "rate", "lowpass", "savgol_window", "gains", "trim", "resample"))
+@model_options("result.json (or its directory) of the robot identified WITHOUT the payload")
 def payload(
-    robot: str = typer.Option(..., help=ROBOT_HELP),
-    model: Path = typer.Option(..., help="result.json (or its directory) of the robot identified WITHOUT the payload"),
+    robot: str,
+    model: Path,
     data: List[Path] = typer.Option(..., help="log(s) recorded with the payload attached"),
     frame: str = typer.Option(..., help="link (joint frame) or frame carrying the payload, e.g. tool_tip"),
     out: Path = typer.Option(..., help="output JSON (written atomically)"),
@@ -57,9 +60,9 @@ def payload(
     block_seconds: float = typer.Option(1.0, help="block length [s] of the HAC covariance and the bootstrap"),
     flag_sigma: float = typer.Option(3.0, help="flag a joint whose own mass is this many σ from the estimate ..."),
     flag_rel: float = typer.Option(0.1, help="... and differs from it by more than this fraction"),
-    lock: Optional[List[str]] = typer.Option(None, help="joints to lock (e.g. gripper fingers)"),
+    lock: Optional[List[str]] = lock_option(),
     seed: int = typer.Option(0, help="bootstrap seed"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
+    force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Identify a payload at FRAME from the torque the robot's model does not explain:

@@ -15,7 +15,6 @@ from .options import Outliers
 from .common import (
     model_logs,
     model_preprocessing_options,
-    ROBOT_HELP,
     app,
     atomic_outdir,
     check_preprocessing,
@@ -24,19 +23,23 @@ from .common import (
     load_robot_arg,
     output_file,
     path_inputs,
+    lock_option,
+    floating_base_option,
+    model_options,
 )
 
 
 @app.command()
 @guarded
 @model_preprocessing_options()
+@model_options()
 def predict(
-    robot: str = typer.Option(..., help=ROBOT_HELP),
-    model: Path = typer.Option(..., help="result.json (or its directory) from `sensorless identify`"),
+    robot: str,
+    model: Path,
     data: Path = typer.Option(..., help="log to predict"),
     out: Path = typer.Option(..., help="output .npz with t, tau_pred (and tau_measured, metrics if available)"),
-    lock: Optional[List[str]] = typer.Option(None),
-    floating_base: Optional[bool] = typer.Option(None, "--floating-base/--fixed-base"),
+    lock: Optional[List[str]] = lock_option(),
+    floating_base: Optional[bool] = floating_base_option(),
     outliers: Outliers = typer.Option("error", help="gross outliers in the log"),
     prep: dict = None,
 ) -> None:

@@ -10,7 +10,8 @@ from typing import Optional
 import typer
 
 from ..errors import OptionError
-from .common import atomic_outdir, console, err_console, experiment_app, guarded, path_inputs
+from .common import atomic_outdir, console, err_console, experiment_app, guarded, path_inputs, force_option
+
 
 
 @experiment_app.command("psm-identify")
@@ -27,7 +28,7 @@ def psm_identify(
     smoothing: str = typer.Option("cv", help="Coulomb smoothing ε [rad/s], or 'cv' (3-fold cross-validation on the "
                                              "training log; slow)"),
     lmi: bool = typer.Option(False, help="also solve the physically consistent (LMI) problem"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
+    force: bool = force_option(),
 ) -> None:
     """Identify the PSM on --train (or one_results), predict --test (or two_results); compare with
     the published parameters when given. The same as `sensorless identify --robot dvrk_psm --columns

@@ -6,17 +6,15 @@ from pathlib import Path
 
 import typer
 
-from .common import atomic_outdir, bench_app, console, experiment_app, guarded, write_result
+from .common import (atomic_outdir, bench_app, bench_out_option, console, experiment_app, experiment_options, guarded,
+                     write_result)
 
 
 @experiment_app.command("torque-control")
 @guarded
-def experiment_torque_control(
-    out: Path = typer.Option(Path("results/torque_control"), help="output directory (written atomically)"),
-    quick: bool = typer.Option(False, "--quick", help="shorter protocols (≈ 30 s on 2 cores)"),
-    seed: int = typer.Option(0, help="random seed (sensor noise, model error, protocols)"),
-    force: bool = typer.Option(False, help="replace --out if it exists"),
-) -> None:
+@experiment_options("results/torque_control", quick="shorter protocols (≈ 30 s on 2 cores)",
+                    seed="random seed (sensor noise, model error, protocols)")
+def experiment_torque_control(out: Path, quick: bool, seed: int, force: bool) -> None:
     """Simulated TALOS leg, position-controlled drives: F/T + IMU torque estimation, actuator fits
     (a), swing tracking position vs torque control at K6 = 1 … 0.1 (b), force tracking (c),
     open loop with symmetric vs asymmetric motor model (d); writes results.json and figures."""
@@ -41,7 +39,7 @@ def bench_actuator_fit(
     weight: float = typer.Option(100.0, help="asymmetric weight w"),
     repeats: int = typer.Option(3, help="timed fits (the first one includes buffer allocation)"),
     seed: int = typer.Option(0, help="random seed of the synthetic data"),
-    out: Path = typer.Option(Path("benchmarks/results/actuator_fit.json")),
+    out: Path = bench_out_option("actuator_fit"),
 ) -> None:
     """Asymmetric-penalty actuator fit (Newton, exact optimality on the active set): wall time on N samples."""
     from ..benchmarks.actuator import benchmark_asymmetric_fit

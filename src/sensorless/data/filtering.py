@@ -76,6 +76,7 @@ def _per_sample_arrays(traj: Trajectory) -> dict[str, np.ndarray]:
 
 
 def _rebuild(traj: Trajectory, arrays: dict[str, np.ndarray], **changes) -> Trajectory:
+    """``traj`` with ``arrays`` (field name, or ``extras.NAME``) replaced, and ``changes``."""
     extras = dict(traj.extras)
     kw = {}
     for name, val in arrays.items():

@@ -27,6 +27,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import DataError, JointNameError, ShapeMismatchError
+from .tabular import _is_number
 from .trajectory import Trajectory
 
 __all__ = ["split_gain_modifiers", "load_gains", "resolve_gains", "currents_to_torques"]
@@ -135,20 +136,12 @@ def _read_file(path: Path) -> "list[float] | dict[str, float]":
     if not rows:
         raise DataError("gains file is empty", src)
     if all(len(r) == 2 for r in rows):  # joint,gain (optional header)
-        body = rows[1:] if not _is_num(rows[0][1]) else rows
+        body = rows[1:] if not _is_number(rows[0][1]) else rows
         return {r[0]: _number(r[1], r[0], src) for r in body}
     flat = [c for r in rows for c in r]
     if all(len(r) == 1 for r in rows) or len(rows) == 1:
         return [_number(c, f"#{k}", src) for k, c in enumerate(flat)]
     raise DataError("CSV gains must be 'joint,gain' rows or one row/column of numbers", src)
-
-
-def _is_num(text: str) -> bool:
-    try:
-        float(text)
-        return True
-    except ValueError:
-        return False
 
 
 def resolve_gains(gains: Any, joint_names: Sequence[str], src: str = "<gains>") -> np.ndarray:

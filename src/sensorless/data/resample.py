@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import DataError, TimestampError
-from .filtering import MAX_JITTER
+from .filtering import MAX_JITTER, _rebuild
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError
 
@@ -167,17 +167,10 @@ def resample(
             out[name] = np.hstack([pos, quat / np.linalg.norm(quat, axis=1, keepdims=True)])
         else:
             out[name] = make_interp_spline(rel, val, k=k, axis=0)(grid)
-    extras = dict(traj.extras)
-    kw = {}
-    for name, val in out.items():
-        if name.startswith("extras."):
-            extras[name[7:]] = val
-        else:
-            kw[name] = val
-    note = (f"resample({rate:g} Hz uniform; cubic {[f for f in CUBIC_FIELDS if f in kw]}, linear others; "
+    note = (f"resample({rate:g} Hz uniform; cubic {[f for f in CUBIC_FIELDS if f in out]}, linear others; "
             f"{info.duplicates} duplicate stamp(s) merged)")
     units = dict(traj.units)
     units["processing"] = f"{units['processing']}; {note}" if units.get("processing") else note
     prov = {**traj.provenance, "resampled": {"rate_hz": rate, "max_gap_periods": max_gap,
                                              "duplicates_merged": info.duplicates, "before": info.to_dict()}}
-    return traj.with_(t=tu[0] + grid, extras=extras, units=units, provenance=prov, **kw)
+    return _rebuild(traj, out, t=tu[0] + grid, units=units, provenance=prov)

@@ -8,8 +8,9 @@
 * :class:`MLPTorqueModel` — configurable black box (default 5 × 2048, LeakyReLU) with
   user-supplied ``features(traj)`` and ``targets(traj)`` callables, e.g. actuation from
   a legged robot's sensor measurements.
-* :func:`ParameterModel` — old name of :meth:`~sensorless.estimators.PhysicalModel.from_parameters`
-  (fixed structure and parameters, e.g. from ``load_parameters``).
+* :func:`ParameterModel` — deprecated alias of
+  :meth:`~sensorless.estimators.PhysicalModel.from_parameters` (fixed structure and parameters,
+  e.g. from ``load_parameters``); kept importable, warns.
 
 All networks are trained by :func:`~sensorless.learning.mlp.train_network` (Adam,
 ReduceLROnPlateau, early stopping on a block validation split, seeded) on standardised
@@ -19,6 +20,7 @@ inputs and targets, and saved as weights + JSON (:mod:`sensorless.learning.io`).
 from __future__ import annotations
 
 import contextlib
+import warnings
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
@@ -314,15 +316,19 @@ class LearnedTorqueModel(MLPTorqueModel):
 
 
 def ParameterModel(structure: ModelStructure, parameters: np.ndarray) -> PhysicalModel:
-    """A fixed parametric model τ̂ = W(q, q̇, q̈) π: :meth:`PhysicalModel.from_parameters` (old name)."""
+    """Deprecated: use :meth:`PhysicalModel.from_parameters` (τ̂ = W(q, q̇, q̈) π, fixed π)."""
+    warnings.warn("ParameterModel is deprecated; use sensorless.estimators.PhysicalModel.from_parameters",
+                  DeprecationWarning, stacklevel=2)
     return PhysicalModel.from_parameters(structure, parameters)
 
 
 class HybridModel(_Network):
     """Physical model + learned residual: τ̂ = τ_phys + r_θ(window of q, q̇; τ_phys).
 
-    ``physical_model``: a torque model with ``predict`` (and ``structure_`` for the target
-    rows), e.g. a fitted :class:`~sensorless.estimators.PhysicalModel`. ``fit(data)`` trains
+    ``physical_model``: the physical base, a :class:`~sensorless.estimators.PhysicalModel`
+    (fixed parameters: :meth:`~sensorless.estimators.PhysicalModel.from_parameters`); any
+    :class:`~sensorless.estimators.TorqueModel` with ``predict`` and ``structure_`` (the target
+    rows) is accepted. ``fit(data)`` trains
     the residual on ``data`` (e.g. a few minutes in the trocar). The physical model is fitted
     first on ``physical_data`` when given, or on ``data`` if it was never fitted
     (``fit_physical=True/False`` forces the choice).
@@ -331,7 +337,7 @@ class HybridModel(_Network):
 
     def __init__(
         self,
-        physical_model,
+        physical_model: PhysicalModel | TorqueModel,
         *,
         window: int = 10,
         stride: int = 1,
@@ -408,7 +414,7 @@ class HybridModel(_Network):
         return phys + self.predict_residual(traj, phys)
 
     @classmethod
-    def load(cls, directory: str | Path, physical_model) -> HybridModel:
+    def load(cls, directory: str | Path, physical_model: PhysicalModel | TorqueModel) -> HybridModel:
         """Load a saved residual and attach it to ``physical_model`` (the one it was trained with)."""
         net, meta = load_network(directory)
         _check_type(meta, cls.__name__, directory)

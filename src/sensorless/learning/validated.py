@@ -29,6 +29,7 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, DataWarning
+from ..estimators import PhysicalModel, TorqueModel
 from ..regressor.compress import iter_trajectories
 from .features import Standardizer, WindowFeatures
 from .mlp import build_network, deterministic_torch, train_network
@@ -60,7 +61,7 @@ class ValidatedHybridModel(HybridModel):
     ``validation_`` (what was held out). The rest as :class:`HybridModel`.
     """
 
-    def __init__(self, physical_model, *, val_fraction: float = 0.3, min_gain: float = 0.02, **kwargs) -> None:
+    def __init__(self, physical_model: PhysicalModel | TorqueModel, *, val_fraction: float = 0.3, min_gain: float = 0.02, **kwargs) -> None:
         """``kwargs``: :class:`HybridModel`'s hyper-parameters (part of ``get_params``)."""
         super().__init__(physical_model, **kwargs)
         self.val_fraction, self.min_gain = val_fraction, min_gain
