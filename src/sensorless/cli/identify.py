@@ -159,8 +159,14 @@ def identify(
         if scheduler is not None:
             from .fleet import identify_on_dask
 
+            friction_fit = None
+            if _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms):
+                structure, friction_fit = _client_friction(structure, data, r, prep, coulomb_smoothing,
+                                                           stribeck_velocity, lowpass)
             result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma})
+            if friction_fit is not None:
+                result.settings["friction"] = friction_fit.to_dict()
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
             train = _first_training_log(data, r, prep) if not val else []
         else:
@@ -262,6 +268,27 @@ def _load_training(data, r, prep: dict, skip_bad: bool):
     if not train:
         raise SensorlessError("every --data file was skipped: " + "; ".join(e for _, e in skipped))
     return train, used, skipped
+
+
+def _client_friction(structure, data, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
+    """With --scheduler: ε (and vs) from the first training log read on this machine, so the
+    workers fit the same friction law the local path would; the vs search needs every log and
+    is not run (vs = 0.1 · P95|v|). Without a readable first log: sgn(v) (ε = 0), with a warning."""
+    from ..identification.friction import friction_structure
+
+    first = _first_training_log(data, r, prep)
+    if not first:
+        err_console.print("[yellow]warning:[/] --scheduler: the first training log is not readable here; "
+                          "--coulomb-smoothing auto falls back to sgn(v) (ε = 0)", highlight=False)
+        return structure, None
+    raw = _first_training_log(data, r, {**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto" else None
+    s, fit = friction_structure(structure, first, coulomb_smoothing=coulomb_smoothing,
+                                stribeck_velocity=stribeck_velocity, noise_logs=raw, lowpass_hz=lowpass)
+    eps = ", ".join(f"{j} {e:.3g}" for j, e in fit.coulomb_smoothing.items())
+    err_console.print(f"--scheduler: Coulomb smoothing from {data[0]} (ε [rad/s]: {eps})"
+                      + ("; Stribeck vs not searched on a cluster (0.1·P95|v|)" if fit.stribeck_velocity else ""),
+                      highlight=False, soft_wrap=True)
+    return s, fit
 
 
 def _first_training_log(data, r, prep: dict) -> list:

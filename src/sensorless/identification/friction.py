@@ -212,6 +212,33 @@ def identify_friction(
 
     train = list(train)
     kw = dict(identify_kwargs or {})
+    s, fit, auto_vs, ctx = _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity,
+                                           factor, noise_logs, lowpass_hz)
+    if not auto_vs:
+        return identify(s, train, **kw), fit
+    return _search_and_fit(s, fit, train, kw, ctx)
+
+
+def friction_structure(
+    structure: ModelStructure,
+    logs: Iterable[Trajectory],
+    *,
+    coulomb_smoothing: "str | float" = "auto",
+    stribeck_velocity: "str | float | dict" = "auto",
+    factor: float = 3.0,
+    noise_logs: Iterable[Trajectory] | None = None,
+    lowpass_hz: float | None = None,
+):
+    """The structure :func:`identify_friction` would fit, with ε (and vs) set from ``logs`` but
+    without the vs search (vs = 0.1 · P95|v| per joint when "auto"): for fitting elsewhere, e.g. on
+    Dask workers from ε measured on the client's log. Returns ``(structure, FrictionFit)``."""
+    s, fit, _, _ = _friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
+                                   noise_logs, lowpass_hz)
+    return s, fit
+
+
+def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity, factor, noise_logs,
+                    lowpass_hz):
     joints = list(structure.robot.actuated_joints)
     has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
     for name, val in (("coulomb_smoothing", coulomb_smoothing), ("rest_velocity", rest_velocity)):
@@ -258,8 +285,16 @@ def identify_friction(
     if sigma_v is not None:
         fit.velocity_noise = dict(zip(joints, map(float, sigma_v)))
         fit.torque_noise = dict(zip(joints, map(float, _pooled_noise([s.target(t)[:, s.actuated_rows] for t in raw]))))
-    if not auto_vs:
-        return identify(s, train, **kw), fit
+    ctx = dict(has_stribeck=has_stribeck, speed=speed, eps=eps, rest=rest, vs=vs, build=build)
+    return s, fit, auto_vs, ctx
+
+
+def _search_and_fit(s, fit, train, kw, ctx):
+    """Fit once (OLS), search vs per joint on the friction residual, fit again with ``kw``."""
+    from .identify import identify
+
+    joints = list(s.robot.actuated_joints)
+    has_stribeck, speed, eps, rest, vs, build = (ctx[k] for k in ("has_stribeck", "speed", "eps", "rest", "vs", "build"))
     first_kw = {k: v for k, v in kw.items() if k in ("weights", "chunk", "progress", "outliers")}
     with warnings.catch_warnings():  # the first fit only chooses vs: ordinary least squares is enough
         warnings.simplefilter("ignore")  # the final fit reports identifiability
