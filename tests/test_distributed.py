@@ -302,26 +302,28 @@ def test_cli_glob_matching_nothing_fails_naming_the_pattern(tmp_path):
     assert r.exit_code == 2 and "--workers needs --scheduler" in r.output and not out.exists()
 
 
-def test_cli_auto_coulomb_smoothing_on_a_cluster_uses_the_local_epsilon(fleet, tcp_cluster, tmp_path):
-    """Regression: with --scheduler, --coulomb-smoothing auto silently fell back to sgn(v). Now ε is
-    measured on the client's first training log; with one noisy log it equals the local path's ε and
-    the parameters agree."""
+def test_cli_auto_coulomb_smoothing_on_a_cluster_equals_local(fleet, tcp_cluster, tmp_path):
+    """Regression: with --scheduler, --coulomb-smoothing auto silently fell back to sgn(v). ε is now
+    measured on the first training log in both modes, so two noisy logs give the same ε and the
+    same parameters locally and on a cluster."""
     import pandas as pd
 
     d, files = fleet
-    df = pd.read_parquet(files[0])
     rng = np.random.default_rng(0)
-    for c in [c for c in df.columns if c.startswith("q_")]:  # encoder noise: v (from q) is noisy
-        df[c] = df[c] + rng.normal(scale=1e-4, size=len(df))
-    noisy = tmp_path / "noisy.parquet"
-    df.to_parquet(noisy)
-    r1 = _cli(["identify", *ROBOT, "--data", noisy, "--method", "wls", "--no-plot", "--out", tmp_path / "local"])
+    noisy = []
+    for k, f in enumerate(files[:2]):
+        df = pd.read_parquet(f)
+        for c in [c for c in df.columns if c.startswith("q_")]:  # encoder noise: v (from q) is noisy
+            df[c] = df[c] + rng.normal(scale=(1 + k) * 1e-4, size=len(df))
+        noisy.append(tmp_path / f"noisy{k}.parquet")
+        df.to_parquet(noisy[-1])
+    r1 = _cli(["identify", *ROBOT, "--data", *noisy, "--method", "wls", "--no-plot", "--out", tmp_path / "local"])
     assert r1.exit_code == 0, r1.output
-    r2 = _cli(["identify", *ROBOT, "--data", noisy, "--method", "wls", "--no-plot", "--scheduler", tcp_cluster,
+    r2 = _cli(["identify", *ROBOT, "--data", *noisy, "--method", "wls", "--no-plot", "--scheduler", tcp_cluster,
                "--out", tmp_path / "dask"])
     assert r2.exit_code == 0, r2.output
     (doc_l, p_l), (doc_d, p_d) = _params(tmp_path / "local"), _params(tmp_path / "dask")
-    eps_l = doc_l["settings"]["friction"]["coulomb_smoothing"]
-    eps_d = doc_d["settings"]["friction"]["coulomb_smoothing"]
-    assert min(eps_l.values()) > 0 and eps_d == pytest.approx(eps_l, rel=1e-12)
-    assert _rel(p_d, p_l) < 1e-8
+    fl, fd = doc_l["settings"]["friction"], doc_d["settings"]["friction"]
+    assert min(fl["coulomb_smoothing"].values()) > 0 and fd["coulomb_smoothing"] == fl["coulomb_smoothing"]
+    assert fl["coulomb_smoothing_mode"] == fd["coulomb_smoothing_mode"] == "auto"
+    assert _rel(p_d, p_l) < TOL

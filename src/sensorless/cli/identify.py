@@ -166,7 +166,8 @@ def identify(
             result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma})
             if friction_fit is not None:
-                result.settings["friction"] = friction_fit.to_dict()
+                result.settings["friction"] = _friction_settings(friction_fit, friction_fit if coulomb_smoothing == "auto"
+                                                                 else None, data[0])
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
             train = _first_training_log(data, r, prep) if not val else []
         else:
@@ -176,19 +177,25 @@ def identify(
                 task = bar.add_task("regressor", total=total * (2 if friction else 1))
                 kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma, **lmi_kw)
                 fric = None
+                from ..identification.friction import friction_structure
+
+                eps_fit = None
                 if friction:
-                    raw = (load_logs(data, r, **{**prep, "lowpass": None})
-                           if lowpass and coulomb_smoothing == "auto"
-                           else None)  # noise is measured before the low-pass colours it
-                    fric = dict(coulomb_smoothing=coulomb_smoothing, stribeck_velocity=stribeck_velocity,
-                                noise_logs=raw, lowpass_hz=lowpass)
+                    eps = coulomb_smoothing
+                    if coulomb_smoothing == "auto":  # ε from the first training log, as on a cluster
+                        raw = (load_logs(data[:1], r, **{**prep, "lowpass": None})
+                               if lowpass else None)  # noise is measured before the low-pass colours it
+                        _, eps_fit = friction_structure(structure, train[:1], coulomb_smoothing="auto",
+                                                        stribeck_velocity=1.0, noise_logs=raw, lowpass_hz=lowpass)
+                        eps = eps_fit.coulomb_smoothing
+                    fric = dict(coulomb_smoothing=eps, stribeck_velocity=stribeck_velocity)
                 try:  # the logs' outliers were handled on reading
                     model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
                 except ExcitationError as exc:
                     raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
                 result, structure = model.result_, model.structure_
                 if friction:
-                    result.settings["friction"] = model.friction_fit_.to_dict()
+                    result.settings["friction"] = _friction_settings(model.friction_fit_, eps_fit, data[0])
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate,
@@ -268,6 +275,15 @@ def _load_training(data, r, prep: dict, skip_bad: bool):
     if not train:
         raise SensorlessError("every --data file was skipped: " + "; ".join(e for _, e in skipped))
     return train, used, skipped
+
+
+def _friction_settings(fit, eps_fit, first) -> dict:
+    """result.json ``settings.friction``; with auto smoothing, where ε was measured."""
+    doc = fit.to_dict()
+    if eps_fit is not None:
+        doc.update(coulomb_smoothing_mode="auto", coulomb_smoothing_from=str(first),
+                   velocity_noise=eps_fit.to_dict().get("velocity_noise"))
+    return doc
 
 
 def _client_friction(structure, data, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):

@@ -259,8 +259,12 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
         sigma_raw = sigma_v
         if lowpass_hz:
             sigma_v = sigma_v * lowpass_noise_gain(lowpass_hz, float(np.median([t.rate for t in train])))
-    eps = (coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor) if auto_eps
-           else np.full(len(joints), float(coulomb_smoothing)))
+    if auto_eps:
+        eps = coulomb_smoothing_from_noise(sigma_v, speed=speed, factor=factor)
+    elif isinstance(coulomb_smoothing, dict):  # per joint, e.g. measured on another log
+        eps = np.array([float(coulomb_smoothing[j]) for j in joints])
+    else:
+        eps = np.full(len(joints), float(coulomb_smoothing))
     rest = (coulomb_smoothing_from_noise(sigma_raw, speed=speed, factor=REST_SIGMAS) if auto_rest
             else np.full(len(joints), float(rest_velocity)))
     if isinstance(stribeck_velocity, str):
