@@ -159,34 +159,30 @@ def identify(
         if scheduler is not None:
             from .fleet import identify_on_dask
 
-            friction_fit = None
+            friction_fit, first = None, None
             if _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms):
-                structure, friction_fit = _client_friction(structure, data, r, prep, coulomb_smoothing,
+                first = _first_training_log(data, r, prep)
+                structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
             result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma})
             if friction_fit is not None:
-                result.settings["friction"] = _friction_settings(friction_fit, friction_fit if coulomb_smoothing == "auto"
-                                                                 else None, data[0])
+                result.settings["friction"] = _friction_settings(friction_fit, friction_fit, data[0])
+            reuse = first is not None and fleet.files and Path(fleet.files[0]) == Path(data[0])
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
-            train = _first_training_log(data, r, prep) if not val else []
+            train = (first if reuse else _first_training_log(data, r, prep)) if not val else []
         else:
             total = sum(len(t) for t in train)
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
             with progress_bar() as bar:
                 task = bar.add_task("regressor", total=total * (2 if friction else 1))
                 kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma, **lmi_kw)
-                fric = None
-                from ..identification.friction import friction_structure
-
-                eps_fit = None
+                fric, eps_fit = None, None
                 if friction:
                     eps = coulomb_smoothing
                     if coulomb_smoothing == "auto":  # ε from the first training log, as on a cluster
-                        raw = (load_logs(data[:1], r, **{**prep, "lowpass": None})
-                               if lowpass else None)  # noise is measured before the low-pass colours it
-                        _, eps_fit = friction_structure(structure, train[:1], coulomb_smoothing="auto",
-                                                        stribeck_velocity=1.0, noise_logs=raw, lowpass_hz=lowpass)
+                        _, eps_fit = _first_log_friction(structure, train[:1], data[0], r, prep, "auto",
+                                                         stribeck_velocity, lowpass)
                         eps = eps_fit.coulomb_smoothing
                     fric = dict(coulomb_smoothing=eps, stribeck_velocity=stribeck_velocity)
                 try:  # the logs' outliers were handled on reading
@@ -277,31 +273,37 @@ def _load_training(data, r, prep: dict, skip_bad: bool):
     return train, used, skipped
 
 
-def _friction_settings(fit, eps_fit, first) -> dict:
-    """result.json ``settings.friction``; with auto smoothing, where ε was measured."""
+def _friction_settings(fit, measured, first) -> dict:
+    """result.json ``settings.friction``; ``measured``: the fit ε was measured by (auto smoothing), if any."""
     doc = fit.to_dict()
-    if eps_fit is not None:
+    if measured is not None and measured.coulomb_smoothing_mode == "auto":
         doc.update(coulomb_smoothing_mode="auto", coulomb_smoothing_from=str(first),
-                   velocity_noise=eps_fit.to_dict().get("velocity_noise"))
+                   velocity_noise=measured.to_dict().get("velocity_noise"))
     return doc
 
 
-def _client_friction(structure, data, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
-    """With --scheduler: ε (and vs) from the first training log read on this machine, so the
-    workers fit the same friction law the local path would; the vs search needs every log and
-    is not run (vs = 0.1 · P95|v|). Without a readable first log: sgn(v) (ε = 0), with a warning."""
+def _first_log_friction(structure, first: list, path, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
+    """The friction law (ε, and vs without a search) measured on the first training log, the same
+    way for the local path and a cluster (:func:`~sensorless.identification.friction.friction_structure`);
+    the velocity noise is read before the low-pass colours it."""
     from ..identification.friction import friction_structure
 
-    first = _first_training_log(data, r, prep)
+    raw = load_logs([path], r, **{**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto" else None
+    return friction_structure(structure, first, coulomb_smoothing=coulomb_smoothing,
+                              stribeck_velocity=stribeck_velocity, noise_logs=raw, lowpass_hz=lowpass)
+
+
+def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
+    """With --scheduler: the workers fit the friction law of :func:`_first_log_friction`; the vs
+    search needs every log and is not run (vs = 0.1 · P95|v|). Without a readable first log:
+    sgn(v) (ε = 0), with a warning."""
     if not first:
         err_console.print("[yellow]warning:[/] --scheduler: the first training log is not readable here; "
                           "--coulomb-smoothing auto falls back to sgn(v) (ε = 0)", highlight=False)
         return structure, None
-    raw = _first_training_log(data, r, {**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto" else None
-    s, fit = friction_structure(structure, first, coulomb_smoothing=coulomb_smoothing,
-                                stribeck_velocity=stribeck_velocity, noise_logs=raw, lowpass_hz=lowpass)
+    s, fit = _first_log_friction(structure, first, path, r, prep, coulomb_smoothing, stribeck_velocity, lowpass)
     eps = ", ".join(f"{j} {e:.3g}" for j, e in fit.coulomb_smoothing.items())
-    err_console.print(f"--scheduler: Coulomb smoothing from {data[0]} (ε [rad/s]: {eps})"
+    err_console.print(f"--scheduler: Coulomb smoothing from {path} (ε [rad/s]: {eps})"
                       + ("; Stribeck vs not searched on a cluster (0.1·P95|v|)" if fit.stribeck_velocity else ""),
                       highlight=False, soft_wrap=True)
     return s, fit
