@@ -303,9 +303,10 @@ def test_cli_glob_matching_nothing_fails_naming_the_pattern(tmp_path):
 
 
 def test_cli_auto_coulomb_smoothing_on_a_cluster_equals_local(fleet, tcp_cluster, tmp_path):
-    """Regression: with --scheduler, --coulomb-smoothing auto silently fell back to sgn(v). ε is now
-    measured on the first training log in both modes, so two noisy logs give the same ε and the
-    same parameters locally and on a cluster."""
+    """Regression: with --scheduler, --coulomb-smoothing auto silently fell back to sgn(v), and the
+    Stribeck vs was not searched. ε and the vs candidates are now measured on the first training log
+    in both modes and vs is chosen on the summed equations, so two noisy logs give the same ε, vs
+    and parameters locally and on a cluster."""
     import pandas as pd
 
     d, files = fleet
@@ -326,4 +327,7 @@ def test_cli_auto_coulomb_smoothing_on_a_cluster_equals_local(fleet, tcp_cluster
     fl, fd = doc_l["settings"]["friction"], doc_d["settings"]["friction"]
     assert min(fl["coulomb_smoothing"].values()) > 0 and fd["coulomb_smoothing"] == fl["coulomb_smoothing"]
     assert fl["coulomb_smoothing_mode"] == fd["coulomb_smoothing_mode"] == "auto"
+    # the default model has Stribeck friction: its vs is chosen on the summed equations in both modes
+    assert set(fl["stribeck_search"]) == set(fl["stribeck_velocity"]) == set(fl["coulomb_smoothing"])
+    assert fd["stribeck_velocity"] == fl["stribeck_velocity"] and fd["stribeck_grid"] == fl["stribeck_grid"]
     assert _rel(p_d, p_l) < TOL

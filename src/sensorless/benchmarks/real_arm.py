@@ -15,7 +15,7 @@ Commands (the documented ones, docs/arm.md §6–8; nothing tuned per seed; prep
 rest detection, Coulomb smoothing and the Stribeck search are the CLI defaults)::
 
     sensorless identify --robot ur10 --data train.csv --validate test.csv --columns C --gains gains.json
-        --joint-terms fv,fc,stribeck,offset,armature --out model
+        --out model
     sensorless drive-gains --robot ur10 --unloaded cal_unloaded.csv --loaded cal_loaded.csv --columns C
         --trim 2:-3 --payload-mass 4 --frame tool0 --com 0.15,0.05,0.05 --out k.json
     sensorless payload --robot ur10 --model model --data pay_loaded.csv --no-load pay_unloaded.csv
@@ -46,9 +46,9 @@ CAL_MASS, CAL_COM = 4.0, (0.15, 0.05, 0.05)  # off the tool axis: the calibratio
 CURRENT_NOISE = 0.01  # [A]
 IDLE_TRIM = "0:1.8"
 MOTION_TRIM = "2:-3"  # the motion segment of a log (also reported: the ratio there alone)
-#: identify options beyond the data, columns and gains: the model class only (Stribeck friction);
+#: identify options beyond the data, columns and gains: none; the model class (Stribeck friction),
 #: preprocessing, Coulomb smoothing, rest velocity and Stribeck velocity are the CLI defaults
-IDENTIFY_OPTIONS = ("--joint-terms", "fv,fc,stribeck,offset,armature")
+IDENTIFY_OPTIONS: tuple[str, ...] = ()
 
 
 def _cli(args: list[str]) -> None:

@@ -68,7 +68,7 @@ def identify(
     weights: str = typer.Option("auto", help="per-joint noise weighting, every method: auto (two-step: σ from an "
                                 "unweighted fit's residual) | none | FILE (JSON {joint: σ} or CSV 'joint,σ' rows)"),
     out: Path = typer.Option(..., help="output directory (written atomically)"),
-    joint_terms: str = typer.Option("fv,fc,offset,armature", help="joint terms fv,fc,stribeck,offset,armature for every "
+    joint_terms: str = typer.Option("fv,fc,stribeck,offset,armature", help="joint terms fv,fc,stribeck,offset,armature for every "
                                     "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
                                     "listed, else none) (dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
@@ -165,7 +165,11 @@ def identify(
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
             result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
-                                             {**lmi_kw, "weights": row_sigma})
+                                             {**lmi_kw, "weights": row_sigma},
+                                             friction_fit.stribeck_grid if friction_fit is not None else None)
+            if friction_fit is not None and friction_fit.stribeck_grid:
+                friction_fit.stribeck_velocity = dict(result.structure.stribeck_velocity or {})
+                friction_fit.stribeck_search = result.diagnostics.get("stribeck_search")
             if friction_fit is not None:
                 result.settings["friction"] = _friction_settings(friction_fit, friction_fit, data[0])
             reuse = first is not None and fleet.files and Path(fleet.files[0]) == Path(data[0])
@@ -175,23 +179,22 @@ def identify(
             total = sum(len(t) for t in train)
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
             with progress_bar() as bar:
-                task = bar.add_task("regressor", total=total * (2 if friction else 1))
+                task = bar.add_task("regressor", total=total)
                 kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma, **lmi_kw)
-                fric, eps_fit = None, None
-                if friction:
-                    eps = coulomb_smoothing
-                    if coulomb_smoothing == "auto":  # ε from the first training log, as on a cluster
-                        _, eps_fit = _first_log_friction(structure, train[:1], data[0], r, prep, "auto",
-                                                         stribeck_velocity, lowpass)
-                        eps = eps_fit.coulomb_smoothing
-                    fric = dict(coulomb_smoothing=eps, stribeck_velocity=stribeck_velocity)
+                fric, law = None, None
+                if friction:  # ε and the Stribeck candidates from the first training log, as on a cluster
+                    _, law = _first_log_friction(structure, train[:1], data[0], r, prep, coulomb_smoothing,
+                                                 stribeck_velocity, lowpass)
+                    fric = dict(coulomb_smoothing=law.coulomb_smoothing if coulomb_smoothing == "auto"
+                                else coulomb_smoothing,
+                                stribeck_velocity=law.stribeck_grid or stribeck_velocity)
                 try:  # the logs' outliers were handled on reading
                     model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
                 except ExcitationError as exc:
                     raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
                 result, structure = model.result_, model.structure_
                 if friction:
-                    result.settings["friction"] = _friction_settings(model.friction_fit_, eps_fit, data[0])
+                    result.settings["friction"] = _friction_settings(model.friction_fit_, law, data[0])
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate,
@@ -283,7 +286,7 @@ def _friction_settings(fit, measured, first) -> dict:
 
 
 def _first_log_friction(structure, first: list, path, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
-    """The friction law (ε, and vs without a search) measured on the first training log, the same
+    """The friction law (ε, and the Stribeck candidates) measured on the first training log, the same
     way for the local path and a cluster (:func:`~sensorless.identification.friction.friction_structure`);
     the velocity noise is read before the low-pass colours it."""
     from ..identification.friction import friction_structure
@@ -294,9 +297,9 @@ def _first_log_friction(structure, first: list, path, r, prep: dict, coulomb_smo
 
 
 def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
-    """With --scheduler: the workers fit the friction law of :func:`_first_log_friction`; the vs
-    search needs every log and is not run (vs = 0.1 · P95|v|). Without a readable first log:
-    sgn(v) (ε = 0), with a warning."""
+    """With --scheduler: the workers fit the friction law of :func:`_first_log_friction` (ε, and the
+    Stribeck candidates, chosen on the client from the summed equations). Without a readable first
+    log: sgn(v) (ε = 0) and a fixed vs, with a warning."""
     if not first:
         err_console.print("[yellow]warning:[/] --scheduler: the first training log is not readable here; "
                           "--coulomb-smoothing auto falls back to sgn(v) (ε = 0)", highlight=False)
@@ -304,7 +307,7 @@ def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smooth
     s, fit = _first_log_friction(structure, first, path, r, prep, coulomb_smoothing, stribeck_velocity, lowpass)
     eps = ", ".join(f"{j} {e:.3g}" for j, e in fit.coulomb_smoothing.items())
     err_console.print(f"--scheduler: Coulomb smoothing from {path} (ε [rad/s]: {eps})"
-                      + ("; Stribeck vs not searched on a cluster (0.1·P95|v|)" if fit.stribeck_velocity else ""),
+                      + ("; Stribeck candidates from the same log" if fit.stribeck_grid else ""),
                       highlight=False, soft_wrap=True)
     return s, fit
 

@@ -11,8 +11,9 @@ cross-validation folds from the workers too (the same contiguous/phase blocks as
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from ..regressor.distributed import FleetEquations, compress_files
 from ..regressor.terms import ModelStructure
 from .identify import identify
 from .result import IdentificationResult
+from .stribeck import StribeckCandidates, choose_stribeck
 
 __all__ = ["identify_files", "identify_fleet"]
 
@@ -44,16 +46,29 @@ def identify_files(
     ``identify``. ``result.settings`` lists the files used and every skipped file with its error.
     """
     lmi_auto = method == "lmi" and identify_kwargs.get("gamma", 1e-3) == "auto"
-    fleet = compress_files(structure, files, client=client, reader=reader, chunk=chunk, skip_bad=skip_bad,
+    grid = identify_kwargs.get("stribeck_grid")
+    fleet = compress_files(StribeckCandidates(structure, grid) if grid else structure, files, client=client, reader=reader, chunk=chunk, skip_bad=skip_bad,
                            retries=retries, n_folds=5 if lmi_auto else None, progress=progress)
     return identify_fleet(structure, fleet, method=method, chunk=chunk, **identify_kwargs)
 
 
 def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: str = "ols",
+                   stribeck_grid: Mapping[str, Sequence[float]] | None = None,
                    **identify_kwargs: Any) -> IdentificationResult:
-    """Solve from already summed :class:`FleetEquations` (see :func:`identify_files`)."""
+    """Solve from already summed :class:`FleetEquations` (see :func:`identify_files`); with
+    ``stribeck_grid`` they are the equations of :class:`~.stribeck.StribeckCandidates` on that grid,
+    and vs is chosen on them as :func:`~.identify.identify` does."""
     kw = dict(identify_kwargs)
-    cv = None
+    cv, record = None, None
+    if stribeck_grid:
+        from .weights import check_weights
+
+        cand = StribeckCandidates(structure, stribeck_grid)
+        choice, record = choose_stribeck(cand, fleet.equations, check_weights(kw.get("weights", "auto"),
+                                                                              structure.row_names))
+        structure = cand.structure_for(choice)
+        fleet = dataclasses.replace(fleet, equations=cand.select(fleet.equations, choice),
+                                    folds=[cand.select(f, choice) for f in fleet.folds] if fleet.folds else fleet.folds)
     if method == "lmi" and kw.get("gamma", 1e-3) == "auto":
         from .least_squares import row_weights
         from .gamma import cross_validate_gamma
@@ -69,6 +84,8 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
         result.diagnostics["gamma_selection"] = cv.to_dict()
         if cv.edge is not None:  # (warned by cross_validate_gamma)
             result.diagnostics["warnings"].append(cv.edge_message())
+    if record is not None:
+        result.diagnostics["stribeck_search"] = record
     result.diagnostics["compress_seconds"] = fleet.seconds
     result.settings.update(fleet.summary())
     return result

@@ -32,11 +32,12 @@ window → v = v̇ = 0, so sgn v = 0), and here
 a model without a rest gate (``rest_velocity=0``): ε = max(k σ_v, 2 fs σ_v / σ_τ),
 at most ``max_fraction`` · P95(|v|), so that the chatter at rest stays below σ_τ / 2.
 
-**Stribeck velocity.** vs enters nonlinearly. With the rigid-body part fixed at a first
-fit, the friction residual of each joint, r_j = τ_j − [Y π]_j − Ia_j v̇_j, is linear in
-(fc, fs − fc, fv, o) for a given vs; the vs minimising the least-squares residual over a
-log-spaced grid is kept (variable projection, one dimension per joint), then everything
-is identified again with vs fixed.
+**Stribeck velocity.** vs enters nonlinearly. Per joint a log-spaced grid of candidates
+(:func:`stribeck_grid`) is compressed with the model in one pass, and the vs minimising the
+weighted least-squares residual of the whole model is chosen by variable projection on the
+compressed equations (:mod:`~.stribeck`); the model is then solved with those columns.
+:func:`search_stribeck_velocity` is the same 1-D criterion on one joint's friction residual
+r_j = τ_j − [Y π]_j − Ia_j v̇_j (for a friction-only log or a plot).
 """
 
 from __future__ import annotations
@@ -178,6 +179,7 @@ class FrictionFit:
     torque_noise: dict[str, float] | None = None
     stribeck_velocity: dict[str, float] | None = None
     stribeck_search: dict | None = None
+    stribeck_grid: dict[str, list[float]] | None = None
     rest_velocity: dict[str, float] | None = None
     rest_velocity_mode: str = "off"
 
@@ -204,19 +206,23 @@ def identify_friction(
     (0 = no rest gate). ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck``
     term) or vs. ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training
     logs went through (module docstring); default: the noise of the training logs as they are.
-    Runs :func:`~sensorless.identification.identify` once when vs is not searched, else a first
-    least-squares fit, the search, and the final fit with ``identify_kwargs``. Returns
+    ``stribeck_velocity`` may also be candidate values per joint (``{joint: [vs, …]}``).
+    Runs :func:`~sensorless.identification.identify` once with ``identify_kwargs`` (with the
+    candidates when vs is searched: one compression pass, :mod:`~.stribeck`). Returns
     ``(result, FrictionFit)``.
     """
     from .identify import identify
 
     train = list(train)
     kw = dict(identify_kwargs or {})
-    s, fit, auto_vs, ctx = _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity,
-                                           factor, noise_logs, lowpass_hz)
+    s, fit, auto_vs = _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity,
+                                      factor, noise_logs, lowpass_hz)
     if not auto_vs:
         return identify(s, train, **kw), fit
-    return _search_and_fit(s, fit, train, kw, ctx)
+    result = identify(s, train, stribeck_grid=fit.stribeck_grid, **kw)
+    fit.stribeck_velocity = dict(result.structure.stribeck_velocity or {})
+    fit.stribeck_search = result.diagnostics.get("stribeck_search")
+    return result, fit
 
 
 def friction_structure(
@@ -229,11 +235,12 @@ def friction_structure(
     noise_logs: Iterable[Trajectory] | None = None,
     lowpass_hz: float | None = None,
 ):
-    """The structure :func:`identify_friction` would fit, with ε (and vs) set from ``logs`` but
-    without the vs search (vs = 0.1 · P95|v| per joint when "auto"): for fitting elsewhere, e.g. on
-    Dask workers from ε measured on the client's log. Returns ``(structure, FrictionFit)``."""
-    s, fit, _, _ = _friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
-                                   noise_logs, lowpass_hz)
+    """The structure :func:`identify_friction` would fit, with ε set from ``logs`` and, when vs is
+    "auto", the candidate grid in ``FrictionFit.stribeck_grid`` (the structure's vs is 0.1 · P95|v|
+    until a fit chooses): for fitting elsewhere, e.g. on Dask workers from ε and the grid measured on
+    the client's log. Returns ``(structure, FrictionFit)``."""
+    s, fit, _ = _friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
+                                noise_logs, lowpass_hz)
     return s, fit
 
 
@@ -267,59 +274,46 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
         eps = np.full(len(joints), float(coulomb_smoothing))
     rest = (coulomb_smoothing_from_noise(sigma_raw, speed=speed, factor=REST_SIGMAS) if auto_rest
             else np.full(len(joints), float(rest_velocity)))
+    grid = None
     if isinstance(stribeck_velocity, str):
         if stribeck_velocity != "auto":
             raise DataError(f"stribeck_velocity must be 'auto' or a number > 0, got {stribeck_velocity!r}")
         vs = {j: float(0.1 * speed[k]) for k, j in enumerate(joints) if j in has_stribeck} if has_stribeck else None
+        grid = stribeck_grid(speed, eps, rest, joints, has_stribeck) if has_stribeck else None
+    elif isinstance(stribeck_velocity, dict) and any(np.ndim(x) for x in stribeck_velocity.values()):
+        grid = {j: list(map(float, np.atleast_1d(x))) for j, x in stribeck_velocity.items()}  # candidates given
+        vs = {j: g[len(g) // 2] for j, g in grid.items()}
+        auto_vs = bool(grid)
     elif isinstance(stribeck_velocity, dict):
         vs = dict(stribeck_velocity)
     else:
         vs = {j: float(stribeck_velocity) for j in has_stribeck} or None
 
-    def build(vs_map) -> ModelStructure:
-        return dataclasses.replace(structure, coulomb_smoothing=dict(zip(joints, map(float, eps))),
-                                   stribeck_velocity=vs_map, per_joint_terms=_per_joint_terms(structure),
-                                   rest_velocity={j: float(d) for j, d in zip(joints, rest) if d > 0} or None)
-
-    s = build(vs)
+    s = dataclasses.replace(structure, coulomb_smoothing=dict(zip(joints, map(float, eps))),
+                            stribeck_velocity=vs, per_joint_terms=_per_joint_terms(structure),
+                            rest_velocity={j: float(d) for j, d in zip(joints, rest) if d > 0} or None)
     fit = FrictionFit(coulomb_smoothing=dict(zip(joints, map(float, eps))),
-                      coulomb_smoothing_mode="auto" if auto_eps else "given", stribeck_velocity=vs,
+                      coulomb_smoothing_mode="auto" if auto_eps else "given", stribeck_velocity=vs, stribeck_grid=grid,
                       rest_velocity=dict(zip(joints, map(float, rest))),
                       rest_velocity_mode="auto" if auto_rest else ("given" if np.any(rest > 0) else "off"))
     if sigma_v is not None:
         fit.velocity_noise = dict(zip(joints, map(float, sigma_v)))
         fit.torque_noise = dict(zip(joints, map(float, _pooled_noise([s.target(t)[:, s.actuated_rows] for t in raw]))))
-    ctx = dict(has_stribeck=has_stribeck, speed=speed, eps=eps, rest=rest, vs=vs, build=build)
-    return s, fit, auto_vs, ctx
+    return s, fit, auto_vs
 
 
-def _search_and_fit(s, fit, train, kw, ctx):
-    """Fit once (OLS), search vs per joint on the friction residual, fit again with ``kw``."""
-    from .identify import identify
-
-    joints = list(s.robot.actuated_joints)
-    has_stribeck, speed, eps, rest, vs, build = (ctx[k] for k in ("has_stribeck", "speed", "eps", "rest", "vs", "build"))
-    first_kw = {k: v for k, v in kw.items() if k in ("weights", "chunk", "progress", "outliers")}
-    with warnings.catch_warnings():  # the first fit only chooses vs: ordinary least squares is enough
-        warnings.simplefilter("ignore")  # the final fit reports identifiability
-        p = identify(s, train, method="ols", **first_kw).parameters
-    pairs = [friction_residual(s, p, t) for t in train]
-    V = np.concatenate([a for a, _ in pairs])
-    R = np.concatenate([b for _, b in pairs])
-    fit.stribeck_search = {}
+def stribeck_grid(speed: np.ndarray, eps: np.ndarray, rest: np.ndarray, joints: Sequence[str],
+                  has_stribeck: Sequence[str]) -> dict[str, list[float]]:
+    """Candidate vs per joint: :data:`STRIBECK_GRID` × P95|v|, at least
+    :data:`MIN_STRIBECK_OVER_SMOOTHING` × max(ε, δ) (the largest point if none is)."""
+    out = {}
     for k, j in enumerate(joints):
         if j not in has_stribeck:
             continue
         grid = STRIBECK_GRID * speed[k]
         lo = MIN_STRIBECK_OVER_SMOOTHING * max(eps[k], rest[k])
-        grid = grid[grid >= lo] if np.any(grid >= lo) else grid[-1:]
-        moving = np.abs(V[:, k]) > rest[k]  # the rest samples carry no friction information
-        best, sse = search_stribeck_velocity(V[moving, k], R[moving, k], eps=float(eps[k]), terms=s.terms_of(j),
-                                             grid=grid)
-        vs[j] = best
-        fit.stribeck_search[j] = {"grid": grid.tolist(), "sse": sse.tolist()}
-    fit.stribeck_velocity = vs
-    return identify(build(vs), train, **kw), fit
+        out[j] = (grid[grid >= lo] if np.any(grid >= lo) else grid[-1:]).tolist()
+    return out
 
 
 def _logged_velocity_noise(structure: ModelStructure, logs: list) -> "np.ndarray | None":

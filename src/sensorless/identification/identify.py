@@ -32,6 +32,7 @@ from .least_squares import (
 )
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
+from .stribeck import StribeckCandidates, choose_stribeck
 from .weights import check_weights
 from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
@@ -62,6 +63,7 @@ def identify(
     lmi_options: dict | None = None,
     progress: Callable[[int], None] | None = None,
     outliers: str = "error",
+    stribeck_grid: Mapping[str, Sequence[float]] | None = None,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
@@ -82,6 +84,11 @@ def identify(
     ellipsoids that cost training residual (:data:`CONSTRAINT_RESIDUAL_RISE`, naming the
     bodies) and joint terms the log cannot separate (:data:`JOINT_TERM_MAX_VIF`) are
     reported in ``diagnostics["warnings"]`` as :class:`~sensorless.errors.IdentifiabilityWarning`.
+    ``stribeck_grid``: candidate Stribeck velocities per joint (``{joint: [vs, …]}``, joints with a
+    ``stribeck`` term): all candidates are compressed in the one pass and each joint's vs is chosen
+    by variable projection on the compressed equations (:mod:`~.stribeck`) before the fit; the
+    result's structure carries the chosen vs and ``diagnostics["stribeck_search"]`` the criterion.
+    Precompressed ``data`` must then be the candidates' equations.
     ``standard``: how to pick standard parameters from the base ones, "closest_to_prior"
     (nearest to the model's own inertials) or "min_norm".
 
@@ -114,10 +121,16 @@ def identify(
         if isinstance(data, NormalEquations):
             raise SolverError("gamma='auto' needs the training trajectories, not precompressed equations")
         data = list(data)
+    cand = StribeckCandidates(structure, stribeck_grid) if stribeck_grid else None
     t0 = time.perf_counter()
-    ne = data if isinstance(data, NormalEquations) else compress(structure, data, chunk=chunk, progress=progress)
+    ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
+                                                                  progress=progress)
     t_compress = time.perf_counter() - t0
     _check_finite_equations(ne)
+    stribeck_search = None
+    if cand is not None:
+        choice, stribeck_search = choose_stribeck(cand, ne, "auto" if method == "wls" and weights is None else weights)
+        structure, ne = cand.structure_for(choice), cand.select(ne, choice)
     base = base_parameters(structure)
     sample_count_check(ne, base)
     slow: dict[str, float] = {}
@@ -210,6 +223,7 @@ def identify(
         "warnings": notes,
         **({"not_excited": report["not_excited"]} if report and report["not_excited"] else {}),
         **extra,
+        **({"stribeck_search": stribeck_search} if stribeck_search else {}),
         "compress_seconds": t_compress,
         "solve_seconds": t_solve,
     }

@@ -310,9 +310,7 @@ class ModelStructure:
         if not self.joint_terms:
             return np.zeros(v.shape + (0,))
         joints = self.robot.actuated_joints
-        eps = np.array([self.smoothing_of(j) for j in joints])
-        rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in joints])
-        sgn = (lambda: np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)) * (np.abs(v) > rest))
+        sgn = (lambda: self.coulomb_sign(v))
         vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
         cols = {
             "fv": lambda: v,
@@ -325,6 +323,14 @@ class ModelStructure:
         if getattr(self, "per_joint_terms", None) is not None:
             F *= self.term_mask[None, :, :]
         return F
+
+    def coulomb_sign(self, v: np.ndarray) -> np.ndarray:
+        """The Coulomb sign of actuated velocities ``v`` (N, n_actuated): tanh(v/ε) (sgn v for
+        ε = 0), and 0 where |v| ≤ δ (the rest velocity)."""
+        joints = self.robot.actuated_joints
+        eps = np.array([self.smoothing_of(j) for j in joints])
+        rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in joints])
+        return np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)) * (np.abs(v) > rest)
 
     def fit_mask(self, V: np.ndarray) -> "np.ndarray | None":
         """(N, n_rows) 0/1 weights of the equations in the fit: 0 on a joint's row where

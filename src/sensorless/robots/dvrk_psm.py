@@ -257,8 +257,9 @@ def psm_structure(
     return structure
 
 
-# the generic per-joint terms of URDF robots (the CLI default of --joint-terms): the PSM uses a drive set instead
-_URDF_DEFAULT_TERMS = ("fv", "fc", "offset", "armature")
+# the generic per-joint terms of URDF robots (the CLI default of --joint-terms, now and before Stribeck friction
+# joined it): the PSM uses a drive set instead
+_URDF_DEFAULT_TERMS = {("fv", "fc", "stribeck", "offset", "armature"), ("fv", "fc", "offset", "armature")}
 
 
 def _drive_set(terms, default):
@@ -268,7 +269,7 @@ def _drive_set(terms, default):
     if isinstance(terms, str):
         terms = tuple(t.strip() for t in terms.split(",") if t.strip())
     terms = tuple(terms)
-    if terms == _URDF_DEFAULT_TERMS:
+    if terms in _URDF_DEFAULT_TERMS:
         return default
     if len(terms) == 1 and terms[0] in ("authors", "motors"):
         return terms[0]

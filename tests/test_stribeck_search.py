@@ -1,0 +1,117 @@
+"""Stribeck velocity chosen from one compression pass (identification.stribeck): the candidate
+equations contain the model's exactly, the projection criterion equals a direct least-squares
+fit per candidate, and a known vs is recovered through identify()."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sensorless.errors import DataError
+from sensorless.identification import identify
+from sensorless.identification.stribeck import StribeckCandidates, choose_stribeck
+from sensorless.regressor import ModelStructure, compress
+from sensorless.simulation.current_arm import truth_model
+
+TERMS = ("fv", "fc", "stribeck", "offset", "armature")
+
+
+@pytest.fixture(scope="module")
+def arm():
+    """A UR5 log with Stribeck friction on every joint (true vs known) and a little torque noise."""
+    from sensorless.robot import load_robot
+    from sensorless.data.trajectory import Trajectory
+
+    robot = load_robot("ur5")
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 30, 0.005)
+    n = robot.n_actuated
+    f = rng.uniform(0.05, 0.3, (3, n))
+    ph = rng.uniform(0, 2 * np.pi, (3, n))
+    amp = rng.uniform(0.3, 0.8, (3, n))
+    q = sum(amp[k] * np.sin(2 * np.pi * f[k] * t[:, None] + ph[k]) for k in range(3))
+    v = sum(amp[k] * 2 * np.pi * f[k] * np.cos(2 * np.pi * f[k] * t[:, None] + ph[k]) for k in range(3))
+    a = sum(-amp[k] * (2 * np.pi * f[k]) ** 2 * np.sin(2 * np.pi * f[k] * t[:, None] + ph[k]) for k in range(3))
+    joints = list(robot.actuated_joints)
+    vs_true = dict(zip(joints, rng.uniform(0.04, 0.12, n)))
+    truth = ModelStructure(robot, joint_terms=TERMS, coulomb_smoothing=0.01, stribeck_velocity=vs_true)
+    p = truth.prior()
+    for j in joints:
+        p[truth.joint_term_index(j, "fv")] = rng.uniform(0.5, 2)
+        p[truth.joint_term_index(j, "fc")] = rng.uniform(1, 3)
+        p[truth.joint_term_index(j, "stribeck")] = rng.uniform(1, 3)  # fs − fc
+    traj = Trajectory(t=t, q=q, v=v, a=a, tau=np.zeros_like(q), joint_names=joints)
+    tau = truth.torques(p, traj) + rng.normal(0, 0.02, q.shape)
+    traj = dataclasses.replace(traj, tau=tau)
+    return robot, truth, vs_true, traj
+
+
+def _grid(vs_true):
+    return {j: np.geomspace(0.01, 0.5, 21) * (vs / 0.0707) for j, vs in vs_true.items()}  # truth on the grid
+
+
+def test_candidate_equations_contain_the_models_exactly(arm):
+    robot, truth, vs_true, traj = arm
+    grid = _grid(vs_true)
+    cand = StribeckCandidates(dataclasses.replace(truth, stribeck_velocity=None), grid)
+    ne_c = compress(cand, traj)
+    choice = np.array([3, 10, 0, 20, 7, 15])
+    s = cand.structure_for(choice)
+    assert s.stribeck_velocity == {j: pytest.approx(grid[j][c]) for j, c in zip(robot.actuated_joints, choice)}
+    ne = compress(s, traj)
+    sel = cand.select(ne_c, choice)
+    scale = np.abs(ne.A).max()
+    assert np.abs(sel.A - ne.A).max() < 1e-10 * scale and np.allclose(sel.b, ne.b, rtol=1e-10, atol=1e-10 * scale)
+    assert np.allclose(sel.c, ne.c) and sel.n_samples == ne.n_samples
+
+
+def test_projection_criterion_equals_a_direct_fit_per_candidate(arm):
+    """SSE(g) from the compressed equations (Frisch–Waugh–Lovell) = the residual of an explicit
+    least-squares fit with candidate g, on the base columns."""
+    from sensorless.identification.base import base_parameters
+
+    robot, truth, vs_true, traj = arm
+    part = traj.chunks(2000).__next__()
+    cand = StribeckCandidates(truth, _grid(vs_true))
+    ne_c = compress(cand, part)
+    choice, record = choose_stribeck(cand, ne_c, None)
+    j = robot.actuated_joints[2]
+    k = 2
+    ind = base_parameters(truth).independent
+    for g in (0, 5, choice[k]):
+        c = choice.copy()
+        c[k] = g
+        s = cand.structure_for(c)
+        W = s.regressor(part)  # (N, rows, p)
+        y = s.target(part)
+        X = W.reshape(-1, W.shape[-1])[:, ind]
+        coef, *_ = np.linalg.lstsq(X, y.ravel(), rcond=None)
+        sse = float(np.sum((y.ravel() - X @ coef) ** 2))
+        if g == choice[k]:
+            assert record[j]["sse"][g] == pytest.approx(sse, rel=1e-6)
+    assert record[j]["vs"] == pytest.approx(cand.grid[k, choice[k]])
+
+
+def test_identify_recovers_the_true_stribeck_velocity_in_one_pass(arm):
+    robot, truth, vs_true, traj = arm
+    start = dataclasses.replace(truth, stribeck_velocity=None)
+    res = identify(start, traj, stribeck_grid=_grid(vs_true))
+    for j, vs in vs_true.items():
+        assert res.structure.stribeck_velocity[j] == pytest.approx(vs, rel=0.21), j  # within one grid step
+    assert set(res.diagnostics["stribeck_search"]) == set(vs_true)
+    assert res.settings["stribeck_velocity"] == res.structure.stribeck_velocity
+    assert res.train_metrics.nrmse.max() < 0.01
+
+
+def test_grid_for_a_joint_without_a_stribeck_term_or_bad_values_is_refused(arm):
+    robot, truth, vs_true, traj = arm
+    no = ModelStructure(robot, joint_terms=("fv", "fc", "offset"))
+    with pytest.raises(DataError, match="without a 'stribeck' term"):
+        StribeckCandidates(no, {robot.actuated_joints[0]: [0.1]})
+    with pytest.raises(DataError, match="finite and > 0"):
+        StribeckCandidates(truth, {robot.actuated_joints[0]: [0.1, -1.0]})
+    cand = StribeckCandidates(truth, _grid(vs_true))
+    with pytest.raises(DataError, match="not compressed with this grid"):
+        cand.select(compress(truth, traj.chunks(500).__next__()), np.zeros(robot.n_actuated, dtype=int))
