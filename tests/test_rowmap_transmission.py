@@ -71,3 +71,50 @@ def test_transmission_rows_equal_gt_rnea_plus_drive_terms():
     assert s.robot.transmission_matrix is G or np.array_equal(s.robot.transmission_matrix, G)
     assert tree.transmission_matrix is None
     np.testing.assert_array_equal(s.robot.selection, np.eye(4)[keep])
+
+
+def test_transmission_is_a_model_structure_with_a_state_map_and_a_row_map():
+    """Issue 15: the transmission composes (coordinate robot + q = Gθ + q₀ + Gᵀ rows + drive
+    block) instead of overriding; ModelStructure's blocks give Gᵀ Y(Gθ + q₀, …)[:, bodies] and
+    the drive columns, and compress folds them to the dense normal equations."""
+    from sensorless.data import Trajectory
+    from sensorless.regressor import ModelStructure, NormalEquations, compress
+
+    overrides = {n for n in vars(TransmissionStructure) if n in dir(ModelStructure) and not n.startswith("__")}
+    assert overrides == {"pinocchio_state", "settings"}
+    rng = np.random.default_rng(22)
+    tree, G, coords = _coupled_tree()
+    e = np.eye(len(coords))
+    drives = [DriveTerm("q2", e[1], ("fv", "fc", "spring")), DriveTerm("jaw", e[3] - 0.5 * e[2], ("fv", "inertia"))]
+    offset = rng.normal(size=len(tree.joint_names)) * 0.1
+    s = TransmissionStructure(tree, G, coords, offset=offset, drives=drives, bodies=tree.body_names[1:],
+                              rows=("q1", "q2", "m4"), coulomb_smoothing=0.05)
+    assert s.n_block_params == s.n_params == s.n_body_params + 6 and s.n_drive_params == 6  # fv fc k k_rest | fv inertia
+    assert not (s.row_map.per_sample or s.row_map.projected or s.row_map.measured_wrench or s.measured_wrench)
+    n = 40
+    th, thd, thdd = rng.normal(size=(n, 4)), rng.normal(size=(n, 4)) * 2, rng.normal(size=(n, 4)) * 5
+    W = s.evaluate(th, thd, thdd)
+    # body block: Pinocchio's regressor at the tree state, bodies' columns, Gᵀ on the kept rows
+    q, v, a = th @ G.T + offset, thd @ G.T, thdd @ G.T
+    cols = np.concatenate([np.arange(10 * i, 10 * i + 10) for i in (tree.body_names.index(b) for b in s.robot.body_names)])
+    keep = [coords.index(c) for c in ("q1", "q2", "m4")]
+    Y = np.array([pin.computeJointTorqueRegressor(tree.model, tree.data, q[i], v[i], a[i])[:, cols] for i in range(n)])
+    np.testing.assert_allclose(s.body_regressor(th, thd, thdd), np.einsum("jr,njp->nrp", G[:, keep], Y), atol=1e-10)
+    np.testing.assert_array_equal(s.block_regressor(th, thd, thdd), W)
+    # drive block: column p of drive d is g_d f_{d,p}
+    for d, sl in zip(drives, s.drive_slices()):
+        F = d.features(th, thd, thdd, 0.05)
+        np.testing.assert_allclose(W[:, :, sl], d.g[keep][None, :, None] * F[:, None, :], atol=1e-12)
+        assert s.labels[sl] == d.labels and s.joint_term_index(d.name, d.param_names[-1]) == sl.stop - 1
+    # the chunked fold equals the dense normal equations of (W, target)
+    tau = W @ rng.normal(size=s.n_params)
+    tau_all = np.zeros((n, 4))
+    tau_all[:, keep] = tau
+    tr = Trajectory(t=np.arange(n) * 0.01, q=th, v=thd, a=thdd, tau=tau_all, joint_names=coords, source="<random>")
+    np.testing.assert_array_equal(s.target(tr), tau)
+    dense = NormalEquations.zeros(s.n_rows, s.n_params)
+    dense.add(W, tau)
+    ne = compress(s, tr, chunk=16, overlap=False)
+    scale = np.abs(dense.A).max()
+    np.testing.assert_allclose(ne.A, dense.A, atol=1e-12 * scale)
+    np.testing.assert_allclose(ne.b, dense.b, atol=1e-12 * np.abs(dense.b).max())

@@ -48,9 +48,7 @@ def _print_bodies(result) -> None:
 def _floating_base_checks(structure, result, doc: dict, train, val, validate) -> None:
     """Measured-wrench identification: bias values, world-axis base-wrench RMSE and the
     CoM-vs-CoP check on standing windows, per log, into ``doc["floating_base"]``."""
-    from ..regressor.contact import ContactStructure
-
-    if not isinstance(structure, ContactStructure) or structure.mode != "wrench":
+    if not getattr(structure, "measured_wrench", False):
         return
     from ..identification.floating_base import base_wrench_metrics, com_cop_check
 
@@ -87,7 +85,7 @@ def _export(result, tmp: Path, doc: dict) -> None:
     reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
     bad = [rep.name for rep in reports if not rep.consistent]
     doc["physical_consistency"] = {"inconsistent_bodies": bad, "n_bodies": len(reports)}
-    if hasattr(result.structure, "drive_values"):  # coupled joints: drive terms, no URDF (result.json is the model)
+    if result.structure.robot.transmission_matrix is not None:  # coupled joints: drive terms, no URDF (result.json is the model)
         from ..identification.result import write_json_atomic
 
         write_json_atomic(result.structure.drive_values(result.parameters), tmp / "drive_terms.json")

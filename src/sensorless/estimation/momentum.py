@@ -101,13 +101,11 @@ class MomentumDynamics:
     """
 
     def __init__(self, structure, params: np.ndarray) -> None:
-        from ..regressor.transmission import TransmissionStructure
-
         params = np.asarray(params, dtype=float)
         if params.shape != (structure.n_params,):
             raise ShapeMismatchError(f"expected {structure.n_params} parameters for this structure, got {params.shape}")
         self.structure, self.params = structure, params
-        self.transmission = isinstance(structure, TransmissionStructure)
+        self.transmission = structure.robot.transmission_matrix is not None  # coordinates θ, tree q = Gθ + q₀
         nb = structure.n_body_params
         if self.transmission:
             tree = structure.tree

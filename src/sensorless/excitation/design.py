@@ -59,8 +59,8 @@ __all__ = ["ExcitationDesign", "design_excitation"]
 # ---- kinematics for Cartesian constraints ---------------------------------------------------
 def _kinematics(structure):
     """(model, data, θ → Pinocchio q, P) with v_tree = P θ̇ for a ModelStructure or TransmissionStructure."""
-    tree = getattr(structure, "tree", None)
-    if tree is not None:  # TransmissionStructure
+    if structure.robot.transmission_matrix is not None:  # coordinates θ of a tree q = Gθ + q₀ (TransmissionStructure)
+        tree = structure.robot.tree
         idx = [tree.v_index(j) for j in tree.joint_names]
         P = np.zeros((tree.nv, structure.G.shape[1]))
         P[idx] = structure.G

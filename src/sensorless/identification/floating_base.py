@@ -27,7 +27,7 @@ __all__ = ["base_wrench_metrics", "com_cop_check", "com_positions", "standing_ma
 
 
 def _wrench_structure(structure) -> ContactStructure:
-    if not isinstance(structure, ContactStructure) or structure.mode != "wrench":
+    if not getattr(structure, "measured_wrench", False):  # the row map keeps Jcᵀ f on the known side
         raise DataError("base-wrench checks need a ContactStructure in mode 'wrench' (measured contact wrenches)")
     return structure
 

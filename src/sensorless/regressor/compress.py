@@ -233,13 +233,14 @@ def compress(
     row_map = structure.row_map
     own_fold = row_map.per_sample  # a map that changes per sample (contacts): the structure folds its equations
     # per-row subtree columns only where each kept row is one row of Pinocchio's joint-torque regressor
-    # (a transmission's Gᵀ rows and drive columns couple rows: fold every column)
-    cols = structure.row_body_columns() if row_map.selects_rows and not own_fold else None
+    # and the block is the bodies alone (a transmission's Gᵀ rows and drive columns couple rows: fold every column)
+    dense = not row_map.selects_rows or structure.n_block_params != structure.n_body_params
+    cols = structure.row_body_columns() if not (dense or own_fold) else None
     if overlap is None:
         overlap = _idle_core()
     seen = False
     with one_blas_thread(), (ThreadPoolExecutor(1) if overlap and not own_fold else _NoPool()) as pool:
-        bufs = [np.empty((chunk, structure.n_rows, structure.n_body_params)) for _ in range(2 if pool else 1)]
+        bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if pool else 1)]
         pending = [None, None]
         k = 0
         for traj in iter_trajectories(data):
@@ -254,7 +255,7 @@ def compress(
                 if pending[slot] is not None:  # the fold still reading this buffer
                     pending[slot].result()
                 Q, V, A = structure.state(part)
-                Wb = structure.body_regressor(Q, V, A, out=bufs[slot])
+                Wb = structure.block_regressor(Q, V, A, out=bufs[slot])  # [bodies | drive terms]
                 F, y = structure.joint_features(V, A), structure.target(part)
                 keep = structure.fit_mask(V)
                 if keep is not None:  # equations left out of the fit (a joint at rest): zero rows

@@ -155,15 +155,13 @@ def _filter(cutoff: float, order: int, dt: float, tau_hold: str) -> LowpassChain
 def filtered_rows(structure: ModelStructure, traj: Trajectory, cutoff: float = 4.0, *, order: int = 1,
                   tau_hold: str = "linear", pdot: bool = True, eps: float = 1e-5) -> FilteredRows:
     """W_f and y_f of a whole log (see the module docstring); ``cutoff`` = λ/2π [Hz]."""
-    from .contact import ContactStructure
-
     lp = _filter(cutoff, order, _dt(traj), tau_hold)
     Q, V = _state(structure, traj)
     Yp, Yb = momentum_regressors(structure, Q, V, eps)
     y = _generalised(structure, traj, None)
     flags = None
-    if isinstance(structure, ContactStructure):
-        if structure.mode != "projected":
+    if structure.row_map.per_sample:  # contacts: P(q) before filtering
+        if not structure.row_map.projected:
             raise RobotModelError("acceleration-free identification supports mode='projected' contact structures")
         flags = structure.contacts(traj)
         P, Pd = _projectors(structure, Q, V, flags, eps)
@@ -188,12 +186,10 @@ def filtered_target(structure: ModelStructure, traj: Trajectory, tau: np.ndarray
                     cutoff: float = 4.0, *, order: int = 1, tau_hold: str = "linear") -> np.ndarray:
     """y_f = L[P Sᵀτ] (or L[Sᵀτ] on the kept rows) for actuated torques ``tau`` (N, n_actuated)
     of any model — e.g. a black-box MLP — or the log's; scored "the same way" as W_f θ."""
-    from .contact import ContactStructure
-
     lp = _filter(cutoff, order, _dt(traj), tau_hold)
     y = _generalised(structure, traj, tau)
     flags = None
-    if isinstance(structure, ContactStructure):
+    if structure.row_map.per_sample:  # contacts: P(q) before filtering
         Q, _ = _state(structure, traj)
         flags = structure.contacts(traj)
         y = np.einsum("nij,nj->ni", structure.projector(Q, flags), y)

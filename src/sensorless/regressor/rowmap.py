@@ -18,6 +18,9 @@ A structure (:class:`~.terms.ModelStructure` and its subclasses) exposes its map
 ``structure.row_map``; :func:`~.compress.compress` reads ``selects_rows`` (row r of M Y is
 one row of Y, so Pinocchio's per-row subtree column blocks apply) and ``per_sample`` (M
 changes per sample: the structure folds its own mapped equations, ``structure.fold``).
+Callers ask the map, not the structure's type, what the equations are: ``projected`` (M is
+the state-dependent projector P(q)) and ``measured_wrench`` (measured contact wrenches are
+on the known side); both are False for the constant maps.
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ class RowMap(Protocol):
 
     selects_rows: bool
     per_sample: bool
+    projected: bool
+    measured_wrench: bool
 
     @property
     def n_rows(self) -> int: ...
@@ -60,6 +65,8 @@ class _NamedRows:
 
     names: tuple[str, ...]
     per_sample = False
+    projected = False
+    measured_wrench = False
 
     @property
     def n_rows(self) -> int:
@@ -119,6 +126,10 @@ class ContactNullSpace:
     @property
     def projected(self) -> bool:
         return self.structure.mode == "projected"
+
+    @property
+    def measured_wrench(self) -> bool:
+        return self.structure.mode == "wrench"
 
     @property
     def n_rows(self) -> int:

@@ -27,11 +27,19 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
   joints); a term a joint does not have is a zero column, so its parameter is fixed at 0
   (it is not a base parameter) and :meth:`ModelStructure.terms_of` lists the real ones.
 
-The full parameter vector is ``[π (10 · n_bodies), terms of joint 1, terms of joint 2, …]``.
-Which rows of the equation are used (the "row map") is chosen by ``rows``:
+* Drive terms (``drives``, :class:`~.extra_terms.DriveTerm`; empty here, a transmission's
+  friction, motor inertia and springs): a column g_d f_{d,p}(θ, θ̇, θ̈) on every kept row,
+  one parameter coupling several rows.
+
+The full parameter vector is ``[π (10 · n_bodies), drive terms, terms of joint 1, terms of
+joint 2, …]``; π and the drive terms are the *block* columns (:meth:`ModelStructure.block_regressor`),
+folded densely, the joint terms sit on their joint's row only.
+Which rows of the equation are used (the "row map", :mod:`.rowmap`) is chosen by ``rows``:
 ``"actuated"`` keeps the actuated joints' rows (fixed-base arms), ``"all"`` keeps all
 nv rows with τ_full = Sᵀ τ (a floating base in flight; contact maps come with the
-contact module).
+contact module, coupling matrices with the transmission module). The structure's arrays
+(Q, V, A) are mapped to Pinocchio's by :meth:`ModelStructure.pinocchio_state` (the
+identity here; q = Gθ + q₀ for a transmission).
 """
 
 from __future__ import annotations
@@ -129,6 +137,12 @@ class ModelStructure:
     stribeck_velocity: dict | None = None
     rest_velocity: dict | None = None
     labels: list[str] = field(init=False)
+    #: drive terms (coupled columns, module docstring); set by :class:`~.transmission.TransmissionStructure`
+    drives = ()  # not a dataclass field
+    #: Pinocchio regressor columns of the identified bodies (None: every body)
+    _body_cols = None
+    #: the row map, when not the row selection of ``rows`` (:attr:`row_map`)
+    _map = None
 
     def __post_init__(self) -> None:
         r = self.robot
@@ -177,8 +191,17 @@ class ModelStructure:
         return 10 * self.robot.n_bodies
 
     @property
+    def n_drive_params(self) -> int:
+        return sum(d.n_params for d in self.drives)
+
+    @property
+    def n_block_params(self) -> int:
+        """Columns of the dense block: bodies and drive terms (:meth:`block_regressor`)."""
+        return self.n_body_params + self.n_drive_params
+
+    @property
     def n_params(self) -> int:
-        return self.n_body_params + len(self.joint_terms) * self.robot.n_actuated
+        return self.n_block_params + len(self.joint_terms) * self.robot.n_actuated
 
     @property
     def n_rows(self) -> int:
@@ -198,8 +221,14 @@ class ModelStructure:
     @property
     def row_map(self) -> RowMap:
         """The map from the nv rows of the equations of motion to the kept rows
-        (:class:`~.rowmap.ActuatedRows`: the actuated rows, or all rows)."""
-        return ActuatedRows(self._row_idx, tuple(self.row_names))
+        (:class:`~.rowmap.ActuatedRows`: the actuated rows, or all rows; a subclass's own map
+        otherwise, e.g. Gᵀ of a transmission)."""
+        return self._map if self._map is not None else ActuatedRows(self._row_idx, tuple(self.row_names))
+
+    @property
+    def measured_wrench(self) -> bool:
+        """True when measured contact wrenches are on the known side (:attr:`row_map`)."""
+        return self.row_map.measured_wrench
 
     def terms_of(self, joint: str) -> tuple[str, ...]:
         """The joint terms ``joint`` really has (a subset of ``joint_terms``)."""
@@ -224,8 +253,32 @@ class ModelStructure:
         return float(eps.get(joint, 0.0)) if isinstance(eps, Mapping) else float(eps)
 
     def joint_term_index(self, joint: str, term: str) -> int:
-        k = list(self.robot.actuated_joints).index(joint)
-        return self.n_body_params + k * len(self.joint_terms) + self.joint_terms.index(term)
+        """Index of joint term ``term`` of actuated joint ``joint``, or of parameter ``term``
+        (fv, fc, offset, inertia, k, k_rest) of drive ``joint``."""
+        if term in self.joint_terms and joint in self.robot.actuated_joints:
+            k = list(self.robot.actuated_joints).index(joint)
+            return self.n_block_params + k * len(self.joint_terms) + self.joint_terms.index(term)
+        label = f"{joint}.{term}"
+        try:
+            return self.labels.index(label, self.n_body_params)
+        except ValueError:
+            raise RobotModelError(f"no parameter '{label}'; joint and drive parameters are "
+                                  f"{self.labels[self.n_body_params:]}") from None
+
+    def drive_slices(self) -> list[slice]:
+        """Parameter slice of each drive, in ``drives`` order."""
+        out, c = [], self.n_body_params
+        for d in self.drives:
+            out.append(slice(c, c + d.n_params))
+            c += d.n_params
+        return out
+
+    def drive_values(self, params: np.ndarray) -> dict[str, dict[str, float]]:
+        """Drive parameters of a parameter vector, by drive name (empty without drives)."""
+        return {
+            d.name: dict(zip(d.param_names, map(float, np.asarray(params)[s])))
+            for d, s in zip(self.drives, self.drive_slices())
+        }
 
     def prior(self) -> np.ndarray:
         """The model's own parameters: URDF inertials, zero friction, model armature."""
@@ -257,6 +310,11 @@ class ModelStructure:
         A = r.full_velocity(traj.a, traj.base_a)
         return Q, V, A
 
+    def pinocchio_state(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pinocchio (Q, V, A) of the model for the structure's arrays (from :meth:`state`):
+        the identity here; a transmission maps its coordinates to the tree."""
+        return Q, V, A
+
     def target(self, traj: Trajectory) -> np.ndarray:
         """Measured effort on the kept rows, shape (N, n_rows)."""
         r = self.robot
@@ -269,12 +327,22 @@ class ModelStructure:
         return y
 
     def body_regressor(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Rigid-body block, shape (N, n_rows, 10·n_bodies). One Pinocchio call per sample."""
+        """Rigid-body block M Y(q, v, v̇), shape (N, n_rows, 10·n_bodies): Pinocchio's regressor
+        at :meth:`pinocchio_state`, one call per sample, on the identified bodies' columns, mapped
+        by a constant :attr:`row_map` (a per-sample map is applied when folding: here its kept rows)."""
         N = Q.shape[0]
         Wb = np.empty((N, self.n_rows, self.n_body_params)) if out is None else out[:N]
+        Q, V, A = self.pinocchio_state(Q, V, A)
         model, data, f = self.robot.model, self.robot.data, pin.computeJointTorqueRegressor
+        rm = self.row_map
+        if self._body_cols is not None or not (rm.selects_rows or rm.per_sample):
+            cols = slice(None) if self._body_cols is None else self._body_cols
+            Y = np.empty((N, model.nv, self.n_body_params))
+            for i in range(N):
+                Y[i] = f(model, data, Q[i], V[i], A[i])[:, cols]
+            Wb[...] = rm.apply(Y)
         # zip over row views and `w[...] =` keep the Python work per sample to the call itself
-        if self.n_rows == self.robot.nv:
+        elif self.n_rows == self.robot.nv:
             for w, q, v, a in zip(Wb, Q, V, A):
                 w[...] = f(model, data, q, v, a)
         else:
@@ -282,6 +350,26 @@ class ModelStructure:
             for w, q, v, a in zip(Wb, Q, V, A):
                 w[...] = f(model, data, q, v, a)[rows]
         return Wb
+
+    def drive_columns(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """Drive-term block (N, n_rows, n_drive_params): the column of parameter p of drive d is
+        g_d f_{d,p}(Q, V, A) on the kept rows (the structure's arrays, e.g. coordinates θ)."""
+        N = np.atleast_2d(Q).shape[0]
+        out = np.zeros((N, self.n_rows, self.n_drive_params))
+        nb = self.n_body_params
+        for d, s in zip(self.drives, self.drive_slices()):
+            F = d.features(Q, V, A, self.coulomb_smoothing)  # (N, n_p)
+            out[:, :, s.start - nb : s.stop - nb] = d.g[self._row_idx][None, :, None] * F[:, None, :]
+        return out
+
+    def block_regressor(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The dense column block [bodies | drive terms], shape (N, n_rows, n_block_params)."""
+        N = Q.shape[0]
+        W = np.empty((N, self.n_rows, self.n_block_params)) if out is None else out[:N]
+        self.body_regressor(Q, V, A, out=W[:, :, : self.n_body_params])
+        if self.drives:
+            W[:, :, self.n_body_params :] = self.drive_columns(Q, V, A)
+        return W
 
     def row_body_columns(self) -> list[tuple[int, int]]:
         """Per kept row, the column range (c0, c1) of the body block that can be non-zero.
@@ -351,14 +439,15 @@ class ModelStructure:
         return self._act_row
 
     def evaluate(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Full regressor of N samples, shape (N, n_rows, n_params)."""
+        """Full regressor of N samples at the structure's arrays (:meth:`state`), shape (N, n_rows, n_params)."""
+        Q, V, A = np.atleast_2d(Q), np.atleast_2d(V), np.atleast_2d(A)
         N = Q.shape[0]
         W = np.zeros((N, self.n_rows, self.n_params))
-        self.body_regressor(Q, V, A, out=W[:, :, : self.n_body_params])
+        self.block_regressor(Q, V, A, out=W[:, :, : self.n_block_params])
         F = self.joint_features(V, A)
         nt = len(self.joint_terms)
         for k, row in enumerate(self._act_row):
-            c = self.n_body_params + k * nt
+            c = self.n_block_params + k * nt
             W[:, row, c : c + nt] = F[:, k]
         return W
 

@@ -15,15 +15,17 @@ Pinocchio's joint-torque regressor Y(q, v, v̇) (τ_q = Y π)
     τ_θ = Gᵀ Y(Gθ + q₀, Gθ̇, Gθ̈) π + Σ_d g_d f_d,
 
 where f_d are the drive terms of :mod:`.extra_terms` (friction, motor inertia and springs
-on drive coordinates s_d = g_dᵀθ). :class:`TransmissionStructure` exposes this linear
-model with the interface of :class:`~sensorless.regressor.ModelStructure`, in coordinate
-space: ``state(traj)`` returns (θ, θ̇, θ̈) and ``evaluate`` takes them. Its ``robot`` is
-a :class:`CoordinateRobot`, a Robot-like view whose joints are the coordinates, so
-``base_parameters``, ``compress`` and ``identify`` work on it unchanged.
+on drive coordinates s_d = g_dᵀθ). :class:`TransmissionStructure` is a
+:class:`~sensorless.regressor.ModelStructure` in coordinate space made of three parts:
 
-The drive terms couple several equation rows through one parameter, so there is no
-sparse per-joint block: ``body_regressor`` returns the dense regressor (all columns) and
-``joint_features`` is empty (``compress`` folds it with the dense path).
+* its ``robot``, a :class:`CoordinateRobot` (a Robot-like view whose joints are the
+  coordinates), so ``state(traj)`` returns (θ, θ̇, θ̈) and ``target`` the coordinates' forces;
+* the coordinate → tree state map ``pinocchio_state`` (q = Gθ + q₀, v = Gθ̇, v̇ = Gθ̈);
+* the row map Gᵀ (:class:`~.rowmap.TransmissionRows`) and the drive terms (``drives``).
+
+``evaluate``, ``compress``, ``base_parameters`` and ``identify`` are ModelStructure's. The
+drive terms couple several equation rows through one parameter, so they are dense block
+columns next to the bodies (``block_regressor``) and there are no per-joint terms.
 """
 
 from __future__ import annotations
@@ -33,12 +35,11 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..data.trajectory import Trajectory
-from ..errors import DataError, JointNameError, RobotModelError
+from ..errors import JointNameError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Actuation, Robot
 from .extra_terms import DriveTerm
-from .rowmap import RowMap, TransmissionRows
+from .rowmap import TransmissionRows
 from .terms import ModelStructure
 
 __all__ = ["CoordinateRobot", "TransmissionStructure", "add_body_joint", "coupling_matrix"]
@@ -296,16 +297,11 @@ class TransmissionStructure(ModelStructure):
         for d in self.drives:
             self.labels += d.labels
         self._row_idx = np.array([coordinates.index(r) for r in rows], dtype=int)
-        self._act = self._row_idx
-        self._act_row = np.zeros(0, dtype=int)  # no per-joint term block: drive terms are dense columns
+        self._act = self._row_idx  # the kept coordinates are the actuated ones, row k is coordinate k's
+        self._act_row = np.arange(len(rows))
         cols = self.robot.body_indices
-        self._tree_cols = (10 * cols[:, None] + np.arange(10)[None, :]).ravel()
-        self._rows = TransmissionRows.from_coupling(G, self._row_idx, coordinates)  # Gᵀ on the kept rows
-        self._drive_slices = []
-        c = self.n_body_params
-        for d in self.drives:
-            self._drive_slices.append(slice(c, c + d.n_params))
-            c += d.n_params
+        self._body_cols = (10 * cols[:, None] + np.arange(10)[None, :]).ravel()
+        self._map = TransmissionRows.from_coupling(G, self._row_idx, coordinates)  # Gᵀ on the kept rows
 
     @staticmethod
     def _induced_limits(tree: Robot, G: np.ndarray, offset: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -324,32 +320,7 @@ class TransmissionStructure(ModelStructure):
         hi = np.where(np.isfinite(hi), hi, np.pi)
         return lo, hi
 
-    # ---- sizes (n_body_params, n_rows, row_names, prior, state: ModelStructure's on the coordinate robot) ----
-    @property
-    def n_params(self) -> int:
-        return self.n_body_params + sum(d.n_params for d in self.drives)
-
-    @property
-    def row_map(self) -> RowMap:
-        """Gᵀ on the kept coordinates (:class:`~.rowmap.TransmissionRows`)."""
-        return self._rows
-
-    def joint_term_index(self, joint: str, term: str) -> int:
-        """Index of drive parameter ``term`` (fv, fc, offset, inertia, k, k_rest) of drive ``joint``."""
-        label = f"{joint}.{term}"
-        try:
-            return self.labels.index(label, self.n_body_params)
-        except ValueError:
-            raise RobotModelError(f"no parameter '{label}'; drive parameters are {self.labels[self.n_body_params:]}") from None
-
-    def drive_values(self, params: np.ndarray) -> dict[str, dict[str, float]]:
-        """Drive parameters of a parameter vector, by drive name."""
-        return {
-            d.name: dict(zip(d.param_names, map(float, np.asarray(params)[s])))
-            for d, s in zip(self.drives, self._drive_slices)
-        }
-
-    # ---- coordinates → tree ---------------------------------------------------------
+    # ---- coordinates → tree (everything else is ModelStructure's on the coordinate robot) ----
     def joint_values(self, theta: np.ndarray) -> np.ndarray:
         """Tree joint positions q = Gθ + q₀, shape (N, n_tree_joints)."""
         return np.atleast_2d(theta) @ self.G.T + self.offset
@@ -362,57 +333,6 @@ class TransmissionStructure(ModelStructure):
             t.full_velocity(np.atleast_2d(dtheta) @ self.G.T),
             t.full_velocity(np.atleast_2d(ddtheta) @ self.G.T),
         )
-
-    # ---- evaluation -------------------------------------------------------------------
-    def target(self, traj: Trajectory) -> np.ndarray:
-        """Measured generalised forces of the kept coordinates, (N, n_rows)."""
-        if traj.tau is None:
-            raise DataError("trajectory has no torque/effort ('tau')", traj.source)
-        return self._ordered(traj).tau[:, self._row_idx].copy()
-
-    def _ordered(self, traj: Trajectory) -> Trajectory:
-        if tuple(traj.joint_names) == self.coordinates:
-            return traj
-        self.robot.joint_order(traj.joint_names, traj.source)
-        return traj.select_joints(list(self.coordinates))
-
-    def tree_regressor(self, theta, dtheta, ddtheta) -> np.ndarray:
-        """Gᵀ-mapped rigid-body block, (N, n_rows, n_body_params). One Pinocchio call per sample."""
-        Q, V, A = self.pinocchio_state(theta, dtheta, ddtheta)
-        model, data, f = self.tree.model, self.tree.data, pin.computeJointTorqueRegressor
-        N = Q.shape[0]
-        Y = np.empty((N, self.tree.nv, len(self._tree_cols)))
-        cols = self._tree_cols
-        for i in range(N):
-            Y[i] = f(model, data, Q[i], V[i], A[i])[:, cols]
-        return self._rows.apply(Y)
-
-    def drive_regressor(self, theta, dtheta, ddtheta) -> np.ndarray:
-        """Drive-term block, (N, n_rows, n_drive_params): column of term p of drive d is g_d · feature_p."""
-        N = np.atleast_2d(theta).shape[0]
-        out = np.zeros((N, self.n_rows, self.n_params - self.n_body_params))
-        nb = self.n_body_params
-        for d, s in zip(self.drives, self._drive_slices):
-            F = d.features(theta, dtheta, ddtheta, self.coulomb_smoothing)  # (N, n_p)
-            out[:, :, s.start - nb : s.stop - nb] = d.g[self._row_idx][None, :, None] * F[:, None, :]
-        return out
-
-    def evaluate(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Full regressor (N, n_rows, n_params) at coordinate arrays (θ, θ̇, θ̈)."""
-        Q, V, A = np.atleast_2d(Q), np.atleast_2d(V), np.atleast_2d(A)
-        W = np.empty((Q.shape[0], self.n_rows, self.n_params))
-        W[:, :, : self.n_body_params] = self.tree_regressor(Q, V, A)
-        W[:, :, self.n_body_params :] = self.drive_regressor(Q, V, A)
-        return W
-
-    def body_regressor(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """The *dense* regressor (all n_params columns): drive terms couple rows, so they
-        have no per-joint block. ``out`` is used only when it has n_params columns."""
-        W = self.evaluate(Q, V, A)
-        if out is not None and out.shape[1:] == W.shape[1:] and out.shape[0] >= W.shape[0]:
-            out[: W.shape[0]] = W
-            return out[: W.shape[0]]
-        return W
 
     @classmethod
     def from_settings(cls, tree: Robot, settings: Mapping, **kwargs) -> "TransmissionStructure":
