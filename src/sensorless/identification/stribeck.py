@@ -67,6 +67,7 @@ class StribeckCandidates:
     row_names = property(lambda self: self.structure.row_names)
     row_map = property(lambda self: self.structure.row_map)
     n_body_params = property(lambda self: self.structure.n_body_params)
+    n_block_params = property(lambda self: self.structure.n_block_params)
     actuated_rows = property(lambda self: self.structure.actuated_rows)
 
     @property
@@ -76,7 +77,7 @@ class StribeckCandidates:
 
     @property
     def n_params(self) -> int:
-        return self.n_body_params + self.structure.robot.n_actuated * self.n_terms
+        return self.n_block_params + self.structure.robot.n_actuated * self.n_terms
 
     def row_body_columns(self):
         return self.structure.row_body_columns()
@@ -84,8 +85,8 @@ class StribeckCandidates:
     def state(self, traj):
         return self.structure.state(traj)
 
-    def body_regressor(self, Q, V, A, out=None):
-        return self.structure.body_regressor(Q, V, A, out=out)
+    def block_regressor(self, Q, V, A, out=None):
+        return self.structure.block_regressor(Q, V, A, out=out)
 
     def target(self, traj):
         return self.structure.target(traj)
@@ -104,7 +105,7 @@ class StribeckCandidates:
     def columns(self, choice: np.ndarray) -> np.ndarray:
         """Candidate-layout column of each parameter of the wrapped structure, with candidate
         ``choice[k]`` as the Stribeck column of searched joint k."""
-        s, nb, nt = self.structure, self.n_body_params, len(self.structure.joint_terms)
+        s, nb, nt = self.structure, self.n_block_params, len(self.structure.joint_terms)
         idx = list(range(nb))
         for k in range(s.robot.n_actuated):
             start = nb + k * self.n_terms
@@ -162,7 +163,7 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
             cols = cand.columns(choice)
             own = int(cols[s.joint_term_index(joints[k], "stribeck")])
             X = np.array([cols[i] for i in base if cols[i] != own])
-            start = cand.n_body_params + k * cand.n_terms + len(s.joint_terms)
+            start = cand.n_block_params + k * cand.n_terms + len(s.joint_terms)
             Z = np.arange(start, start + cand.grid.shape[1])
             P = _pinv_psd(A[np.ix_(X, X)])
             AXZ = A[np.ix_(X, Z)]
