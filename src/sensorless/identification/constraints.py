@@ -27,7 +27,7 @@ Constraints (``Ĵ`` scaled, ``J`` physical):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Protocol, Sequence
+from typing import Any, Iterator, Mapping, Protocol, Sequence
 
 import cvxpy as cp
 import numpy as np
@@ -145,6 +145,12 @@ class LmiContext:
     def scaled_prior_pseudo_inertia(self, k: int) -> np.ndarray:
         return pseudo_inertia(self.x0[self.body_slice(k)])
 
+    def bounded_bodies(self) -> Iterator[tuple[int, BoundingEllipsoid]]:
+        """``(k, ellipsoid)`` for every body that has a bounding ellipsoid, in body order."""
+        for k, b in enumerate(self.body_names):
+            if (E := self.ellipsoids.get(b)) is not None:
+                yield k, E
+
     def scaled_Q(self, k: int) -> np.ndarray | None:
         """``T Q T / m_k`` for body ``k`` (so ``tr(Ĵ Q̂) = tr(J Q) / m_k``), None without ellipsoid."""
         E = self.ellipsoids.get(self.body_names[k])
@@ -190,11 +196,9 @@ class DensityRealizable:
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
         out = []
-        for k in range(ctx.n_bodies):
-            Q = ctx.scaled_Q(k)
-            if Q is not None:
-                q = _BASIS16.T @ Q.ravel()  # tr(Ĵ Q̂) = qᵀ x_k
-                out.append(q @ x[ctx.body_slice(k)] >= 0)
+        for k, _ in ctx.bounded_bodies():
+            q = _BASIS16.T @ ctx.scaled_Q(k).ravel()  # tr(Ĵ Q̂) = qᵀ x_k
+            out.append(q @ x[ctx.body_slice(k)] >= 0)
         return out
 
 
@@ -207,10 +211,7 @@ class ComInEllipsoid:
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
         out = []
-        for k, b in enumerate(ctx.body_names):
-            E = ctx.ellipsoids.get(b)
-            if E is None:
-                continue
+        for k, E in ctx.bounded_bodies():
             ell = ctx.body_length[k]
             # π: m = m_s m̂, h = m_s ℓ ĥ  →  ‖Σ^{-1/2}(ℓ ĥ − m̂ c)‖ ≤ m̂
             Wh = (E.rotation / E.semi_axes).T  # Σ^{-1/2} up to rotation
