@@ -195,11 +195,8 @@ class DensityRealizable:
     hint: str = "enlarge the bounding ellipsoids (ellipsoid margin, contain_prior=True) or pass ellipsoids=False"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
-        out = []
-        for k, _ in ctx.bounded_bodies():
-            q = _BASIS16.T @ ctx.scaled_Q(k).ravel()  # tr(Ĵ Q̂) = qᵀ x_k
-            out.append(q @ x[ctx.body_slice(k)] >= 0)
-        return out
+        # tr(Ĵ Q̂) = qᵀ x_k with q = B₁₆ᵀ vec(Q̂)
+        return [(_BASIS16.T @ ctx.scaled_Q(k).ravel()) @ x[ctx.body_slice(k)] >= 0 for k, _ in ctx.bounded_bodies()]
 
 
 @dataclass
@@ -210,14 +207,13 @@ class ComInEllipsoid:
     hint: str = "enlarge the bounding ellipsoids"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
-        out = []
-        for k, E in ctx.bounded_bodies():
-            ell = ctx.body_length[k]
-            # π: m = m_s m̂, h = m_s ℓ ĥ  →  ‖Σ^{-1/2}(ℓ ĥ − m̂ c)‖ ≤ m̂
-            Wh = (E.rotation / E.semi_axes).T  # Σ^{-1/2} up to rotation
-            xk = x[ctx.body_slice(k)]
-            out.append(cp.norm(Wh @ (ell * xk[1:4] - E.center * xk[0])) <= xk[0])
-        return out
+        return [self._cone(x[ctx.body_slice(k)], ctx.body_length[k], E) for k, E in ctx.bounded_bodies()]
+
+    @staticmethod
+    def _cone(xk: cp.Expression, ell: float, E: BoundingEllipsoid) -> cp.Constraint:
+        """One body's cone; π: m = m_s m̂, h = m_s ℓ ĥ  →  ‖Σ^{-1/2}(ℓ ĥ − m̂ c)‖ ≤ m̂."""
+        Wh = (E.rotation / E.semi_axes).T  # Σ^{-1/2} up to rotation
+        return cp.norm(Wh @ (ell * xk[1:4] - E.center * xk[0])) <= xk[0]
 
 
 @dataclass
