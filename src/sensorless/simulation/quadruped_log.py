@@ -21,7 +21,7 @@ from ..robot import Robot
 from .mujoco_scene import MujocoScene, mj_to_pin_state
 from .quadruped_control import References
 from .quadruped_plans import _Plan
-from .synthetic import TruthModel
+from .synthetic import TruthModel, add_white_noise
 
 #: the joint terms the simulated quadruped has (and its logs' truth parameters are laid out in)
 JOINT_TERMS = ("fv", "fc", "offset", "armature")
@@ -183,21 +183,17 @@ def assemble(ep: Episode, noise: NoiseSpec, rng: np.random.Generator) -> tuple[T
     fric = np.zeros((N, len(r.joint_names)))
     fric[:, cols] = L["fric"]
     true = dict(zip(_STATE, (t, q_true, v_true, a_true, tau_true, base_q, base_v, base_a)))
-
-    def noisy(x, s):
-        return x + rng.normal(size=x.shape) * s if s > 0 else x.copy()
-
-    meas = {k: noisy(true[k], getattr(noise, k)) for k in ("q", "v", "tau")}  # drawn in this order
+    meas = {k: add_white_noise(true[k], getattr(noise, k), rng) for k in ("q", "v", "tau")}  # drawn in this order
     bq = base_q.copy()
-    bq[:, :3] = noisy(base_q[:, :3], noise.base_position)
+    bq[:, :3] = add_white_noise(base_q[:, :3], noise.base_position, rng)
     if noise.base_orientation > 0 and N:
         bq[:, 3:] = _noisy_orientation(base_q[:, 3:], noise.base_orientation, rng)
     bv = base_v.copy()
-    bv[:, :3] = noisy(base_v[:, :3], noise.base_linear_velocity)
-    bv[:, 3:] = noisy(base_v[:, 3:], noise.base_angular_velocity)
+    bv[:, :3] = add_white_noise(base_v[:, :3], noise.base_linear_velocity, rng)
+    bv[:, 3:] = add_white_noise(base_v[:, 3:], noise.base_angular_velocity, rng)
     # accelerometer: specific force Rᵀ(p̈ − g) = a_lin + ω × v_b − Rᵀg (see sensorless.data.imu)
     specific_force = base_a[:, :3] + np.cross(base_v[:, 3:], base_v[:, :3]) - gravity_in_base(base_q)
-    imu_acc = noisy(specific_force, noise.imu_acc)
+    imu_acc = add_white_noise(specific_force, noise.imu_acc, rng)
 
     jerr = q_true - ref.q[L["idx"]] if N else np.zeros((0, 1))
     perr = base_q[:, :3] - ref.p[L["idx"]] if N else np.zeros((0, 3))
