@@ -20,7 +20,7 @@ and :func:`fit_current_model` for τ = K1 i − Fv q̇ − Fc sgn(q̇).
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,6 +79,14 @@ def _prepare(arrays: dict[str, np.ndarray], joint_names: Sequence[str],
             raise ShapeMismatchError(f"valid mask has shape {np.shape(valid)}, expected ({shape[0]},) or {shape}")
         out["valid"] = np.ascontiguousarray(v)
     return out, names
+
+
+def _joint_columns(a: dict[str, np.ndarray], *keys: str) -> Iterator[tuple]:
+    """For each joint j of :func:`_prepare`'s arrays ``a``: ``(j, a[k][valid, j] for k in keys)``,
+    the samples of column j that its fit uses."""
+    for j in range(a["valid"].shape[1]):
+        m = a["valid"][:, j]
+        yield (j, *(a[k][m, j] for k in keys))
 
 
 def unsaturated(command, limit, margin: float = 0.98) -> np.ndarray:
@@ -255,11 +263,16 @@ def _masked_metrics(pred, y, valid) -> tuple[np.ndarray, np.ndarray]:
     return over, rmse
 
 
-def _finish(model: MotorModel, tau, dq, y, coulomb: bool, extra: list[dict], valid) -> MotorModel:
-    pred = model.delta_q(tau, dq, coulomb=coulomb)
-    over, rmse = _masked_metrics(pred, y, valid)
+def _motor_model(P: np.ndarray, names, a: dict[str, np.ndarray], coulomb: bool, extra: list[dict], method: str,
+                 info: dict | None = None) -> MotorModel:
+    """The :class:`MotorModel` of per-joint rows ``P`` = (Kτ, Kv, Kc), its info completed with the
+    fit's metrics on :func:`_prepare`'s arrays ``a`` (and ``extra``, one dict per joint)."""
+    model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method=method, info=info or {})
+    valid = a["valid"]
+    pred = model.delta_q(a["tau"], a["dq"], coulomb=coulomb)
+    over, rmse = _masked_metrics(pred, a["delta_q"], valid)
     model.info = {
-        "n_samples": int(tau.shape[0]),
+        "n_samples": int(a["tau"].shape[0]),
         "n_valid": dict(zip(model.joint_names, valid.sum(axis=0).tolist())),
         "coulomb": coulomb,
         "over_estimation_fraction": dict(zip(model.joint_names, over.tolist())),
@@ -278,15 +291,12 @@ def fit_least_squares(tau, dq, delta_q, coulomb: bool = False, joint_names: Sequ
                       valid=None) -> MotorModel:
     """Ordinary least squares of Δq on [τ, q̇ (, sgn q̇)] per joint (``valid``: see :func:`_prepare`)."""
     a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names, valid)
-    n = len(names)
-    P = np.zeros((n, 3))
-    for j in range(n):
-        m = a["valid"][:, j]
-        X = _features(a["tau"][m, j], a["dq"][m, j], coulomb)
+    P = np.zeros((len(names), 3))
+    for j, t, v, y in _joint_columns(a, "tau", "dq", "delta_q"):
+        X = _features(t, v, coulomb)
         _check_rank(X, names[j], "Δq = Kτ τ + Kv q̇" + (" + Kc sgn q̇" if coulomb else ""))
-        P[j] = _unpack(_scaled_lstsq(X, a["delta_q"][m, j]), coulomb)
-    model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method="least_squares")
-    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, [], a["valid"])
+        P[j] = _unpack(_scaled_lstsq(X, y), coulomb)
+    return _motor_model(P, names, a, coulomb, [], "least_squares")
 
 
 def fit_asymmetric(
@@ -294,20 +304,17 @@ def fit_asymmetric(
 ) -> MotorModel:
     """Asymmetric-penalty fit (over-estimation of |Δq| weighted ``weight`` times), per joint."""
     a, names = _prepare({"tau": tau, "dq": dq, "delta_q": delta_q}, joint_names, valid)
-    n = len(names)
-    P = np.zeros((n, 3))
+    P = np.zeros((len(names), 3))
     extra = []
-    for j in range(n):
-        m = a["valid"][:, j]
-        X = _features(a["tau"][m, j], a["dq"][m, j], coulomb)
+    for j, t, v, y in _joint_columns(a, "tau", "dq", "delta_q"):
+        X = _features(t, v, coulomb)
         _check_rank(X, names[j], "the asymmetric motor model")
-        sol = asymmetric_least_squares(X, a["delta_q"][m, j], weight)
+        sol = asymmetric_least_squares(X, y, weight)
         if not sol.converged:
             raise SolverError(f"joint '{names[j]}': asymmetric fit did not converge in {sol.iterations} Newton steps")
         P[j] = _unpack(sol.theta, coulomb)
         extra.append({"iterations": sol.iterations, "seconds": sol.seconds})
-    model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method=f"asymmetric(w={weight:g})", info={"weight": weight})
-    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, extra, a["valid"])
+    return _motor_model(P, names, a, coulomb, extra, f"asymmetric(w={weight:g})", {"weight": weight})
 
 
 def fit_two_stage(
@@ -329,9 +336,7 @@ def fit_two_stage(
     thr = 0.05 * vmax if v_threshold is None else np.broadcast_to(np.asarray(v_threshold, float), (n,))
     P = np.zeros((n, 3))
     extra = []
-    for j in range(n):
-        m = a["valid"][:, j]
-        t, v, y = a["tau"][m, j], a["dq"][m, j], a["delta_q"][m, j]
+    for j, t, v, y in _joint_columns(a, "tau", "dq", "delta_q"):
         slow = np.abs(v) < thr[j]
         if slow.sum() < 10 or (~slow).sum() < 10:
             raise ExcitationError(
@@ -346,8 +351,7 @@ def fit_two_stage(
         th2 = _solve(X2, y[~slow] - k_tau * t[~slow], weight)
         P[j] = (k_tau, th2[0], th2[1] if coulomb else 0.0)
         extra.append({"v_threshold": float(thr[j]), "n_slow": int(slow.sum()), "n_moving": int((~slow).sum())})
-    model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method="two_stage" + (f"(w={weight:g})" if weight != 1 else ""))
-    return _finish(model, a["tau"], a["dq"], a["delta_q"], coulomb, extra, a["valid"])
+    return _motor_model(P, names, a, coulomb, extra, "two_stage" + (f"(w={weight:g})" if weight != 1 else ""))
 
 
 def _solve(X: np.ndarray, y: np.ndarray, weight: float) -> np.ndarray:
@@ -361,12 +365,9 @@ def fit_current_model(current, dq, tau, coulomb: bool = True, joint_names: Seque
                       valid=None) -> CurrentModel:
     """τ = K1 i − Fv q̇ − Fc sgn(q̇) by least squares, per joint."""
     a, names = _prepare({"current": current, "dq": dq, "tau": tau}, joint_names, valid)
-    n = len(names)
-    P = np.zeros((n, 3))
+    P = np.zeros((len(names), 3))
     rmse = []
-    for j in range(n):
-        m = a["valid"][:, j]
-        i, v, t = a["current"][m, j], a["dq"][m, j], a["tau"][m, j]
+    for j, i, v, t in _joint_columns(a, "current", "dq", "tau"):
         X = np.column_stack([i, -v] + ([-np.sign(v)] if coulomb else []))
         _check_rank(X, names[j], "τ = K1 i − Fv q̇" + (" − Fc sgn q̇" if coulomb else ""))
         th = _scaled_lstsq(X, t)
@@ -403,9 +404,7 @@ def fit_piecewise_linear(
     shp = (n, 2)
     out = {k: np.zeros(shp) for k in ("c", "s_left", "s_mid", "s_right", "b1", "b2", "k_v")}
     extra = []
-    for j in range(n):
-        m = a["valid"][:, j]
-        t, v, y = a["tau"][m, j], a["dq"][m, j], a["delta_q"][m, j]
+    for j, t, v, y in _joint_columns(a, "tau", "dq", "delta_q"):
         if central_slope is None:
             k_ls = _scaled_lstsq(np.column_stack([t, v]), y)[0]
             lo, hi = 0.0, 3.0 * abs(k_ls)

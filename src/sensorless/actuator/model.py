@@ -48,6 +48,16 @@ def _joint_names(names, n: int, what: str | None = None) -> tuple[str, ...]:
     return names
 
 
+def _per_joint(x, n: int) -> np.ndarray:
+    """``x`` (one value, or one per joint) as a float array of shape (n,)."""
+    return np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy()
+
+
+def _log_columns(n: int, tau, dq, delta_q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``tau``, ``dq``, ``delta_q`` as (N, n) arrays for a model of ``n`` joints (:func:`_cols`)."""
+    return tuple(_cols(a, n, w) for a, w in ((tau, "tau"), (dq, "dq"), (delta_q, "delta_q")))
+
+
 def _cols(x, n: int, what: str) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if x.ndim == 1 and n == 1:
@@ -87,8 +97,8 @@ class MotorModel:
     def __post_init__(self) -> None:
         self.k_tau = np.atleast_1d(np.asarray(self.k_tau, dtype=float))
         n = self.k_tau.size
-        self.k_v = np.broadcast_to(np.asarray(self.k_v, dtype=float), (n,)).copy()
-        self.k_c = np.zeros(n) if self.k_c is None else np.broadcast_to(np.asarray(self.k_c, float), (n,)).copy()
+        self.k_v = _per_joint(self.k_v, n)
+        self.k_c = np.zeros(n) if self.k_c is None else _per_joint(self.k_c, n)
         self.joint_names = _joint_names(self.joint_names, n, "actuator parameters")
 
     @property
@@ -108,7 +118,7 @@ class MotorModel:
         return r / self.k_tau
 
     def over_estimation_fraction(self, tau, dq, delta_q, coulomb: bool = True) -> np.ndarray:
-        tau, dq, delta_q = (_cols(a, self.n, w) for a, w in ((tau, "tau"), (dq, "dq"), (delta_q, "delta_q")))
+        tau, dq, delta_q = _log_columns(self.n, tau, dq, delta_q)
         return over_estimation_fraction(self.delta_q(tau, dq, coulomb), delta_q)
 
     def to_dict(self) -> dict:
@@ -140,8 +150,8 @@ class CurrentModel:
     def __post_init__(self) -> None:
         self.k1 = np.atleast_1d(np.asarray(self.k1, float))
         n = self.k1.size
-        self.fv = np.broadcast_to(np.asarray(self.fv, float), (n,)).copy()
-        self.fc = np.broadcast_to(np.asarray(self.fc, float), (n,)).copy()
+        self.fv = _per_joint(self.fv, n)
+        self.fc = _per_joint(self.fc, n)
         self.joint_names = _joint_names(self.joint_names, n)
 
     def torque(self, current, dq) -> np.ndarray:
@@ -195,7 +205,7 @@ class PiecewiseLinearModel:
                 + (p["s_right"] - p["s_mid"]) * np.maximum(0.0, tau - p["b2"]) + p["k_v"] * dq)
 
     def over_estimation_fraction(self, tau, dq, delta_q) -> np.ndarray:
-        tau, dq, delta_q = (_cols(a, self.n, w) for a, w in ((tau, "tau"), (dq, "dq"), (delta_q, "delta_q")))
+        tau, dq, delta_q = _log_columns(self.n, tau, dq, delta_q)
         return over_estimation_fraction(self.delta_q(tau, dq), delta_q)
 
     def to_dict(self) -> dict:

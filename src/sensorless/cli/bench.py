@@ -9,70 +9,56 @@ import typer
 
 from ..errors import OptionError
 from .common import (
-    write_result,
     ROBOT_HELP,
-    bench_app,
+    bench_command,
     console,
-    guarded,
-    bench_out_option,
 )
 
 
-@bench_app.command("identify")
-@guarded
+@bench_command("identify")
 def bench_identify(
     robot: str = typer.Option("panda", help=ROBOT_HELP),
     samples: str = typer.Option("100000,1000000", help="comma-separated sample counts"),
-    out: Path = bench_out_option("identify"),
-) -> None:
+) -> dict:
     """Identification wall time, peak memory and per-sample cost vs a bare regressor call."""
     from ..benchmarks.identify import bench_identify as run
 
-    res = run(robot, [int(float(s)) for s in samples.split(",")], console=console)
-    write_result(res, out)
+    return run(robot, [int(float(s)) for s in samples.split(",")], console=console)
 
 
-@bench_app.command("dask")
-@guarded
+@bench_command("dask")
 def bench_dask_cmd(
     robot: str = typer.Option("panda", help="example-robot-data name"),
     samples: str = typer.Option("1000000,10000000", help="comma-separated total sample counts"),
     samples_per_file: int = typer.Option(100_000, help="samples per generated Parquet file"),
     workers: int = typer.Option(2, help="LocalCluster worker processes (one thread each)"),
     method: str = typer.Option("ols", help="ols | wls"),
-    out: Path = bench_out_option("dask"),
-) -> None:
+) -> dict:
     """Dask LocalCluster vs single-process identification from generated Parquet logs (deleted afterwards)."""
     from ..benchmarks.fleet import bench_dask
 
     sizes = tuple(int(float(s)) for s in samples.split(","))
-    res = bench_dask(robot, sizes, samples_per_file=samples_per_file, workers=workers, method=method, console=console)
-    write_result(res, out)
+    return bench_dask(robot, sizes, samples_per_file=samples_per_file, workers=workers, method=method, console=console)
 
 
-@bench_app.command("contact")
-@guarded
+@bench_command("contact")
 def bench_contact_cmd(
     samples: int = typer.Option(100_000, help="number of Solo12 stance/trot samples"),
-    out: Path = bench_out_option("contact"),
-) -> None:
+) -> dict:
     """Contact-projected identification: end-to-end time and projector cost vs a pinv loop."""
     from ..benchmarks.identify import bench_contact
 
-    res = bench_contact(samples, console=console)
-    write_result(res, out)
+    return bench_contact(samples, console=console)
 
 
-@bench_app.command("speed")
-@guarded
+@bench_command("speed")
 def bench_speed_cmd(
     samples: int = typer.Option(100_000, help="samples of the in-memory compression log (UR5 and Panda)"),
     memory_sizes: str = typer.Option("100000,1000000", help="comma-separated sizes of the streamed peak-memory runs"),
     contact_samples: int = typer.Option(100_000, help="Solo12 samples for projector vs pinv loop"),
     identify_samples: int = typer.Option(100_000, help="samples of the UR5 log given to `sensorless identify`"),
     repeats: int = typer.Option(3, help="interleaved repetitions (best of)"),
-    out: Path = bench_out_option("speed"),
-) -> None:
+) -> dict:
     """Compression vs a bare regressor call, peak memory, contact projector vs pinv, CLI start-up and identify."""
     from ..benchmarks.speed import bench_speed
 
@@ -82,18 +68,15 @@ def bench_speed_cmd(
         sizes = tuple(int(float(x)) for x in memory_sizes.split(","))
     except ValueError:
         raise OptionError(f"--memory-sizes must be comma-separated sample counts, got '{memory_sizes}'") from None
-    res = bench_speed(n_compress=samples, memory_sizes=sizes, n_contact=contact_samples, n_identify=identify_samples,
-                      repeats=repeats, console=console)
-    write_result(res, out)
+    return bench_speed(n_compress=samples, memory_sizes=sizes, n_contact=contact_samples, n_identify=identify_samples,
+                       repeats=repeats, console=console)
 
 
-@bench_app.command("lmi")
-@guarded
+@bench_command("lmi")
 def bench_lmi_cmd(
     robots: str = typer.Option("solo12,talos", help="comma-separated example-robot-data names"),
     solvers: str = typer.Option("CLARABEL,SCS", help="comma-separated cvxpy solver names"),
-    out: Path = bench_out_option("lmi"),
-) -> None:
+) -> dict:
     """Setup and solve time of the physically consistent (LMI) program from compressed data."""
     from ..benchmarks.lmi import bench_lmi
 
@@ -104,11 +87,10 @@ def bench_lmi_cmd(
                 f"{robot} ({r['n_bodies']} bodies, {r['n_params']} parameters) {solver}: setup {v.get('setup_seconds', float('nan')):.3f} s, "
                 f"solve {v.get('solve_seconds', float('nan')):.3f} s, {v['status']}, consistent {v.get('consistent')}"
             )
-    write_result(res, out)
+    return res
 
 
-@bench_app.command("peers")
-@guarded
+@bench_command("peers")
 def bench_peers_cmd(
     recipe: Path = typer.Option(Path("benchmarks/peers.toml"), help="fixed recipe (TOML); the built-in copy when "
                                 "the default file is absent"),
@@ -116,8 +98,7 @@ def bench_peers_cmd(
     cases: Optional[str] = typer.Option(None, help="comma-separated cases (default: all, main,hard)"),
     variants: str = typer.Option("lmi,ols,lmi_unweighted", help="fits: lmi (CLI defaults, --method lmi), ols "
                                  "(--method ols), lmi_unweighted (--method lmi --weights none), lmi_no_contain_prior"),
-    out: Path = bench_out_option("peers"),
-) -> None:
+) -> dict:
     """UR5 accuracy vs figaroh/rigeo's published figures: perturbed-truth inertials, random Fourier
     excitation, 1 % (main) and 5 %/600 samples (hard) noise; `identify` with its CLI defaults
     (--method lmi and ols). Held-out nRMSE vs the noise-free torque, mean and worst over seeds."""
@@ -140,4 +121,4 @@ def bench_peers_cmd(
                               f"{c[v]['worst_nrmse_percent']:.3f} %, all bodies consistent: {c[v]['all_consistent']}")
         verdict = {True: "[green]PASS[/]", False: "[red]FAIL[/]", None: "—"}[c["passed"]]
         console.print(f"{name:4s} acceptance (lmi ≤ {c['acceptance_percent']} %, consistent): {verdict}; peers: {peers}")
-    write_result(res, out)
+    return res

@@ -361,6 +361,22 @@ def bench_out_option(name: str):
     return typer.Option(Path(f"benchmarks/results/{name}.json"))
 
 
+def bench_command(name: str, results: Optional[str] = None):
+    """Decorator: the (guarded) command ``sensorless benchmark NAME``, given an ``--out`` option
+    (:func:`bench_out_option` of ``results``, default ``name``) to which the result dict the
+    command returns is written (:func:`write_result`); one definition for every benchmark."""
+
+    def deco(fn):
+        @functools.wraps(fn)
+        def run(*args, out: Path, **kwargs) -> None:
+            write_result(fn(*args, **kwargs), out)
+
+        with_out = add_options({"out": (Path, lambda: bench_out_option(results or name))})(run)
+        return bench_app.command(name)(guarded(with_out))
+
+    return deco
+
+
 def experiment_options(out: str, quick: str, seed: str):
     """Decorator: a study's ``--out`` (default ``out``), ``--quick`` / ``--seed`` (help ``quick``,
     ``seed``) and ``--force`` options; one definition for the ``experiment`` commands."""

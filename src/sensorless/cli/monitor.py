@@ -12,17 +12,15 @@ import typer
 
 from ..errors import SensorlessError
 from .common import (
-    write_result,
     model_logs,
     model_preprocessing_options,
     app,
     atomic_outdir,
-    bench_app,
+    bench_command,
     console,
     guarded,
     load_robot_arg,
     path_inputs,
-    bench_out_option,
     force_option,
     lock_option,
     floating_base_option,
@@ -130,16 +128,14 @@ def _cartesian_force(dyn, traj, tau_ext, frame: str, reference: str):
     return ForceEstimate(traj.t, sol.F, ["fx", "fy", "fz"], frame, reference, tau_ext, sol.sigma_min, sol.damping)
 
 
-@bench_app.command("observer")
-@guarded
+@bench_command("observer")
 def bench_observer(
     samples: int = typer.Option(2000, help="streaming steps per robot"),
-    out: Path = bench_out_option("observer"),
-) -> None:
+) -> dict:
     """Per-sample cost of MomentumObserver.step (streaming) and .run (offline) on UR5, Solo12, dVRK PSM."""
     from ..estimation.momentum import benchmark_observer
 
     res = benchmark_observer(samples)
     for name, v in res["robots"].items():
         console.print(f"{name} (n = {v['n']}): step {v['step_us']:.1f} µs/sample, run {v['run_us']:.1f} µs/sample")
-    write_result(res, out)
+    return res

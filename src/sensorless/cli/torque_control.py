@@ -6,8 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import (atomic_outdir, bench_app, bench_out_option, console, experiment_app, experiment_options, guarded,
-                     write_result)
+from .common import atomic_outdir, bench_command, console, experiment_app, experiment_options, guarded
 
 
 @experiment_app.command("torque-control")
@@ -32,15 +31,13 @@ def experiment_torque_control(out: Path, quick: bool, seed: int, force: bool) ->
     console.print(f"wrote {out}/")
 
 
-@bench_app.command("actuator-fit")
-@guarded
+@bench_command("actuator-fit", "actuator_fit")
 def bench_actuator_fit(
     samples: int = typer.Option(10_000_000, help="number of samples of one joint"),
     weight: float = typer.Option(100.0, help="asymmetric weight w"),
     repeats: int = typer.Option(3, help="timed fits (the first one includes buffer allocation)"),
     seed: int = typer.Option(0, help="random seed of the synthetic data"),
-    out: Path = bench_out_option("actuator_fit"),
-) -> None:
+) -> dict:
     """Asymmetric-penalty actuator fit (Newton, exact optimality on the active set): wall time on N samples."""
     from ..benchmarks.actuator import benchmark_asymmetric_fit
     from ..errors import DataError
@@ -53,4 +50,4 @@ def bench_actuator_fit(
         f"{res['iterations']} Newton iterations, over-estimated {100 * res['over_estimation_fraction']:.1f} % "
         f"(target < {res['target_seconds']:.0f} s: {'met' if res['meets_target'] else 'NOT met'})"
     )
-    write_result(res, out)
+    return res

@@ -27,7 +27,7 @@ Constraints (``Ĵ`` scaled, ``J`` physical):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Protocol, Sequence
+from typing import Any, Iterator, Mapping, Protocol, Sequence
 
 import cvxpy as cp
 import numpy as np
@@ -145,6 +145,12 @@ class LmiContext:
     def scaled_prior_pseudo_inertia(self, k: int) -> np.ndarray:
         return pseudo_inertia(self.x0[self.body_slice(k)])
 
+    def bounded_bodies(self) -> Iterator[tuple[int, BoundingEllipsoid]]:
+        """``(k, ellipsoid)`` for every body that has a bounding ellipsoid, in body order."""
+        for k, b in enumerate(self.body_names):
+            if (E := self.ellipsoids.get(b)) is not None:
+                yield k, E
+
     def scaled_Q(self, k: int) -> np.ndarray | None:
         """``T Q T / m_k`` for body ``k`` (so ``tr(Ĵ Q̂) = tr(J Q) / m_k``), None without ellipsoid."""
         E = self.ellipsoids.get(self.body_names[k])
@@ -189,13 +195,8 @@ class DensityRealizable:
     hint: str = "enlarge the bounding ellipsoids (ellipsoid margin, contain_prior=True) or pass ellipsoids=False"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
-        out = []
-        for k in range(ctx.n_bodies):
-            Q = ctx.scaled_Q(k)
-            if Q is not None:
-                q = _BASIS16.T @ Q.ravel()  # tr(Ĵ Q̂) = qᵀ x_k
-                out.append(q @ x[ctx.body_slice(k)] >= 0)
-        return out
+        # tr(Ĵ Q̂) = qᵀ x_k with q = B₁₆ᵀ vec(Q̂)
+        return [(_BASIS16.T @ ctx.scaled_Q(k).ravel()) @ x[ctx.body_slice(k)] >= 0 for k, _ in ctx.bounded_bodies()]
 
 
 @dataclass
@@ -206,17 +207,13 @@ class ComInEllipsoid:
     hint: str = "enlarge the bounding ellipsoids"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
-        out = []
-        for k, b in enumerate(ctx.body_names):
-            E = ctx.ellipsoids.get(b)
-            if E is None:
-                continue
-            ell = ctx.body_length[k]
-            # π: m = m_s m̂, h = m_s ℓ ĥ  →  ‖Σ^{-1/2}(ℓ ĥ − m̂ c)‖ ≤ m̂
-            Wh = (E.rotation / E.semi_axes).T  # Σ^{-1/2} up to rotation
-            xk = x[ctx.body_slice(k)]
-            out.append(cp.norm(Wh @ (ell * xk[1:4] - E.center * xk[0])) <= xk[0])
-        return out
+        return [self._cone(x[ctx.body_slice(k)], ctx.body_length[k], E) for k, E in ctx.bounded_bodies()]
+
+    @staticmethod
+    def _cone(xk: cp.Expression, ell: float, E: BoundingEllipsoid) -> cp.Constraint:
+        """One body's cone; π: m = m_s m̂, h = m_s ℓ ĥ  →  ‖Σ^{-1/2}(ℓ ĥ − m̂ c)‖ ≤ m̂."""
+        Wh = (E.rotation / E.semi_axes).T  # Σ^{-1/2} up to rotation
+        return cp.norm(Wh @ (ell * xk[1:4] - E.center * xk[0])) <= xk[0]
 
 
 @dataclass

@@ -24,7 +24,7 @@ from ..data.trajectory import Trajectory
 from ..errors import SensorlessError
 from ..excitation import random_fourier
 from ..robot import Robot
-from .synthetic import TruthModel
+from .synthetic import TruthModel, add_white_noise
 
 __all__ = ["Push", "PushTruth", "simulate_pushes"]
 
@@ -122,12 +122,9 @@ def simulate_pushes(
         q = pin.integrate(model, q, dt * v)
     rng = np.random.default_rng(seed + 1)
     arr = {k: np.array(v_) for k, v_ in logs.items()}
-
-    def noisy(x, s):
-        return x + s * rng.normal(size=x.shape) if s > 0 else x
-
     traj = Trajectory(
-        t=arr["t"], q=noisy(arr["q"], noise_q), v=noisy(arr["v"], noise_v), tau=noisy(arr["tau"], noise_tau),
+        t=arr["t"], q=add_white_noise(arr["q"], noise_q, rng), v=add_white_noise(arr["v"], noise_v, rng),
+        tau=add_white_noise(arr["tau"], noise_tau, rng),
         joint_names=r.joint_names, source=f"<pushed {r.name} seed={seed}>",
         units={"t": "s", "q": "rad", "v": "rad/s", "tau": "N·m"},
     )

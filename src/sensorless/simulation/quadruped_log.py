@@ -21,10 +21,14 @@ from ..robot import Robot
 from .mujoco_scene import MujocoScene, mj_to_pin_state
 from .quadruped_control import References
 from .quadruped_plans import _Plan
-from .synthetic import TruthModel
+from .synthetic import TruthModel, add_white_noise
 
 #: the joint terms the simulated quadruped has (and its logs' truth parameters are laid out in)
 JOINT_TERMS = ("fv", "fc", "offset", "armature")
+#: the rigid-body state arrays a :class:`SimulationTruth` shares, by name, with a :class:`Trajectory`
+_STATE = ("t", "q", "v", "a", "tau", "base_q", "base_v", "base_a")
+#: its other per-sample arrays (what :meth:`SimulationTruth.take` slices besides the state)
+_CONTACT = ("contact", "contact_forces", "contact_points", "foot_height", "friction_torque")
 
 __all__ = ["Episode", "NoiseSpec", "RunOutcome", "SimulationTruth", "assemble"]
 
@@ -102,36 +106,14 @@ class SimulationTruth(RunOutcome):
     def trajectory(self) -> Trajectory:
         """The noiseless log (q, v, a, tau, base state, contact flags) as a Trajectory."""
         return Trajectory(
-            t=self.t,
-            q=self.q,
-            v=self.v,
-            a=self.a,
-            tau=self.tau,
-            base_q=self.base_q,
-            base_v=self.base_v,
-            base_a=self.base_a,
+            **{k: getattr(self, k) for k in _STATE},
             joint_names=self.truth.robot.joint_names,
             extras={"contact": self.contact, "foot_height": self.foot_height, "contact_forces": self.contact_forces},
             source=f"<mujoco truth {self.scenario}>",
         )
 
     def take(self, index) -> SimulationTruth:
-        per_sample = [
-            "t",
-            "q",
-            "v",
-            "a",
-            "tau",
-            "base_q",
-            "base_v",
-            "base_a",
-            "contact",
-            "contact_forces",
-            "contact_points",
-            "foot_height",
-            "friction_torque",
-        ]
-        return replace(self, **{k: getattr(self, k)[index] for k in per_sample})
+        return replace(self, **{k: getattr(self, k)[index] for k in _STATE + _CONTACT})
 
     def summary(self) -> dict[str, Any]:
         r = self.truth.robot
@@ -200,23 +182,18 @@ def assemble(ep: Episode, noise: NoiseSpec, rng: np.random.Generator) -> tuple[T
     tau_true[:, cols] = L["act"]
     fric = np.zeros((N, len(r.joint_names)))
     fric[:, cols] = L["fric"]
-
-    def noisy(x, s):
-        return x + rng.normal(size=x.shape) * s if s > 0 else x.copy()
-
-    meas_q = noisy(q_true, noise.q)
-    meas_v = noisy(v_true, noise.v)
-    meas_tau = noisy(tau_true, noise.tau)
+    true = dict(zip(_STATE, (t, q_true, v_true, a_true, tau_true, base_q, base_v, base_a)))
+    meas = {k: add_white_noise(true[k], getattr(noise, k), rng) for k in ("q", "v", "tau")}  # drawn in this order
     bq = base_q.copy()
-    bq[:, :3] = noisy(base_q[:, :3], noise.base_position)
+    bq[:, :3] = add_white_noise(base_q[:, :3], noise.base_position, rng)
     if noise.base_orientation > 0 and N:
         bq[:, 3:] = _noisy_orientation(base_q[:, 3:], noise.base_orientation, rng)
     bv = base_v.copy()
-    bv[:, :3] = noisy(base_v[:, :3], noise.base_linear_velocity)
-    bv[:, 3:] = noisy(base_v[:, 3:], noise.base_angular_velocity)
+    bv[:, :3] = add_white_noise(base_v[:, :3], noise.base_linear_velocity, rng)
+    bv[:, 3:] = add_white_noise(base_v[:, 3:], noise.base_angular_velocity, rng)
     # accelerometer: specific force Rᵀ(p̈ − g) = a_lin + ω × v_b − Rᵀg (see sensorless.data.imu)
     specific_force = base_a[:, :3] + np.cross(base_v[:, 3:], base_v[:, :3]) - gravity_in_base(base_q)
-    imu_acc = noisy(specific_force, noise.imu_acc)
+    imu_acc = add_white_noise(specific_force, noise.imu_acc, rng)
 
     jerr = q_true - ref.q[L["idx"]] if N else np.zeros((0, 1))
     perr = base_q[:, :3] - ref.p[L["idx"]] if N else np.zeros((0, 3))
@@ -253,10 +230,8 @@ def assemble(ep: Episode, noise: NoiseSpec, rng: np.random.Generator) -> tuple[T
     }
     traj = Trajectory(
         t=t,
-        q=meas_q,
-        v=meas_v,
+        **meas,
         a=None,
-        tau=meas_tau,
         base_q=bq,
         base_v=bv,
         base_a=None,
@@ -269,14 +244,7 @@ def assemble(ep: Episode, noise: NoiseSpec, rng: np.random.Generator) -> tuple[T
         truth=truth,
         parameters=truth.parameters(JOINT_TERMS),
         joint_terms=JOINT_TERMS,
-        t=t,
-        q=q_true,
-        v=v_true,
-        a=a_true,
-        tau=tau_true,
-        base_q=base_q,
-        base_v=base_v,
-        base_a=base_a,
+        **true,
         contact=L["flags"],
         contact_forces=L["forces"],
         contact_points=L["points"],

@@ -290,25 +290,23 @@ def _plan_jump(
         T = 0.4 + tp + tf + ta + tr + rng.uniform(*rest)
         if ts + T > t[-1]:
             break
-        seg = [(ts, ts + 0.4), (ts + 0.4, ts + 0.4 + tp)]
-        a, b = seg[0]
-        m = (t >= a) & (t < b)
-        z[m] = h0 + (hc - h0) * _minjerk((t[m] - a) / 0.4)
-        a, b = seg[1]
-        m = (t >= a) & (t < b)
-        z[m] = hc + 0.5 * ap * (t[m] - a) ** 2
-        a, b = b, b + tf
-        m = (t >= a) & (t < b)
-        z[m] = hto + vto * (t[m] - a) - 0.5 * g * (t[m] - a) ** 2
-        stance[m] = False
-        flights.append((int(np.searchsorted(t, a)), int(np.searchsorted(t, b))))
-        a, b = b, b + ta
-        m = (t >= a) & (t < b)
         dec = vto / ta
-        z[m] = hto - vto * (t[m] - a) + 0.5 * dec * (t[m] - a) ** 2
-        a, b = b, b + tr
-        m = (t >= a) & (t < b)
-        z[m] = hl + (h0 - hl) * _minjerk((t[m] - a) / tr)
+        # (duration, height z(s) at s seconds into the phase): crouch, push, flight, landing, return
+        phases = [
+            (0.4, lambda s: h0 + (hc - h0) * _minjerk(s / 0.4)),
+            (tp, lambda s: hc + 0.5 * ap * s**2),
+            (tf, lambda s: hto + vto * s - 0.5 * g * s**2),
+            (ta, lambda s: hto - vto * s + 0.5 * dec * s**2),
+            (tr, lambda s: hl + (h0 - hl) * _minjerk(s / tr)),
+        ]
+        b = ts
+        for k, (duration, height) in enumerate(phases):
+            a, b = b, b + duration
+            m = (t >= a) & (t < b)
+            z[m] = height(t[m] - a)
+            if k == 2:  # flight
+                stance[m] = False
+                flights.append((int(np.searchsorted(t, a)), int(np.searchsorted(t, b))))
         jumps.append(
             {
                 "crouch": float(dc),

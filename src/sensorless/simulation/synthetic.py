@@ -18,7 +18,7 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..robot import Robot
 
-__all__ = ["TruthModel", "map_body_inertias", "perturbed_truth", "synthetic_trajectory"]
+__all__ = ["TruthModel", "add_white_noise", "map_body_inertias", "perturbed_truth", "synthetic_trajectory"]
 
 
 @dataclass
@@ -89,6 +89,13 @@ def perturbed_truth(
     return TruthModel(true, fv, fc, off, ia)
 
 
+def add_white_noise(x: np.ndarray, sigma: float | np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``x + σ ⊙ n`` with n ~ N(0, I) drawn from ``rng`` (a new array; nothing drawn when every σ is 0)."""
+    if np.any(np.asarray(sigma) > 0):
+        return x + rng.normal(size=x.shape) * sigma
+    return x.copy()
+
+
 def synthetic_trajectory(
     truth: TruthModel,
     motion: Trajectory,
@@ -102,9 +109,7 @@ def synthetic_trajectory(
     Q = r.full_configuration(motion.q)
     V = r.full_velocity(motion.v)
     A = r.full_velocity(motion.a)
-    tau = truth.torques(Q, V, A)
-    if np.any(np.asarray(noise_std) > 0):
-        tau = tau + rng.normal(size=tau.shape) * noise_std
+    tau = add_white_noise(truth.torques(Q, V, A), noise_std, rng)
     full = np.zeros((len(motion), len(r.joint_names)))
     cols = [r.joint_names.index(j) for j in r.actuated_joints]
     full[:, cols] = tau
