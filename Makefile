@@ -14,6 +14,8 @@ $(STAMP): pyproject.toml Makefile
 	# The local CPU build of torch must come first; an unpinned torch pulls CUDA wheels.
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[all]'
+	# Optional C++ regressor kernel (sensorless.regressor.native); without a compiler the Python path is used.
+	$(PY) -m sensorless.regressor.native build || true
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -4,7 +4,9 @@ Every ratio is measured in the same run, interleaved and best-of-``repeats``, be
 may be shared (its load average is recorded before and after):
 
 * compression µs/sample of an in-memory log vs a bare Python ``pin.computeJointTorqueRegressor``
-  loop over the same states (goal ≤ 1.3×), with and without the overlap thread;
+  loop over the same states (goal ≤ 1.3×), with and without the overlap thread, with the C++
+  kernel (:mod:`~sensorless.regressor.native`, when built) and with the pure-Python loop; and
+  vs the kernel alone over the same states;
 * peak traced memory of a streamed identification at each size in ``memory_sizes`` (goal: flat);
 * the batched contact projector vs a per-sample ``numpy.linalg.pinv`` loop on the same Solo12
   Jacobians (goal ≥ 15×), and contact compression with the null-space fold vs the 18-row projector;
@@ -61,9 +63,11 @@ def _best(fns: dict, repeats: int) -> dict:
 
 
 def bench_compression(robot_name: str, n: int, repeats: int) -> dict:
+    """Compression µs/sample with the C++ kernel (when built) and with the pure-Python loop, each with
+    and without the overlap thread, against a bare Python regressor loop and the kernel alone."""
     import pinocchio as pin
 
-    from ..regressor import ModelStructure, compress
+    from ..regressor import ModelStructure, compress, native
     from ..robot import load_robot
 
     lock = ["panda_finger_joint1", "panda_finger_joint2"] if robot_name == "panda" else ()
@@ -72,21 +76,48 @@ def bench_compression(robot_name: str, n: int, repeats: int) -> dict:
     s = ModelStructure(robot)
     Q, V, A = s.state(log)
     m, d, f = robot.model, robot.data, pin.computeJointTorqueRegressor
+    kernel = native.native_regressor(m)
 
     def bare():
         for i in range(n):
             f(m, d, Q[i], V[i], A[i])
 
-    best = _best({"bare": bare, "overlap": lambda: compress(s, log, overlap=True),
-                  "sequential": lambda: compress(s, log, overlap=False)}, repeats)
+    def python_path(overlap):
+        def run():
+            os.environ["SENSORLESS_NATIVE"] = "0"
+            native._lib.cache_clear()
+            try:
+                compress(s, log, overlap=overlap)
+            finally:
+                os.environ.pop("SENSORLESS_NATIVE")
+                native._lib.cache_clear()
+        return run
+
+    fns = {"bare": bare, "python_overlap": python_path(True), "python_sequential": python_path(False)}
+    if kernel is not None:
+        buf = np.empty((2048, s.n_rows, s.n_body_params))
+        rows = np.arange(m.nv)
+
+        def cxx():
+            for i in range(0, n, 2048):
+                kernel(Q[i:i + 2048], V[i:i + 2048], A[i:i + 2048], rows, buf[: len(Q[i:i + 2048])])
+
+        fns.update(native=cxx, overlap=lambda: compress(s, log, overlap=True),
+                   sequential=lambda: compress(s, log, overlap=False))
+    best = _best(fns, repeats)
     us = {k: 1e6 * v / n for k, v in best.items()}
-    return {
+    paths = [k for k in ("overlap", "sequential", "python_overlap", "python_sequential") if k in us]
+    out = {
         "robot": robot_name, "n_samples": n, "n_params": s.n_params, "rows": s.n_rows,
-        "bare_regressor_us": us["bare"], "compression_us": {"overlap": us["overlap"], "sequential": us["sequential"]},
-        "compression_over_bare_regressor": {"overlap": us["overlap"] / us["bare"],
-                                            "sequential": us["sequential"] / us["bare"]},
+        "bare_regressor_us": us["bare"], "compiled_kernel": kernel is not None,
+        "compression_us": {k: us[k] for k in paths},
+        "compression_over_bare_regressor": {k: us[k] / us["bare"] for k in paths},
         "best_of": repeats,
     }
+    if kernel is not None:
+        out["native_regressor_us"] = us["native"]
+        out["compression_over_native_regressor"] = {k: us[k] / us["native"] for k in paths}
+    return out
 
 
 def bench_memory(robot_name: str, sizes: list[int]) -> dict:
@@ -198,9 +229,10 @@ def bench_speed(*, n_compress: int = 100_000, memory_sizes=(100_000, 1_000_000),
     res: dict = {"benchmark": "speed", "goals": GOALS}
     res["compression"] = [bench_compression(r, n_compress, repeats) for r in ("ur5", "panda")]
     for c in res["compression"]:
-        say(f"compression {c['robot']}: {c['compression_us']['overlap']:.2f} µs/sample (overlap), "
-            f"{c['compression_us']['sequential']:.2f} (sequential) vs bare regressor {c['bare_regressor_us']:.2f} "
-            f"→ {c['compression_over_bare_regressor']['overlap']:.2f}× / {c['compression_over_bare_regressor']['sequential']:.2f}×")
+        ratio = c["compression_over_bare_regressor"]
+        say(f"compression {c['robot']} (µs/sample; bare Python regressor {c['bare_regressor_us']:.2f}"
+            + (f", C++ kernel alone {c['native_regressor_us']:.2f}" if c["compiled_kernel"] else "") + "): "
+            + ", ".join(f"{k} {v:.2f} ({ratio[k]:.2f}×)" for k, v in c["compression_us"].items()))
     res["memory"] = bench_memory("ur5", list(memory_sizes))
     say(f"peak memory {[round(r['peak_traced_memory_mb'], 1) for r in res['memory']['runs']]} MiB at "
         f"{list(memory_sizes)} samples (ratio {res['memory']['peak_memory_ratio_largest_over_smallest']:.3f})")
@@ -215,6 +247,6 @@ def bench_speed(*, n_compress: int = 100_000, memory_sizes=(100_000, 1_000_000),
         f"{cl['identify_cli_seconds']['plot']['best']:.2f} s (plot), {cl['identify_cli_seconds']['no_plot']['best']:.2f} s (--no-plot)")
     res["machine"] = {"cpu_count": os.cpu_count(), "platform": platform.platform(),
                       "load_average_1_5_15min": {"start": list(load0), "end": list(os.getloadavg())},
-                      "blas_threads": 1, "compiled_kernel": False}
+                      "blas_threads": 1, "compiled_kernel": all(c["compiled_kernel"] for c in res["compression"])}
     res["versions"] = versions()
     return res

@@ -55,6 +55,8 @@ from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
 from .rowmap import ActuatedRows, RowMap
+from .native import native_regressor
+from .native import threads as native_threads
 
 __all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
 
@@ -341,6 +343,8 @@ class ModelStructure:
             for i in range(N):
                 Y[i] = f(model, data, Q[i], V[i], A[i])[:, cols]
             Wb[...] = rm.apply(Y)
+        elif (kernel := native_regressor(model)) is not None:  # one C++ call per chunk (regressor.native)
+            kernel(Q, V, A, self._row_idx, Wb, threads=native_threads())
         # zip over row views and `w[...] =` keep the Python work per sample to the call itself
         elif self.n_rows == self.robot.nv:
             for w, q, v, a in zip(Wb, Q, V, A):
