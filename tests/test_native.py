@@ -39,22 +39,25 @@ def test_kernel_equals_pinocchio_on_random_states(name):
         assert np.array_equal(out, ref)
 
 
-def test_compress_with_and_without_the_kernel_is_identical(monkeypatch):
+def test_compress_and_regressor_with_and_without_the_kernel_are_identical(monkeypatch):
     from sensorless.benchmarks.speed import _fourier_log
 
     robot = load_robot("ur5")
     traj = _fourier_log(robot, 1500)
     s = ModelStructure(robot)
     with_kernel = compress(s, traj, chunk=512)
+    W_kernel = s.regressor(next(traj.chunks(100)))  # the full regressor: the body block is a strided view of it
     monkeypatch.setenv("SENSORLESS_NATIVE", "0")
     native._lib.cache_clear()
     try:
         assert not native.available()
         without = compress(s, traj, chunk=512)
+        W = s.regressor(next(traj.chunks(100)))
     finally:
         monkeypatch.delenv("SENSORLESS_NATIVE")
         native._lib.cache_clear()
     assert np.array_equal(with_kernel.A, without.A) and np.array_equal(with_kernel.b, without.b)
+    assert np.array_equal(W_kernel, W)
 
 
 def test_unknown_joint_type_falls_back_to_python():

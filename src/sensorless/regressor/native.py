@@ -142,7 +142,9 @@ class NativeRegressor:
         if not (Q.shape == (n, self.nq) and V.shape == A.shape == (n, self.nv)
                 and out.shape == (n, rows.size, self.n_body_params) and out.flags.c_contiguous
                 and out.dtype == np.float64):
-            raise ValueError("native regressor: shape or layout mismatch")
+            raise ValueError(f"native regressor: shape or layout mismatch (Q {Q.shape}, V {V.shape}, A {A.shape}, "
+                             f"rows {rows.size}, out {out.shape} {out.dtype} C-contiguous {out.flags.c_contiguous}; "
+                             f"model nq {self.nq}, nv {self.nv}, {self.n_body_params} body parameters)")
         self._lib.slr_regressor(self._handle, n, Q.ctypes.data, V.ctypes.data, A.ctypes.data, rows.size,
                                 rows.ctypes.data, out.ctypes.data, int(threads))
         return out

@@ -344,7 +344,10 @@ class ModelStructure:
                 Y[i] = f(model, data, Q[i], V[i], A[i])[:, cols]
             Wb[...] = rm.apply(Y)
         elif (kernel := native_regressor(model)) is not None:  # one C++ call per chunk (regressor.native)
-            kernel(Q, V, A, self._row_idx, Wb, threads=native_threads())
+            dst = Wb if Wb.flags.c_contiguous else np.empty(Wb.shape)
+            kernel(Q, V, A, self._row_idx, dst, threads=native_threads())
+            if dst is not Wb:
+                Wb[...] = dst
         # zip over row views and `w[...] =` keep the Python work per sample to the call itself
         elif self.n_rows == self.robot.nv:
             for w, q, v, a in zip(Wb, Q, V, A):
