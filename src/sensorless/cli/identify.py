@@ -104,8 +104,8 @@ def identify(
     rest: Rest = typer.Option("auto", help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
                              "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
                              "remembers it) | off (docs/arm.md §7)"),
-    stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (1-D search "
-                                          "per joint)"),
+    stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (per joint, "
+                                          "the best of a grid of candidates compressed in the same pass)"),
     force: bool = force_option(),
     outliers: Outliers = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
                                                     "warning) | keep"),
