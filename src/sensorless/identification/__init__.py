@@ -32,7 +32,9 @@ from .friction import (
     identify_friction,
     search_stribeck_velocity,
     signal_noise,
+    stribeck_grid,
 )
+from .stribeck import StribeckCandidates, choose_stribeck
 from .weights import check_weights, read_weights_file, weights_option
 from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
@@ -70,6 +72,9 @@ __all__ = [
     "identify_friction",
     "payload_torque",
     "search_stribeck_velocity",
+    "stribeck_grid",
+    "StribeckCandidates",
+    "choose_stribeck",
     "signal_noise",
     "CONSTRAINT_RESIDUAL_RISE",
     "JOINT_TERM_MAX_VIF",

@@ -63,6 +63,7 @@ __all__ = [
     "REST_SIGMAS",
     "search_stribeck_velocity",
     "signal_noise",
+    "stribeck_grid",
 ]
 
 #: relative grid of Stribeck velocities (× P95 |v| of the joint)
