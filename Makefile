@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml Makefile
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[all]'
 	# Optional C++ regressor kernel (sensorless.regressor.native); without a compiler the Python path is used.
-	$(PY) -m sensorless.regressor.native build || true
+	$(PY) -m sensorless.regressor.native_build || true
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -18,7 +18,7 @@ pytestmark = pytest.mark.skipif(not native.available() and shutil.which("g++") i
 
 
 def test_make_built_the_kernel():
-    assert native.available(), "run `python -m sensorless.regressor.native build` (the Makefile does)"
+    assert native.available(), "run `python -m sensorless.regressor.native_build` (the Makefile does)"
 
 
 @pytest.mark.parametrize("name", ["ur5", "panda", "solo12"])
@@ -73,3 +73,14 @@ def test_bad_buffer_is_refused():
     Q = np.zeros((4, robot.model.nq))
     with pytest.raises(ValueError, match="shape or layout"):
         kernel(Q, Q, Q, np.arange(6), np.empty((4, 6, 59)))
+
+
+def test_a_failed_build_says_why_and_keeps_the_python_path(monkeypatch, capsys):
+    from sensorless.regressor.native_build import main
+
+    before = native.library_path()
+    monkeypatch.setenv("CXX", "/nonexistent/c++")
+    assert main([]) == 1
+    err = capsys.readouterr().err
+    assert "not built" in err and "/nonexistent/c++" in err and "pure-Python path" in err
+    assert native.library_path() == before  # an existing kernel is left alone

@@ -6,7 +6,7 @@ result into the chunk buffer; the binding overhead is about 40 % of the call on 
 without the GIL (ctypes releases it), optionally on several threads. It is built against the
 Pinocchio and Eigen headers of the installed wheels (``pin``, ``cmeel-eigen``) by
 
-    python -m sensorless.regressor.native build      # the Makefile runs it after installing
+    python -m sensorless.regressor.native_build      # the Makefile runs it after installing
 
 into ``_native/`` next to this file (or ``~/.cache/sensorless`` when that is read-only). When it is
 missing, cannot be built, or a model has a joint type it does not know, everything falls back to
@@ -209,21 +209,3 @@ def threads() -> int:
         return max(1, int(os.environ.get("SENSORLESS_NATIVE_THREADS", "1")))
     except ValueError:
         return 1
-
-
-def _main(argv: list[str]) -> int:
-    if argv[:1] != ["build"]:
-        print("usage: python -m sensorless.regressor.native build", file=sys.stderr)
-        return 2
-    try:
-        path = build(verbose="-v" in argv)
-    except (RuntimeError, FileNotFoundError) as exc:
-        print(f"sensorless: native regressor kernel not built ({exc}); the pure-Python path is used",
-              file=sys.stderr)
-        return 1
-    print(f"sensorless: native regressor kernel built: {path}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(_main(sys.argv[1:]))
