@@ -30,13 +30,18 @@ __all__ = ["NativeRegressor", "available", "build", "library_path", "native_regr
 
 _SOURCE = Path(__file__).with_name("native_kernel.cpp")
 _LIB_NAME = "libsensorless_regressor.so"
-#: Pinocchio joint model → kernel type code (native_kernel.cpp)
+#: Pinocchio joint model → (kernel type code, fixed unit axis or None) (native_kernel.cpp): an axis-aligned
+#: joint is passed as its unaligned form
+_E = np.eye(3)
 JOINT_CODES = {
-    "JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2, "JointModelRevoluteUnaligned": 3,
-    "JointModelPX": 4, "JointModelPY": 5, "JointModelPZ": 6, "JointModelPrismaticUnaligned": 7,
-    "JointModelFreeFlyer": 8, "JointModelRUBX": 9, "JointModelRUBY": 10, "JointModelRUBZ": 11,
-    "JointModelRevoluteUnboundedUnaligned": 12, "JointModelSpherical": 13, "JointModelTranslation": 14,
-    "JointModelPlanar": 15,
+    "JointModelRX": (0, _E[0]), "JointModelRY": (0, _E[1]), "JointModelRZ": (0, _E[2]),
+    "JointModelRevoluteUnaligned": (0, None),
+    "JointModelRUBX": (1, _E[0]), "JointModelRUBY": (1, _E[1]), "JointModelRUBZ": (1, _E[2]),
+    "JointModelRevoluteUnboundedUnaligned": (1, None),
+    "JointModelPX": (2, _E[0]), "JointModelPY": (2, _E[1]), "JointModelPZ": (2, _E[2]),
+    "JointModelPrismaticUnaligned": (2, None),
+    "JointModelFreeFlyer": (3, None), "JointModelSpherical": (4, None), "JointModelTranslation": (5, None),
+    "JointModelPlanar": (6, None),
 }
 # Pinocchio's own compile definitions (its CMake targets): the joint variant has more than 20 types
 _DEFINES = ["NDEBUG", "BOOST_MPL_LIMIT_LIST_SIZE=30", "BOOST_MPL_LIMIT_VECTOR_SIZE=30",
@@ -172,15 +177,16 @@ def _make(lib, model) -> "NativeRegressor | None":
 
     n = model.njoints - 1
     try:
-        codes = np.array([JOINT_CODES[model.joints[j].shortname()] for j in range(1, model.njoints)], dtype=np.int32)
+        kinds = [JOINT_CODES[model.joints[j].shortname()] for j in range(1, model.njoints)]
     except KeyError:
         return None
+    codes = np.array([c for c, _ in kinds], dtype=np.int32)
     parents = np.array([model.parents[j] for j in range(1, model.njoints)], dtype=np.int32)
     placements = np.array([np.concatenate([model.jointPlacements[j].rotation.ravel(), model.jointPlacements[j].translation])
                            for j in range(1, model.njoints)]).reshape(n, 12)
     axes = np.zeros((n, 3))
-    for k, j in enumerate(range(1, model.njoints)):
-        axis = getattr(model.joints[j].extract(), "axis", None)
+    for k, (j, (_, fixed)) in enumerate(zip(range(1, model.njoints), kinds)):
+        axis = fixed if fixed is not None else getattr(model.joints[j].extract(), "axis", None)
         if axis is not None:
             axes[k] = np.asarray(axis, dtype=float).ravel()[:3]
     placements, axes = np.ascontiguousarray(placements), np.ascontiguousarray(axes)

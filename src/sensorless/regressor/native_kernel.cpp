@@ -17,25 +17,18 @@ using namespace pinocchio;
 namespace {
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
+// Kinematically, an axis-aligned joint (RX, PZ, RUBY, ...) is its unaligned form with a unit axis (the
+// Python side maps them; same cost), so seven joint models cover what URDF and MJCF parsers produce.
 JointIndex add_joint(Model& m, int type, JointIndex parent, const SE3& M, const Eigen::Vector3d& axis,
                      const std::string& name, bool& ok) {
   switch (type) {
-    case 0: return m.addJoint(parent, JointModelRX(), M, name);
-    case 1: return m.addJoint(parent, JointModelRY(), M, name);
-    case 2: return m.addJoint(parent, JointModelRZ(), M, name);
-    case 3: return m.addJoint(parent, JointModelRevoluteUnaligned(axis), M, name);
-    case 4: return m.addJoint(parent, JointModelPX(), M, name);
-    case 5: return m.addJoint(parent, JointModelPY(), M, name);
-    case 6: return m.addJoint(parent, JointModelPZ(), M, name);
-    case 7: return m.addJoint(parent, JointModelPrismaticUnaligned(axis), M, name);
-    case 8: return m.addJoint(parent, JointModelFreeFlyer(), M, name);
-    case 9: return m.addJoint(parent, JointModelRUBX(), M, name);
-    case 10: return m.addJoint(parent, JointModelRUBY(), M, name);
-    case 11: return m.addJoint(parent, JointModelRUBZ(), M, name);
-    case 12: return m.addJoint(parent, JointModelRevoluteUnboundedUnaligned(axis), M, name);
-    case 13: return m.addJoint(parent, JointModelSpherical(), M, name);
-    case 14: return m.addJoint(parent, JointModelTranslation(), M, name);
-    case 15: return m.addJoint(parent, JointModelPlanar(), M, name);
+    case 0: return m.addJoint(parent, JointModelRevoluteUnaligned(axis), M, name);
+    case 1: return m.addJoint(parent, JointModelRevoluteUnboundedUnaligned(axis), M, name);
+    case 2: return m.addJoint(parent, JointModelPrismaticUnaligned(axis), M, name);
+    case 3: return m.addJoint(parent, JointModelFreeFlyer(), M, name);
+    case 4: return m.addJoint(parent, JointModelSpherical(), M, name);
+    case 5: return m.addJoint(parent, JointModelTranslation(), M, name);
+    case 6: return m.addJoint(parent, JointModelPlanar(), M, name);
     default: ok = false; return 0;
   }
 }
