@@ -115,3 +115,20 @@ def test_grid_for_a_joint_without_a_stribeck_term_or_bad_values_is_refused(arm):
     cand = StribeckCandidates(truth, _grid(vs_true))
     with pytest.raises(DataError, match="not compressed with this grid"):
         cand.select(compress(truth, traj.chunks(500).__next__()), np.zeros(robot.n_actuated, dtype=int))
+
+
+def test_a_first_log_that_barely_moves_a_joint_does_not_shrink_its_grid(arm):
+    """The candidates come from the first training log (the same on a cluster). On joint-wise logs
+    that log barely moves the other joints; their grid is then scaled by the velocity limit."""
+    from sensorless.identification.friction import GRID_SPEED_FLOOR, friction_structure
+
+    robot, truth, vs_true, traj = arm
+    creep = dataclasses.replace(traj, v=traj.v * 1e-3, a=traj.a * 1e-3)
+    joints = list(robot.actuated_joints)
+    vlim = np.array([robot.model.velocityLimit[robot.v_index(j)] for j in joints])
+    _, moving = friction_structure(truth, [traj], coulomb_smoothing=0.0)
+    _, slow = friction_structure(truth, [creep], coulomb_smoothing=0.0)
+    p95 = np.percentile(np.abs(traj.v), 95, axis=0)
+    for k, j in enumerate(joints):
+        assert max(moving.stribeck_grid[j]) == pytest.approx(0.5 * max(p95[k], GRID_SPEED_FLOOR * vlim[k]))
+        assert max(slow.stribeck_grid[j]) == pytest.approx(0.5 * GRID_SPEED_FLOOR * vlim[k])

@@ -68,6 +68,9 @@ __all__ = [
 
 #: relative grid of Stribeck velocities (× P95 |v| of the joint)
 STRIBECK_GRID = np.geomspace(0.005, 0.5, 25)
+#: the grid's speed scale is at least this fraction of the joint's velocity limit (when the model has one):
+#: a log that barely moves a joint (joint-wise logs, the first of which sets the grid) must not shrink it
+GRID_SPEED_FLOOR = 0.1
 #: rest velocity δ = REST_SIGMAS · σ_v (module docstring)
 REST_SIGMAS = 5.0
 #: the Stribeck bump must be wider than the Coulomb smoothing (vs ≥ this × ε): a narrower
@@ -280,7 +283,8 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
         if stribeck_velocity != "auto":
             raise DataError(f"stribeck_velocity must be 'auto' or a number > 0, got {stribeck_velocity!r}")
         vs = {j: float(0.1 * speed[k]) for k, j in enumerate(joints) if j in has_stribeck} if has_stribeck else None
-        grid = stribeck_grid(speed, eps, rest, joints, has_stribeck) if has_stribeck else None
+        vlim = np.array([structure.robot.model.velocityLimit[structure.robot.v_index(j)] for j in joints])
+        grid = stribeck_grid(speed, eps, rest, joints, has_stribeck, vlim) if has_stribeck else None
     elif isinstance(stribeck_velocity, dict) and any(np.ndim(x) for x in stribeck_velocity.values()):
         grid = {j: list(map(float, np.atleast_1d(x))) for j, x in stribeck_velocity.items()}  # candidates given
         vs = {j: g[len(g) // 2] for j, g in grid.items()}
@@ -304,9 +308,13 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
 
 
 def stribeck_grid(speed: np.ndarray, eps: np.ndarray, rest: np.ndarray, joints: Sequence[str],
-                  has_stribeck: Sequence[str]) -> dict[str, list[float]]:
-    """Candidate vs per joint: :data:`STRIBECK_GRID` × P95|v|, at least
-    :data:`MIN_STRIBECK_OVER_SMOOTHING` × max(ε, δ) (the largest point if none is)."""
+                  has_stribeck: Sequence[str], velocity_limit: np.ndarray | None = None) -> dict[str, list[float]]:
+    """Candidate vs per joint: :data:`STRIBECK_GRID` × s, s = max(P95|v|, :data:`GRID_SPEED_FLOOR` ×
+    the velocity limit when finite), at least :data:`MIN_STRIBECK_OVER_SMOOTHING` × max(ε, δ) (the
+    largest point if none is)."""
+    if velocity_limit is not None:
+        lim = np.asarray(velocity_limit, dtype=float)
+        speed = np.maximum(speed, np.where(np.isfinite(lim) & (lim > 0), GRID_SPEED_FLOOR * lim, 0.0))
     out = {}
     for k, j in enumerate(joints):
         if j not in has_stribeck:
