@@ -108,7 +108,7 @@ def test_real_psm_held_out_nrmse_beats_published_parameters():
     eps, _ = select_smoothing(one, (0.0, 0.2, 0.5), folds=2)  # chosen on the training log only
     s = psm_structure(coulomb_smoothing=eps)
     res = identify(s, one, method="ols")
-    ours = res.evaluate(two).nrmse
+    ours = res.score(two).nrmse
     s_pub = psm_structure()
     pub = torque_metrics(s_pub.target(two), s_pub.torques(published_parameters(s_pub, root / "data/psm/dynamic_params/params.json"), two),
                          s_pub.row_names).nrmse

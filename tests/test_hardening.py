@@ -155,7 +155,7 @@ def test_outliers_drop_recovers_clean_parameters(panda, sim, tmp_path):
     clean = identify(panda, tr)
     assert res.diagnostics["n_samples"] == len(tr) - 1
     assert np.max(np.abs(res.parameters)) < 1e3
-    np.testing.assert_allclose(res.evaluate(te).rmse.mean(), clean.evaluate(te).rmse.mean(), rtol=0.05)
+    np.testing.assert_allclose(res.score(te).rmse.mean(), clean.score(te).rmse.mean(), rtol=0.05)
     # CLI: default refuses with a one-line error, --outliers drop succeeds with a warning
     f = write_npz(tr.with_(tau=tau), tmp_path / "g.npz")
     _one_line_error(_run(["identify", *ROBOT, "--data", f, "--out", tmp_path / "o1"]), "sample 417", "g.npz")

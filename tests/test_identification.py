@@ -39,7 +39,7 @@ def test_noisy_held_out_rmse_near_noise_floor(panda):
     train = _log(panda, truth, 11, duration=40.0, noise=sigma)
     test = _log(panda, truth, 12, duration=20.0, noise=sigma)
     res = identify(panda, train)
-    m = res.evaluate(test)
+    m = res.score(test)
     assert np.all(m.rmse <= 1.1 * sigma), m.rmse / sigma
     # training RMSE from the compressed sums equals the residual noise level too
     assert np.all(res.train_metrics.rmse <= 1.1 * sigma)
@@ -50,9 +50,9 @@ def test_wls_helps_when_joint_noise_differs(panda):
     truth = perturbed_truth(panda, rng=5)
     train = _log(panda, truth, 21, duration=20.0, noise=sigma)
     clean = _log(panda, truth, 22, duration=10.0)
-    ols = identify(panda, train, method="ols", weights=None).evaluate(clean)
-    wls = identify(panda, train, method="wls").evaluate(clean)
-    given = identify(panda, train, method="ols", weights=sigma).evaluate(clean)
+    ols = identify(panda, train, method="ols", weights=None).score(clean)
+    wls = identify(panda, train, method="wls").score(clean)
+    given = identify(panda, train, method="ols", weights=sigma).score(clean)
     assert wls.rmse[2:].mean() < ols.rmse[2:].mean()
     np.testing.assert_allclose(given.rmse, wls.rmse, rtol=0.2)
 

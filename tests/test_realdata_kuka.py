@@ -20,7 +20,7 @@ def logs(kuka):
 
 def test_ols_beats_cad_on_repeat_run_every_joint(kuka, logs):
     res = identify(kuka, logs[0], joint_terms=TERMS)
-    ols, cad = res.evaluate(logs[1]), CADModel(kuka).fit().score(logs[1])
+    ols, cad = res.score(logs[1]), CADModel(kuka).fit().score(logs[1])
     assert np.all(ols.nrmse < cad.nrmse), (ols.nrmse, cad.nrmse)
     # repeatability: the same trajectory run again is predicted almost as well as the training run
     assert np.all(ols.nrmse < 1.5 * res.train_metrics.nrmse + 0.01)

@@ -50,7 +50,7 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
                "wls": identify(structure, train, method="wls")}
     results["lmi"] = identify(structure, train, method="lmi", gamma="auto")
     cad = CADModel(robot).fit()
-    scores = {"CAD": cad.score(test), **{m.upper(): r.evaluate(test) for m, r in results.items()}}
+    scores = {"CAD": cad.score(test), **{m.upper(): r.score(test) for m, r in results.items()}}
     console.print(metrics_table("Panda, held-out trajectory", scores, field="rmse"))
     console.print(metrics_table("Panda, held-out trajectory", scores, field="nrmse"))
 

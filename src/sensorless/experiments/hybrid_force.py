@@ -67,7 +67,7 @@ def select_coulomb_smoothing(robot, free: Trajectory, grid=SMOOTHING_GRID, train
     scores = {}
     for eps in grid:
         s = ModelStructure(robot, joint_terms=JOINT_TERMS, coulomb_smoothing=eps)
-        scores[str(eps)] = float(np.mean(identify(s, fit).evaluate(val).nrmse))
+        scores[str(eps)] = float(np.mean(identify(s, fit).score(val).nrmse))
     best = min(grid, key=lambda e: scores[str(e)])
     return float(best), scores
 

@@ -82,7 +82,7 @@ def select_smoothing(
         vals = []
         for tr, va in parts:
             res = identify(s, tr, method=method)
-            vals.append(np.mean(res.evaluate(va).nrmse))
+            vals.append(np.mean(res.score(va).nrmse))
         scores[float(eps)] = float(np.mean(vals))
     best = min(scores, key=scores.get)
     return best, scores

@@ -58,9 +58,17 @@ class IdentificationResult:
         """Predicted effort (N, n_rows) for a trajectory with q, v, a."""
         return self.structure.torques(self.parameters, traj)
 
-    def evaluate(self, traj: Trajectory) -> TorqueMetrics:
-        """Per-joint metrics of the prediction on a (held-out) trajectory."""
+    def score(self, traj: Trajectory) -> TorqueMetrics:
+        """Per-joint metrics of the prediction on a (held-out) trajectory (:func:`~.metrics.torque_metrics`,
+        as every model's ``score``)."""
         return torque_metrics(self.structure.target(traj), self.predict(traj), self.structure.row_names)
+
+    def evaluate(self, traj: Trajectory) -> TorqueMetrics:
+        """Deprecated name of :meth:`score` ("evaluate" is kept for evaluating a regressor or a trajectory)."""
+        import warnings
+
+        warnings.warn("IdentificationResult.evaluate() is deprecated; use score()", DeprecationWarning, stacklevel=2)
+        return self.score(traj)
 
     def mass_properties(self) -> dict | None:
         """Identified total mass Σ m_k [kg] and CoM [m] (base frame, neutral configuration) of a
