@@ -209,7 +209,7 @@ class CADModel(TorqueModel):
         like, robot = self.like, self.robot
         if like is not None and like.settings().get("structure") == "transmission":
             self.structure_ = like  # its prior has zero drive terms: the tree's inertials only
-        elif like is None and hasattr(robot, "make_structure"):
+        elif like is None and robot.coupled:
             self.structure_ = robot.make_structure(None)
         else:
             self.structure_ = (ModelStructure(robot, joint_terms=("armature",)) if like is None
@@ -263,12 +263,11 @@ def _structure_from_settings(settings: dict, doc: dict, robot: Robot) -> ModelSt
     if settings.get("structure") == "transmission":
         from .regressor.transmission import TransmissionStructure
 
-        tree = getattr(robot, "tree", None)
-        if tree is None:
+        if not robot.coupled:
             raise ParameterError(f"a model of a coupled-joint robot ('{file_robot}'); "
                                  f"load it with that robot (e.g. --robot dvrk_psm), not '{robot.name}'")
         lo, hi = robot.position_limits()
-        structure = TransmissionStructure.from_settings(tree, settings, limits=(lo, hi),
+        structure = TransmissionStructure.from_settings(robot.tree, settings, limits=(lo, hi),
                                                         velocity_limits=robot.velocity_limits(), name=robot.name)
         structure.robot.factory = getattr(robot, "factory", None)
         return structure
@@ -278,7 +277,7 @@ def _structure_from_settings(settings: dict, doc: dict, robot: Robot) -> ModelSt
     eps = settings.get("coulomb_smoothing", 0.0)
     if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not (np.isfinite(eps) and eps >= 0):
         raise TypeError(f"settings.coulomb_smoothing must be a number >= 0, got {eps!r}")
-    if hasattr(robot, "make_structure"):
+    if robot.coupled:
         raise ParameterError(f"identified for '{file_robot}' (per-joint model), "
                              f"not for the coupled-joint robot '{robot.name}'")
     common = {"joint_terms": tuple(terms), "coulomb_smoothing": float(eps)}

@@ -33,9 +33,11 @@ class Actuation:
     matrix S and the transmission. Subclasses give ``actuated_joints``, ``nv`` and ``v_index``.
 
     ``transmission_matrix`` is G of joints q = Gθ + q₀ driven by coordinates θ
-    (:class:`~sensorless.regressor.transmission.CoordinateRobot`), None for a plain tree."""
+    (:class:`~sensorless.regressor.transmission.CoordinateRobot`), None for a plain tree.
+    ``coupled``: True for such a coordinate view (its structures come from ``make_structure``)."""
 
     transmission_matrix: "np.ndarray | None" = None
+    coupled: bool = False
 
     @property
     def actuated_v_indices(self) -> np.ndarray:

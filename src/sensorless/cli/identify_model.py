@@ -74,7 +74,7 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
     terms = joint_terms if "=" in joint_terms else tuple(t.strip() for t in joint_terms.split(",") if t.strip())
     if not (math.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0):
         raise OptionError(f"--coulomb-smoothing must be a finite number >= 0, got {coulomb_smoothing}")
-    if hasattr(robot, "make_structure"):  # coupled joints (dvrk_psm): drive terms of its own
+    if robot.coupled:  # coupled joints (dvrk_psm): drive terms of its own
         if contact_frames:
             raise SensorlessError(f"--contact-frames: '{robot.name}' is a fixed-base coupled-joint model")
         if isinstance(terms, str):

@@ -283,7 +283,8 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
         if stribeck_velocity != "auto":
             raise DataError(f"stribeck_velocity must be 'auto' or a number > 0, got {stribeck_velocity!r}")
         vs = {j: float(0.1 * speed[k]) for k, j in enumerate(joints) if j in has_stribeck} if has_stribeck else None
-        vlim = np.array([structure.robot.model.velocityLimit[structure.robot.v_index(j)] for j in joints])
+        limits = dict(zip(structure.robot.joint_names, structure.robot.velocity_limits()))
+        vlim = np.array([limits.get(j, np.inf) for j in joints])
         grid = stribeck_grid(speed, eps, rest, joints, has_stribeck, vlim) if has_stribeck else None
     elif isinstance(stribeck_velocity, dict) and any(np.ndim(x) for x in stribeck_velocity.values()):
         grid = {j: list(map(float, np.atleast_1d(x))) for j, x in stribeck_velocity.items()}  # candidates given

@@ -98,6 +98,7 @@ class CoordinateRobot(Actuation):
     """
 
     floating_base = False
+    coupled = True
 
     def __init__(
         self,
