@@ -229,3 +229,17 @@ def test_estimators_accept_the_psm_robot():
     assert phys.score(log).rmse.max() < 1e-8  # noiseless, the structure contains the truth
     cad = CADModel(psm_robot()).fit()
     assert np.allclose(cad.predict(log), 0.0)  # the tree carries no inertials and no drive terms
+
+
+def test_psm_structure_pickles_for_dask_workers():
+    """Regression: the robot's structure factory was a lambda, so a PSM structure could not be sent to
+    a Dask worker. After a round trip it rebuilds with another drive set and evaluates identically."""
+    import pickle
+
+    s = psm_structure()
+    s2 = pickle.loads(pickle.dumps(s))
+    rng = np.random.default_rng(0)
+    th = rng.uniform(-0.3, 0.3, (5, 7))
+    th[:, 2] = 0.15
+    np.testing.assert_array_equal(s2.evaluate(th, th, th), s.evaluate(th, th, th))
+    assert s2.robot.make_structure("motors", 0.0).n_params == s.robot.make_structure("motors", 0.0).n_params

@@ -49,6 +49,7 @@ The CSV logs of the WPI data set are header-less, 200 Hz, 21 columns (q, q̇, ef
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -253,8 +254,13 @@ def psm_structure(
         coulomb_smoothing=coulomb_smoothing, name="dvrk_psm",
     )
     default_drives = drives if isinstance(drives, str) else drive_list
-    structure.robot.factory = lambda terms, eps: psm_structure(bodies, _drive_set(terms, default_drives), eps)
+    structure.robot.factory = functools.partial(_rebuild, bodies, default_drives)  # picklable (Dask workers)
     return structure
+
+
+def _rebuild(bodies, default_drives, terms, coulomb_smoothing: float) -> TransmissionStructure:
+    """The PSM structure with another drive set (``terms``) or Coulomb smoothing (``robot.make_structure``)."""
+    return psm_structure(bodies, _drive_set(terms, default_drives), coulomb_smoothing)
 
 
 # the generic per-joint terms of URDF robots (the CLI default of --joint-terms, now and before Stribeck friction
