@@ -65,6 +65,13 @@ def test_candidate_equations_contain_the_models_exactly(arm):
     scale = np.abs(ne.A).max()
     assert np.abs(sel.A - ne.A).max() < 1e-10 * scale and np.allclose(sel.b, ne.b, rtol=1e-10, atol=1e-10 * scale)
     assert np.allclose(sel.c, ne.c) and sel.n_samples == ne.n_samples
+    for drop in ([-1, 10, 0, -1, 7, 15], [-1] * 6):  # joints without a Stribeck term: zero column, or none
+        s = cand.structure_for(np.array(drop))
+        assert [j for j in robot.actuated_joints if "stribeck" in s.terms_of(j)] == \
+            [j for j, c in zip(robot.actuated_joints, drop) if c >= 0]
+        ne, sel = compress(s, traj), cand.select(ne_c, np.array(drop))
+        assert sel.A.shape == ne.A.shape and np.abs(sel.A - ne.A).max() < 1e-10 * scale
+        assert np.allclose(sel.b, ne.b, rtol=1e-10, atol=1e-10 * scale)
 
 
 def test_projection_criterion_equals_a_direct_fit_per_candidate(arm):
@@ -76,7 +83,8 @@ def test_projection_criterion_equals_a_direct_fit_per_candidate(arm):
     part = traj.chunks(2000).__next__()
     cand = StribeckCandidates(truth, _grid(vs_true))
     ne_c = compress(cand, part)
-    choice, record = choose_stribeck(cand, ne_c, None)
+    choice, record = choose_stribeck(cand, ne_c, np.ones(robot.n_actuated))  # σ = 1: the plain residual
+    assert np.all(choice >= 0)  # the truth has Stribeck friction on every joint
     j = robot.actuated_joints[2]
     k = 2
     ind = base_parameters(truth).independent
@@ -120,7 +128,7 @@ def test_grid_for_a_joint_without_a_stribeck_term_or_bad_values_is_refused(arm):
 def test_a_first_log_that_barely_moves_a_joint_does_not_shrink_its_grid(arm):
     """The candidates come from the first training log (the same on a cluster). On joint-wise logs
     that log barely moves the other joints; their grid is then scaled by the velocity limit."""
-    from sensorless.identification.friction import GRID_SPEED_FLOOR, friction_structure
+    from sensorless.identification.friction import GRID_SPEED_FLOOR, STRIBECK_GRID, friction_structure
 
     robot, truth, vs_true, traj = arm
     creep = dataclasses.replace(traj, v=traj.v * 1e-3, a=traj.a * 1e-3)
@@ -130,5 +138,28 @@ def test_a_first_log_that_barely_moves_a_joint_does_not_shrink_its_grid(arm):
     _, slow = friction_structure(truth, [creep], coulomb_smoothing=0.0)
     p95 = np.percentile(np.abs(traj.v), 95, axis=0)
     for k, j in enumerate(joints):
-        assert max(moving.stribeck_grid[j]) == pytest.approx(0.5 * max(p95[k], GRID_SPEED_FLOOR * vlim[k]))
-        assert max(slow.stribeck_grid[j]) == pytest.approx(0.5 * GRID_SPEED_FLOOR * vlim[k])
+        top = STRIBECK_GRID[-1]
+        assert max(moving.stribeck_grid[j]) == pytest.approx(top * max(p95[k], GRID_SPEED_FLOOR * vlim[k]))
+        assert max(slow.stribeck_grid[j]) == pytest.approx(top * GRID_SPEED_FLOOR * vlim[k])
+
+
+@pytest.mark.parametrize("fs_minus_fc", [0.0, -1.5])
+def test_no_or_unphysical_stribeck_effect_drops_the_term(arm, fs_minus_fc):
+    """A joint whose data show no Stribeck effect (fs = fc), or an unphysical one (fs < fc, friction
+    rising at low speed), gets no Stribeck term: the search neither overfits noise nor fits a
+    negative static-friction bump."""
+    robot, truth, vs_true, traj = arm
+    p = truth.prior()
+    rng = np.random.default_rng(5)
+    for j in robot.actuated_joints:
+        p[truth.joint_term_index(j, "fv")] = 1.0
+        p[truth.joint_term_index(j, "fc")] = 2.0
+        p[truth.joint_term_index(j, "stribeck")] = fs_minus_fc
+    log = dataclasses.replace(traj, tau=truth.torques(p, traj) + rng.normal(0, 0.02, traj.tau.shape))
+    from sensorless.identification.friction import identify_friction
+
+    res, fit = identify_friction(dataclasses.replace(truth, stribeck_velocity=None), [log], coulomb_smoothing=0.01)
+    assert fit.stribeck_grid and not fit.stribeck_velocity  # searched on the default grid, kept nowhere
+    assert all("stribeck" not in res.structure.terms_of(j) for j in robot.actuated_joints)
+    assert all(r["vs"] is None for r in res.diagnostics["stribeck_search"].values())
+    assert res.train_metrics.nrmse.max() < 0.02 if fs_minus_fc == 0 else True

@@ -167,6 +167,7 @@ def identify(
             result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
                                              friction_fit.stribeck_grid if friction_fit is not None else None)
+            structure = result.structure  # with the chosen Stribeck terms
             if friction_fit is not None and friction_fit.stribeck_grid:
                 friction_fit.stribeck_velocity = dict(result.structure.stribeck_velocity or {})
                 friction_fit.stribeck_search = result.diagnostics.get("stribeck_search")

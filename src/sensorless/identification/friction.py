@@ -35,7 +35,8 @@ at most ``max_fraction`` · P95(|v|), so that the chatter at rest stays below σ
 **Stribeck velocity.** vs enters nonlinearly. Per joint a log-spaced grid of candidates
 (:func:`stribeck_grid`) is compressed with the model in one pass, and the vs minimising the
 weighted least-squares residual of the whole model is chosen by variable projection on the
-compressed equations (:mod:`~.stribeck`); the model is then solved with those columns.
+compressed equations, or no Stribeck term where the log shows no physical effect
+(:mod:`~.stribeck`); the model is then solved with those columns.
 :func:`search_stribeck_velocity` is the same 1-D criterion on one joint's friction residual
 r_j = τ_j − [Y π]_j − Ia_j v̇_j (for a friction-only log or a plot).
 """
@@ -67,7 +68,7 @@ __all__ = [
 ]
 
 #: relative grid of Stribeck velocities (× P95 |v| of the joint)
-STRIBECK_GRID = np.geomspace(0.005, 0.5, 25)
+STRIBECK_GRID = np.geomspace(0.005, 0.2, 25)
 #: the grid's speed scale is at least this fraction of the joint's velocity limit (when the model has one):
 #: a log that barely moves a joint (joint-wise logs, the first of which sets the grid) must not shrink it
 GRID_SPEED_FLOOR = 0.1

@@ -10,10 +10,15 @@ weighted least-squares residual with candidate g, every other parameter free, is
 
     SSE(g) = SSE_X − β_g² / a_g,   a_g = A_gg − A_gX A_XX⁺ A_Xg,   β_g = b_g − A_gX A_XX⁺ b_X,
 
-so each candidate costs O(p) after one pseudo-inverse per joint. Joints are visited in turn
-(coordinate descent, :data:`SWEEPS` sweeps) and the chosen columns are selected out of the
-compressed equations for the final fit (OLS, WLS or LMI): no second pass over the data, and a
-cluster (which compresses the same candidates on its workers) chooses exactly as a local run.
+so each candidate costs O(p) after one pseudo-inverse per joint (its coefficient, fs − fc, is
+β_g / a_g). Joints are visited in turn (coordinate descent, :data:`SWEEPS` sweeps). A joint keeps a
+Stribeck term only for a physical effect that the data support: fs − fc > 0 (static friction above
+Coulomb) and a drop of the noise-normalised residual above 2 ln N (BIC for vs and fs − fc);
+otherwise the term is dropped, so a robot without a Stribeck effect gets the plain Coulomb +
+viscous model (a negative bump fitted to a log does not carry over to other motions: on the real
+KUKA LWR4 logs it raised the held-out NRMSE from 33.6 % to 50.5 %). The chosen columns are then selected
+out of the compressed equations for the final fit (OLS, WLS or LMI): no second pass over the data,
+and a cluster (which compresses the same candidates on its workers) chooses exactly as a local run.
 """
 
 from __future__ import annotations
@@ -102,33 +107,54 @@ class StribeckCandidates:
         return np.concatenate([s.joint_features(V, A), Z], axis=2)
 
     # ---- from candidate equations to the model's -------------------------------------------------
+    def _column(self, k: int, term_index: int, choice: np.ndarray) -> int:
+        """Candidate-layout column of joint k's term ``joint_terms[term_index]`` of the wrapped structure."""
+        s = self.structure
+        start = self.n_block_params + k * self.n_terms
+        if s.joint_terms[term_index] == "stribeck" and self.searched[k] and choice[k] >= 0:
+            return start + len(s.joint_terms) + int(choice[k])
+        return start + term_index
+
     def columns(self, choice: np.ndarray) -> np.ndarray:
         """Candidate-layout column of each parameter of the wrapped structure, with candidate
-        ``choice[k]`` as the Stribeck column of searched joint k."""
-        s, nb, nt = self.structure, self.n_block_params, len(self.structure.joint_terms)
-        idx = list(range(nb))
-        for k in range(s.robot.n_actuated):
-            start = nb + k * self.n_terms
-            for t, term in enumerate(s.joint_terms):
-                idx.append(start + nt + int(choice[k]) if term == "stribeck" and self.searched[k] else start + t)
-        return np.asarray(idx)
+        ``choice[k]`` as the Stribeck column of searched joint k (−1: none, see :meth:`select`)."""
+        nt = len(self.structure.joint_terms)
+        return np.array(list(range(self.n_block_params)) + [self._column(k, t, choice)
+                                                           for k in range(self.structure.robot.n_actuated)
+                                                           for t in range(nt)])
 
     def select(self, ne: NormalEquations, choice: np.ndarray) -> NormalEquations:
-        """The wrapped structure's normal equations with the chosen candidates."""
+        """The normal equations of :meth:`structure_for` ``(choice)`` from the candidates' equations:
+        the chosen columns, and a joint with ``choice = −1`` has no Stribeck term (its column is zero
+        or, when no joint keeps one, gone), exactly as compressing that structure."""
         if ne.A.shape[-1] != self.n_params:
             raise DataError(f"the compressed equations have {ne.A.shape[-1]} columns, the Stribeck candidates "
                             f"{self.n_params}: they were not compressed with this grid")
-        idx = self.columns(choice)
-        return NormalEquations(ne.A[:, idx][:, :, idx], ne.b[:, idx], ne.c.copy(), ne.y_min, ne.y_max,
-                               ne.y_sum, ne.n_samples)
+        final = self.structure_for(choice)
+        terms = list(self.structure.joint_terms)
+        idx = list(range(self.n_block_params))
+        for k in range(final.robot.n_actuated):
+            idx += [self._column(k, terms.index(t), choice) for t in final.joint_terms]
+        idx = np.asarray(idx)
+        A, b = ne.A[:, idx][:, :, idx], ne.b[:, idx]
+        zero = final.fixed_zero_index  # terms a joint does not have
+        A[:, zero, :], A[:, :, zero], b[:, zero] = 0.0, 0.0, 0.0
+        return NormalEquations(A, b, ne.c.copy(), ne.y_min, ne.y_max, ne.y_sum, ne.n_samples)
 
     def structure_for(self, choice: np.ndarray) -> ModelStructure:
+        """The wrapped structure with the chosen vs; joints with ``choice = −1`` lose their Stribeck term."""
         import dataclasses
 
-        joints = self.structure.robot.actuated_joints
-        vs = dict(self.structure.stribeck_velocity or {})
-        vs.update({j: float(self.grid[k, choice[k]]) for k, j in enumerate(joints) if self.searched[k]})
-        return dataclasses.replace(self.structure, stribeck_velocity=vs)
+        s = self.structure
+        joints = list(s.robot.actuated_joints)
+        dropped = {j for k, j in enumerate(joints) if self.searched[k] and choice[k] < 0}
+        vs = {j: v for j, v in (s.stribeck_velocity or {}).items() if j not in dropped}
+        vs.update({j: float(self.grid[k, choice[k]]) for k, j in enumerate(joints)
+                   if self.searched[k] and choice[k] >= 0})
+        if not dropped:
+            return dataclasses.replace(s, stribeck_velocity=vs)
+        per = {j: tuple(t for t in s.terms_of(j) if not (t == "stribeck" and j in dropped)) for j in joints}
+        return dataclasses.replace(s, joint_terms=s.joint_terms, per_joint_terms=per, stribeck_velocity=vs or None)
 
 
 def _pinv_psd(A: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
@@ -141,29 +167,41 @@ def _pinv_psd(A: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
 
 
 def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> tuple[np.ndarray, dict]:
-    """Choose each joint's Stribeck velocity from candidate equations ``ne`` (module docstring).
+    """Choose each joint's Stribeck velocity, or none, from candidate equations ``ne`` (module docstring).
 
-    ``weights``: as :func:`~.identify.identify` (row weights of the criterion, computed once at the
-    starting choice, the middle of every grid). Returns the chosen candidate index per actuated
-    joint (for :meth:`StribeckCandidates.select` / :meth:`~StribeckCandidates.structure_for`) and
-    a record ``{joint: {"grid", "sse", "vs"}}`` (the weighted SSE of the last sweep over the
-    joint's own grid).
+    The criterion is the noise-normalised residual Σ_r SSE_r/σ_r² (σ_r given in ``weights``, else
+    the two-step σ of the starting choice, the middle of every grid). A candidate counts only if its
+    coefficient fs − fc is positive (static friction above Coulomb: a physical Stribeck effect), and
+    the best one is kept only if it lowers the criterion by more than 2 ln N (BIC for its two
+    parameters, vs and fs − fc; N samples); otherwise the joint gets no Stribeck term (choice −1).
+    Returns the choice per actuated joint (for :meth:`StribeckCandidates.select` /
+    :meth:`~StribeckCandidates.structure_for`) and a record ``{joint: {"grid", "sse", "coefficient",
+    "vs"}}`` (last sweep; ``vs`` None when dropped).
     """
-    from .least_squares import row_weights
+    from .least_squares import two_step_sigma
 
     s = cand.structure
     joints = list(s.robot.actuated_joints)
     choice = np.array([cand.sizes.get(j, 1) // 2 for j in joints])
-    w = row_weights(cand.select(ne, choice), weights)
-    A, b, c = ne.total(w)
+    sigma = (np.asarray(weights, dtype=float) if isinstance(weights, np.ndarray)
+             else two_step_sigma(cand.select(ne, choice)))
+    A, b, c = ne.total(1.0 / sigma**2)
+    penalty = 2.0 * np.log(max(ne.n_samples, 2))
     base = base_parameters(s).independent
+    nb, nt = cand.n_block_params, len(s.joint_terms)
+    t_stribeck = list(s.joint_terms).index("stribeck")
     record = {}
     for _ in range(SWEEPS):
         for k in np.flatnonzero(cand.searched):
-            cols = cand.columns(choice)
-            own = int(cols[s.joint_term_index(joints[k], "stribeck")])
-            X = np.array([cols[i] for i in base if cols[i] != own])
-            start = cand.n_block_params + k * cand.n_terms + len(s.joint_terms)
+            X = []  # the base columns with the other joints' current choice, without joint k's Stribeck column
+            for i in base:
+                q, t = divmod(int(i) - nb, nt) if i >= nb else (-1, -1)
+                if i < nb:
+                    X.append(int(i))
+                elif not (t == t_stribeck and (q == k or choice[q] < 0)):
+                    X.append(cand._column(q, t, choice))
+            X = np.array(X)
+            start = nb + k * cand.n_terms + nt
             Z = np.arange(start, start + cand.grid.shape[1])
             P = _pinv_psd(A[np.ix_(X, X)])
             AXZ = A[np.ix_(X, Z)]
@@ -171,10 +209,14 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
             sse_x = c - b[X] @ P @ b[X]
             a = np.diag(A)[Z] - np.einsum("xg,xg->g", AXZ, U)
             beta = b[Z] - U.T @ b[X]
-            gain = np.where(a > 1e-12 * np.maximum(np.diag(A)[Z], 1e-300), beta**2 / np.where(a > 0, a, 1.0), 0.0)
-            sse = sse_x - gain
+            live = a > 1e-12 * np.maximum(np.diag(A)[Z], 1e-300)
+            coef = np.where(live, beta / np.where(live, a, 1.0), 0.0)
+            sse = sse_x - np.where(live, beta * coef, 0.0)
             n = cand.sizes[joints[k]]
-            choice[k] = int(np.argmin(sse[:n]))
+            ok = live[:n] & (coef[:n] > 0)
+            best = int(np.argmin(np.where(ok, sse[:n], np.inf))) if ok.any() else -1
+            choice[k] = best if best >= 0 and sse_x - sse[best] > penalty else -1
             record[joints[k]] = {"grid": cand.grid[k, :n].tolist(), "sse": sse[:n].tolist(),
-                                 "vs": float(cand.grid[k, choice[k]])}
+                                 "sse_without": float(sse_x), "coefficient": coef[:n].tolist(),
+                                 "vs": float(cand.grid[k, choice[k]]) if choice[k] >= 0 else None}
     return choice, record
