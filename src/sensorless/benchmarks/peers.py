@@ -233,6 +233,7 @@ def _fit(case: PeerCase, robot: Robot, method: str, overrides: dict[str, Any] | 
         "nrmse_percent_per_joint": dict(zip(structure.row_names, map(float, e))),
         "consistent_bodies": {r.name: bool(r.consistent) for r in reports},
         "all_consistent": all(r.consistent for r in reports),
+        "stribeck_joints": [j for j in robot.actuated_joints if "stribeck" in res.structure.terms_of(j)],
         "gamma": d.get("gamma"),
         "gamma_edge": (d.get("gamma_selection") or {}).get("edge"),
         "seconds": seconds,
