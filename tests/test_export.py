@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import json
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -152,3 +153,10 @@ def test_joint_terms_json_round_trip(tmp_path):
     assert back.joint_names == jt.joint_names
     for t in ("fv", "fc", "offset", "armature"):
         np.testing.assert_array_equal(getattr(back, t), getattr(jt, t))
+    law = JointTerms(("a", "b"), fc=[1.0, 2.0], stribeck=[0.5, 0.0], stribeck_velocity=[0.03, 0.0],
+                     coulomb_smoothing=[1e-3, 1e-3])
+    d = json.loads(write_joint_terms(law, tmp_path / "law.json").read_text())
+    assert d["a"]["stribeck_velocity"] == 0.03 and "stribeck" not in d["b"] and d["b"]["coulomb_smoothing"] == 1e-3
+    back = read_joint_terms(tmp_path / "law.json")
+    for t in ("stribeck", "stribeck_velocity", "coulomb_smoothing"):
+        np.testing.assert_array_equal(getattr(back, t), getattr(law, t))

@@ -110,6 +110,13 @@ def test_identify_cli_per_joint_terms_auto_friction_saved_and_reloaded(ur10_logs
     fr = doc["settings"]["friction"]
     assert fr["coulomb_smoothing_mode"] == "auto" and all(e > 0 for e in fr["coulomb_smoothing"].values())
     assert doc["parameter_links"]["shoulder_pan_joint.m"] == "shoulder_link.m"
+    jt = json.loads((out / "joint_terms.json").read_text())  # the whole friction law, Stribeck included
+    kept = [j for j, t in doc["joint_terms"].items() if "stribeck" in t]
+    assert kept and "stribeck" not in jt["wrist_3_joint"]
+    for j in kept:
+        assert jt[j]["stribeck"] == pytest.approx(doc["joint_terms"][j]["stribeck"])
+        assert jt[j]["stribeck_velocity"] == pytest.approx(fr["stribeck_velocity"][j])
+        assert jt[j]["coulomb_smoothing"] == pytest.approx(fr["coulomb_smoothing"][j])
     assert (out / "friction.png").stat().st_size > 10_000
     from sensorless.estimators import load_parameters
 

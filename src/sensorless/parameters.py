@@ -43,6 +43,7 @@ from .errors import ParameterError, PhysicalConsistencyError
 __all__ = [
     "PARAMETER_NAMES",
     "TERM_NAMES",
+    "FRICTION_LAW_NAMES",
     "parameter_labels",
     "as_bodies",
     "inertia_matrix",
@@ -63,6 +64,8 @@ __all__ = [
 
 PARAMETER_NAMES: tuple[str, ...] = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 TERM_NAMES: tuple[str, ...] = ("fv", "fc", "offset", "armature")
+#: optional per-joint friction-law terms of :class:`JointTerms` (written only where non-zero)
+FRICTION_LAW_NAMES: tuple[str, ...] = ("stribeck", "stribeck_velocity", "coulomb_smoothing")
 
 # index of I[r, c] in pi
 _I_IDX = np.array([[4, 5, 7], [5, 6, 8], [7, 8, 9]])
@@ -318,19 +321,25 @@ def is_physically_consistent(pi: np.ndarray, tol: float = 1e-9) -> bool:
 # ---- joint terms -------------------------------------------------------------
 @dataclass
 class JointTerms:
-    """Per actuated joint: viscous ``fv`` and Coulomb ``fc`` friction, torque ``offset``
-    and rotor ``armature``, i.e. ``tau = ... + fv qd + fc sign(qd) + offset + armature qdd``."""
+    """Per actuated joint: viscous ``fv`` and Coulomb ``fc`` friction, torque ``offset`` and rotor
+    ``armature``, and the optional friction-law terms ``stribeck`` (fs − fc), ``stribeck_velocity``
+    vs and ``coulomb_smoothing`` ε (0: none / sgn), i.e.
+    ``tau = ... + fv qd + fc s + stribeck exp(-(qd/vs)^2) s + offset + armature qdd``,
+    s = tanh(qd/ε) (sign(qd) for ε = 0)."""
 
     joint_names: tuple[str, ...]
     fv: np.ndarray = field(default=None)  # type: ignore[assignment]
     fc: np.ndarray = field(default=None)  # type: ignore[assignment]
     offset: np.ndarray = field(default=None)  # type: ignore[assignment]
     armature: np.ndarray = field(default=None)  # type: ignore[assignment]
+    stribeck: np.ndarray = field(default=None)  # type: ignore[assignment]
+    stribeck_velocity: np.ndarray = field(default=None)  # type: ignore[assignment]
+    coulomb_smoothing: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         self.joint_names = tuple(self.joint_names)
         n = len(self.joint_names)
-        for t in TERM_NAMES:
+        for t in TERM_NAMES + FRICTION_LAW_NAMES:
             v = getattr(self, t)
             v = np.zeros(n) if v is None else np.array(v, dtype=float).reshape(-1)
             if v.shape != (n,):
@@ -338,22 +347,26 @@ class JointTerms:
             setattr(self, t, v)
 
     def to_dict(self) -> dict[str, dict[str, float]]:
-        """``{joint: {"fv": ..., "fc": ..., "offset": ..., "armature": ...}}``."""
-        return {j: {t: float(getattr(self, t)[k]) for t in TERM_NAMES} for k, j in enumerate(self.joint_names)}
+        """``{joint: {"fv": ..., "fc": ..., "offset": ..., "armature": ...}}``, plus the friction-law
+        terms of a joint where they are non-zero."""
+        return {j: {t: float(getattr(self, t)[k]) for t in TERM_NAMES}
+                | {t: float(getattr(self, t)[k]) for t in FRICTION_LAW_NAMES if getattr(self, t)[k] != 0}
+                for k, j in enumerate(self.joint_names)}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Mapping[str, float]]) -> "JointTerms":
         """Inverse of :meth:`to_dict`; missing terms default to 0, unknown ones are an error."""
         names = tuple(d)
+        known = TERM_NAMES + FRICTION_LAW_NAMES
         for j in names:
-            unknown = set(d[j]) - set(TERM_NAMES)
+            unknown = set(d[j]) - set(known)
             if unknown:
-                raise ParameterError(f"joint '{j}': unknown term(s) {sorted(unknown)}; expected {TERM_NAMES}")
+                raise ParameterError(f"joint '{j}': unknown term(s) {sorted(unknown)}; expected {known}")
         try:
-            vals = {t: [float(d[j].get(t, 0.0)) for j in names] for t in TERM_NAMES}
+            vals = {t: [float(d[j].get(t, 0.0)) for j in names] for t in known}
         except (TypeError, ValueError, AttributeError) as exc:
             raise ParameterError(f"joint terms must map joint -> {{term: number}} ({exc})") from None
-        bad = [f"{j}.{t}" for t in TERM_NAMES for j, v in zip(names, vals[t]) if not np.isfinite(v)]
+        bad = [f"{j}.{t}" for t in known for j, v in zip(names, vals[t]) if not np.isfinite(v)]
         if bad:
             raise ParameterError(f"joint terms {bad[:5]} are not finite")
         return cls(names, **vals)

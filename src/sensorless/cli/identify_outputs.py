@@ -92,9 +92,10 @@ def _export(result, tmp: Path, doc: dict) -> None:
         doc["urdf"] = None
         doc["urdf_error"] = f"'{result.robot.name}' has coupled joints; a URDF cannot hold it (result.json does)"
         return
-    from ..parameters import TERM_NAMES
-
-    terms = JointTerms.from_dict({j: {t: v for t, v in d.items() if t in TERM_NAMES} for j, d in result.joint_terms().items()})
+    s = result.structure
+    law = {j: {"stribeck_velocity": float((s.stribeck_velocity or {}).get(j, 0.0)) if "stribeck" in s.terms_of(j) else 0.0,
+               "coulomb_smoothing": s.smoothing_of(j)} for j in s.robot.actuated_joints}
+    terms = JointTerms.from_dict({j: {**d, **law[j]} for j, d in result.joint_terms().items()})
     write_joint_terms(terms, tmp / "joint_terms.json")
     try:
         from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf
