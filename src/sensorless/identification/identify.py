@@ -129,7 +129,7 @@ def identify(
     _check_finite_equations(ne)
     stribeck_search = None
     if cand is not None:
-        choice, stribeck_search = choose_stribeck(cand, ne, "auto" if method == "wls" and weights is None else weights)
+        choice, stribeck_search = choose_stribeck(cand, ne, weights)
         structure, ne = cand.structure_for(choice), cand.select(ne, choice)
     base = base_parameters(structure)
     sample_count_check(ne, base)

@@ -115,14 +115,6 @@ class StribeckCandidates:
             return start + len(s.joint_terms) + int(choice[k])
         return start + term_index
 
-    def columns(self, choice: np.ndarray) -> np.ndarray:
-        """Candidate-layout column of each parameter of the wrapped structure, with candidate
-        ``choice[k]`` as the Stribeck column of searched joint k (−1: none, see :meth:`select`)."""
-        nt = len(self.structure.joint_terms)
-        return np.array(list(range(self.n_block_params)) + [self._column(k, t, choice)
-                                                           for k in range(self.structure.robot.n_actuated)
-                                                           for t in range(nt)])
-
     def select(self, ne: NormalEquations, choice: np.ndarray) -> NormalEquations:
         """The normal equations of :meth:`structure_for` ``(choice)`` from the candidates' equations:
         the chosen columns, and a joint with ``choice = −1`` has no Stribeck term (its column is zero
