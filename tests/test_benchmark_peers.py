@@ -30,7 +30,8 @@ def test_recipe_file_is_the_built_in_recipe():
     assert load_recipe(RECIPE_FILE) == DEFAULT_RECIPE
     r = DEFAULT_RECIPE
     assert (r.robot, r.harmonics, r.base_freq) == ("ur5", 5, 0.1)
-    assert (r.mass_log_sigma, r.com_sigma, r.moment_log_sigma, r.axis_sigma) == (0.1, 0.02, 0.2, 0.2)
+    p = r.perturbation
+    assert (p.mass_log_sigma, p.com_sigma, p.moment_log_sigma, p.axis_sigma) == (0.1, 0.02, 0.2, 0.2)
     assert (r.cases["main"].noise, r.cases["hard"].noise, r.cases["hard"].train_samples) == (0.01, 0.05, 600)
     assert r.peers["main"] and r.peers["hard"] and "issue #13" in r.peers["source"]
 

@@ -125,7 +125,7 @@ def noisy_wobble():
 
     nom = quadruped_robot("solo12")
     truth = make_truth(nom, 0)
-    noise = NoiseSpec(tau=PROFILES["solo12"].torque_noise)
+    noise = NoiseSpec(tau=PROFILES["solo12"].truth.torque_noise)
     traj, gt = simulate("wobble", nom, duration=6.0, seed=101, truth=truth, noise=noise, log_rate=100.0,
                         coulomb_velocity=0.03)
     cs = ContactStructure(nom, contact_frames=PROFILES["solo12"].feet, joint_terms=("fv", "fc", "armature"),

@@ -267,7 +267,7 @@ def _motor_model(P: np.ndarray, names, a: dict[str, np.ndarray], coulomb: bool, 
                  info: dict | None = None) -> MotorModel:
     """The :class:`MotorModel` of per-joint rows ``P`` = (Kτ, Kv, Kc), its info completed with the
     fit's metrics on :func:`_prepare`'s arrays ``a`` (and ``extra``, one dict per joint)."""
-    model = MotorModel(P[:, 0], P[:, 1], P[:, 2], names, method=method, info=info or {})
+    model = MotorModel(P[:, 0], P[:, 1], P[:, 2], joint_names=names, method=method, info=info or {})
     valid = a["valid"]
     pred = model.delta_q(a["tau"], a["dq"], coulomb=coulomb)
     over, rmse = _masked_metrics(pred, a["delta_q"], valid)
@@ -373,7 +373,7 @@ def fit_current_model(current, dq, tau, coulomb: bool = True, joint_names: Seque
         th = _scaled_lstsq(X, t)
         P[j] = (th[0], th[1], th[2] if coulomb else 0.0)
         rmse.append(float(np.sqrt(np.mean((X @ th - t) ** 2))))
-    return CurrentModel(P[:, 0], P[:, 1], P[:, 2], names, method="current_least_squares",
+    return CurrentModel(P[:, 0], P[:, 1], P[:, 2], joint_names=names, method="current_least_squares",
                         info={"n_samples": int(a["tau"].shape[0]), "coulomb": coulomb,
                               "rmse_torque": dict(zip(names, rmse))})
 

@@ -22,6 +22,7 @@ direction of the measured Δq: z = sgn(Δq) (Δq_model − Δq) > 0 (sgn 0 := +1
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -84,15 +85,38 @@ def over_estimation_fraction(predicted: np.ndarray, measured: np.ndarray, valid:
 
 
 @dataclass
-class MotorModel:
+class _JointwiseModel:
+    """What the actuator models share: per-joint parameter arrays (named in ``ARRAYS``, first
+    axis the joint), the joints' names, the fit that made them and its diagnostics; a dict form
+    that round-trips through JSON (:meth:`to_dict`, :meth:`from_dict`)."""
+
+    ARRAYS: ClassVar[tuple[str, ...]] = ()
+    joint_names: tuple[str, ...] = field(default=(), kw_only=True)
+    method: str = field(default="", kw_only=True)
+    info: dict = field(default_factory=dict, repr=False, kw_only=True)
+
+    @property
+    def n(self) -> int:
+        return getattr(self, self.ARRAYS[0]).shape[0]
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "joints": list(self.joint_names),
+                **{name: getattr(self, name).tolist() for name in self.ARRAYS}, "info": self.info}
+
+    @classmethod
+    def from_dict(cls, d: dict):
+        return cls(*(d.get(name) for name in cls.ARRAYS), joint_names=tuple(d.get("joints", ())),
+                   method=d.get("method", ""), info=d.get("info", {}))
+
+
+@dataclass
+class MotorModel(_JointwiseModel):
     """Δq = Kτ τ + Kv q̇ + Kc sgn(q̇), one entry per joint."""
 
+    ARRAYS: ClassVar[tuple[str, ...]] = ("k_tau", "k_v", "k_c")
     k_tau: np.ndarray
     k_v: np.ndarray
     k_c: np.ndarray | None = None
-    joint_names: tuple[str, ...] = ()
-    method: str = ""
-    info: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.k_tau = np.atleast_1d(np.asarray(self.k_tau, dtype=float))
@@ -100,10 +124,6 @@ class MotorModel:
         self.k_v = _per_joint(self.k_v, n)
         self.k_c = np.zeros(n) if self.k_c is None else _per_joint(self.k_c, n)
         self.joint_names = _joint_names(self.joint_names, n, "actuator parameters")
-
-    @property
-    def n(self) -> int:
-        return self.k_tau.size
 
     def delta_q(self, tau, dq, coulomb: bool = True) -> np.ndarray:
         """Command offset Δq for joint torque ``tau`` at velocity ``dq`` (arrays (N, n) or (n,))."""
@@ -121,31 +141,15 @@ class MotorModel:
         tau, dq, delta_q = _log_columns(self.n, tau, dq, delta_q)
         return over_estimation_fraction(self.delta_q(tau, dq, coulomb), delta_q)
 
-    def to_dict(self) -> dict:
-        return {
-            "method": self.method,
-            "joints": list(self.joint_names),
-            "k_tau": self.k_tau.tolist(),
-            "k_v": self.k_v.tolist(),
-            "k_c": self.k_c.tolist(),
-            "info": self.info,
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict) -> MotorModel:
-        return cls(d["k_tau"], d["k_v"], d.get("k_c"), tuple(d.get("joints", ())), d.get("method", ""), d.get("info", {}))
-
 
 @dataclass
-class CurrentModel:
+class CurrentModel(_JointwiseModel):
     """τ = K1 i − Fv q̇ − Fc sgn(q̇): torque from measured motor current, one entry per joint."""
 
+    ARRAYS: ClassVar[tuple[str, ...]] = ("k1", "fv", "fc")
     k1: np.ndarray
     fv: np.ndarray
     fc: np.ndarray
-    joint_names: tuple[str, ...] = ()
-    method: str = ""
-    info: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.k1 = np.atleast_1d(np.asarray(self.k1, float))
@@ -160,13 +164,9 @@ class CurrentModel:
     def current(self, tau, dq) -> np.ndarray:
         return (np.asarray(tau, float) + self.fv * np.asarray(dq, float) + self.fc * _sgn(dq)) / self.k1
 
-    def to_dict(self) -> dict:
-        return {"method": self.method, "joints": list(self.joint_names), "k1": self.k1.tolist(),
-                "fv": self.fv.tolist(), "fc": self.fc.tolist(), "info": self.info}
-
 
 @dataclass
-class PiecewiseLinearModel:
+class PiecewiseLinearModel(_JointwiseModel):
     """Per joint and per sign of q̇ (index 0: q̇ ≥ 0, 1: q̇ < 0) a continuous three-segment
     function of τ plus a velocity term:
 
@@ -175,6 +175,7 @@ class PiecewiseLinearModel:
     Arrays have shape (n_joints, 2): ``c``, ``s_left``, ``s_mid``, ``s_right``, ``b1``, ``b2``, ``k_v``.
     """
 
+    ARRAYS: ClassVar[tuple[str, ...]] = ("c", "s_left", "s_mid", "s_right", "b1", "b2", "k_v")
     c: np.ndarray
     s_left: np.ndarray
     s_mid: np.ndarray
@@ -182,25 +183,19 @@ class PiecewiseLinearModel:
     b1: np.ndarray
     b2: np.ndarray
     k_v: np.ndarray
-    joint_names: tuple[str, ...] = ()
-    method: str = "piecewise_linear"
-    info: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
-        for name in ("c", "s_left", "s_mid", "s_right", "b1", "b2", "k_v"):
+        for name in self.ARRAYS:
             setattr(self, name, np.asarray(getattr(self, name), float).reshape(-1, 2))
-        n = self.c.shape[0]
-        self.joint_names = _joint_names(self.joint_names, n)
-
-    @property
-    def n(self) -> int:
-        return self.c.shape[0]
+        self.joint_names = _joint_names(self.joint_names, self.n)
+        if not self.method:
+            self.method = "piecewise_linear"
 
     def delta_q(self, tau, dq) -> np.ndarray:
         tau, dq = np.asarray(tau, float), np.asarray(dq, float)
         k = np.where(dq >= 0, 0, 1)
         j = np.arange(self.n)
-        p = {name: getattr(self, name)[j, k] for name in ("c", "s_left", "s_mid", "s_right", "b1", "b2", "k_v")}
+        p = {name: getattr(self, name)[j, k] for name in self.ARRAYS}
         return (p["c"] + p["s_mid"] * tau + (p["s_left"] - p["s_mid"]) * np.minimum(0.0, tau - p["b1"])
                 + (p["s_right"] - p["s_mid"]) * np.maximum(0.0, tau - p["b2"]) + p["k_v"] * dq)
 
@@ -209,8 +204,4 @@ class PiecewiseLinearModel:
         return over_estimation_fraction(self.delta_q(tau, dq), delta_q)
 
     def to_dict(self) -> dict:
-        out = {"method": self.method, "joints": list(self.joint_names), "info": self.info,
-               "sign_order": ["dq>=0", "dq<0"]}
-        for name in ("c", "s_left", "s_mid", "s_right", "b1", "b2", "k_v"):
-            out[name] = getattr(self, name).tolist()
-        return out
+        return {**super().to_dict(), "sign_order": ["dq>=0", "dq<0"]}

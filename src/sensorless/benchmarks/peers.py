@@ -27,7 +27,7 @@ import platform
 import time
 import tomllib
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -46,6 +46,7 @@ __all__ = [
     "VARIANTS",
     "CaseSpec",
     "PeerCase",
+    "InertialPerturbation",
     "Recipe",
     "cli_defaults",
     "held_out_nrmse",
@@ -64,6 +65,19 @@ class CaseSpec:
 
 
 @dataclass(frozen=True)
+class InertialPerturbation:
+    """How the truth's inertials are drawn from the URDF's (the recipe's ``[perturbation]``):
+    mass ``m·exp(N(0, mass_log_sigma))``, CoM ``+ N(0, com_sigma)`` per axis, principal moments
+    about the CoM ``λ·exp(N(0, moment_log_sigma))`` (redrawn, up to 100 times, then left
+    unscaled, until ``λ_i ≤ λ_j + λ_k``), principal axes ``R·exp([ω]×)``, ``ω ~ N(0, axis_sigma)``."""
+
+    mass_log_sigma: float = 0.1
+    com_sigma: float = 0.02
+    moment_log_sigma: float = 0.2
+    axis_sigma: float = 0.2
+
+
+@dataclass(frozen=True)
 class Recipe:
     """The benchmark's fixed recipe (``benchmarks/peers.toml``)."""
 
@@ -73,10 +87,7 @@ class Recipe:
     base_freq: float = 0.1
     rate: float = 100.0
     test_samples: int = 2000
-    mass_log_sigma: float = 0.1
-    com_sigma: float = 0.02
-    moment_log_sigma: float = 0.2
-    axis_sigma: float = 0.2
+    perturbation: InertialPerturbation = InertialPerturbation()
     cases: dict[str, CaseSpec] = field(default_factory=lambda: {
         "main": CaseSpec(noise=0.01, train_samples=2000, acceptance_percent=0.53),
         "hard": CaseSpec(noise=0.05, train_samples=600, acceptance_percent=8.0),
@@ -102,10 +113,10 @@ def load_recipe(path: str | Path | None) -> Recipe:
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise OptionError(f"--recipe {path}: cannot read the recipe ({exc})") from None
     try:
-        pert = doc.pop("perturbation", {})
+        pert = InertialPerturbation(**doc.pop("perturbation", {}))
         cases = {k: CaseSpec(**v) for k, v in doc.pop("cases").items()}
         doc["seeds"] = tuple(int(x) for x in doc.get("seeds", DEFAULT_RECIPE.seeds))
-        return Recipe(**doc, **pert, cases=cases)
+        return Recipe(**doc, perturbation=pert, cases=cases)
     except (TypeError, KeyError, ValueError) as exc:
         raise OptionError(f"--recipe {path}: bad recipe ({exc}); see benchmarks/peers.toml") from None
 
@@ -113,31 +124,23 @@ def load_recipe(path: str | Path | None) -> Recipe:
 def perturb_inertials(
     robot: Robot,
     rng: np.random.Generator | int = 0,
-    *,
-    mass_sigma: float = 0.1,
-    com_sigma: float = 0.02,
-    moment_sigma: float = 0.2,
-    axis_sigma: float = 0.2,
+    perturbation: InertialPerturbation = InertialPerturbation(),
 ) -> Robot:
-    """A copy of ``robot`` with the recipe's perturbed inertials (module docstring).
-
-    Principal moments ``λ`` of the inertia about the CoM become ``λ·exp(N(0, moment_sigma))``,
-    redrawn (up to 100 times, then left unscaled) until ``λ_i ≤ λ_j + λ_k``; the principal
-    axes ``R`` become ``R·exp([ω]×)``, ``ω ~ N(0, axis_sigma)``.
-    """
+    """A copy of ``robot`` with every body's inertials drawn as :class:`InertialPerturbation` says."""
     rng = np.random.default_rng(rng)
+    p = perturbation
 
     def perturbed(I: pin.Inertia) -> pin.Inertia:
-        m = I.mass * float(np.exp(rng.normal(0.0, mass_sigma)))
-        c = np.asarray(I.lever) + rng.normal(0.0, com_sigma, 3)
+        m = I.mass * float(np.exp(rng.normal(0.0, p.mass_log_sigma)))
+        c = np.asarray(I.lever) + rng.normal(0.0, p.com_sigma, 3)
         lam, R = np.linalg.eigh(np.asarray(I.inertia))
         for _ in range(100):
-            lam2 = lam * np.exp(rng.normal(0.0, moment_sigma, 3))
+            lam2 = lam * np.exp(rng.normal(0.0, p.moment_log_sigma, 3))
             if np.all(lam2 <= lam2.sum() - lam2):  # triangle inequalities: a real body
                 break
         else:
             lam2 = lam
-        R2 = R @ pin.exp3(rng.normal(0.0, axis_sigma, 3))
+        R2 = R @ pin.exp3(rng.normal(0.0, p.axis_sigma, 3))
         Ic = (R2 * lam2) @ R2.T
         return pin.Inertia(m, c, 0.5 * (Ic + Ic.T))
 
@@ -170,8 +173,7 @@ def peer_case(name: str, seed: int, robot: Robot | None = None, recipe: Recipe =
     robot = load_robot(recipe.robot) if robot is None else robot
     n_train = spec.train_samples if train_samples is None else int(train_samples)
     base = 1000 * int(seed)
-    truth = _zero_terms(perturb_inertials(robot, base, mass_sigma=recipe.mass_log_sigma, com_sigma=recipe.com_sigma,
-                                          moment_sigma=recipe.moment_log_sigma, axis_sigma=recipe.axis_sigma))
+    truth = _zero_terms(perturb_inertials(robot, base, recipe.perturbation))
     exc_train = random_fourier(robot, harmonics=recipe.harmonics, base_freq=recipe.base_freq, rng=base + 1)
     exc_test = random_fourier(robot, harmonics=recipe.harmonics, base_freq=recipe.base_freq, rng=base + 2)
     clean = synthetic_trajectory(truth, exc_train.sample(recipe.rate, n_train / recipe.rate))
@@ -271,8 +273,7 @@ def run_peers(
         raise OptionError(f"unknown case(s)/variant(s) {unknown}; cases {list(recipe.cases)}, variants {list(VARIANTS)}")
     robot = load_robot(recipe.robot)
     out: dict[str, Any] = {
-        "recipe": {**{k: v for k, v in recipe.__dict__.items() if k not in ("cases", "peers")},
-                   "cases": {k: v.__dict__ for k, v in recipe.cases.items()}, "seeds": list(seeds),
+        "recipe": {**{k: v for k, v in asdict(recipe).items() if k != "peers"}, "seeds": list(seeds),
                    **({"train_samples_override": train_samples} if train_samples else {})},
         "cli_defaults": {k: v for k, v in cli_defaults().items() if isinstance(v, (str, int, float, bool))},
         "peers": recipe.peers,

@@ -174,7 +174,7 @@ def _simulate(cfg: ContactStudyConfig, nominal: Robot, console) -> _Sets:
     from ..simulation.quadruped import NoiseSpec, make_truth, simulate
 
     truth = make_truth(nominal, cfg.truth_seed)
-    noise = NoiseSpec(tau=PROFILES[cfg.robot].torque_noise)
+    noise = NoiseSpec(tau=PROFILES[cfg.robot].truth.torque_noise)
     seed = cfg.seed * 1000
 
     def run(kind: str, spec, duration: float, k: int):

@@ -91,11 +91,12 @@ def make_truth(robot: Robot, truth_seed: int = 0, profile: QuadrupedProfile | No
     from ``profile`` and zero torque offset."""
     prof = profile_for(robot, profile)
     rng = np.random.default_rng(truth_seed)
-    perturb = {"mass_scale": prof.mass_scale, "com_shift": prof.com_shift, **perturb}
-    truth = perturbed_truth(robot, rng=rng, friction=False, armature=prof.armature, **perturb)
+    ranges = prof.truth
+    perturb = {"mass_scale": ranges.mass_scale, "com_shift": ranges.com_shift, **perturb}
+    truth = perturbed_truth(robot, rng=rng, friction=False, armature=ranges.armature, **perturb)
     n = robot.n_actuated
-    truth.fv = rng.uniform(*prof.fv_range, n)
-    truth.fc = rng.uniform(*prof.fc_range, n)
+    truth.fv = rng.uniform(*ranges.fv_range, n)
+    truth.fc = rng.uniform(*ranges.fc_range, n)
     truth.offset = np.zeros(n)
     truth.robot.name = robot.name + "_truth"
     return truth
@@ -182,7 +183,7 @@ def simulate(
         armature=truth.armature,
         foot_frames=prof.feet,
         foot_radius=prof.foot_radius,
-        torque_limit=prof.torque_limit,
+        torque_limit=prof.gains.torque_limit,
         timestep=dt,
         ground_friction=prof.friction_coefficient,
         coulomb_velocity=coulomb_velocity,

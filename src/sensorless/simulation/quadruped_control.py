@@ -201,7 +201,7 @@ class Controller:
         M, h = data.M, data.nle
         # base: PD towards the plan in the world frame, mapped to Pinocchio's LOCAL derivative
         e_rot = pin.log3(ref.R[k] @ R.T)
-        kp, kd = prof.base_kp, prof.base_kd
+        kp, kd = prof.gains.base_kp, prof.gains.base_kd
         a_w = ref.a[k] + kp * (ref.p[k] - q[:3]) + kd * (ref.v[k] - vw)
         al_w = ref.dw[k] + kp * e_rot + kd * (ref.w[k] - R @ wl)
         wx, wy, wz = wl
@@ -233,5 +233,5 @@ class Controller:
         else:  # flight: base acceleration that the joint motion implies
             ab = -np.linalg.solve(M[:6, :6], M[:6, 6:] @ acc[6:] + h[:6])
             tau_j = M[6:, :6] @ ab + M[6:, 6:] @ acc[6:] + h[6:]
-        tau_j += prof.kp * (ref.q[k] - q[7:]) + prof.kd * (ref.dq[k] - v[6:])
+        tau_j += prof.gains.kp * (ref.q[k] - q[7:]) + prof.gains.kd * (ref.dq[k] - v[6:])
         return np.minimum(np.maximum(tau_j[self.act_cols], self.lo), self.hi)

@@ -12,7 +12,32 @@ from dataclasses import dataclass
 from ..errors import RobotModelError
 from ..robot import Robot, load_robot
 
-__all__ = ["PROFILES", "QuadrupedProfile", "profile_for", "quadruped_robot", "spot_mjcf"]
+__all__ = ["PROFILES", "ControllerGains", "QuadrupedProfile", "TruthRanges", "profile_for", "quadruped_robot", "spot_mjcf"]
+
+
+@dataclass(frozen=True)
+class ControllerGains:
+    """The simulated walking controller's gains and the motors' torque limit."""
+
+    kp: float = 10.0  # joint PD [N·m/rad] about the planned joint trajectory
+    kd: float = 0.2  # [N·m·s/rad]
+    base_kp: float = 100.0  # base pose PD [1/s²] in the task-space (whole-body) acceleration
+    base_kd: float = 20.0  # [1/s]
+    torque_limit: float = 3.0  # [N·m], every motor
+
+
+@dataclass(frozen=True)
+class TruthRanges:
+    """What the simulated truth is drawn from (:func:`~sensorless.simulation.quadruped.make_truth`):
+    viscous and Coulomb friction ranges, nominal armature, mass scale and CoM shift of the
+    inertial perturbation, and σ of the logged motor torque (the studies' ``NoiseSpec.tau``)."""
+
+    fv_range: tuple[float, float] = (0.005, 0.03)  # [N·m·s/rad], uniform per joint
+    fc_range: tuple[float, float] = (0.02, 0.1)  # [N·m], uniform per joint
+    armature: float = 5e-4  # [kg·m²], × U(0.5, 1.5) per joint
+    mass_scale: float = 0.2  # body masses × U(1 ± mass_scale)
+    com_shift: float = 0.01  # [m], at most, per CoM
+    torque_noise: float = 0.02  # [N·m]
 
 
 @dataclass(frozen=True)
@@ -20,26 +45,17 @@ class QuadrupedProfile:
     """Robot-specific simulation and controller settings.
 
     ``stand`` maps joint name → standing angle; ``trot_pairs`` and ``crawl_order`` index
-    ``feet``. Friction/armature ranges are those the truth model is drawn from.
+    ``feet``; ``friction_coefficient`` is the ground's.
     """
 
     feet: tuple[str, ...]
     stand: dict[str, float]
     foot_radius: float = 0.016
-    torque_limit: float = 3.0
-    kp: float = 10.0
-    kd: float = 0.2
-    base_kp: float = 100.0
-    base_kd: float = 20.0
     friction_coefficient: float = 1.0
     trot_pairs: tuple[tuple[int, ...], ...] = ((0, 3), (1, 2))
     crawl_order: tuple[int, ...] = (2, 0, 3, 1)
-    fv_range: tuple[float, float] = (0.005, 0.03)
-    fc_range: tuple[float, float] = (0.02, 0.1)
-    armature: float = 5e-4
-    mass_scale: float = 0.2
-    com_shift: float = 0.01
-    torque_noise: float = 0.02  # N·m, σ of the logged motor torque (the studies' NoiseSpec.tau)
+    gains: ControllerGains = ControllerGains()
+    truth: TruthRanges = TruthRanges()
 
 
 def _solo12_stand() -> dict[str, float]:
@@ -64,8 +80,8 @@ PROFILES: dict[str, QuadrupedProfile] = {
     # ranges around the MJCF's own (damping 0.6, frictionloss 0.2, armature 0.01).
     "spot": QuadrupedProfile(
         feet=("FL_foot", "FR_foot", "RL_foot", "RR_foot"), stand=_spot_stand(), foot_radius=0.036,
-        torque_limit=135.0, kp=300.0, kd=6.0, friction_coefficient=0.8, fv_range=(0.3, 1.0), fc_range=(0.1, 0.4),
-        armature=0.01, com_shift=0.02, torque_noise=0.5,
+        friction_coefficient=0.8, gains=ControllerGains(kp=300.0, kd=6.0, torque_limit=135.0),
+        truth=TruthRanges(fv_range=(0.3, 1.0), fc_range=(0.1, 0.4), armature=0.01, com_shift=0.02, torque_noise=0.5),
     ),
 }
 
