@@ -169,6 +169,30 @@ def test_motor_model_inverse():
     assert MotorModel.from_dict(m.to_dict()).k_c.tolist() == K_C.tolist()
 
 
+def test_every_actuator_model_round_trips_through_json():
+    """to_dict → JSON → from_dict gives the same model: same predictions, names, method, info."""
+    import json
+
+    from sensorless.actuator.model import CurrentModel, PiecewiseLinearModel
+
+    rng = np.random.default_rng(5)
+    tau, dq, _ = _data(n=200)
+    n = tau.shape[1]
+    pwl = {k: rng.uniform(0.1, 1.0, (n, 2)) for k in ("c", "s_left", "s_mid", "s_right", "k_v")}
+    pwl["b1"], pwl["b2"] = -rng.uniform(0.5, 1.0, (n, 2)), rng.uniform(0.5, 1.0, (n, 2))
+    names = tuple(f"j{k}" for k in range(n))
+    models = [MotorModel(K_TAU, K_V, K_C, joint_names=names, method="two_stage", info={"rmse": 0.1}),
+              CurrentModel(rng.uniform(1, 2, n), K_V, K_C, joint_names=names, method="current_least_squares"),
+              PiecewiseLinearModel(**pwl, joint_names=names, info={"n_samples": 200})]
+    for m in models:
+        back = type(m).from_dict(json.loads(json.dumps(m.to_dict())))
+        assert (back.joint_names, back.method, back.info, back.n) == (m.joint_names, m.method, m.info, n)
+        out = (back.torque(tau, dq), m.torque(tau, dq)) if isinstance(m, CurrentModel) else \
+            (back.delta_q(tau, dq), m.delta_q(tau, dq))
+        np.testing.assert_array_equal(*out)
+    assert models[2].method == "piecewise_linear"
+
+
 def test_errors():
     tau, dq, y = _data(n=200)
     with pytest.raises(ShapeMismatchError):

@@ -62,6 +62,17 @@ def test_free_string_options_are_choices(log, tmp_path):
     assert r.exit_code == 2 and "'lsq' is not one of" in r.output and not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("args, bad", [
+    (["excite", "--robot", "ur5", "--criterion", "aopt"], "aopt"),
+    (["experiment", "psm-identify", "--save", "svd"], "svd"),
+    (["experiment", "contact-id", "--training", "walk"], "walk"),
+])
+def test_study_choices_are_refused_before_running(args, bad, tmp_path):
+    out = tmp_path / "o"
+    r = runner.invoke(app, args + ["--out", str(out)])
+    assert r.exit_code == 2 and f"'{bad}' is not one of" in r.output and not out.exists()
+
+
 def test_choices_mirror_the_library():
     from sensorless.data.outliers import OUTLIER_MODES
     from sensorless.data.prepare import VELOCITY_SOURCES
@@ -74,3 +85,19 @@ def test_choices_mirror_the_library():
     assert tuple(opts.Outliers) == OUTLIER_MODES and tuple(opts.Velocity) == VELOCITY_SOURCES
     assert tuple(opts.WrenchOffset) == WRENCH_OFFSETS
     assert f"{opts.Method.lmi}" == "lmi" and opts.Velocity("from-q") == "from-q"
+
+
+def test_study_and_estimator_choices_mirror_the_library():
+    from sensorless.estimation.force import COMPONENTS, REFERENCES
+    from sensorless.excitation.criteria import CRITERIA
+    from sensorless.experiments.contact_id import ACCELERATIONS, TRAININGS
+    from sensorless.identification import METHODS
+    from sensorless.identification.drive_gains import ALIGNMENTS
+    from sensorless.identification.payload import MODES
+    from sensorless.simulation.quadruped import TAU_LOGS
+
+    assert tuple(opts.Criterion) == CRITERIA and tuple(opts.PayloadMode) == MODES
+    assert set(opts.ForceReference) == set(REFERENCES) and tuple(opts.ForceComponents) == COMPONENTS
+    assert tuple(opts.Align) == ALIGNMENTS and tuple(opts.Training) == TRAININGS and tuple(opts.TauLog) == TAU_LOGS
+    assert set(opts.Acceleration) == {*ACCELERATIONS, "logged"}  # logged: the simulator's own, an alias
+    assert set(opts.LinearMethod) < set(opts.PsmModel) <= set(METHODS)

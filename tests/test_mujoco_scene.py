@@ -270,7 +270,8 @@ def test_stance_residual_of_soft_contacts(runs):
 
 
 def test_fall_is_detected_and_reported(solo12, truth):
-    weak = dataclasses.replace(PROFILES["solo12"], torque_limit=0.05)
+    solo = PROFILES["solo12"]
+    weak = dataclasses.replace(solo, gains=dataclasses.replace(solo.gains, torque_limit=0.05))
     with pytest.warns(RuntimeWarning, match="fell"):
         traj, gt = simulate("wobble", solo12, duration=3.0, seed=0, truth=truth, profile=weak)
     assert gt.fell and gt.fall_time < 3.0 and len(traj) < 300 and "FELL" in traj.source

@@ -13,6 +13,7 @@ from .common import (
     bench_command,
     console,
 )
+from .options import LinearMethod
 
 
 @bench_command("identify")
@@ -32,7 +33,7 @@ def bench_dask_cmd(
     samples: str = typer.Option("1000000,10000000", help="comma-separated total sample counts"),
     samples_per_file: int = typer.Option(100_000, help="samples per generated Parquet file"),
     workers: int = typer.Option(2, help="LocalCluster worker processes (one thread each)"),
-    method: str = typer.Option("ols", help="ols | wls"),
+    method: LinearMethod = typer.Option(LinearMethod.ols, help="linear least squares: ols or wls"),
 ) -> dict:
     """Dask LocalCluster vs single-process identification from generated Parquet logs (deleted afterwards)."""
     from ..benchmarks.fleet import bench_dask

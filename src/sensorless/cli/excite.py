@@ -21,6 +21,7 @@ from .common import (
     lock_option,
     robot_option,
 )
+from .options import Criterion
 
 from ..robots.names import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
 
@@ -68,7 +69,7 @@ def excite(
     out: Path = typer.Option(..., help="output directory (written atomically): excitation.json, trajectory.npz"),
     harmonics: int = typer.Option(5, help="Fourier harmonics per joint"),
     base_freq: float = typer.Option(0.1, help="base frequency f0 [Hz] (period 1/f0)"),
-    criterion: str = typer.Option("cond", help="cond (condition number of the column-equilibrated base regressor) | dopt (−log det)"),
+    criterion: Criterion = typer.Option(Criterion.cond, help="cond (condition number of the column-equilibrated base regressor) | dopt (−log det)"),
     rate: float = typer.Option(200.0, help="sample rate [Hz] of the exported trajectory"),
     periods: int = typer.Option(1, help="whole periods in the exported trajectory (≥ 1)"),
     seed: int = typer.Option(0, help="seed of the random start (and of the random baseline)"),

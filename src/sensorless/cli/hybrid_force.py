@@ -24,6 +24,7 @@ from .common import (
     model_options,
     experiment_options,
 )
+from .options import ForceComponents, ForceReference
 
 __all__ = ["estimate_force", "experiment_hybrid_force"]
 
@@ -51,10 +52,10 @@ def estimate_force(
     model: Path,
     data: Path = typer.Option(..., help="log with q and measured torque"),
     frame: str = typer.Option(..., help="frame where the force acts (e.g. the tool tip)"),
-    reference: str = typer.Option("local_world_aligned", help="world | local | local_world_aligned"),
+    reference: ForceReference = typer.Option(ForceReference.local_world_aligned, help="frame of the force"),
     out: Path = typer.Option(..., help="output .npz (t, force, labels, tau_ext, sigma_min, damping)"),
     residual: Path | None = typer.Option(None, help="directory of a learned residual (HybridModel.save)"),
-    components: str = typer.Option("linear", help="linear (3 forces) | angular | wrench (6)"),
+    components: ForceComponents = typer.Option(ForceComponents.linear, help="linear (3 forces) | angular | wrench (6)"),
     joints: str | None = typer.Option(None, help="comma-separated joints whose torques are used (default all)"),
     sigma_threshold: float = typer.Option(0.01, help="damping starts below this smallest singular value"),
     lambda_max: float = typer.Option(0.02, help="damping at a singularity"),

@@ -58,11 +58,11 @@ def identify(
     data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
                                          "folder; several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
-    method: Method = typer.Option("ols", help="lmi: physically consistent; svd: minimum-norm truncated SVD"),
+    method: Method = typer.Option(Method.ols, help="lmi: physically consistent; svd: minimum-norm truncated SVD"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
-    regularization: Regularization = typer.Option("pullback", help="lmi: regulariser toward the prior"),
+    regularization: Regularization = typer.Option(Regularization.pullback, help="lmi: regulariser toward the prior"),
     gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),
-    ellipsoids: Ellipsoids = typer.Option("auto", help="lmi: bounding ellipsoids"),
+    ellipsoids: Ellipsoids = typer.Option(Ellipsoids.auto, help="lmi: bounding ellipsoids"),
     contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain any body near the prior "
                                        "(second moments ×4, CoM within 7.5 cm); --no-contain-prior: geometry only"),
     weights: str = typer.Option("auto", help="per-joint noise weighting, every method: auto (two-step: σ from an "
@@ -89,11 +89,11 @@ def identify(
                    "forces, flags from the log's 'contact' columns or detected from foot height/speed"),
     contact_dims: Optional[str] = typer.Option(None, help="per contact frame 3 (point foot) or 6 (flat foot); default 3"),
     contact_offset: float = typer.Option(0.0, help="radius [m] of spherical feet (contact point below the frame)"),
-    contact_mode: ContactMode = typer.Option("projected", help="projected (no force sensing) | wrench (log has "
+    contact_mode: ContactMode = typer.Option(ContactMode.projected, help="projected (no force sensing) | wrench (log has "
                                              "contact_forces)"),
-    contact_rows: ContactRows = typer.Option("auto", help="wrench mode: base (6 floating-base rows; logs without joint "
+    contact_rows: ContactRows = typer.Option(ContactRows.auto, help="wrench mode: base (6 floating-base rows; logs without joint "
                                      "torques) | all (+ torque rows) | auto (base when the logs have no torques)"),
-    wrench_offset: WrenchOffset = typer.Option("none", help="wrench mode: constant wrench bias to identify: none | net | "
+    wrench_offset: WrenchOffset = typer.Option(WrenchOffset.none, help="wrench mode: constant wrench bias to identify: none | net | "
                                       "foot (world axes, per foot) | sole (force in each sole frame)"),
     offset_axes: str = typer.Option("xy", help="force axes of --wrench-offset (xyz adds the vertical one, "
                                     "confounded with m·g on standing data)"),
@@ -101,13 +101,13 @@ def identify(
                                             "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
                                           "the joint's velocity noise (docs/arm.md §7)"),
-    rest: Rest = typer.Option("auto", help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
+    rest: Rest = typer.Option(Rest.auto, help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
                              "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
                              "remembers it) | off (docs/arm.md §7)"),
     stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (per joint, "
                                           "the best of a grid of candidates compressed in the same pass)"),
     force: bool = force_option(),
-    outliers: Outliers = typer.Option("error", help="gross outliers in a log (robust MAD test): error | drop (with a "
+    outliers: Outliers = typer.Option(Outliers.error, help="gross outliers in a log (robust MAD test): error | drop (with a "
                                                     "warning) | keep"),
     scheduler: Optional[str] = typer.Option(
         None, help="compress on Dask: 'local' (a LocalCluster on this machine) or a scheduler address "

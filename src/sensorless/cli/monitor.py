@@ -26,6 +26,7 @@ from .common import (
     floating_base_option,
     model_options,
 )
+from .options import ForceReference
 
 __all__ = ["monitor", "bench_observer"]
 
@@ -50,7 +51,7 @@ def monitor(
     data: Path = typer.Option(..., help="log to monitor (.csv .npz .parquet .h5)"),
     out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json + monitor.npz (written atomically)"),
     frame: Optional[str] = typer.Option(None, help="frame at which to estimate the Cartesian force (damped J⁻ᵀ)"),
-    reference: str = typer.Option("local_world_aligned", help="force reference: local | world | local_world_aligned"),
+    reference: ForceReference = typer.Option(ForceReference.local_world_aligned, help="frame of the force"),
     quiet: str = typer.Option("0:1", help="START:END [s] of a contact-free segment for the thresholds"),
     k: Optional[float] = typer.Option(None, help="threshold = k σ per joint (default: from --false-alarm-rate)"),
     false_alarm_rate: float = typer.Option(1.0, help="target false alarms per minute (Gaussian model) when --k is not given"),

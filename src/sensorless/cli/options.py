@@ -19,7 +19,9 @@ import typer
 from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "ContactMode", "ContactRows",
-           "WrenchOffset", "Rest", "config_option", "check_config", "resolved_options"]
+           "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align",
+           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "config_option", "check_config",
+           "resolved_options"]
 
 
 def _choices(name: str, values: tuple[str, ...]) -> type[StrEnum]:
@@ -35,6 +37,16 @@ ContactMode = _choices("ContactMode", ("projected", "wrench"))
 ContactRows = _choices("ContactRows", ("auto", "base", "all"))
 WrenchOffset = _choices("WrenchOffset", ("none", "net", "foot", "sole"))
 Rest = _choices("Rest", ("auto", "off"))
+Criterion = _choices("Criterion", ("cond", "dopt"))
+ForceReference = _choices("ForceReference", ("local", "world", "local_world_aligned"))
+ForceComponents = _choices("ForceComponents", ("linear", "angular", "wrench"))
+PayloadMode = _choices("PayloadMode", ("auto", "full", "com", "mass"))
+Align = _choices("Align", ("time", "rows"))
+LinearMethod = _choices("LinearMethod", ("ols", "wls"))
+PsmModel = _choices("PsmModel", ("ols", "wls", "lmi"))
+Training = _choices("Training", ("rich", "stance"))
+Acceleration = _choices("Acceleration", ("simulator", "logged", "savgol", "savgol_imu", "none"))
+TauLog = _choices("TauLog", ("sample", "mean"))
 
 _CONFIG_ERROR = "sensorless_config_error"
 

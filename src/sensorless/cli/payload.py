@@ -21,6 +21,7 @@ from .common import (
     lock_option,
     model_options,
 )
+from .options import Align, PayloadMode
 
 __all__ = ["payload"]
 
@@ -49,12 +50,12 @@ def payload(
     out: Path = typer.Option(..., help="output JSON (written atomically)"),
     no_load: List[Path] = typer.Option([], help="paired log(s) without the payload: same trajectory, row-aligned, "
                                                "one per --data; cancels what the model misses"),
-    align: str = typer.Option("rows", help="pairing of --no-load with --data: rows (row by row, same length) | time "
+    align: Align = typer.Option(Align.rows, help="pairing of --no-load with --data: rows (row by row, same length) | time "
                                            "(no-load log interpolated at the payload log's times from the first "
                                            "sample; for two separately started recordings)"),
     offsets: str = typer.Option("auto", help="constant torque offset per joint (session drift, recalibration): auto "
                                              "(where distinguishable from the payload) | all | none | JOINT,JOINT"),
-    mode: str = typer.Option("auto", help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
+    mode: PayloadMode = typer.Option(PayloadMode.auto, help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
     com: Optional[str] = typer.Option(None, help="mode mass: CoM 'x,y,z' [m] in the frame (default the frame origin)"),
     n_boot: int = typer.Option(200, help="block-bootstrap resamples (0: HAC covariance only)"),
     block_seconds: float = typer.Option(1.0, help="block length [s] of the HAC covariance and the bootstrap"),
@@ -81,9 +82,7 @@ def payload(
     structure, params = load_parameters(path, r)
     logs, opts = model_logs(path, data, r, prep)
     refs = model_logs(path, no_load, r, prep)[0] if no_load else None
-    if align not in ("rows", "time"):
-        raise SensorlessError(f"--align must be rows or time, got '{align}'")
-    if refs is not None and align == "time":
+    if refs is not None and align == Align.time:
         from ..identification.drive_gains import align_pair
 
         logs, refs = map(list, zip(*(align_pair(a, b) for a, b in zip(logs, refs))))

@@ -40,7 +40,7 @@ def predict(
     out: Path = typer.Option(..., help="output .npz with t, tau_pred (and tau_measured, metrics if available)"),
     lock: Optional[List[str]] = lock_option(),
     floating_base: Optional[bool] = floating_base_option(),
-    outliers: Outliers = typer.Option("error", help="gross outliers in the log"),
+    outliers: Outliers = typer.Option(Outliers.error, help="gross outliers in the log"),
     prep: dict = None,
 ) -> None:
     """Predict joint torques of a log with an identified model. The log is preprocessed as the

@@ -11,6 +11,7 @@ import typer
 
 from ..errors import OptionError
 from .common import atomic_outdir, console, err_console, experiment_app, guarded, path_inputs, force_option
+from .options import PsmModel
 
 
 
@@ -23,7 +24,7 @@ def psm_identify(
     train: Optional[Path] = typer.Option(None, help="training log (header-less CSV: q, q̇, effort × 7, 200 Hz)"),
     test: Optional[Path] = typer.Option(None, help="held-out log, same format"),
     params: Optional[Path] = typer.Option(None, help="optional: the authors' params.json, for comparison"),
-    save: str = typer.Option("ols", help="which model result.json holds: ols | wls | lmi"),
+    save: PsmModel = typer.Option(PsmModel.ols, help="which model result.json holds: ols | wls | lmi"),
     cutoff: float = typer.Option(5.4, help="zero-phase low-pass cut-off [Hz] on q, q̇ and effort"),
     smoothing: str = typer.Option("cv", help="Coulomb smoothing ε [rad/s], or 'cv' (3-fold cross-validation on the "
                                              "training log; slow)"),
@@ -48,8 +49,6 @@ def psm_identify(
                 raise ValueError
         except ValueError:
             raise OptionError(f"--smoothing must be a number or 'cv', got '{smoothing}'") from None
-    if save not in ("ols", "wls", "lmi"):
-        raise OptionError(f"--save must be ols, wls or lmi, got '{save}'")
     with atomic_outdir(out, force, inputs=path_inputs(data, train, test, params)) as tmp:
         results: dict = {}
         with err_console.status("identifying the PSM (smoothing chosen by cross-validation on the training log) …"):

@@ -34,6 +34,7 @@ from ..errors import DataError, RobotModelError, ShapeMismatchError
 from ..robot import Robot
 
 __all__ = [
+    "COMPONENTS",
     "REFERENCES",
     "CartesianForceEstimator",
     "ForceEstimate",
@@ -49,6 +50,7 @@ REFERENCES: dict[str, pin.ReferenceFrame] = {
     "local_world_aligned": pin.LOCAL_WORLD_ALIGNED,
 }
 _COMPONENTS = {"linear": slice(0, 3), "angular": slice(3, 6), "wrench": slice(0, 6)}
+COMPONENTS = tuple(_COMPONENTS)
 _LABELS = ("fx", "fy", "fz", "mx", "my", "mz")
 
 

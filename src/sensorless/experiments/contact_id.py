@@ -49,6 +49,9 @@ from ..simulation.quadruped_profiles import PROFILES, quadruped_robot
 __all__ = ["ContactStudyConfig", "run", "prepare_log", "sensor_features", "projected_rmse"]
 
 JOINT_TERMS = ("fv", "fc", "armature")
+#: training regimes (:meth:`ContactStudyConfig.make`) and joint-acceleration sources (``acceleration``)
+TRAININGS = ("rich", "stance")
+ACCELERATIONS = ("simulator", "savgol", "savgol_imu", "none")
 
 
 @dataclass
@@ -130,7 +133,7 @@ class ContactStudyConfig:
             validation = (("wobble", {}), ("wobble", {"amplitude": 0.7}), ("wobble", {"freq": (0.3, 1.2)}),
                           ("wobble", {"amplitude": 0.9}), ("wobble", {}))
         else:
-            raise SensorlessError(f"training must be 'rich' or 'stance', got {training!r}")
+            raise SensorlessError(f"training must be one of {TRAININGS}, got {training!r}")
         common = {"training": training, "validation": validation,
                   "train_episodes": tuple(episodes * (4 if quick else 8)), **overrides}
         if quick:

@@ -42,7 +42,7 @@ from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
 from .payload import payload_regressor, point_mass_parameters
 
-__all__ = ["DriveGains", "align_pair", "clock_offset", "identify_drive_gains", "payload_torque"]
+__all__ = ["ALIGNMENTS", "DriveGains", "align_pair", "clock_offset", "identify_drive_gains", "payload_torque"]
 
 #: samples within this time [s] of a velocity reversal are left out of a joint's fit (module docstring)
 REVERSAL_SECONDS = 0.1
@@ -101,6 +101,10 @@ def _currents(robot: Robot, traj: Trajectory) -> np.ndarray:
     return np.asarray(cur, dtype=float)[:, [names.index(j) for j in robot.actuated_joints]]
 
 
+#: how the unloaded run is paired with the loaded one (module docstring)
+ALIGNMENTS = ("time", "rows")
+
+
 def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str) -> tuple[np.ndarray, np.ndarray]:
     """Unloaded currents at the loaded samples, and the mask of loaded samples covered."""
     if align == "rows":
@@ -110,8 +114,8 @@ def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str
         out = np.full((len(loaded), i_u.shape[1]), np.nan)
         out[:n] = i_u[:n]
         return out, mask
-    if align != "time":
-        raise DataError(f"align must be 'time' or 'rows', got {align!r}")
+    if align not in ALIGNMENTS:
+        raise DataError(f"align must be one of {ALIGNMENTS}, got {align!r}")
     tu, tl = unloaded.t - unloaded.t[0], loaded.t - loaded.t[0]
     tl = tl + clock_offset(loaded, unloaded)
     mask = (tl >= tu[0]) & (tl <= tu[-1])

@@ -7,7 +7,7 @@
 """
 
 from .current_arm import StribeckTruth, simulate as simulate_current_log, stribeck_truth, with_payload
-from .synthetic import TruthModel, add_white_noise, map_body_inertias, perturbed_truth, streamed_fourier_log, synthetic_trajectory
+from .synthetic import NoiseSpec, TruthModel, add_white_noise, map_body_inertias, perturbed_truth, streamed_fourier_log, synthetic_trajectory
 from .wrench_log import walking_flags, wrench_log
 
-__all__ = ["StribeckTruth", "simulate_current_log", "stribeck_truth", "with_payload", "TruthModel", "add_white_noise", "map_body_inertias", "perturbed_truth", "streamed_fourier_log", "synthetic_trajectory", "walking_flags", "wrench_log"]
+__all__ = ["StribeckTruth", "simulate_current_log", "stribeck_truth", "with_payload", "NoiseSpec", "TruthModel", "add_white_noise", "map_body_inertias", "perturbed_truth", "streamed_fourier_log", "synthetic_trajectory", "walking_flags", "wrench_log"]

@@ -24,7 +24,7 @@ from ..data.trajectory import Trajectory
 from ..errors import SensorlessError
 from ..excitation import random_fourier
 from ..robot import Robot
-from .synthetic import TruthModel, add_white_noise
+from .synthetic import NoiseSpec, TruthModel, add_white_noise
 
 __all__ = ["Push", "PushTruth", "simulate_pushes"]
 
@@ -64,14 +64,14 @@ def simulate_pushes(
     log_rate: float = 1000.0,
     seed: int = 0,
     coulomb_velocity: float = 0.05,
-    noise_q: float = 0.0,
-    noise_v: float = 0.0,
-    noise_tau: float = 0.0,
+    noise: NoiseSpec | None = None,
     kp: float = 400.0,
     kd: float = 40.0,
     base_freq: float = 0.1,
 ) -> tuple[Trajectory, PushTruth]:
-    """Simulate the pushed arm; return (log, truth). See the module docstring."""
+    """Simulate the pushed arm; return (log, truth). See the module docstring.
+
+    ``noise``: white noise on the logged joint signals (its ``q``, ``v``, ``tau``); None: none."""
     ratio = sim_rate / log_rate
     if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
         raise SensorlessError(f"sim_rate ({sim_rate}) must be an integer multiple of log_rate ({log_rate})")
@@ -122,9 +122,10 @@ def simulate_pushes(
         q = pin.integrate(model, q, dt * v)
     rng = np.random.default_rng(seed + 1)
     arr = {k: np.array(v_) for k, v_ in logs.items()}
+    noise = NoiseSpec.none() if noise is None else noise
     traj = Trajectory(
-        t=arr["t"], q=add_white_noise(arr["q"], noise_q, rng), v=add_white_noise(arr["v"], noise_v, rng),
-        tau=add_white_noise(arr["tau"], noise_tau, rng),
+        t=arr["t"], q=add_white_noise(arr["q"], noise.q, rng), v=add_white_noise(arr["v"], noise.v, rng),
+        tau=add_white_noise(arr["tau"], noise.tau, rng),
         joint_names=r.joint_names, source=f"<pushed {r.name} seed={seed}>",
         units={"t": "s", "q": "rad", "v": "rad/s", "tau": "N·m"},
     )

@@ -47,7 +47,7 @@ Logging (default 100 Hz, every ``sim_rate / log_rate`` steps; q, v, τ, f of the
 
 from __future__ import annotations
 
-import inspect
+from dataclasses import fields
 import time
 import warnings
 from collections.abc import Sequence
@@ -62,15 +62,19 @@ from ..errors import RobotModelError, SimulationError
 from ..robot import Robot, load_robot
 from .mujoco_scene import MujocoScene, build_scene
 from .quadruped_control import Controller, LegIK, references
-from .quadruped_log import JOINT_TERMS, Episode, NoiseSpec, SimulationTruth, assemble
+from .quadruped_log import JOINT_TERMS, Episode, SimulationTruth, assemble
 from .quadruped_plans import SCENARIOS, _Context
 from .quadruped_profiles import PROFILES, QuadrupedProfile, profile_for, quadruped_robot, spot_mjcf
-from .synthetic import TruthModel, perturbed_truth
+from .synthetic import NoiseSpec, TruthModel, perturbed_truth
+
+#: what the torque log holds: the actuator force of the logged step, or its mean over the log period
+TAU_LOGS = ("sample", "mean")
 
 __all__ = [
     "JOINT_TERMS",
     "PROFILES",
     "SCENARIOS",
+    "TAU_LOGS",
     "NoiseSpec",
     "QuadrupedProfile",
     "SimulationError",
@@ -154,13 +158,13 @@ def simulate(
     """
     if scenario not in SCENARIOS:
         raise SimulationError(f"unknown scenario {scenario!r}; choose from {sorted(SCENARIOS)}")
-    params = list(inspect.signature(SCENARIOS[scenario]).parameters)[2:]
+    params = [f.name for f in fields(SCENARIOS[scenario])]
     unknown = sorted(set(scenario_kwargs) - set(params))
     if unknown:
         raise SimulationError(f"scenario {scenario!r} has no setting(s) {unknown}; its settings are {params}")
     if on_fall not in ("truncate", "raise"):
         raise SimulationError(f"on_fall must be 'truncate' or 'raise', got {on_fall!r}")
-    if tau_log not in ("sample", "mean"):
+    if tau_log not in TAU_LOGS:
         raise SimulationError(f"tau_log must be 'sample' or 'mean', got {tau_log!r}")
     if not (duration > 0 and log_rate > 0 and sim_rate > 0):
         raise SimulationError(f"duration, log_rate and sim_rate must be > 0 (got {duration}, {log_rate}, {sim_rate})")
@@ -199,7 +203,7 @@ def simulate(
     feet_b = ik.positions(q_stand)
     height = prof.foot_radius - float(feet_b[:, 2].mean())
     ctx = _Context(nominal, prof, feet_b, height, t_grid, settle)
-    plan = SCENARIOS[scenario](ctx, plan_rng, **scenario_kwargs)
+    plan = SCENARIOS[scenario](**scenario_kwargs).plan(ctx, plan_rng)
     ref = references(ctx, plan, q_stand, ik_stride)
 
     ctrl = Controller(nominal, scene, prof, ref)

@@ -21,7 +21,7 @@ from ..robot import Robot
 from .mujoco_scene import MujocoScene, mj_to_pin_state
 from .quadruped_control import References
 from .quadruped_plans import _Plan
-from .synthetic import TruthModel, add_white_noise
+from .synthetic import NoiseSpec, TruthModel, add_white_noise
 
 #: the joint terms the simulated quadruped has (and its logs' truth parameters are laid out in)
 JOINT_TERMS = ("fv", "fc", "offset", "armature")
@@ -30,25 +30,7 @@ _STATE = ("t", "q", "v", "a", "tau", "base_q", "base_v", "base_a")
 #: its other per-sample arrays (what :meth:`SimulationTruth.take` slices besides the state)
 _CONTACT = ("contact", "contact_forces", "contact_points", "foot_height", "friction_torque")
 
-__all__ = ["Episode", "NoiseSpec", "RunOutcome", "SimulationTruth", "assemble"]
-
-
-@dataclass(frozen=True)
-class NoiseSpec:
-    """Standard deviations of the white Gaussian noise added to the logged signals."""
-
-    q: float = 1e-4  # rad (encoder)
-    v: float = 1e-2  # rad/s
-    tau: float = 0.02  # N·m (motor current x torque constant)
-    base_position: float = 1e-3  # m
-    base_orientation: float = 2e-3  # rad (random rotation vector, base frame)
-    base_linear_velocity: float = 1e-2  # m/s
-    base_angular_velocity: float = 1e-2  # rad/s
-    imu_acc: float = 3e-2  # m/s² (accelerometer at the base origin, base axes)
-
-    @classmethod
-    def none(cls) -> NoiseSpec:
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+__all__ = ["Episode", "RunOutcome", "SimulationTruth", "assemble"]
 
 
 @dataclass(kw_only=True)

@@ -18,7 +18,7 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..robot import Robot
 
-__all__ = ["TruthModel", "add_white_noise", "map_body_inertias", "perturbed_truth", "synthetic_trajectory"]
+__all__ = ["NoiseSpec", "TruthModel", "add_white_noise", "map_body_inertias", "perturbed_truth", "synthetic_trajectory"]
 
 
 @dataclass
@@ -87,6 +87,24 @@ def perturbed_truth(
     off = rng.uniform(-0.3, 0.3, n) if friction else np.zeros(n)
     ia = np.full(n, armature) * rng.uniform(0.5, 1.5, n) if armature else np.zeros(n)
     return TruthModel(true, fv, fc, off, ia)
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """Standard deviations of the white Gaussian noise added to the logged signals."""
+
+    q: float = 1e-4  # rad (encoder)
+    v: float = 1e-2  # rad/s
+    tau: float = 0.02  # N·m (motor current x torque constant)
+    base_position: float = 1e-3  # m
+    base_orientation: float = 2e-3  # rad (random rotation vector, base frame)
+    base_linear_velocity: float = 1e-2  # m/s
+    base_angular_velocity: float = 1e-2  # rad/s
+    imu_acc: float = 3e-2  # m/s² (accelerometer at the base origin, base axes)
+
+    @classmethod
+    def none(cls) -> NoiseSpec:
+        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def add_white_noise(x: np.ndarray, sigma: float | np.ndarray, rng: np.random.Generator) -> np.ndarray:
