@@ -33,12 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-TWO_LINK = """<robot name="two"><link name="base"/>
-<link name="l1"><inertial><origin xyz="0 0 0.2"/><mass value="2"/><inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.005"/></inertial></link>
-<link name="l2"><inertial><origin xyz="0.15 0 0"/><mass value="1"/><inertia ixx="0.004" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
-<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.4"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
-</robot>"""
+TWO_LINK = (Path(__file__).resolve().parents[1] / "tests" / "data" / "two_link.urdf").read_text()
 COUNTS = {"npz": 4000, "csv": 2500, "hdf5": 1500, "identify": 1800, "cli": 250}
 BATCH = {"npz": 500, "csv": 500, "hdf5": 500, "identify": 150, "cli": 50}
 SPECIAL = [0.0, 1.0, np.nan, np.inf, -np.inf, 1e300, -1e300, 1e-300, 1e30, 1e10, 5e-324, 1e9 + 1]

@@ -27,12 +27,7 @@ from sensorless.data.validation import MAX_ABS_VALUE  # noqa: E402
 from sensorless.errors import SensorlessError  # noqa: E402
 
 FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
-TWO_LINK = """<robot name="two"><link name="base"/>
-<link name="l1"><inertial><origin xyz="0 0 0.2"/><mass value="2"/><inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.005"/></inertial></link>
-<link name="l2"><inertial><origin xyz="0.15 0 0"/><mass value="1"/><inertia ixx="0.004" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
-<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.4"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
-</robot>"""
+TWO_LINK = (Path(__file__).parent / "data" / "two_link.urdf").read_text()  # also benchmarks/fuzz.py's
 
 _SPECIAL = st.sampled_from([0.0, -0.0, 1.0, np.nan, np.inf, -np.inf, 1e300, -1e300, 1e-300, 1e30, 1e10, 5e-324])
 _DTYPES = st.sampled_from(["f8", "f4", "i8", "u1", "bool", "c16", "M8[s]", "U3", "O"])
