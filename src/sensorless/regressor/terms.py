@@ -54,72 +54,12 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
+from .joint_spec import DEFAULT_STRIBECK_VELOCITY, JOINT_TERMS, _per_joint, parse_joint_terms
 from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
 
 __all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
-
-JOINT_TERMS = ("fv", "fc", "stribeck", "offset", "armature")
-#: Stribeck velocity vs [rad/s or m/s] of a joint whose vs is not given
-DEFAULT_STRIBECK_VELOCITY = 0.1
-
-
-def parse_joint_terms(spec: "str | Mapping | tuple | list", joints: "tuple[str, ...] | list[str]") -> dict[str, tuple[str, ...]]:
-    """Terms per joint from ``"fv,fc"`` (every joint) or ``"j1=fv,fc,offset;j2=fv;*=fv,fc"``
-    (``*``: the joints not listed; without it, unlisted joints get no terms), or a mapping
-    of the same. RobotModelError names an unknown joint or term."""
-    if isinstance(spec, str):
-        if "=" not in spec:
-            spec = {"*": spec}
-        else:
-            parts = {}
-            for item in spec.split(";"):
-                if not item.strip():
-                    continue
-                name, sep, terms = item.partition("=")
-                if not sep:
-                    raise RobotModelError(f"joint terms '{item}': expected JOINT=term,term (e.g. 'wrist_3_joint=fv')")
-                parts[name.strip()] = terms
-            spec = parts
-    spec = _by_joint(spec, joints, "joint terms")
-    out = {}
-    for j in joints:
-        terms = spec.get(j, spec.get("*", ()))
-        if isinstance(terms, str):
-            terms = [t.strip() for t in terms.split(",") if t.strip()]
-        bad = [t for t in terms if t not in JOINT_TERMS]
-        if bad:
-            raise RobotModelError(f"unknown joint term(s) {bad} for '{j}'; choose from {JOINT_TERMS}")
-        out[j] = tuple(t for t in JOINT_TERMS if t in terms)
-    return out
-
-
-def _by_joint(value, joints, what: str) -> Mapping:
-    """``value`` as a mapping {joint or '*': …} ('*' for a single value), checking the joint names."""
-    if not isinstance(value, Mapping):
-        value = {"*": value}
-    unknown = [j for j in value if j != "*" and j not in joints]
-    if unknown:
-        raise RobotModelError(f"{what} names unknown joint(s) {unknown}; actuated joints are {list(joints)}")
-    return value
-
-
-def _per_joint(value, joints, what: str) -> dict[str, float]:
-    """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
-    if value is None:
-        return {}
-    value = _by_joint(value, joints, what)
-    out = {}
-    for j in joints:
-        x = value.get(j, value.get("*"))
-        if x is None:
-            continue
-        if isinstance(x, bool) or not isinstance(x, (int, float, np.floating, np.integer)) or not (np.isfinite(x) and x >= 0):
-            raise RobotModelError(f"{what} of '{j}' must be a finite number >= 0, got {x!r}")
-        out[j] = float(x)
-    return out
-
 
 @dataclass
 class ModelStructure:
