@@ -115,3 +115,14 @@ def test_base_parameter_report_is_consistent(panda):
     np.testing.assert_allclose(b.base(pi), pb, atol=1e-10)
     null = np.linalg.svd(b.B)[2][b.rank:]
     assert np.abs(null @ pi).max() < 1e-9
+
+
+def test_every_method_reports_the_data_condition_number(ur5):
+    """The condition number belongs to the data, not the solver: svd and lmi report the same
+    finite figure as ols (it used to be NaN for them, shown as 'nan' in the HTML report)."""
+    truth = perturbed_truth(ur5, rng=2)
+    train = _log(ur5, truth, seed=4, duration=6.0, noise=0.05)
+    conds = {m: identify(ur5, train, method=m, weights=None, gamma=1e-4).diagnostics["condition_number"]
+             for m in ("ols", "svd", "lmi")}
+    assert np.isfinite(conds["ols"]) and conds["ols"] > 1
+    assert conds["svd"] == pytest.approx(conds["ols"], rel=1e-9) and conds["lmi"] == pytest.approx(conds["ols"], rel=1e-9)

@@ -24,6 +24,7 @@ from .base import BaseParameters, base_parameters
 from .identifiability import identifiability_report
 from .least_squares import (
     MIN_SINGULAR_RATIO,
+    condition_number,
     joint_term_inflation,
     row_weights,
     sample_count_check,
@@ -151,7 +152,7 @@ def identify(
         base_values = base.base(params)
         sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
         extra = {"svd_rank": svd_rank, "svd_rcond": svd_rcond}
-        cond, base_std = float("nan"), []
+        cond, base_std = condition_number(ne, base, row_w), []
     elif method == "lmi":
         from .gamma import cross_validate_gamma
         from .lmi import solve_lmi
@@ -171,7 +172,7 @@ def identify(
         params = lmi.params
         base_values = base.base(params)
         sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
-        cond, base_std = float("nan"), []
+        cond, base_std = condition_number(ne, base, row_w), []
         extra["lmi"] = lmi.summary()
         extra["gamma"] = float(gamma)
         cost = _constraint_cost(ne, params, lmi, row_w)

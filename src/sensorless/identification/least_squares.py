@@ -22,7 +22,7 @@ from ..errors import ExcitationError, SolverError
 from ..regressor.compress import NormalEquations
 from .base import BaseParameters
 
-__all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd", "excitation_check",
+__all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd", "condition_number", "excitation_check",
            "sample_count_check", "two_step_sigma", "row_weights", "joint_term_inflation"]
 
 # Below this ratio of smallest to largest singular value of the equilibrated base
@@ -58,15 +58,37 @@ def sample_count_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray 
         )
 
 
-def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None) -> float:
-    """Condition number of the equilibrated base regressor; ExcitationError if rank deficient."""
-    w = np.ones(ne.A.shape[0]) if w is None else w
-    sample_count_check(ne, base, w)
+def _equilibrated_spectrum(ne: NormalEquations, base: BaseParameters, w: np.ndarray):
+    """Of the column-equilibrated base normal matrix D A₁₁ D: the unexcited columns (indices
+    into the base parameters), then its singular values √λ (ascending) and eigenvectors (both
+    None when a column is unexcited)."""
     A11, _, _ = _base_system(ne, base, w)
     if not np.all(np.isfinite(A11)):
         raise SolverError("the normal equations are not finite; check the data for extreme values")
     d = np.sqrt(np.diag(A11))
     dead = np.flatnonzero(d <= 1e-12 * max(d.max(), 1e-300))
+    if dead.size:
+        return dead, None, None
+    try:
+        evals, evecs = np.linalg.eigh(A11 / np.outer(d, d))
+    except np.linalg.LinAlgError as exc:
+        raise SolverError(f"eigen-decomposition of the normal equations failed ({exc})") from None
+    return dead, np.sqrt(np.maximum(evals, 0.0)), evecs
+
+
+def condition_number(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None) -> float:
+    """Condition number of the equilibrated base regressor, whatever the method (inf when a
+    base parameter is not excited at all); :func:`excitation_check` also refuses a bad one."""
+    w = np.ones(ne.A.shape[0]) if w is None else w
+    dead, sv, _ = _equilibrated_spectrum(ne, base, w)
+    return float("inf") if dead.size else float(sv[-1] / max(sv[0], 1e-300))
+
+
+def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | None = None) -> float:
+    """Condition number of the equilibrated base regressor; ExcitationError if rank deficient."""
+    w = np.ones(ne.A.shape[0]) if w is None else w
+    sample_count_check(ne, base, w)
+    dead, sv, evecs = _equilibrated_spectrum(ne, base, w)
     labels = [base.labels[k] for k in base.independent]
     if dead.size:
         names = ", ".join(labels[k] for k in dead[:5])
@@ -74,13 +96,6 @@ def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | 
             f"the data do not excite {dead.size} base parameter(s) at all (e.g. {names}); "
             "move those joints or remove the term"
         )
-    S = A11 / np.outer(d, d)
-    try:
-        evals, evecs = np.linalg.eigh(S)
-    except np.linalg.LinAlgError as exc:
-        raise SolverError(f"eigen-decomposition of the normal equations failed ({exc})") from None
-    evals = np.maximum(evals, 0.0)
-    sv = np.sqrt(evals)
     if sv[0] < MIN_SINGULAR_RATIO * sv[-1]:
         bad = np.argsort(-np.abs(evecs[:, 0]))[:3]
         names = ", ".join(labels[k] for k in bad)
