@@ -15,6 +15,8 @@ Conventions
 
 from __future__ import annotations
 
+import difflib
+
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -173,8 +175,18 @@ class Robot(Actuation):
                 parts.append(f"missing joint(s) {missing}")
             if dup:
                 parts.append(f"duplicate joint(s) {dup}")
+            hints = []
+            close = {n: m[0] for n in unknown if (m := difflib.get_close_matches(n, missing, n=1, cutoff=0.5))}
+            if close:
+                hints.append("did you mean " + ", ".join(f"{n!r} → {m!r}" for n, m in close.items())
+                             + " (rename them in the log, or list the columns in the robot's joint order: "
+                             "--columns 'q=COL|COL|...;v=...;tau=...')")
+            if missing and not unknown:
+                hints.append("joints that do not move in the log (a gripper, a locked axis) can be locked: "
+                             + " ".join(f"--lock {n}" for n in missing) + " (lock_joints=[...] in Python)")
             raise JointNameError(
-                "; ".join(parts) + f" (robot '{self.name}' has {list(self.joint_names)})", source
+                "; ".join(parts) + f" (robot '{self.name}' has {list(self.joint_names)})"
+                + "".join(f"; {h}" for h in hints), source
             )
         return np.array([names.index(n) for n in self.joint_names], dtype=int)
 

@@ -7,9 +7,10 @@ Fields are ``t, q, v, a, tau`` (plus ``current``, ``command`` → ``extras`` and
 * CSV / Parquet: a list of column names (or 0-based indices), a pattern with
   ``"{joint}"`` (``"pos_{joint}"``) expanded over the joint names, or an index range
   ``"0:7"`` (the only option for a header-less CSV). With a header and no ``columns``
-  the defaults are a time column ``t|time|times|timestamp`` and ``q_{joint}``,
-  ``v_{joint}``, ``a_{joint}``, ``tau_{joint}``; the joint names come from the
-  ``q_`` columns.
+  the defaults are a time column ``t|time|times|timestamp`` and the header's naming
+  convention (:func:`.tabular.detect_patterns`: ``q_{joint}``, ``pos_{joint}``,
+  ``{joint}_position``, ``{joint}.velocity`` ...); the joint names come from the position
+  columns.
 
 Joint names: ``joint_names``, else names stored in the file (NPZ/HDF5 ``joint_names``
 or the ``{joint}`` pattern), else ``robot.joint_names`` if the column count matches,

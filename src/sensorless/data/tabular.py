@@ -17,7 +17,16 @@ if TYPE_CHECKING:
 __all__: list[str] = []
 
 _TIME_COLUMNS = ("t", "time", "times", "timestamp")
-_DEFAULT_PATTERNS = {f: f"{f}_{{joint}}" for f in ("q", "v", "a", "tau", "current", "command")}
+#: words a header may use for each field, the first being the default (``q_{joint}``, ...)
+FIELD_WORDS = {
+    "q": ("q", "pos", "position", "angle"),
+    "v": ("v", "vel", "velocity", "dq", "qd"),
+    "a": ("a", "acc", "acceleration", "ddq", "qdd"),
+    "tau": ("tau", "eff", "effort", "torque", "trq"),
+    "current": ("current", "cur", "i"),
+    "command": ("command", "cmd", "q_cmd"),
+}
+_SEPARATORS = ("_", ".", "/", ":")
 _RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
 
 Columns = Mapping[str, "str | int | Sequence[str | int]"]
@@ -83,6 +92,50 @@ def _names_from_pattern(pattern: str, avail: list) -> list[str]:
     return [m.group(1) for c in avail if (m := rx.match(str(c)))]
 
 
+def _pattern(word: str, sep: str, before: bool) -> str:
+    return f"{word}{sep}{{joint}}" if before else f"{{joint}}{sep}{word}"
+
+
+def detect_patterns(avail: Sequence[str]) -> dict[str, str] | None:
+    """The ``{joint}`` patterns of a header without ``columns``: the convention (a word of
+    :data:`FIELD_WORDS` before or after the joint name, joined by ``_ . / :``) under which
+    the most columns are joint positions; every other field takes the first of its words
+    that has a column in that convention (``pos_j1, vel_j1, eff_j1``; ``j1_position,
+    j1_velocity, j1_effort``; ``q_j1, v_j1, tau_j1``). None when no column looks like a position."""
+    avail = [str(c) for c in avail]
+    have = set(avail)
+    best: tuple[int, str, bool, str] | None = None
+    for sep in _SEPARATORS:
+        for before in (True, False):
+            for word in FIELD_WORDS["q"]:
+                n = len(_joint_names(_pattern(word, sep, before), avail, sep))
+                if n and (best is None or n > best[0]):
+                    best = (n, sep, before, word)
+    if best is None:
+        return None
+    _, sep, before, qword = best
+    names = _joint_names(_pattern(qword, sep, before), avail, sep)
+    out = {"q": _pattern(qword, sep, before)}
+    for field, words in FIELD_WORDS.items():
+        if field != "q":
+            found = [w for w in words if any(_pattern(w, sep, before).replace("{joint}", j) in have for j in names)]
+            out[field] = _pattern((found or words)[0], sep, before)
+    return out
+
+
+def _joint_names(pattern: str, avail: list, sep: str = "_") -> list[str]:
+    """Joint names in the columns matching ``pattern``, without the names that are another
+    name plus a qualifier (``cmd_j1`` next to ``j1``: the column ``q_cmd_j1`` is a command)."""
+    names = _names_from_pattern(pattern, avail)
+    return [n for n in names if not any(m != n and (n.endswith(sep + m) or n.startswith(m + sep)) for m in names)]
+
+
+def _separator(pattern: str) -> str:
+    """The separator next to ``{joint}`` in a detected pattern."""
+    pre, post = pattern.split("{joint}", 1)
+    return pre[-1:] or post[:1] or "_"
+
+
 def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header: bool, src: str) -> list:
     """Column labels of ``field`` for one ``columns`` entry."""
 
@@ -120,7 +173,9 @@ def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header:
         raise DataError(f"columns['{field}'] must be a list, a '{{joint}}' pattern or a range 'a:b', got {spec!r}", src)
     missing = [c for c in labels if c not in avail]
     if missing:
-        raise DataError(f"no column(s) {missing} (for '{field}'); available columns: {_short(avail)}", src)
+        listed = any("," in str(c) and all(p.strip() in avail for p in str(c).split(",")) for c in missing)
+        raise DataError(f"no column(s) {missing} (for '{field}'); available columns: {_short(avail)}"
+                        + ("; a list of columns is separated by '|' (q=a|b|c)" if listed else ""), src)
     return labels
 
 
@@ -171,8 +226,8 @@ def _fields_from_frame(
         )
     optional: set[str] = set()
     if columns is None:
-        spec: dict[str, Any] = dict(_DEFAULT_PATTERNS)
-        optional = set(_DEFAULT_PATTERNS) - {"q"}
+        spec: dict[str, Any] = detect_patterns(avail) or {f: f"{w[0]}_{{joint}}" for f, w in FIELD_WORDS.items()}
+        optional = set(FIELD_WORDS) - {"q"}
     else:
         spec = dict(columns)
         if "q" not in spec:
@@ -187,11 +242,16 @@ def _fields_from_frame(
     if names is None:
         patterns = [f for f in ("q", *spec) if isinstance(spec.get(f), str) and "{joint}" in spec[f]]
         if patterns and header:
-            names = _names_from_pattern(spec[patterns[0]], avail)
+            names = (_joint_names(spec["q"], avail, _separator(spec["q"])) if columns is None
+                     else _names_from_pattern(spec[patterns[0]], avail))
             if not names:
+                tried = "" if columns is not None else (
+                    " (no header convention found either: a word for the field before or after the joint name, "
+                    f"e.g. q_J, pos_J, J_position, J.pos; words {dict(FIELD_WORDS)})")
                 raise DataError(
-                    f"no column matches {spec[patterns[0]]!r} (for '{patterns[0]}'); "
-                    f"available columns: {_short(avail)}; pass columns={{'q': [...], ...}}",
+                    f"no column matches {spec[patterns[0]]!r} (for '{patterns[0]}'){tried}; available columns: "
+                    f"{_short(avail)}; say which columns hold what: columns={{'q': 'pos_{{joint}}', 'v': ..., "
+                    f"'tau': ...}} (command line: --columns 'q=pos_{{joint}};v=vel_{{joint}};tau=eff_{{joint}}')",
                     src,
                 )
 

@@ -1,0 +1,76 @@
+"""Logs from other tools: header naming conventions found without ``columns``, and joint-name
+errors that say what to do (did-you-mean, --lock for joints absent from the log)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sensorless.data import read_trajectory
+from sensorless.data.tabular import detect_patterns
+from sensorless.errors import DataError, JointNameError
+from sensorless.robot import load_robot
+
+JOINTS = ("shoulder", "elbow")
+
+
+def _write(path, names: dict[str, str], extra: dict | None = None):
+    """A 50-sample log with field f of joint j in column names[f].format(j); values encode
+    (field, joint) so that a wrong mapping shows."""
+    t = np.arange(50) * 0.01
+    cols = {"time": t}
+    for k, (field, fmt) in enumerate(names.items()):
+        for j, joint in enumerate(JOINTS):
+            cols[fmt.format(joint)] = (10 * k + j) + 0.01 * np.sin(t)
+    cols.update(extra or {})
+    pd.DataFrame(cols).to_csv(path, index=False)
+
+
+@pytest.mark.parametrize("names", [
+    {"q": "{}_pos", "v": "{}_vel", "tau": "{}_eff"},
+    {"q": "{}.position", "v": "{}.velocity", "tau": "{}.effort"},
+    {"q": "pos_{}", "v": "vel_{}", "tau": "torque_{}"},
+    {"q": "q_{}", "v": "v_{}", "tau": "tau_{}"},
+    {"q": "{}/position", "v": "{}/velocity", "tau": "{}/effort"},
+])
+def test_common_header_conventions_are_read_without_columns(tmp_path, names):
+    _write(tmp_path / "log.csv", names)
+    tr = read_trajectory(tmp_path / "log.csv")
+    assert tr.joint_names == JOINTS
+    for k, field in enumerate(names):
+        np.testing.assert_allclose(getattr(tr, field).mean(axis=0), [10 * k, 10 * k + 1], atol=0.01)
+
+
+def test_qualified_columns_do_not_become_joints(tmp_path):
+    """q_cmd_J next to q_J is J's command, not a joint named 'cmd_J'."""
+    _write(tmp_path / "log.csv", {"q": "q_{}", "v": "v_{}", "command": "q_cmd_{}"})
+    tr = read_trajectory(tmp_path / "log.csv")
+    assert tr.joint_names == JOINTS and tr.extras["command"].shape == (50, 2)
+
+
+def test_currents_in_a_convention_are_found():
+    spec = detect_patterns(["t", "pos_a", "pos_b", "vel_a", "vel_b", "cur_a", "cur_b"])
+    assert spec["q"] == "pos_{joint}" and spec["v"] == "vel_{joint}" and spec["current"] == "cur_{joint}"
+    assert detect_patterns(["t", "x", "y"]) is None
+
+
+def test_unreadable_header_says_how_to_map_columns(tmp_path):
+    pd.DataFrame({"t": np.arange(5.0), "x": np.zeros(5)}).to_csv(tmp_path / "log.csv", index=False)
+    with pytest.raises(DataError, match=r"--columns 'q=pos_\{joint\}"):
+        read_trajectory(tmp_path / "log.csv")
+
+
+def test_comma_separated_column_list_is_pointed_to_the_bar(tmp_path):
+    _write(tmp_path / "log.csv", {"q": "{}_pos", "v": "{}_vel"})
+    with pytest.raises(DataError, match=r"separated by '\|'"):
+        read_trajectory(tmp_path / "log.csv", columns={"q": "shoulder_pos,elbow_pos"})
+
+
+def test_joint_name_errors_suggest_the_fix():
+    ur5 = load_robot("ur5")
+    with pytest.raises(JointNameError, match="--lock wrist_2_joint --lock wrist_3_joint"):
+        ur5.joint_order(list(ur5.joint_names[:4]))
+    renamed = ["ur_" + n for n in ur5.joint_names]
+    with pytest.raises(JointNameError, match="did you mean .*'ur_elbow_joint' → 'elbow_joint'"):
+        ur5.joint_order(renamed)
