@@ -46,7 +46,11 @@ def test_identify_writes_result_urdf_plot_and_predict_round_trip(logs, tmp_path,
     assert {"parameters", "base_parameters", "train_metrics", "settings", "versions", "validation"} <= doc.keys()
     assert doc["base_parameters"]["rank"] == len(doc["base_parameters"]["expressions"])
     val = doc["validation"][str(d / "test.npz")]
-    assert val["ols"]["mean_rmse"] < 0.12 and val["ols"]["mean_rmse"] < val["cad"]["mean_rmse"]
+    method = doc["method"]
+    assert method == "lmi"  # the command's default: physically consistent, regularised toward the URDF
+    assert doc["diagnostics"]["lmi"]["consistent"]
+    for m in (method, "ols"):  # the OLS baseline is scored too
+        assert val[m]["mean_rmse"] < 0.12 and val[m]["mean_rmse"] < val["cad"]["mean_rmse"]
     assert (out / "torques.png").stat().st_size > 10_000
     assert (out / "joint_terms.json").exists()
     # the exported URDF reproduces the identified rigid-body dynamics
@@ -67,7 +71,7 @@ def test_identify_writes_result_urdf_plot_and_predict_round_trip(logs, tmp_path,
     assert r.exit_code == 0, r.output
     z = np.load(pred)
     rmse = np.sqrt(((z["tau_pred"] - z["tau_measured"]) ** 2).mean(axis=0))
-    np.testing.assert_allclose(rmse.mean(), val["ols"]["mean_rmse"], rtol=1e-6)
+    np.testing.assert_allclose(rmse.mean(), val[method]["mean_rmse"], rtol=1e-6)
 
 
 def _expect_error(args, out, *needles):

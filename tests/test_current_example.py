@@ -61,7 +61,7 @@ def test_documented_current_example_runs_and_matches_the_truth_model(tmp_path, m
     sig = doc["settings"]["signals"][str(Path("current_demo/train.csv"))]
     assert sig["v"] == "logged" and sig["a"].startswith("derived: d/dt of logged v")
     assert 1 <= sig["resampled"]["duplicates_merged"] <= 3 and sig["timing"]["jitter"] > 0.1
-    held = doc["validation"][str(Path("current_demo/test.csv"))]["ols"]["per_joint"]
+    held = doc["validation"][str(Path("current_demo/test.csv"))][doc["method"]]["per_joint"]
 
     # the true model on the same log, preprocessed the same way
     robot, truth = mod.truth_model("ur5", 0)

@@ -183,7 +183,7 @@ def test_cli_identify_from_urdf_without_torques(tmp_path, solo12):
     path = write_npz(lg, tmp_path / "trot.npz")
     out = tmp_path / "out"
     args = ["identify", "--robot", solo12.urdf_path, "--data", str(path), "--out", str(out), "--contact-frames",
-            ",".join(feet), "--contact-mode", "wrench", "--wrench-offset", "foot", "--joint-terms", ""]
+            ",".join(feet), "--contact-mode", "wrench", "--wrench-offset", "foot", "--joint-terms", "", "--method", "ols"]
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
     assert "contact rows: base" in res.output

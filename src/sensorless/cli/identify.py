@@ -58,7 +58,7 @@ def identify(
     data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
                                          "folder; several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
-    method: Method = typer.Option(Method.ols, help="lmi: physically consistent; svd: minimum-norm truncated SVD"),
+    method: Method = typer.Option(Method.lmi, help="lmi: physically consistent, regularised toward the prior (the URDF); ols/wls: unconstrained least squares; svd: minimum-norm truncated SVD"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
     regularization: Regularization = typer.Option(Regularization.pullback, help="lmi: regulariser toward the prior"),
     gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),

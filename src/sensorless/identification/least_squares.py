@@ -102,7 +102,8 @@ def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | 
         raise ExcitationError(
             f"rank-deficient excitation: the base regressor's condition number is {sv[-1] / max(sv[0], 1e-300):.3g}; "
             f"the least-excited direction involves {names}. Use a richer trajectory "
-            "(e.g. `sensorless excite`), more data, or fewer joint terms"
+            "(e.g. `sensorless excite`), more data, or fewer joint terms; or fit with method lmi (the prior "
+            "fills the unexcited directions) or svd (minimum norm)"
         )
     return float(sv[-1] / sv[0])
 
