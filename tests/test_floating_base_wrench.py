@@ -222,3 +222,19 @@ def test_cli_imu_frame_option(tmp_path, solo12):
     assert doc["mass_properties"]["total_mass"] == pytest.approx(m_true, rel=2e-3)
     bad = CliRunner().invoke(app, base + ["--imu-frame", "no_such_imu", "--out", str(tmp_path / "b")])
     assert bad.exit_code != 0 and "no frame 'no_such_imu'" in bad.output and not (tmp_path / "b").exists()
+
+
+def test_wrench_log_warns_when_the_contacts_cannot_balance_the_base(solo12):
+    """Point feet: two or one in contact cannot produce an arbitrary base wrench; the generator
+    says so instead of writing an inconsistent log silently (all four down: no warning)."""
+    import warnings
+
+    feet = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
+    n = 100
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        wrench_log(solo12, feet, duration=1.0, dims=3, seed=1)
+    flags = np.ones((n, 4), bool)
+    flags[50:] = [True, False, False, False]
+    with pytest.warns(RuntimeWarning, match="cannot produce the base wrench"):
+        wrench_log(solo12, feet, duration=1.0, dims=3, seed=1, flags=flags)

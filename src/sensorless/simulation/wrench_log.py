@@ -15,6 +15,7 @@ contact's own (sole) frame or in world axes (``bias_frame``).
 
 from __future__ import annotations
 
+import warnings
 from typing import Sequence
 
 import numpy as np
@@ -120,14 +121,23 @@ def wrench_log(
     forces = np.zeros((n, len(frames), dims))
     tau = np.zeros((n, nj))
     act = np.array([truth.v_index(j) for j in truth.joint_names])
+    unbalanced: list[int] = []
     for i in range(n):
         full = pin.rnea(model, data, Q[i], V[i], A[i])
         pin.computeJointJacobians(model, data, Q[i])
         on = np.flatnonzero(flags[i])
         J = np.concatenate([pin.getFrameJacobian(model, data, fids[k], pin.LOCAL_WORLD_ALIGNED)[:dims] for k in on])
         f = np.linalg.lstsq(J[:, :6].T, full[:6], rcond=None)[0]
+        gap = np.abs(J[:, :6].T @ f - full[:6]).max()
+        if gap > 1e-6 * max(np.abs(full[:6]).max(), 1.0):
+            unbalanced.append(i)
         forces[i, on] = f.reshape(-1, dims)
         tau[i] = (full - J.T @ f)[act]
+    if unbalanced:
+        warnings.warn(f"wrench_log: on {len(unbalanced)} of {n} samples (first: {unbalanced[0]}) the contacts in "
+                      f"flags cannot produce the base wrench the motion needs (e.g. {dims}-D forces at fewer than "
+                      "three points); the log is not consistent with any rigid-body model there", RuntimeWarning,
+                      stacklevel=2)
     measured = forces.copy()
     if bias is not None:
         b = np.asarray(bias, float).reshape(len(frames), 3)
