@@ -38,6 +38,7 @@ def fleet(tmp_path_factory, panda):
     d = tmp_path_factory.mktemp("fleet")
     paths = write_fleet_logs(panda, d, 4, 3000, rate=500.0, base_freq=0.1, subdirs=2, seed=3)
     files = expand_paths([d / "**" / "*.parquet"])
+    assert sorted(map(str, files)) == sorted(map(str, paths))  # the glob finds every written log
     return d, files
 
 

@@ -147,7 +147,7 @@ def test_psm_has_rcm_and_tool_tip_frames():
     m, d = tree.model, tree.model.createData()
     assert set(PSM_FRAMES) <= {f.name for f in m.frames}
     rcm, tip = tree.frame_id("rcm"), tree.frame_id("tool_tip")
-    P, dist, shaft = [], [], []
+    P, dist = [], []
     for _ in range(20):
         th = RNG.uniform(np.r_[-0.6, -0.8, 0.07, -1.0, -0.5, -0.5, -0.5], np.r_[0.1, 0.8, 0.23, 1.0, 0.5, 0.5, 0.5])
         pin.framesForwardKinematics(m, d, G @ th)

@@ -397,7 +397,7 @@ def test_malformed_learned_model_description_is_a_data_error(tmp_path):
     """A model.json that parses but lacks keys (e.g. 'params') is a DataError naming the folder."""
     import json
 
-    torch = pytest.importorskip("torch")
+    pytest.importorskip("torch")
     from sensorless.learning.io import save_network
     from sensorless.learning.models import LearnedTorqueModel
     from sensorless.errors import DataError

@@ -221,7 +221,7 @@ def test_hac_uncertainty_accounts_for_correlated_noise(psm_case):
 
     m = 0.2
     pay = pin.Inertia(m, np.array([0.0, 0.0, 0.35]), np.zeros((3, 3)))
-    errs, z = [], []
+    z = []
     for seed in range(4):
         mot = psm_motion(11, 30.0)
         noise = ar1_noise(len(mot), np.full(7, 0.03), 0.5, mot.dt, np.random.default_rng(seed))
