@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -73,3 +75,45 @@ def test_with_inertial_parameters_round_trip(panda):
     np.testing.assert_allclose(r2.inertial_parameters(), pi * 1.1)
     with pytest.raises(RobotModelError):
         panda.with_inertial_parameters(pi[:-1])
+
+
+XACRO = """<?xml version="1.0"?>
+<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="two">
+  <xacro:property name="m1" value="2.0"/>
+  <xacro:macro name="lnk" params="name mass z">
+    <link name="${name}"><inertial><origin xyz="0 0 ${z}"/><mass value="${mass}"/>
+      <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.005"/></inertial></link>
+  </xacro:macro>
+  <link name="base"/>
+  <xacro:lnk name="l1" mass="${m1}" z="0.2"/>
+  <xacro:lnk name="l2" mass="${m1 / 2}" z="0.15"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.4"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="50" velocity="3"/></joint>
+</robot>
+"""
+
+
+def test_xacro_file_loads_like_its_expanded_urdf(tmp_path, monkeypatch):
+    pytest.importorskip("xacro")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    (tmp_path / "arm.urdf.xacro").write_text(XACRO)
+    r = load_robot(tmp_path / "arm.urdf.xacro")
+    assert r.joint_names == ("j1", "j2") and r.name == "arm" and r.source.endswith("arm.urdf.xacro")
+    assert [r.model.inertias[k].mass for k in (1, 2)] == [2.0, 1.0]  # macros and expressions expanded
+    assert Path(r.urdf_path).parent == tmp_path / "cache" / "sensorless" / "xacro"
+    plain = load_robot(r.urdf_path)
+    for a, b in zip(r.model.inertias, plain.model.inertias):
+        np.testing.assert_array_equal(a.toDynamicParameters(), b.toDynamicParameters())
+    assert load_robot(tmp_path / "arm.urdf.xacro").urdf_path == r.urdf_path  # cached by content
+
+
+def test_xacro_that_needs_ros_says_how_to_expand_it(tmp_path, monkeypatch):
+    pytest.importorskip("xacro")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    bad = tmp_path / "bad.xacro"
+    bad.write_text('<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="x">'
+                   '<xacro:include filename="$(find no_such_pkg)/a.xacro"/></robot>')
+    with pytest.raises(RobotModelError, match=r"bad.xacro: xacro could not expand it .*xacro .*bad.xacro > robot.urdf"):
+        load_robot(bad)

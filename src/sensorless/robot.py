@@ -27,7 +27,7 @@ import pinocchio as pin
 
 from .errors import JointNameError, RobotModelError
 
-__all__ = ["Actuation", "Robot", "load_robot"]
+__all__ = ["Actuation", "Robot", "expand_xacro", "load_robot"]
 
 
 class Actuation:
@@ -252,10 +252,43 @@ class Robot(Actuation):
         }
 
 
+def expand_xacro(path: Path) -> Path:
+    """The URDF a ``.xacro`` file expands to (its default arguments), with the ``xacro`` package,
+    written once per content to a cache directory (``$XDG_CACHE_HOME/sensorless/xacro``) and
+    returned. RobotModelError says how to expand it by hand when xacro is missing or fails
+    (``$(find pkg)`` needs the ROS package to be installed)."""
+    try:
+        import xacro
+    except ImportError:
+        raise RobotModelError(f"{path}: a xacro file needs the 'xacro' package (pip install xacro, or the "
+                              f"'ros' extra), or expand it first: xacro {path} > robot.urdf") from None
+    try:
+        xml = xacro.process_file(str(path)).toprettyxml(indent="  ")
+    except BaseException as exc:  # xacro raises XacroException, and SystemExit from its CLI helpers
+        detail = " ".join(str(exc).split())[:300] or type(exc).__name__
+        raise RobotModelError(f"{path}: xacro could not expand it ({detail}); expand it where its ROS packages are "
+                              f"installed: xacro {path} > robot.urdf") from None
+    import hashlib
+
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sensorless" / "xacro"
+    out = cache / f"{path.name.split('.')[0]}-{hashlib.sha256(xml.encode()).hexdigest()[:16]}.urdf"
+    if not out.exists():
+        from .io import atomic_write_text
+
+        cache.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(out, xml)
+    return out
+
+
 def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str, str | None]:
     """(model, name, source, URDF path or None) of a model file or an example-robot-data name."""
     path = Path(spec)
     suffix = path.suffix.lower()
+    if suffix == ".xacro":
+        if not path.is_file():
+            raise RobotModelError(f"{spec}: no such robot model file")
+        model, _, _, urdf = _build(str(expand_xacro(path)), floating_base)
+        return model, path.name.split(".")[0], str(path), urdf
     if suffix in {".urdf", ".xml", ".mjcf"}:
         if not path.exists():
             raise RobotModelError(f"{spec}: no such robot model file")
@@ -285,7 +318,7 @@ def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str, 
 
     if spec not in erd.robots_loader.ROBOTS:
         raise RobotModelError(
-            f"'{spec}' is neither a .urdf/.xml file nor an example-robot-data name "
+            f"'{spec}' is neither a .urdf/.xacro/.xml file nor an example-robot-data name "
             f"(known names: {sorted(erd.robots_loader.ROBOTS)})"
         )
     model, urdf = _erd_model(spec)
@@ -303,7 +336,8 @@ def load_robot(
     actuated_joints: Sequence[str] | None = None,
     armature: dict[str, float] | None = None,
 ) -> Robot:
-    """Load a robot from a URDF path, an MJCF path or an example-robot-data name.
+    """Load a robot from a URDF path, a xacro file (:func:`expand_xacro`), an MJCF path or an
+    example-robot-data name.
 
     ``lock_joints`` are fixed at their neutral position (e.g. a gripper's fingers).
     ``actuated_joints`` defaults to every 1-DoF joint. ``armature`` sets rotor inertia

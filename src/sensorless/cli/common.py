@@ -275,7 +275,7 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **o
 
 
 
-ROBOT_HELP = "URDF path, MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
+ROBOT_HELP = "URDF path, xacro file (expanded with the xacro package), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
 
 
 # ---- the preprocessing options of commands that apply an identified model ------------------
