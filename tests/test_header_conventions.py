@@ -74,3 +74,24 @@ def test_joint_name_errors_suggest_the_fix():
     renamed = ["ur_" + n for n in ur5.joint_names]
     with pytest.raises(JointNameError, match="did you mean .*'ur_elbow_joint' → 'elbow_joint'"):
         ur5.joint_order(renamed)
+
+
+@pytest.mark.parametrize("unit, scale", [("ns", 1e9), ("us", 1e6), ("ms", 1e3)])
+def test_epoch_stamps_in_sub_second_units_are_converted(tmp_path, unit, scale):
+    """ROS CSV exports (`rostopic echo -p`: '%time' in ns) and ms/µs epoch stamps: the unit is
+    told by magnitude, converted to s and recorded."""
+    t = 1.7e9 + np.arange(60) * 0.005
+    q = np.sin(np.arange(60) * 0.01)
+    pd.DataFrame({"%time": (t * scale).astype("int64"), "q_a": q, "q_b": q}).to_csv(tmp_path / "log.csv", index=False)
+    tr = read_trajectory(tmp_path / "log.csv")
+    assert tr.rate == pytest.approx(200.0, rel=1e-3) and f"converted from {unit}" in tr.units["t"]
+    np.testing.assert_allclose(tr.t - tr.t[0], np.arange(60) * 0.005, atol=1e-6)
+
+
+def test_relative_stamps_in_ms_are_a_units_error(tmp_path):
+    from sensorless.errors import UnitsError
+
+    pd.DataFrame({"t": np.arange(60) * 5.0, "q_a": np.zeros(60)}).to_csv(tmp_path / "log.csv", index=False)
+    with pytest.raises(UnitsError, match=r"look like ms \(then 200 Hz\).*time_unit='ms'"):
+        read_trajectory(tmp_path / "log.csv")
+    assert read_trajectory(tmp_path / "log.csv", time_unit="ms").rate == pytest.approx(200.0)

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from ..errors import DataError, ShapeMismatchError
+from ..errors import DataError, ShapeMismatchError, UnitsError
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
 from .tabular import Columns, _fields_from_frame, _read_csv, _read_parquet, _short
@@ -68,6 +68,8 @@ ALIASES: dict[str, tuple[str, ...]] = {
     "base_a": ("base_a",),
 }
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+#: a log sampled this slowly [s] is not a dynamics log: its stamps are in another unit
+_MAX_PLAUSIBLE_STEP = 1.0
 #: Accepted sample rates [Hz] for logs without a time column (1 sample per 1000 s .. 10 MHz).
 MIN_RATE, MAX_RATE = 1e-3, 1e7
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
@@ -351,6 +353,27 @@ def _hdf5_fields(f, src: str, columns: Columns | None) -> tuple[dict[str, np.nda
 
 
 # ---- assembly ----------------------------------------------------------------------
+def _epoch_unit(t: np.ndarray, src: str) -> str:
+    """The unit of a time column given without one: Unix-epoch stamps in ms, µs or ns (ROS's
+    ``%time``) are told apart by magnitude (seconds since 1970 stay below 1e11 until the year
+    5138) and converted; relative stamps whose median step is over a second raise UnitsError."""
+    finite = t[np.isfinite(t)]
+    if finite.size < 2:
+        return "s"
+    start = float(np.abs(finite[0]))
+    for unit, low in (("ns", 1e17), ("us", 1e14), ("ms", 1e11)):
+        if start >= low:
+            return unit
+    step = float(np.median(np.diff(finite)))
+    if finite.size >= 20 and step > _MAX_PLAUSIBLE_STEP:
+        guess = next((u for u in ("ms", "us", "ns") if step * _TIME_SCALE[u] <= _MAX_PLAUSIBLE_STEP), "ns")
+        raise UnitsError(
+            f"the time column steps by {step:.6g} (median): a {1 / step:.3g} Hz log, too slow for dynamics; the stamps "
+            f"look like {guess} (then {1 / (step * _TIME_SCALE[guess]):.4g} Hz). Store seconds, or pass "
+            f"time_unit='{guess}' to read_trajectory", src)
+    return "s"
+
+
 def _assemble(
     raw: dict[str, np.ndarray],
     file_names: list[str] | None,
@@ -395,9 +418,13 @@ def _assemble(
             t = t[:, 0]
         if t.ndim != 1:
             raise ShapeMismatchError(f"time must be 1-D, got shape {t.shape}", src)
+        if time_unit is None:
+            time_unit = _epoch_unit(t, src)
+            if time_unit != "s":
+                units["t"] = f"s (converted from {time_unit}: epoch stamps of that magnitude)"
         if time_unit is not None:
             t = t * _TIME_SCALE[time_unit]
-        units["t"] = "s" if time_unit in (None, "s") else f"s (converted from {time_unit})"
+        units.setdefault("t", "s" if time_unit in (None, "s") else f"s (converted from {time_unit})")
     else:
         if rate is None:
             raise DataError(f"no time column in {src}; pass rate=... (Hz)", src)

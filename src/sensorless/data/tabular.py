@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 __all__: list[str] = []
 
-_TIME_COLUMNS = ("t", "time", "times", "timestamp")
+_TIME_COLUMNS = ("t", "time", "times", "timestamp", "stamp", "%time")  # %time: `rostopic echo -p`, ns
 #: words a header may use for each field, the first being the default (``q_{joint}``, ...)
 FIELD_WORDS = {
     "q": ("q", "pos", "position", "angle"),
