@@ -95,3 +95,36 @@ def test_relative_stamps_in_ms_are_a_units_error(tmp_path):
     with pytest.raises(UnitsError, match=r"look like ms \(then 200 Hz\).*time_unit='ms'"):
         read_trajectory(tmp_path / "log.csv")
     assert read_trajectory(tmp_path / "log.csv", time_unit="ms").rate == pytest.approx(200.0)
+
+
+def test_cli_time_unit_is_used_and_remembered_by_the_model(tmp_path):
+    """--time-unit ms reads relative millisecond stamps; predict reuses it from result.json."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+    from sensorless.excitation import random_fourier
+    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+
+    ur5 = load_robot("ur5")
+    tr = synthetic_trajectory(perturbed_truth(ur5, rng=1), random_fourier(ur5, rng=2).sample(100.0, 15.0),
+                              noise_std=0.02, rng=3)
+    cols = {"t": tr.t * 1e3}
+    for j, n in enumerate(tr.joint_names):
+        cols.update({f"{n}_pos": tr.q[:, j], f"{n}_vel": tr.v[:, j], f"{n}_eff": tr.tau[:, j]})
+    pd.DataFrame(cols).to_csv(tmp_path / "log.csv", index=False)
+    run = CliRunner().invoke
+    r = run(app, ["identify", "--robot", "ur5", "--data", str(tmp_path / "log.csv"), "--out", str(tmp_path / "m"),
+                  "--method", "ols", "--no-plot"])
+    assert r.exit_code == 2 and "--time-unit ms" in r.output and not (tmp_path / "m").exists()
+    r = run(app, ["identify", "--robot", "ur5", "--data", str(tmp_path / "log.csv"), "--out", str(tmp_path / "m"),
+                  "--method", "ols", "--no-plot", "--time-unit", "ms"])
+    assert r.exit_code == 0, r.output
+    assert json.loads((tmp_path / "m" / "result.json").read_text())["settings"]["preprocessing"]["time_unit"] == "ms"
+    r = run(app, ["predict", "--robot", "ur5", "--model", str(tmp_path / "m"), "--data", str(tmp_path / "log.csv"),
+                  "--out", str(tmp_path / "p.npz")])
+    assert r.exit_code == 0, r.output
+    z = np.load(tmp_path / "p.npz")
+    np.testing.assert_allclose(z["t"] - z["t"][0], tr.t[: len(z["t"])] - tr.t[0], atol=1e-9)
+    assert np.sqrt(np.mean((z["tau_pred"] - z["tau_measured"]) ** 2)) < 0.1

@@ -17,6 +17,7 @@ from rich.text import Text
 
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
+from .options import TimeUnit
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -213,12 +214,17 @@ def velocity_option(default: Optional[str] = "logged"):
                         + ("" if default else "; default: the model's, else logged"))
 
 
+def time_unit_option():
+    return typer.Option(None, help="unit of the logs' time column when it is not seconds (epoch stamps in ms/us/ns "
+                                   "are recognised without it)")
+
+
 def max_gap_option(default: Optional[float] = None):
     return typer.Option(default, help="resampling refuses a time step over this many median periods (default 4)")
 
 
 def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
-                           decimate, max_gap, rest="auto") -> dict:
+                           decimate, max_gap, rest="auto", time_unit=None) -> dict:
     """settings.preprocessing for result.json: the options (gains resolved per joint name,
     column map parsed, gain suffix moved to ``gains``) and each log's provenance."""
     from ..data.gains import split_gain_modifiers
@@ -228,7 +234,7 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
     resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
     return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
             "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
-            "trim": trim, "decimate": decimate, "rest": rest}
+            "trim": trim, "decimate": decimate, "rest": rest, "time_unit": time_unit}
 
 
 def model_preprocessing(result_json: Path, **given) -> dict:
@@ -293,6 +299,7 @@ _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
     "resample": (Optional[str], lambda: resample_option(None)),
     "velocity": (Optional[str], lambda: velocity_option(None)),
     "max_gap": (Optional[float], lambda: max_gap_option()),
+    "time_unit": (Optional[TimeUnit], lambda: time_unit_option()),
 }
 MODEL_PREPROCESSING = tuple(_PREPROCESSING_OPTIONS)
 
@@ -395,7 +402,8 @@ def model_logs(model_path: Path, paths, robot, prep: dict, *, outliers: str = "e
     opts = model_preprocessing(model_path, **{k: v for k, v in prep.items() if k != "trim"})
     trajs = load_logs(paths, robot, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                       gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
-                      velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"))
+                      velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"),
+                      time_unit=opts.get("time_unit"))
     return trajs, opts
 
 

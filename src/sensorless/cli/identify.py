@@ -25,6 +25,7 @@ from .common import (
     preprocessing_settings,
     progress_bar,
     resample_option,
+    time_unit_option,
     trim_option,
     velocity_option,
     force_option,
@@ -33,6 +34,7 @@ from .common import (
     robot_option,
 )
 from .options import (
+    TimeUnit,
     ContactMode,
     ContactRows,
     Ellipsoids,
@@ -82,6 +84,7 @@ def identify(
     resample: str = resample_option(),
     velocity: Velocity = velocity_option(),
     max_gap: Optional[float] = max_gap_option(),
+    time_unit: Optional[TimeUnit] = time_unit_option(),
     lock: Optional[List[str]] = lock_option(),
     floating_base: Optional[bool] = floating_base_option(),
     contact_frames: Optional[str] = typer.Option(
@@ -140,7 +143,7 @@ def identify(
     data = [Path(p) for p in expand_paths(data)]
     prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
                 gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
-                rest=rest)
+                rest=rest, time_unit=time_unit)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
         skipped: list = []
         if scheduler is None:
@@ -202,7 +205,8 @@ def identify(
                                 "preprocessing": preprocessing_settings(
                                     train + val, columns=columns, gains=gains, rate=rate, trim=trim,
                                     resample=resample, lowpass=lowpass, savgol_window=savgol_window,
-                                    velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest),
+                                    velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest,
+                                    time_unit=time_unit),
                                 "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
                                 if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
         result.settings["config"] = {"file": None if config is None else str(config), "options": resolved_options()}

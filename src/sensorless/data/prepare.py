@@ -275,7 +275,7 @@ def parse_columns(spec: "str | None") -> "dict | None":
 
 
 PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap",
-                      "rest")
+                      "rest", "time_unit")
 """Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
 The trim window and decimation belong to one log and are recorded but not reused."""
 
@@ -295,7 +295,7 @@ def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
 
 
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
-             resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None):
+             resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None, time_unit=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
 
     The one preprocessing function of both the local path (``sensorless.cli.common.load_logs``) and the Dask
@@ -313,7 +313,7 @@ def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, ga
     cols = parse_columns(columns) if isinstance(columns, str) else columns
     if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):
         gains = None
-    traj = read_trajectory(path, columns=cols, rate=rate, robot=robot, gains=gains,
+    traj = read_trajectory(path, columns=cols, rate=rate, robot=robot, gains=gains, time_unit=time_unit,
                            allow_duplicate_times=mode != "off", outliers=outliers)
     dropped = "outlier" in traj.units.get("processing", "")
     return prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,

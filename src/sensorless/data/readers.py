@@ -370,7 +370,7 @@ def _epoch_unit(t: np.ndarray, src: str) -> str:
         raise UnitsError(
             f"the time column steps by {step:.6g} (median): a {1 / step:.3g} Hz log, too slow for dynamics; the stamps "
             f"look like {guess} (then {1 / (step * _TIME_SCALE[guess]):.4g} Hz). Store seconds, or pass "
-            f"time_unit='{guess}' to read_trajectory", src)
+            f"time_unit='{guess}' to read_trajectory (command line: --time-unit {guess})", src)
     return "s"
 
 

@@ -77,13 +77,14 @@ class LogReader:
     max_gap: float | None = None
     outliers: str = "error"
     rest: str = "auto"
+    time_unit: str | None = None
 
     def __call__(self, path: str | Path, robot) -> Trajectory:
         from ..data.prepare import load_log
 
         return load_log(path, robot, self.columns, self.rate, self.lowpass, self.savgol_window, self.decimate,
                         gains=self.gains, trim=self.trim, resample=self.resample, velocity=self.velocity,
-                        max_gap=self.max_gap, outliers=self.outliers, rest=self.rest)
+                        max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit)
 
     def settings(self) -> dict:
         return asdict(self)
