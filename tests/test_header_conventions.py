@@ -128,3 +128,37 @@ def test_cli_time_unit_is_used_and_remembered_by_the_model(tmp_path):
     z = np.load(tmp_path / "p.npz")
     np.testing.assert_allclose(z["t"] - z["t"][0], tr.t[: len(z["t"])] - tr.t[0], atol=1e-9)
     assert np.sqrt(np.mean((z["tau_pred"] - z["tau_measured"]) ** 2)) < 0.1
+
+
+def test_plotjuggler_csv_export_is_read_without_columns(tmp_path):
+    """PlotJuggler: '__time' and '/topic/JOINT/position' columns; the topic path is not part of the name."""
+    t = 1.7e9 + np.arange(40) * 0.01
+    cols = {"__time": t}
+    for k, joint in enumerate(JOINTS):
+        for m, word in enumerate(("position", "velocity", "effort")):
+            cols[f"/joint_states/{joint}/{word}"] = np.full(40, 10.0 * m + k)
+    pd.DataFrame(cols).to_csv(tmp_path / "pj.csv", index=False)
+    tr = read_trajectory(tmp_path / "pj.csv")
+    assert tr.joint_names == JOINTS and tr.rate == pytest.approx(100.0)
+    assert (tr.q[0].tolist(), tr.v[0].tolist(), tr.tau[0].tolist()) == ([0, 1], [10, 11], [20, 21])
+
+
+def test_rostopic_echo_csv_of_joint_states_is_read_without_columns(tmp_path):
+    """`rostopic echo -p /joint_states`: '%time' in ns, joint names in field.nameI, values in
+    field.positionI / velocityI / effortI (here in another order than the robot's)."""
+    n = 40
+    cols = {"%time": ((1.7e9 + np.arange(n) * 0.005) * 1e9).astype("int64"), "field.header.seq": np.arange(n)}
+    order = JOINTS[::-1]
+    for i, joint in enumerate(order):
+        cols[f"field.name{i}"] = joint
+    for m, word in enumerate(("position", "velocity", "effort")):
+        for i, joint in enumerate(order):
+            cols[f"field.{word}{i}"] = np.full(n, 10.0 * m + JOINTS.index(joint))
+    pd.DataFrame(cols).to_csv(tmp_path / "rt.csv", index=False)
+    tr = read_trajectory(tmp_path / "rt.csv")
+    assert tr.joint_names == order and tr.rate == pytest.approx(200.0, rel=1e-3)
+    assert tr.tau[0].tolist() == [21, 20] and "converted from ns" in tr.units["t"]
+    cols["field.name0"] = [order[0]] * (n - 1) + ["other"]
+    pd.DataFrame(cols).to_csv(tmp_path / "bad.csv", index=False)
+    with pytest.raises(DataError, match="field.name0' changes within the log"):
+        read_trajectory(tmp_path / "bad.csv")

@@ -3,6 +3,7 @@ their columns onto Trajectory fields (names, ``{joint}`` patterns, integer indic
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
@@ -16,7 +17,8 @@ if TYPE_CHECKING:
 
 __all__: list[str] = []
 
-_TIME_COLUMNS = ("t", "time", "times", "timestamp", "stamp", "%time")  # %time: `rostopic echo -p`, ns
+#: time column names (case-insensitive); %time: `rostopic echo -p` (ns), __time: PlotJuggler's CSV export
+_TIME_COLUMNS = ("t", "time", "times", "timestamp", "stamp", "%time", "__time")
 #: words a header may use for each field, the first being the default (``q_{joint}``, ...)
 FIELD_WORDS = {
     "q": ("q", "pos", "position", "angle"),
@@ -115,12 +117,48 @@ def detect_patterns(avail: Sequence[str]) -> dict[str, str] | None:
         return None
     _, sep, before, qword = best
     names = _joint_names(_pattern(qword, sep, before), avail, sep)
-    out = {"q": _pattern(qword, sep, before)}
+    # a topic path in front of every name (PlotJuggler: /joint_states/J/position) belongs to the pattern
+    topic = os.path.commonprefix(names)[: os.path.commonprefix(names).rfind("/") + 1] if all("/" in n for n in names) else ""
+
+    def pattern(word: str) -> str:
+        return _pattern(word, sep, before).replace("{joint}", topic + "{joint}")
+
+    names = [n[len(topic):] for n in names]
+    out = {"q": pattern(qword)}
     for field, words in FIELD_WORDS.items():
         if field != "q":
-            found = [w for w in words if any(_pattern(w, sep, before).replace("{joint}", j) in have for j in names)]
-            out[field] = _pattern((found or words)[0], sep, before)
+            found = [w for w in words if any(pattern(w).replace("{joint}", j) in have for j in names)]
+            out[field] = pattern((found or words)[0])
     return out
+
+
+def _rostopic_joint_state(df: "pd.DataFrame", src: str) -> tuple[dict[str, list[str]], list[str]] | None:
+    """Columns of ``rostopic echo -p`` on a sensor_msgs/JointState topic (``field.name0``,
+    ``field.position0``, ``field.velocity0``, ``field.effort0``, ...): the column lists and the
+    joint names of the first message; None for other headers."""
+    avail = set(map(str, df.columns))
+    k = 0
+    while f"field.position{k}" in avail:
+        k += 1
+    if k == 0:
+        return None
+    names = []
+    for i in range(k):
+        col = f"field.name{i}"
+        if col not in avail:
+            names.append(f"joint_{i}")
+            continue
+        values = df[col].astype(str).unique()
+        if len(values) > 1:
+            raise DataError(f"column '{col}' changes within the log ({_short(values, 4)}): the JointState messages "
+                            "list their joints in different orders; export one order per file", src)
+        names.append(str(values[0]))
+    spec = {"q": [f"field.position{i}" for i in range(k)]}
+    for field, word in (("v", "velocity"), ("tau", "effort")):
+        cols = [f"field.{word}{i}" for i in range(k)]
+        if all(c in avail for c in cols):
+            spec[field] = cols
+    return spec, names
 
 
 def _joint_names(pattern: str, avail: list, sep: str = "_") -> list[str]:
@@ -225,7 +263,11 @@ def _fields_from_frame(
             src,
         )
     optional: set[str] = set()
-    if columns is None:
+    ros = _rostopic_joint_state(df, src) if columns is None and header else None
+    if ros is not None:
+        spec, ros_names = ros
+        joint_names = ros_names if joint_names is None else joint_names
+    elif columns is None:
         spec: dict[str, Any] = detect_patterns(avail) or {f: f"{w[0]}_{{joint}}" for f, w in FIELD_WORDS.items()}
         optional = set(FIELD_WORDS) - {"q"}
     else:
