@@ -335,3 +335,32 @@ def test_cli_auto_coulomb_smoothing_on_a_cluster_equals_local(fleet, tcp_cluster
     assert fd["stribeck_velocity"] == fl["stribeck_velocity"] and ({j: set(t) for j, t in doc_d["joint_terms"].items()}
                                                               == {j: set(t) for j, t in doc_l["joint_terms"].items()})
     assert _rel(p_d, p_l) < TOL
+
+
+def test_cli_wrench_mode_with_imu_frame_on_a_cluster_equals_local(tcp_cluster, tmp_path, solo12):
+    """Floating base on Dask: contact wrenches measured, base acceleration from an accelerometer
+    read in a model frame on the workers, contact rows chosen from the first log (no torques:
+    base rows). Used to be refused ('--scheduler does not support ...')."""
+    from sensorless.data import write_npz
+    from sensorless.data.imu import gravity_in_base
+    from sensorless.simulation import perturbed_truth, wrench_log
+
+    feet = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
+    truth = perturbed_truth(solo12, rng=6)
+    paths = []
+    for seed in (4, 5):
+        lg = wrench_log(truth.robot, feet, duration=3.0, dims=3, seed=seed, base_amplitude=(0.2, 0.4))
+        v, w = lg.base_v[:, :3], lg.base_v[:, 3:]
+        imu = lg.base_a[:, :3] + np.cross(w, v) - gravity_in_base(lg.base_q, 9.81)
+        paths.append(write_npz(lg.with_(base_a=None, extras={**lg.extras, "imu_acc": imu}), tmp_path / f"imu{seed}.npz"))
+    base = ["identify", "--robot", "solo12", "--data", *map(str, paths), "--contact-frames", ",".join(feet),
+            "--contact-mode", "wrench", "--joint-terms", "", "--imu-frame", "base_link", "--method", "ols", "--no-plot"]
+    r1 = _cli([*base, "--out", tmp_path / "local"])
+    assert r1.exit_code == 0, r1.output
+    r2 = _cli([*base, "--scheduler", tcp_cluster, "--out", tmp_path / "dask"])
+    assert r2.exit_code == 0, r2.output
+    assert "contact rows: base" in r2.output
+    (doc_l, p_l), (doc_d, p_d) = _params(tmp_path / "local"), _params(tmp_path / "dask")
+    assert _rel(p_d, p_l) < TOL
+    m_true = float(truth.robot.inertial_parameters().reshape(-1, 10)[:, 0].sum())
+    assert doc_d["mass_properties"]["total_mass"] == pytest.approx(m_true, rel=2e-3)

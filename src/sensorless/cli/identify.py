@@ -133,8 +133,6 @@ def identify(
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
         raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
-    if scheduler is not None and (imu_frame or contact_mode == "wrench"):
-        raise OptionError("--scheduler does not support --imu-frame or --contact-mode wrench yet; run without it")
     if floating_base is None and contact_frames:
         floating_base = True  # contact structures need a floating base; a URDF would load fixed
     r = load_robot_arg(robot, lock, floating_base)
@@ -149,11 +147,14 @@ def identify(
         if scheduler is None:
             train, data, skipped = _load_training(data, r, prep, skip_bad)
         val = load_logs(validate, r, **prep)
-        if imu_frame:
-            train, val = (_imu_frame_logs(logs, r, imu_frame, savgol_window) for logs in (train, val))
+        if imu_frame:  # on a cluster the workers do it (LogReader.imu_frame)
+            val = _imu_frame_logs(val, r, imu_frame, savgol_window)
+            if scheduler is None:
+                train = _imu_frame_logs(train, r, imu_frame, savgol_window)
         structure = _structure(r, joint_terms, 0.0 if coulomb_smoothing == "auto" else coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
-                               offset_axes=offset_axes, train=train if scheduler is None else None)
+                               offset_axes=offset_axes, train=train if scheduler is None else
+                               _rows_sample(data, r, prep, contact_mode, contact_rows))
         lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
         from ..identification.weights import weights_option
 
@@ -167,7 +168,8 @@ def identify(
                 first = _first_training_log(data, r, prep)
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
-            result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep), method, skip_bad,
+            result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep, imu_frame=imu_frame),
+                                             method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
                                              friction_fit.stribeck_grid if friction_fit is not None else None)
             structure = result.structure  # with the chosen Stribeck terms
@@ -179,6 +181,8 @@ def identify(
             reuse = first is not None and fleet.files and Path(fleet.files[0]) == Path(data[0])
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
             train = (first if reuse else _first_training_log(data, r, prep)) if not val else []
+            if imu_frame:
+                train = _imu_frame_logs(train, r, imu_frame, savgol_window)
         else:
             total = sum(len(t) for t in train)
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
@@ -317,6 +321,16 @@ def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smooth
     return s, fit
 
 
+def _rows_sample(data, r, prep: dict, contact_mode, contact_rows) -> list | None:
+    """With --scheduler, wrench mode and --contact-rows auto: the first training log, read here,
+    decides the rows (whether the logs have joint torques), as the local path decides from all."""
+    if contact_mode != "wrench" or contact_rows != "auto":
+        return None
+    from .common import load_log
+
+    return [load_log(data[0], r, **prep)]
+
+
 def _first_training_log(data, r, prep: dict) -> list:
     """The first training log for the torque plot, if this machine can read it (else no plot)."""
     from .common import load_log
@@ -328,11 +342,7 @@ def _first_training_log(data, r, prep: dict) -> list:
 
 
 def _imu_frame_logs(logs, robot, frame: str, savgol_window):
-    """Recompute base_a with the accelerometer in model frame ``frame`` (needs 'imu_acc'); the
-    derivative window is --savgol-window, else the library's default at the log's rate
-    (:func:`~sensorless.data.prepare.default_savgol_window`, 0.2 s), as for v̇."""
-    from ..data import base_acceleration
-    from ..data.prepare import default_savgol_window
+    """Recompute base_a with the accelerometer in model frame ``frame`` (needs 'imu_acc')."""
+    from ..data.prepare import with_imu_frame
 
-    return [base_acceleration(t, window=savgol_window or default_savgol_window(1.0 / t.dt), robot=robot,
-                              imu_frame=frame) for t in logs]
+    return [with_imu_frame(t, robot, frame, savgol_window) for t in logs]

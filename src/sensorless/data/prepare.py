@@ -294,6 +294,16 @@ def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
         raise OptionError(f"--decimate must be an integer >= 1, got {decimate!r}")
 
 
+def with_imu_frame(traj: Trajectory, robot, frame: str, savgol_window: int | None = None) -> Trajectory:
+    """``traj`` with base_a rebuilt from its accelerometer ('imu_acc') read in model frame
+    ``frame`` (:func:`~sensorless.data.imu.base_acceleration`); the derivative window is
+    ``savgol_window``, else the default at the log's rate (as for v̇)."""
+    from .imu import base_acceleration
+
+    return base_acceleration(traj, window=savgol_window or default_savgol_window(1.0 / traj.dt), robot=robot,
+                             imu_frame=frame)
+
+
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
              resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None, time_unit=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).

@@ -78,13 +78,15 @@ class LogReader:
     outliers: str = "error"
     rest: str = "auto"
     time_unit: str | None = None
+    imu_frame: str | None = None  # base_a from the accelerometer in this model frame (data.prepare.with_imu_frame)
 
     def __call__(self, path: str | Path, robot) -> Trajectory:
-        from ..data.prepare import load_log
+        from ..data.prepare import load_log, with_imu_frame
 
-        return load_log(path, robot, self.columns, self.rate, self.lowpass, self.savgol_window, self.decimate,
+        traj = load_log(path, robot, self.columns, self.rate, self.lowpass, self.savgol_window, self.decimate,
                         gains=self.gains, trim=self.trim, resample=self.resample, velocity=self.velocity,
                         max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit)
+        return with_imu_frame(traj, robot, self.imu_frame, self.savgol_window) if self.imu_frame else traj
 
     def settings(self) -> dict:
         return asdict(self)
