@@ -20,12 +20,13 @@ from .common import (
     output_file,
     path_inputs,
     resample_option,
+    time_unit_option,
     trim_option,
     force_option,
     lock_option,
     robot_option,
 )
-from .options import Align
+from .options import Align, TimeUnit
 
 __all__ = ["drive_gains"]
 
@@ -46,6 +47,7 @@ def drive_gains(
     columns: Optional[str] = typer.Option(None, help="column map; the currents on 'tau' or 'current', e.g. "
                                                      "'q=pos_{joint};v=vel_{joint};tau=i_{joint}'"),
     rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    time_unit: Optional[TimeUnit] = time_unit_option(),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz]"),
     savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window for v̇ (from the logged v)"),
     trim: Optional[str] = trim_option(),
@@ -80,7 +82,8 @@ def drive_gains(
     output_file(out, path_inputs(robot, unloaded, loaded))
     r = load_robot_arg(robot, lock, False)
     c = _vector(com, "--com")
-    u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trim, resample=resample)
+    u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trim, resample=resample,
+                      time_unit=time_unit)
     res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c, offset=offset,
                                align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed)
     doc = res.to_dict()
