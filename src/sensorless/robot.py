@@ -16,7 +16,6 @@ Conventions
 from __future__ import annotations
 
 import difflib
-
 import os
 from dataclasses import dataclass, field
 from pathlib import Path

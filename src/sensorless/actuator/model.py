@@ -183,13 +183,12 @@ class PiecewiseLinearModel(_JointwiseModel):
     b1: np.ndarray
     b2: np.ndarray
     k_v: np.ndarray
+    method: str = field(default="piecewise_linear", kw_only=True)
 
     def __post_init__(self) -> None:
         for name in self.ARRAYS:
             setattr(self, name, np.asarray(getattr(self, name), float).reshape(-1, 2))
         self.joint_names = _joint_names(self.joint_names, self.n)
-        if not self.method:
-            self.method = "piecewise_linear"
 
     def delta_q(self, tau, dq) -> np.ndarray:
         tau, dq = np.asarray(tau, float), np.asarray(dq, float)

@@ -151,10 +151,12 @@ def identify(
             val = _imu_frame_logs(val, r, imu_frame, savgol_window)
             if scheduler is None:
                 train = _imu_frame_logs(train, r, imu_frame, savgol_window)
+        # on a cluster, wrench mode with --contact-rows auto: the first training log, read here, decides the rows
+        rows_from = _first_training_log(data, r, prep) if (scheduler is not None and contact_mode == "wrench"
+                                                           and contact_rows == "auto") else None
         structure = _structure(r, joint_terms, 0.0 if coulomb_smoothing == "auto" else coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
-                               offset_axes=offset_axes, train=train if scheduler is None else
-                               _rows_sample(data, r, prep, contact_mode, contact_rows))
+                               offset_axes=offset_axes, train=train if scheduler is None else rows_from)
         lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
         from ..identification.weights import weights_option
 
@@ -163,7 +165,7 @@ def identify(
         if scheduler is not None:
             from .fleet import identify_on_dask
 
-            friction_fit, first = None, None
+            friction_fit, first = None, rows_from
             if _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms):
                 first = _first_training_log(data, r, prep)
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
@@ -319,16 +321,6 @@ def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smooth
                       + ("; Stribeck candidates from the same log" if fit.stribeck_grid else ""),
                       highlight=False, soft_wrap=True)
     return s, fit
-
-
-def _rows_sample(data, r, prep: dict, contact_mode, contact_rows) -> list | None:
-    """With --scheduler, wrench mode and --contact-rows auto: the first training log, read here,
-    decides the rows (whether the logs have joint torques), as the local path decides from all."""
-    if contact_mode != "wrench" or contact_rows != "auto":
-        return None
-    from .common import load_log
-
-    return [load_log(data[0], r, **prep)]
 
 
 def _first_training_log(data, r, prep: dict) -> list:

@@ -104,6 +104,12 @@ def detect_patterns(avail: Sequence[str]) -> dict[str, str] | None:
     the most columns are joint positions; every other field takes the first of its words
     that has a column in that convention (``pos_j1, vel_j1, eff_j1``; ``j1_position,
     j1_velocity, j1_effort``; ``q_j1, v_j1, tau_j1``). None when no column looks like a position."""
+    found = _detect(avail)
+    return None if found is None else found[0]
+
+
+def _detect(avail: Sequence[str]) -> tuple[dict[str, str], list[str]] | None:
+    """:func:`detect_patterns` and the joint names it found."""
     avail = [str(c) for c in avail]
     have = set(avail)
     best: tuple[int, str, bool, str] | None = None
@@ -118,7 +124,8 @@ def detect_patterns(avail: Sequence[str]) -> dict[str, str] | None:
     _, sep, before, qword = best
     names = _joint_names(_pattern(qword, sep, before), avail, sep)
     # a topic path in front of every name (PlotJuggler: /joint_states/J/position) belongs to the pattern
-    topic = os.path.commonprefix(names)[: os.path.commonprefix(names).rfind("/") + 1] if all("/" in n for n in names) else ""
+    common = os.path.commonprefix(names) if all("/" in n for n in names) else ""
+    topic = common[: common.rfind("/") + 1]
 
     def pattern(word: str) -> str:
         return _pattern(word, sep, before).replace("{joint}", topic + "{joint}")
@@ -129,7 +136,7 @@ def detect_patterns(avail: Sequence[str]) -> dict[str, str] | None:
         if field != "q":
             found = [w for w in words if any(pattern(w).replace("{joint}", j) in have for j in names)]
             out[field] = pattern((found or words)[0])
-    return out
+    return out, names
 
 
 def _rostopic_joint_state(df: "pd.DataFrame", src: str) -> tuple[dict[str, list[str]], list[str]] | None:
@@ -166,12 +173,6 @@ def _joint_names(pattern: str, avail: list, sep: str = "_") -> list[str]:
     name plus a qualifier (``cmd_j1`` next to ``j1``: the column ``q_cmd_j1`` is a command)."""
     names = _names_from_pattern(pattern, avail)
     return [n for n in names if not any(m != n and (n.endswith(sep + m) or n.startswith(m + sep)) for m in names)]
-
-
-def _separator(pattern: str) -> str:
-    """The separator next to ``{joint}`` in a detected pattern."""
-    pre, post = pattern.split("{joint}", 1)
-    return pre[-1:] or post[:1] or "_"
 
 
 def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header: bool, src: str) -> list:
@@ -268,7 +269,9 @@ def _fields_from_frame(
         spec, ros_names = ros
         joint_names = ros_names if joint_names is None else joint_names
     elif columns is None:
-        spec: dict[str, Any] = detect_patterns(avail) or {f: f"{w[0]}_{{joint}}" for f, w in FIELD_WORDS.items()}
+        spec, found = _detect(avail) or ({f: f"{w[0]}_{{joint}}" for f, w in FIELD_WORDS.items()}, [])
+        if joint_names is None and found:
+            joint_names = found
         optional = set(FIELD_WORDS) - {"q"}
     else:
         spec = dict(columns)
@@ -284,8 +287,7 @@ def _fields_from_frame(
     if names is None:
         patterns = [f for f in ("q", *spec) if isinstance(spec.get(f), str) and "{joint}" in spec[f]]
         if patterns and header:
-            names = (_joint_names(spec["q"], avail, _separator(spec["q"])) if columns is None
-                     else _names_from_pattern(spec[patterns[0]], avail))
+            names = _names_from_pattern(spec[patterns[0]], avail)
             if not names:
                 tried = "" if columns is not None else (
                     " (no header convention found either: a word for the field before or after the joint name, "

@@ -74,8 +74,9 @@ def identify(
     minimum-norm least squares, :func:`~.least_squares.two_step_sigma`); per-joint σ values
     (row order, or ``{joint: σ}``) weight by ``1/σ²``; None or "none" fits unweighted
     (ordinary least squares). See :mod:`~.weights`.
-    ``method``: "ols" (the default here, a building block that never loads cvxpy; the
-    ``sensorless identify`` command defaults to "lmi", which generalises better to other motions) (= "wls" with the default weights),
+    ``method``: "ols" (= "wls" with the default weights; the default here, a building block
+    that never loads cvxpy, whereas ``sensorless identify`` defaults to "lmi", which generalises
+    better to other motions),
     or "svd" (minimum-norm truncated SVD over all standard parameters, relative cut-off
     ``svd_rcond``; the unconstrained baseline for contact identification), or "lmi"
     (physically consistent convex program, :func:`~.lmi.solve_lmi`, regularised toward
