@@ -19,6 +19,7 @@ __all__ = [
     "SolverError",
     "PhysicalConsistencyError",
     "OutputError",
+    "InputError",
     "ParameterError",
     "OptionError",
     "OutlierError",
@@ -99,6 +100,9 @@ class PhysicalConsistencyError(SensorlessError, ValueError):
 class OutputError(SensorlessError):
     """An output path that cannot be written, or must not be replaced (not a sensorless output,
     the working or home directory, a directory holding the inputs, another run writing it)."""
+class InputError(SensorlessError, ValueError):
+    """An input path that must not be read: missing, a FIFO/device/socket instead of a regular file,
+    larger than the configured limit, or pointing outside the folder it must stay in."""
 class ParameterError(SensorlessError, ValueError):
     """A parameter vector, parameter file or model description with the wrong size, keys or values."""
 class OptionError(SensorlessError, ValueError):

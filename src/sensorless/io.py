@@ -36,13 +36,14 @@ from typing import IO, Iterable, Iterator
 
 import numpy as np
 
-from .errors import OutputError
+from .errors import InputError, OutputError
 
 __all__ = [
     "MANIFEST",
     "atomic_open",
     "atomic_output_dir",
     "atomic_write_text",
+    "check_input_file",
     "check_output_file",
     "jsonable",
     "read_manifest",
@@ -174,6 +175,30 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
     for p in inputs:
         if p is not None and _real(p) == real:
             raise OutputError(f"{path}: is the input file {p}; refusing to overwrite it")
+    return path
+
+
+def check_input_file(path: str | os.PathLike, what: str = "input file") -> Path:
+    """``path`` if it is an existing regular file (symlinks followed); else :class:`InputError`.
+
+    FIFOs, devices and sockets are refused before anything opens them (opening a FIFO blocks
+    until a writer appears; a device can be endless).
+    """
+    import stat
+
+    path = Path(path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such {what}") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read this {what}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{path}: is a directory; expected a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
+        raise InputError(f"{path}: is {kind}, not a regular file; refusing to read it as a {what}")
     return path
 
 
