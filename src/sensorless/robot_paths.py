@@ -70,6 +70,7 @@ def resolve_resource(ref: str, base: str | os.PathLike, packages: Sequence[Path]
             raise PathEscape(f"{where}{ref!r}: package '{pkg}' is not in the package folders "
                              f"{[str(p) for p in packages]}; {_HINT}")
         return real
+    given = ref
     if ref.startswith("file://"):
         ref = ref[len("file://"):]
     elif "://" in ref:
@@ -77,7 +78,7 @@ def resolve_resource(ref: str, base: str | os.PathLike, packages: Sequence[Path]
     real = Path(os.path.realpath(base / ref))  # an absolute ref replaces base
     if not _under(real, roots):
         kind = "an absolute path" if os.path.isabs(ref) else "a path"
-        raise PathEscape(f"{where}{ref!r} is {kind} outside the description's folder {base} and the package "
+        raise PathEscape(f"{where}{given!r} is {kind} outside the description's folder {base} and the package "
                          f"folders; {_HINT}")
     return real
 

@@ -66,13 +66,12 @@ def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
     names = {p.name for p in ctx.command.params if p.name != "config"}
     table = {str(k).replace("-", "_"): v for k, v in doc.items()}
     unknown = sorted(k for k in table if k not in names)
-    if "trust_xacro" in table:  # consent to run a file's code is given on the command line only
-        ctx.meta[_CONFIG_ERROR] = f"--config {value}: trust_xacro is taken from the command line only (--trust-xacro)"
-        return value
     if unknown:
         ctx.meta[_CONFIG_ERROR] = (f"--config {value}: unknown key(s) {', '.join(unknown)}; keys are the command's "
                                    f"options, e.g. method, data, out, savgol_window")
         return value
+    if table.pop("trust_xacro", None) is not None:  # consent to run a file's code: on the command line only
+        ctx.meta[_CONFIG_ERROR] = f"--config {value}: trust_xacro is taken from the command line only (--trust-xacro)"
     ctx.default_map = {**(ctx.default_map or {}), **table}
     return value
 

@@ -240,8 +240,13 @@ _GEOMETRY_CACHE: dict[tuple, pin.GeometryModel | None] = {}
 def load_geometry(robot: Robot, kind: str = "collision") -> pin.GeometryModel | None:
     """The robot's collision (or visual) ``GeometryModel`` from its URDF, or None if the
     URDF or its meshes cannot be found (e.g. unresolved ``package://`` paths). Cached
-    per (URDF, bodies, kind)."""
-    key = (getattr(robot, "urdf_path", None), robot.source, robot.body_names, kind)
+    per (URDF and its modification time, bodies, kind, package folders)."""
+    urdf = getattr(robot, "urdf_path", None)
+    try:
+        stamp = (os.stat(urdf).st_mtime_ns, os.stat(urdf).st_size) if urdf else None
+    except OSError:
+        stamp = None
+    key = (urdf, stamp, robot.source, robot.body_names, kind, tuple(getattr(robot, "package_paths", ())))
     if key not in _GEOMETRY_CACHE:
         _GEOMETRY_CACHE[key] = _load_geometry(robot, kind)
     return _GEOMETRY_CACHE[key]
