@@ -242,3 +242,10 @@ def test_mjcf_inside_its_folder_loads(tree):
     r = load_robot(path)
     assert r.joint_names == ("j",) and np.isclose(r.model.inertias[1].mass, 1.0)
     assert load_robot(path, package_paths=[tree / "outside"]).joint_names == ("j",)
+
+
+@pytest.mark.parametrize("command", ["identify", "excite", "predict", "estimate-force", "monitor", "payload",
+                                     "drive-gains"])
+def test_every_robot_command_has_the_consent_and_package_options(command):
+    res = runner.invoke(app, [command, "--help"], terminal_width=200)
+    assert res.exit_code == 0 and "--trust-xacro" in res.output and "--package-path" in res.output

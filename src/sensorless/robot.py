@@ -317,8 +317,8 @@ def load_robot(
     trust_xacro: bool = False,
     package_paths: Sequence[str | Path] = (),
 ) -> Robot:
-    """Load a robot from a URDF path, a xacro file (:func:`expand_xacro`), an MJCF path or an
-    example-robot-data name.
+    """Load a robot from a URDF path, a xacro file (with ``trust_xacro=True`` only: it can run code),
+    an MJCF path or an example-robot-data name.
 
     ``lock_joints`` are fixed at their neutral position (e.g. a gripper's fingers).
     ``actuated_joints`` defaults to every 1-DoF joint. ``armature`` sets rotor inertia
