@@ -6,7 +6,7 @@ own layer or below. Bottom to top:
 
     0  errors, io                                  typed errors, atomic writes, version info
     1  robot, parameters, model_checks, export,    Pinocchio model, parameter conventions,
-       urdf_patch                                  URDF export
+       urdf_patch, robot_paths, xacro_expand       URDF export, confined file references, xacro
     2  data                                        Trajectory, readers, validation, filtering
     3  regressor                                   terms, row maps, compression
     4  identification, robots                      solve; robots authored in code (dVRK PSM)
@@ -29,6 +29,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "sensorless"
 LAYERS = {
     "errors": 0, "io": 0, "__version__": 0, "_lazy": 0,
     "robot": 1, "parameters": 1, "model_checks": 1, "export": 1, "urdf_patch": 1,
+    "robot_paths": 1, "xacro_expand": 1, "_xacro_worker": 1,
     "data": 2,
     "regressor": 3,
     "identification": 4, "robots": 4,

@@ -99,14 +99,14 @@ def test_xacro_file_loads_like_its_expanded_urdf(tmp_path, monkeypatch):
     pytest.importorskip("xacro")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     (tmp_path / "arm.urdf.xacro").write_text(XACRO)
-    r = load_robot(tmp_path / "arm.urdf.xacro")
+    r = load_robot(tmp_path / "arm.urdf.xacro", trust_xacro=True)
     assert r.joint_names == ("j1", "j2") and r.name == "arm" and r.source.endswith("arm.urdf.xacro")
     assert [r.model.inertias[k].mass for k in (1, 2)] == [2.0, 1.0]  # macros and expressions expanded
     assert Path(r.urdf_path).parent == tmp_path / "cache" / "sensorless" / "xacro"
     plain = load_robot(r.urdf_path)
     for a, b in zip(r.model.inertias, plain.model.inertias):
         np.testing.assert_array_equal(a.toDynamicParameters(), b.toDynamicParameters())
-    assert load_robot(tmp_path / "arm.urdf.xacro").urdf_path == r.urdf_path  # cached by content
+    assert load_robot(tmp_path / "arm.urdf.xacro", trust_xacro=True).urdf_path == r.urdf_path  # cached by content
 
 
 def test_xacro_that_needs_ros_says_how_to_expand_it(tmp_path, monkeypatch):
@@ -116,4 +116,4 @@ def test_xacro_that_needs_ros_says_how_to_expand_it(tmp_path, monkeypatch):
     bad.write_text('<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="x">'
                    '<xacro:include filename="$(find no_such_pkg)/a.xacro"/></robot>')
     with pytest.raises(RobotModelError, match=r"bad.xacro: xacro could not expand it .*xacro .*bad.xacro > robot.urdf"):
-        load_robot(bad)
+        load_robot(bad, trust_xacro=True)

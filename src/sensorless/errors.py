@@ -9,6 +9,7 @@ from __future__ import annotations
 __all__ = [
     "SensorlessError",
     "RobotModelError",
+    "UntrustedModelError",
     "DataError",
     "NonFiniteError",
     "ShapeMismatchError",
@@ -39,6 +40,10 @@ class SensorlessError(Exception):
 
 class RobotModelError(SensorlessError):
     """A robot model cannot be loaded, or a joint/frame/body name is unknown."""
+
+
+class UntrustedModelError(RobotModelError):
+    """A robot description that could run code when loaded (a xacro file), refused without consent."""
 
 
 class DataError(SensorlessError, ValueError):

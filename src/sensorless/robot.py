@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import JointNameError, RobotModelError
+from .xacro_expand import expand_xacro
 
 __all__ = ["Actuation", "Robot", "expand_xacro", "load_robot"]
 
@@ -251,42 +252,17 @@ class Robot(Actuation):
         }
 
 
-def expand_xacro(path: Path) -> Path:
-    """The URDF a ``.xacro`` file expands to (its default arguments), with the ``xacro`` package,
-    written once per content to a cache directory (``$XDG_CACHE_HOME/sensorless/xacro``) and
-    returned. RobotModelError says how to expand it by hand when xacro is missing or fails
-    (``$(find pkg)`` needs the ROS package to be installed)."""
-    try:
-        import xacro
-    except ImportError:
-        raise RobotModelError(f"{path}: a xacro file needs the 'xacro' package (pip install xacro, or the "
-                              f"'ros' extra), or expand it first: xacro {path} > robot.urdf") from None
-    try:
-        xml = xacro.process_file(str(path)).toprettyxml(indent="  ")
-    except BaseException as exc:  # xacro raises XacroException, and SystemExit from its CLI helpers
-        detail = " ".join(str(exc).split())[:300] or type(exc).__name__
-        raise RobotModelError(f"{path}: xacro could not expand it ({detail}); expand it where its ROS packages are "
-                              f"installed: xacro {path} > robot.urdf") from None
-    import hashlib
-
-    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sensorless" / "xacro"
-    out = cache / f"{path.name.split('.')[0]}-{hashlib.sha256(xml.encode()).hexdigest()[:16]}.urdf"
-    if not out.exists():
-        from .io import atomic_write_text
-
-        cache.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(out, xml)
-    return out
-
-
-def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str, str | None]:
-    """(model, name, source, URDF path or None) of a model file or an example-robot-data name."""
+def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
+           packages: Sequence[Path] = ()) -> tuple[pin.Model, str, str, str | None]:
+    """(model, name, source, URDF path or None) of a model file or an example-robot-data name.
+    A xacro file is refused unless ``trust_xacro`` (nothing of it is read); MJCF files naming
+    files outside their folder and ``packages`` are refused (:mod:`.robot_paths`)."""
     path = Path(spec)
     suffix = path.suffix.lower()
     if suffix == ".xacro":
         if not path.is_file():
             raise RobotModelError(f"{spec}: no such robot model file")
-        model, _, _, urdf = _build(str(expand_xacro(path)), floating_base)
+        model, _, _, urdf = _build(str(expand_xacro(path, trusted=trust_xacro)), floating_base)
         return model, path.name.split(".")[0], str(path), urdf
     if suffix in {".urdf", ".xml", ".mjcf"}:
         if not path.exists():
@@ -297,6 +273,10 @@ def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str, 
             raise RobotModelError(f"{spec}: not a regular file")
         if suffix == ".urdf":
             check_urdf_file(path)  # one-line errors for malformed XML and impossible values
+        else:
+            from .robot_paths import check_mjcf_paths
+
+            check_mjcf_paths(path, packages)  # includes and assets stay in the allowed folders
         captured: list[str] = []
         try:
             with quiet_stderr() as captured:  # urdfdom/MuJoCo print multi-line C++ messages on fd 2
@@ -334,15 +314,25 @@ def load_robot(
     lock_joints: Sequence[str] = (),
     actuated_joints: Sequence[str] | None = None,
     armature: dict[str, float] | None = None,
+    trust_xacro: bool = False,
+    package_paths: Sequence[str | Path] = (),
 ) -> Robot:
-    """Load a robot from a URDF path, a xacro file (:func:`expand_xacro`), an MJCF path or an
-    example-robot-data name.
+    """Load a robot from a URDF path, a xacro file (with ``trust_xacro=True`` only: it can run code),
+    an MJCF path or an example-robot-data name.
 
     ``lock_joints`` are fixed at their neutral position (e.g. a gripper's fingers).
     ``actuated_joints`` defaults to every 1-DoF joint. ``armature`` sets rotor inertia
     per joint name when the model file has none.
+
+    A xacro file can run code when expanded: it is refused (UntrustedModelError) unless
+    ``trust_xacro=True``, and then expanded in a subprocess with time and memory limits.
+    Files the description names (meshes, ``package://``, MJCF includes) are followed only under
+    its own folder and ``package_paths`` (plus ``ROS_PACKAGE_PATH``; :mod:`sensorless.robot_paths`).
     """
-    model, name, source, urdf = _build(str(spec), floating_base)
+    from .robot_paths import package_roots
+
+    packages = package_roots(package_paths)
+    model, name, source, urdf = _build(str(spec), floating_base, trust_xacro, packages)
     if lock_joints:
         # some example-robot-data models set lowerVelocityLimit = +max, which buildReducedModel rejects
         model.lowerVelocityLimit = -np.abs(model.upperVelocityLimit)
@@ -354,6 +344,8 @@ def load_robot(
         model = pin.buildReducedModel(model, ids, pin.neutral(model))
     robot = Robot(model, name=name, source=source, actuated_joints=tuple(actuated_joints or ()))
     robot.urdf_path = urdf
+    robot.package_paths = packages
+    robot.description_dir = None if source.startswith("example-robot-data:") else str(Path(source).parent)
     if armature:
         for j, val in armature.items():
             robot.model.armature[robot.v_index(j)] = float(val)

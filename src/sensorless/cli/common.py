@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import functools
 import os
 import warnings
@@ -256,9 +257,9 @@ def model_preprocessing(result_json: Path, **given) -> dict:
 
 
 def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool]):
-    """A URDF/MJCF/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
-    motor coordinates, a transmission's coordinate robot)."""
-    from ..robot import load_robot
+    """A URDF/MJCF/xacro/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
+    motor coordinates, a transmission's coordinate robot). ``--trust-xacro`` and ``--package-path``
+    come from :func:`robot_source_options`."""
     from ..robots.names import PSM_NAMES
 
     if str(robot).lower() in PSM_NAMES:
@@ -267,10 +268,49 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
         if lock or floating:
             raise SensorlessError(f"--robot {robot}: --lock and --floating-base do not apply to the PSM model")
         return psm_robot()
-    return load_robot(robot, lock_joints=lock or (), floating_base=floating)
+    return load_robot_cli(robot, lock_joints=lock or (), floating_base=floating)
 
 
+_ROBOT_SOURCE: "contextvars.ContextVar[dict]" = contextvars.ContextVar("robot_source", default={})
 
+
+def load_robot_cli(spec, **kwargs):
+    """:func:`~sensorless.robot.load_robot` with the command's ``--trust-xacro`` / ``--package-path``;
+    a refused xacro file names the flag."""
+    from ..errors import UntrustedModelError
+    from ..robot import load_robot
+    from ..xacro_expand import refuse_xacro
+
+    source = _ROBOT_SOURCE.get()
+    try:
+        return load_robot(spec, trust_xacro=source.get("trust_xacro", False),
+                          package_paths=source.get("package_paths", ()), **kwargs)
+    except UntrustedModelError:
+        refuse_xacro(Path(str(spec)), "rerun with --trust-xacro")
+
+
+def robot_source_options(fn):
+    """Decorator: ``--trust-xacro`` and ``--package-path DIR`` (repeatable) for a command that loads
+    a robot; :func:`load_robot_cli` reads them while the command runs."""
+
+    @functools.wraps(fn)
+    def run(*args, trust_xacro: bool = False, package_path: Optional[List[Path]] = None, **kwargs):
+        token = _ROBOT_SOURCE.set({"trust_xacro": trust_xacro, "package_paths": tuple(package_path or ())})
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            _ROBOT_SOURCE.reset(token)
+
+    return add_options({
+        "trust_xacro": (bool, lambda: typer.Option(False, "--trust-xacro", help=TRUST_XACRO_HELP)),
+        "package_path": (Optional[List[Path]], lambda: typer.Option(None, help=PACKAGE_PATH_HELP)),
+    })(run)
+
+
+TRUST_XACRO_HELP = ("expand a .xacro robot file (it can run code on this machine: read it first); in a subprocess "
+                    "limited to SENSORLESS_XACRO_TIMEOUT s (30) and SENSORLESS_XACRO_MEMORY_MB (1024)")
+PACKAGE_PATH_HELP = ("folder the robot description may read meshes/includes from besides its own (package:// "
+                     "looks here; repeatable; ROS_PACKAGE_PATH counts too)")
 
 
 def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **options):
@@ -281,7 +321,7 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **o
 
 
 
-ROBOT_HELP = "URDF path, xacro file (expanded with the xacro package), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
+ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
 
 
 # ---- the preprocessing options of commands that apply an identified model ------------------

@@ -10,6 +10,7 @@ import typer
 
 from ..errors import ExcitationError
 from .common import (
+    robot_source_options,
     app,
     atomic_outdir,
     console,
@@ -64,6 +65,7 @@ def _check_options(**opts) -> None:
 
 @app.command()
 @guarded
+@robot_source_options
 def excite(
     robot: str = robot_option(),
     out: Path = typer.Option(..., help="output directory (written atomically): excitation.json, trajectory.npz"),

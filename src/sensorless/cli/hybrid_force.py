@@ -10,6 +10,7 @@ import typer
 from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .common import (
+    robot_source_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -45,6 +46,7 @@ def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> N
 
 @app.command("estimate-force")
 @guarded
+@robot_source_options
 @model_preprocessing_options()
 @model_options()
 def estimate_force(

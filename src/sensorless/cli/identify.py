@@ -10,6 +10,7 @@ import typer
 
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .common import (
+    robot_source_options,
     MultiValueCommand,
     app,
     atomic_outdir,
@@ -54,6 +55,7 @@ from .identify_outputs import _export, _floating_base_checks, _plot_window, _pri
 
 @app.command(cls=MultiValueCommand)
 @guarded
+@robot_source_options
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),

@@ -121,9 +121,9 @@ def _lmi_kwargs(robot, structure, method, prior, regularization, gamma, ellipsoi
             raise SensorlessError(f"--gamma must be a number or 'auto', got '{gamma}'") from None
     prior_vec = None
     if prior is not None:
-        from ..robot import load_robot
+        from .common import load_robot_cli
 
-        p = load_robot(prior, floating_base=robot.floating_base)
+        p = load_robot_cli(prior, floating_base=robot.floating_base)
         missing = [b for b in robot.body_names if b not in p.body_names]
         if missing:
             raise SensorlessError(f"{prior}: prior model lacks bodies {missing} of {robot.name}")

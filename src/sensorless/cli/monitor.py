@@ -12,6 +12,7 @@ import typer
 
 from ..errors import SensorlessError
 from .common import (
+    robot_source_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -43,6 +44,7 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 
 @app.command()
 @guarded
+@robot_source_options
 @model_preprocessing_options()
 @model_options()
 def monitor(

@@ -70,6 +70,8 @@ def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
         ctx.meta[_CONFIG_ERROR] = (f"--config {value}: unknown key(s) {', '.join(unknown)}; keys are the command's "
                                    f"options, e.g. method, data, out, savgol_window")
         return value
+    if table.pop("trust_xacro", None) is not None:  # consent to run a file's code: on the command line only
+        ctx.meta[_CONFIG_ERROR] = f"--config {value}: trust_xacro is taken from the command line only (--trust-xacro)"
     ctx.default_map = {**(ctx.default_map or {}), **table}
     return value
 

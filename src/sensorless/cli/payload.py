@@ -10,6 +10,7 @@ import typer
 
 from ..errors import SensorlessError
 from .common import (
+    robot_source_options,
     model_logs,
     model_preprocessing_options,
     MultiValueCommand,
@@ -40,6 +41,7 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
 
 @app.command(cls=MultiValueCommand)
 @guarded
+@robot_source_options
 @model_preprocessing_options(("columns", "rate", "lowpass", "savgol_window", "gains", "trim", "resample"))
 @model_options("result.json (or its directory) of the robot identified WITHOUT the payload")
 def payload(

@@ -13,6 +13,7 @@ from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .options import Outliers
 from .common import (
+    robot_source_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -31,6 +32,7 @@ from .common import (
 
 @app.command()
 @guarded
+@robot_source_options
 @model_preprocessing_options()
 @model_options()
 def predict(

@@ -240,25 +240,40 @@ _GEOMETRY_CACHE: dict[tuple, pin.GeometryModel | None] = {}
 def load_geometry(robot: Robot, kind: str = "collision") -> pin.GeometryModel | None:
     """The robot's collision (or visual) ``GeometryModel`` from its URDF, or None if the
     URDF or its meshes cannot be found (e.g. unresolved ``package://`` paths). Cached
-    per (URDF, bodies, kind)."""
-    key = (getattr(robot, "urdf_path", None), robot.source, robot.body_names, kind)
+    per (URDF and its modification time, bodies, kind, package folders)."""
+    urdf = getattr(robot, "urdf_path", None)
+    try:
+        stamp = (os.stat(urdf).st_mtime_ns, os.stat(urdf).st_size) if urdf else None
+    except OSError:
+        stamp = None
+    key = (urdf, stamp, robot.source, robot.body_names, kind, tuple(getattr(robot, "package_paths", ())))
     if key not in _GEOMETRY_CACHE:
         _GEOMETRY_CACHE[key] = _load_geometry(robot, kind)
     return _GEOMETRY_CACHE[key]
 
 
 def _load_geometry(robot: Robot, kind: str) -> pin.GeometryModel | None:
+    """Meshes are read only under the description's folder and its package folders
+    (:func:`~sensorless.robot_paths.confine_urdf_meshes`: others are dropped with a warning);
+    an example-robot-data robot's own package tree is one of them."""
+    from ..robot_paths import confine_urdf_meshes
+
     urdf = getattr(robot, "urdf_path", None) or (robot.source if str(robot.source).endswith(".urdf") else None)
     if not urdf or not os.path.exists(urdf):
         return None
     path = os.path.normpath(urdf)
-    dirs = [os.path.dirname(os.path.dirname(path)), os.path.dirname(os.path.dirname(os.path.dirname(path)))]
-    if "/example-robot-data/" in path:
-        dirs.insert(0, path.split("/example-robot-data/")[0])
+    packages = list(getattr(robot, "package_paths", ()))
+    base = getattr(robot, "description_dir", None) or os.path.dirname(path)
+    if str(robot.source).startswith("example-robot-data:"):  # the installed package's own tree
+        packages += [os.path.dirname(os.path.dirname(path)), os.path.dirname(os.path.dirname(os.path.dirname(path)))]
+        if "/example-robot-data/" in path:
+            packages.insert(0, path.split("/example-robot-data/")[0])
     gtype = pin.GeometryType.COLLISION if kind == "collision" else pin.GeometryType.VISUAL
     try:
-        return pin.buildGeomFromUrdf(robot.model, path, gtype, package_dirs=dirs)
-    except Exception:  # noqa: BLE001 - missing meshes, unknown links: fall back to kinematics
+        with open(path, encoding="utf-8") as f:
+            text = confine_urdf_meshes(f.read(), base, packages, str(robot.source or path))
+        return pin.buildGeomFromUrdfString(robot.model, text, gtype, package_dirs=[])
+    except Exception:  # noqa: BLE001 - unreadable file, unknown links: fall back to kinematics
         return None
 
 
