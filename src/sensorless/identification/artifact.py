@@ -6,7 +6,7 @@ the schema (:mod:`.artifact_schema`; ``schema_version`` :data:`SCHEMA_VERSION`, 
 one is version 0 and loads if it validates), rebuilds the model structure on the given robot
 and checks the parameters: the vector's labels and length, finite values, each body's mass
 (> 0, or ≥ 0 where the prior body is massless, and below :data:`MASS_CAP_FACTOR` × the prior
-robot's total mass), first and second moments of bounded size, and for physically consistent
+robot's total mass, at least 100 kg), first and second moments of bounded size, and for physically consistent
 (``lmi``) models the pseudo-inertia and the signs of friction and armature. Paths stored in a
 model (e.g. a gains file) are resolved inside the model folder only. Every problem is one
 :class:`~sensorless.errors.ParameterError` line naming the file and the key path.
@@ -31,9 +31,11 @@ __all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "ModelArtifact", "load
 SCHEMA_VERSION = 1
 RESULT = "result.json"
 MAX_MODEL_BYTES = 64 * 1024 * 1024
-#: a body may weigh at most this many times the prior robot's total mass (at least :data:`MASS_CAP_FLOOR` kg)
+#: a body may weigh at most this many times the prior robot's total mass (at least :data:`MASS_CAP_FLOOR` kg;
+#: :data:`MASS_CAP_MASSLESS` kg when every prior body is massless, e.g. dvrk_psm)
 MASS_CAP_FACTOR = 10.0
 MASS_CAP_FLOOR = 100.0
+MASS_CAP_MASSLESS = 1e4
 #: first moments [kg·m] and inertias [kg·m²] of a body are bounded by its mass cap × this length (squared)
 LENGTH_CAP = 10.0
 _TERM_CAP = 1e6
@@ -151,7 +153,9 @@ def _check_bodies(c: Checker, structure, params: np.ndarray, physical: bool) -> 
     prior = np.asarray(structure.prior(), dtype=float)
     m0 = prior[:nb:10]
     total = float(np.sum(np.clip(m0, 0, None)))
-    cap = max(MASS_CAP_FACTOR * total, MASS_CAP_FLOOR)
+    cap = max(MASS_CAP_FACTOR * total, MASS_CAP_FLOOR) if total > 0 else MASS_CAP_MASSLESS
+    why = (f"{MASS_CAP_FACTOR:g} × the prior robot's {total:.6g} kg" if total > 0
+           else "the cap for a robot whose prior bodies are massless")
     labels = structure.labels
     for k in range(nb // 10):
         lab, m = labels[10 * k], params[10 * k]
@@ -161,7 +165,7 @@ def _check_bodies(c: Checker, structure, params: np.ndarray, physical: bool) -> 
                                               + (" (≥ 0 where the prior body is massless)" if m0[k] > 0 else ""))
         if m > cap:
             raise c.fail(f"parameters.{lab}", f"body '{body}' has mass {m:.6g} kg, more than the plausible "
-                                              f"{cap:.6g} kg ({MASS_CAP_FACTOR:g} × the prior robot's {total:.6g} kg)")
+                                              f"{cap:.6g} kg ({why})")
         for i in range(1, 10):
             lim = cap * LENGTH_CAP ** (1 if i < 4 else 2)
             if abs(params[10 * k + i]) > lim:
@@ -178,9 +182,10 @@ def _check_bodies(c: Checker, structure, params: np.ndarray, physical: bool) -> 
             raise c.fail(f"parameters.{rep.name}", f"body '{rep.name}' is not physically consistent (its "
                                                    "pseudo-inertia is not positive semi-definite), yet the model "
                                                    "says it was identified with method lmi")
-    for i in range(nb, len(params)):
+    start = getattr(structure, "n_block_params", nb)  # the joint-term block (drive terms are not constrained)
+    for i in range(start, len(params)):
         term = labels[i].rsplit(".", 1)[-1]
-        if term in ("fv", "fc", "armature") and params[i] < -_CONSISTENCY_TOL * max(1.0, float(np.max(np.abs(params[nb:])))):
+        if term in ("fv", "fc", "armature") and params[i] < -_CONSISTENCY_TOL * max(1.0, float(np.max(np.abs(params[start:])))):
             raise c.fail(f"parameters.{labels[i]}", f"{term} = {params[i]:.6g} is negative; a physically "
                                                     "consistent (lmi) model has it ≥ 0")
 
