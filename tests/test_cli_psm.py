@@ -141,6 +141,11 @@ def test_psm_identify_takes_train_and_test_files_and_saves_a_model(psm_files, tm
     assert "published" not in rep and set(rep["identified"]) == {"ols", "wls"}
     doc = json.loads((tmp_path / "psm" / "result.json").read_text())
     assert doc["settings"]["preprocessing"]["lowpass"] == 5.4 and doc["settings"]["coulomb_smoothing"] == 0.05
+    from sensorless.identification.artifact import SCHEMA_VERSION, load_model_folder
+    from sensorless.robots.dvrk_psm import psm_robot
+
+    assert doc["schema_version"] == SCHEMA_VERSION  # and the one validator accepts it:
+    assert load_model_folder(tmp_path / "psm", psm_robot()).parameters.size == len(doc["parameters"])
     code, out = _run(["predict", "--robot", "dvrk_psm", "--model", tmp_path / "psm", "--data", d / "test.csv", *COLS,
                       "--out", tmp_path / "pred.npz"])
     assert code == 0, out

@@ -349,11 +349,11 @@ def identified(sim, tmp_path_factory):
 
 
 @pytest.mark.parametrize("mutate,needle", [
-    (lambda doc: doc["parameters"].update({"panda_joint1.m": float("nan")}), "not finite"),
+    (lambda doc: doc["parameters"].update({"panda_joint1.m": float("nan")}), "'NaN' is not a JSON number"),
     (lambda doc: doc["parameters"].update({"panda_joint1.m": "heavy"}), "not finite"),
-    (lambda doc: doc.update({"settings": []}), "not a sensorless result"),
-    (lambda doc: doc["settings"].update({"joint_terms": 3}), "not a sensorless result"),
-    (lambda doc: doc["settings"].update({"joint_terms": ["bogus"]}), "settings do not fit"),
+    (lambda doc: doc.update({"settings": []}), "settings: expected an object"),
+    (lambda doc: doc["settings"].update({"joint_terms": 3}), "settings.joint_terms: expected a list"),
+    (lambda doc: doc["settings"].update({"joint_terms": ["bogus"]}), "settings.joint_terms[0]: unknown joint term"),
 ])
 def test_malformed_or_nan_result_json_is_refused_by_predict(identified, tmp_path, mutate, needle):
     d, f = identified
@@ -374,7 +374,7 @@ def test_truncated_result_json_is_refused(identified, tmp_path):
     bad = tmp_path / "result.json"
     bad.write_text((d / "run" / "result.json").read_text()[:500])
     _one_line_error(_run(["predict", *ROBOT, "--model", bad, "--data", f, "--out", tmp_path / "p.npz"]),
-                    "not a sensorless result")
+                    "not valid JSON")
 
 
 def test_model_json_sizes_are_bounded(tmp_path):

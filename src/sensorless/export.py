@@ -166,5 +166,10 @@ def write_joint_terms(joint_terms: JointTerms, path: str | os.PathLike) -> Path:
 
 def read_joint_terms(path: str | os.PathLike) -> JointTerms:
     """Read a file written by :func:`write_joint_terms`."""
-    with open(path, encoding="utf-8") as fh:
-        return JointTerms.from_dict(json.load(fh))
+    from .errors import ParameterError
+    from .io import read_json
+
+    doc = read_json(path, "joint terms file", error=ParameterError)
+    if not isinstance(doc, dict):
+        raise ParameterError(f"{path}: expected a JSON object of joints, got {type(doc).__name__}")
+    return JointTerms.from_dict(doc)

@@ -46,6 +46,7 @@ __all__ = [
     "check_input_file",
     "check_output_file",
     "jsonable",
+    "read_json",
     "read_manifest",
     "versions",
     "write_json_atomic",
@@ -200,6 +201,53 @@ def check_input_file(path: str | os.PathLike, what: str = "input file") -> Path:
                 else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
         raise InputError(f"{path}: is {kind}, not a regular file; refusing to read it as a {what}")
     return path
+
+
+#: Largest JSON document :func:`read_json` parses by default (a model's result.json is < 1 MB).
+MAX_JSON_BYTES = 64 * 1024 * 1024
+
+
+def _no_constant(name: str):
+    raise ValueError(f"'{name}' is not a JSON number")
+
+
+def _unique_keys(pairs):
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"key '{k[:60]}' appears twice")
+        out[k] = v
+    return out
+
+
+def read_json(path: str | os.PathLike, what: str = "JSON file", max_bytes: int = MAX_JSON_BYTES,
+              error: type[Exception] = InputError):
+    """The strict JSON document in ``path``; ``error`` (one line naming the file) otherwise.
+
+    Special files are refused before opening (:func:`check_input_file`), files over
+    ``max_bytes`` before reading; NaN/Infinity and duplicate keys are not JSON here. The
+    message never quotes the file's content (only the parser's position)."""
+    path = check_input_file(path, what)
+    try:
+        size = os.stat(path).st_size
+        if size > max_bytes:
+            raise error(f"{path}: {what} of {size} bytes is larger than the limit of {max_bytes} bytes")
+        with open(path, "rb") as fh:
+            raw = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise error(f"{path}: cannot read this {what}: {exc.strerror or exc}") from None
+    if len(raw) > max_bytes:
+        raise error(f"{path}: {what} is larger than the limit of {max_bytes} bytes")
+    try:
+        return json.loads(raw.decode("utf-8-sig"), parse_constant=_no_constant, object_pairs_hook=_unique_keys)
+    except UnicodeDecodeError:
+        raise error(f"{path}: {what} is not UTF-8 text") from None
+    except json.JSONDecodeError as exc:
+        raise error(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})") from None
+    except ValueError as exc:
+        raise error(f"{path}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise error(f"{path}: {what} is nested too deeply") from None
 
 
 # ---- output directories ---------------------------------------------------------------

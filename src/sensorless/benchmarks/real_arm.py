@@ -133,7 +133,9 @@ def one_seed(work: Path, seed: int) -> dict:
     _cli(["identify", "--robot", "ur10", "--data", work / "train.csv", "--validate", work / "test.csv",
           "--columns", COLUMNS, "--gains", work / "gains.json", *IDENTIFY_OPTIONS, "--out", work / "model", "--force"])
     t_id = time.perf_counter() - t0
-    doc = json.loads((work / "model" / "result.json").read_text())
+    from ..identification.artifact import read_result
+
+    doc = read_result(work / "model")
     nrmse, nrmse_truth = _nrmse_pair(robot, truth, work / "model", work / "test.csv", None)
     full_id, full_truth = _nrmse_pair(robot, truth, work / "model", work / "test.csv", MOTION_TRIM)
     idle = _idle(robot, work / "model", work / "test.csv", K)

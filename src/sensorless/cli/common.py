@@ -238,16 +238,14 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
             "trim": trim, "decimate": decimate, "rest": rest, "time_unit": time_unit}
 
 
-def model_preprocessing(result_json: Path, **given) -> dict:
+def model_preprocessing(model, **given) -> dict:
     """Preprocessing options for a log predicted with a model: each option given on the
-    command line (not None) wins, else the model's (result.json settings.preprocessing).
+    command line (not None) wins, else the model's (result.json settings.preprocessing, validated:
+    :mod:`sensorless.identification.artifact`; ``model`` is a loaded ModelArtifact or a path).
     ``--columns`` carrying ':gain=' drops the model's gains; ``--gains off`` drops them too."""
-    import json
+    from ..identification.artifact import ModelArtifact, read_preprocessing
 
-    try:
-        saved = json.loads(Path(result_json).read_text()).get("settings", {}).get("preprocessing") or {}
-    except (OSError, ValueError):
-        saved = {}
+    saved = model.preprocessing if isinstance(model, ModelArtifact) else read_preprocessing(model)
     out = {k: (given.get(k) if given.get(k) is not None else saved.get(k)) for k in PREPROCESSING_KEYS}
     if isinstance(given.get("columns"), str) and ":gain=" in given["columns"] and given.get("gains") is None:
         out["gains"] = None
@@ -435,11 +433,11 @@ def experiment_options(out: str, quick: str, seed: str):
     })
 
 
-def model_logs(model_path: Path, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
-    """Logs to apply a model to, preprocessed as its training logs were: each option in
-    ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`).
+def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
+    """Logs to apply a model (a ModelArtifact, or a path) to, preprocessed as its training logs were:
+    each option in ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`).
     Returns (trajectories, the resolved options)."""
-    opts = model_preprocessing(model_path, **{k: v for k, v in prep.items() if k != "trim"})
+    opts = model_preprocessing(model, **{k: v for k, v in prep.items() if k != "trim"})
     trajs = load_logs(paths, robot, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                       gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
                       velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"),

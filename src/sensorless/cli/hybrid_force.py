@@ -67,15 +67,14 @@ def estimate_force(
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:
     F = (Jᵀ)⁺ (τ_measured − τ_model − τ_residual), damped near singularities."""
     from ..estimation.force import CartesianForceEstimator
-    from ..estimators import load_parameters
     from ..estimators import PhysicalModel
+    from ..identification.artifact import load_model_folder
 
     output_file(out, path_inputs(robot, model, data, residual))
     r = load_robot_arg(robot, lock, False)
-    path = model / "result.json" if model.is_dir() else model
-    structure, params = load_parameters(path, r)
-    phys = PhysicalModel.from_parameters(structure, params)
-    (traj,), _ = model_logs(path, [data], r, prep)
+    art = load_model_folder(model, r)
+    phys = PhysicalModel.from_parameters(art.structure, art.parameters)
+    (traj,), _ = model_logs(art, [data], r, prep)
     if traj.tau is None:
         raise SensorlessError(f"{data}: the log has no measured torque; force estimation needs it")
     hybrid = None

@@ -70,15 +70,17 @@ def monitor(
     quiet segment → contact intervals, peak external torque per joint, Cartesian force at --frame."""
     from ..estimation.collision import detect_contacts, quiet_mask, quiet_thresholds
     from ..estimation.momentum import MomentumDynamics, MomentumObserver, _uniform_dt
+    from ..identification.artifact import load_model_folder
 
     r = load_robot_arg(robot, lock, floating_base)
-    path = model / "result.json" if model.is_dir() else model
-    dyn = MomentumDynamics.from_result(path, r)
+    art = load_model_folder(model, r)
+    path = art.path
+    dyn = MomentumDynamics(art.structure, art.parameters)
     if k is not None and k <= 0:
         raise SensorlessError(f"--k must be > 0, got {k}")
     q0, q1 = _parse_quiet(quiet)
     with atomic_outdir(out, force, inputs=path_inputs(robot, model, data)) as tmp:
-        (traj,), opts = model_logs(path, [data], r, prep)
+        (traj,), opts = model_logs(art, [data], r, prep)
         dt = _uniform_dt(traj)
         res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
         tau_ext = res.tau_ext

@@ -71,7 +71,7 @@ def payload(
     """Identify a payload at FRAME from the torque the robot's model does not explain:
     τ − Wπ̂ = Gᵀ J_fᵀ Φ_f φ (+ per-joint offsets), paired with a no-load log when given.
     Reports mass (and m·g), CoM, uncertainty (HAC / block bootstrap) and per-joint consistency."""
-    from ..estimators import load_parameters
+    from ..identification.artifact import load_model_folder
     from ..identification.payload import identify_payload
     from ..identification.result import write_json_atomic
 
@@ -80,10 +80,10 @@ def payload(
     if no_load and len(no_load) != len(data):
         raise SensorlessError(f"{len(data)} --data log(s) but {len(no_load)} --no-load log(s); pair them one to one")
     r = load_robot_arg(robot, lock, False)
-    path = model / "result.json" if model.is_dir() else model
-    structure, params = load_parameters(path, r)
-    logs, opts = model_logs(path, data, r, prep)
-    refs = model_logs(path, no_load, r, prep)[0] if no_load else None
+    art = load_model_folder(model, r)
+    path, structure, params = art.path, art.structure, art.parameters
+    logs, opts = model_logs(art, data, r, prep)
+    refs = model_logs(art, no_load, r, prep)[0] if no_load else None
     if refs is not None and align == Align.time:
         from ..identification.drive_gains import align_pair
 
@@ -120,12 +120,12 @@ def payload(
 
 def _gain_std(gains, robot):
     """Relative std per actuated joint of gains from a `sensorless drive-gains` file, else None."""
-    import json
+    from ..io import read_json
 
     if not isinstance(gains, (str, Path)) or not str(gains).lower().endswith(".json") or not Path(gains).is_file():
         return None
     try:
-        doc = json.loads(Path(gains).read_text())
+        doc = read_json(gains, "gains file")
         g, s = doc["gains"], doc["std"]
         return np.array([float(s[j]) / float(g[j]) if j not in doc.get("from_nominal", []) else 0.0
                          for j in robot.actuated_joints])

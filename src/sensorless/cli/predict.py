@@ -47,16 +47,16 @@ def predict(
 ) -> None:
     """Predict joint torques of a log with an identified model. The log is preprocessed as the
     model's training logs were (result.json settings.preprocessing) unless an option says otherwise."""
-    from ..estimators import load_parameters
+    from ..identification.artifact import load_model_folder
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
     check_preprocessing(prep["rate"], prep["lowpass"], prep["savgol_window"], 1)
     output_file(out, path_inputs(robot, model, data))
     r = load_robot_arg(robot, lock, floating_base)
-    path = model / "result.json" if model.is_dir() else model
-    structure, params = load_parameters(path, r)
-    (traj,), opts = model_logs(path, [data], r, prep, outliers=outliers)
+    art = load_model_folder(model, r)
+    path, structure, params = art.path, art.structure, art.parameters
+    (traj,), opts = model_logs(art, [data], r, prep, outliers=outliers)
     trim = prep["trim"]
     pred = structure.torques(params, traj)
     if not np.all(np.isfinite(pred)):

@@ -113,23 +113,55 @@ def _parse_inline(text: str, src: str) -> "list[float] | dict[str, float]":
     return [_number(p, f"#{k}", src) for k, p in enumerate(parts)]
 
 
+#: a gains file is a few lines; anything bigger is not one
+MAX_GAINS_FILE_BYTES = 1024 * 1024
+
+
+def _file_number(val: Any, where: str, src: str) -> float:
+    """A gain read from a file; the message names the row/key, never the file's text."""
+    try:
+        out = float(val)
+    except (TypeError, ValueError):
+        raise DataError(f"gains file {where}: not a number", src) from None
+    if not np.isfinite(out) or out == 0:
+        raise DataError(f"gains file {where}: a gain must be finite and non-zero", src)
+    return out
+
+
+def _key(name: Any) -> str:
+    text = str(name)
+    return text if len(text) <= 40 and text.isprintable() else f"key of {len(text)} characters"
+
+
 def _read_file(path: Path) -> "list[float] | dict[str, float]":
+    from ..errors import SensorlessError
+    from ..io import check_input_file
+
     src = str(path)
     try:
+        check_input_file(path, "gains file")
+        if path.stat().st_size > MAX_GAINS_FILE_BYTES:
+            raise DataError(f"gains file is larger than {MAX_GAINS_FILE_BYTES} bytes", src)
         text = path.read_text(encoding="utf-8-sig")
+    except SensorlessError as exc:
+        raise DataError(str(exc).removeprefix(f"{src}: "), src) from None
+    except UnicodeDecodeError:
+        raise DataError("gains file is not UTF-8 text", src) from None
     except OSError as exc:
         raise DataError(f"cannot read gains file: {exc.strerror or exc}", src) from None
     if path.suffix.lower() == ".json":
         try:
             doc = json.loads(text)
         except ValueError as exc:
-            raise DataError(f"not valid JSON ({exc})", src) from None
+            raise DataError(f"not valid JSON ({getattr(exc, 'msg', 'parse error')})", src) from None
+        except RecursionError:
+            raise DataError("not valid JSON (nested too deeply)", src) from None
         if isinstance(doc, dict) and "gains" in doc:
             doc = doc["gains"]
         if isinstance(doc, dict):
-            return {str(k): _number(v, str(k), src) for k, v in doc.items()}
+            return {str(k): _file_number(v, f"key '{_key(k)}'", src) for k, v in doc.items()}
         if isinstance(doc, list):
-            return [_number(v, f"#{k}", src) for k, v in enumerate(doc)]
+            return [_file_number(v, f"item #{k}", src) for k, v in enumerate(doc)]
         raise DataError("JSON gains must be a list or a {joint: gain} object", src)
     rows = [[c.strip() for c in row] for row in csv.reader(line for line in text.splitlines() if line.strip())]
     rows = [[c for c in row if c] for row in rows if any(row)]
@@ -137,10 +169,11 @@ def _read_file(path: Path) -> "list[float] | dict[str, float]":
         raise DataError("gains file is empty", src)
     if all(len(r) == 2 for r in rows):  # joint,gain (optional header)
         body = rows[1:] if not _is_number(rows[0][1]) else rows
-        return {r[0]: _number(r[1], r[0], src) for r in body}
+        first = 2 if body is not rows else 1
+        return {r[0]: _file_number(r[1], f"row {i + first}", src) for i, r in enumerate(body)}
     flat = [c for r in rows for c in r]
     if all(len(r) == 1 for r in rows) or len(rows) == 1:
-        return [_number(c, f"#{k}", src) for k, c in enumerate(flat)]
+        return [_file_number(c, f"value #{k}", src) for k, c in enumerate(flat)]
     raise DataError("CSV gains must be 'joint,gain' rows or one row/column of numbers", src)
 
 
@@ -159,7 +192,7 @@ def resolve_gains(gains: Any, joint_names: Sequence[str], src: str = "<gains>") 
     unknown = [k for k in g if k not in names]
     missing = [j for j in names if j not in g]
     if unknown or missing:
-        what = [f"gains name joint(s) {unknown} not in the log"] if unknown else []
+        what = [f"gains name joint(s) {[_key(k) for k in unknown[:5]]} not in the log"] if unknown else []
         what += [f"no gain for joint(s) {missing}"] if missing else []
         raise JointNameError(f"{'; '.join(what)} (log joints: {names})", src)
     return np.array([g[j] for j in names], dtype=float)

@@ -151,12 +151,10 @@ class MomentumDynamics:
     @classmethod
     def from_result(cls, result_json: str | Path, robot) -> "MomentumDynamics":
         """From a ``result.json`` of ``sensorless identify`` (or its directory) and the robot."""
-        from ..estimators import load_parameters
+        from ..identification.artifact import load_model_folder
 
-        path = Path(result_json)
-        path = path / "result.json" if path.is_dir() else path
-        structure, params = load_parameters(path, robot)
-        return cls(structure, params)
+        art = load_model_folder(result_json, robot)
+        return cls(art.structure, art.parameters)
 
     # ---- sizes and inputs ---------------------------------------------------------------
     @property

@@ -21,7 +21,7 @@ from ..regressor.distributed import FleetEquations, compress_files
 from ..regressor.terms import ModelStructure
 from .identify import identify
 from .result import IdentificationResult
-from .stribeck import StribeckCandidates, choose_stribeck
+from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
 
 __all__ = ["identify_files", "identify_fleet"]
 
@@ -66,7 +66,9 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
         cand = StribeckCandidates(structure, stribeck_grid)
         choice, record = choose_stribeck(cand, fleet.equations, check_weights(kw.get("weights", "auto"),
                                                                               structure.row_names))
-        structure = cand.structure_for(choice)
+        before, structure = structure, cand.structure_for(choice)
+        if kw.get("prior") is not None:  # the search may have dropped Stribeck terms
+            kw["prior"] = carry_prior(kw["prior"], before, structure)
         fleet = dataclasses.replace(fleet, equations=cand.select(fleet.equations, choice),
                                     folds=[cand.select(f, choice) for f in fleet.folds] if fleet.folds else fleet.folds)
     if method == "lmi" and kw.get("gamma", 1e-3) == "auto":

@@ -33,7 +33,7 @@ from .least_squares import (
 )
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
-from .stribeck import StribeckCandidates, choose_stribeck
+from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
 from .weights import check_weights
 from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
@@ -133,7 +133,8 @@ def identify(
     stribeck_search = None
     if cand is not None:
         choice, stribeck_search = choose_stribeck(cand, ne, weights)
-        structure, ne = cand.structure_for(choice), cand.select(ne, choice)
+        before, structure, ne = structure, cand.structure_for(choice), cand.select(ne, choice)
+        prior = carry_prior(prior, before, structure)  # the search may have dropped Stribeck terms
     base = base_parameters(structure)
     sample_count_check(ne, base)
     slow: dict[str, float] = {}

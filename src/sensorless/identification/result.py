@@ -97,8 +97,11 @@ class IdentificationResult:
                 "com_frame": "base frame at the neutral configuration"}
 
     def to_dict(self) -> dict:
+        from .artifact import SCHEMA_VERSION
+
         mass = self.mass_properties()
         return {
+            "schema_version": SCHEMA_VERSION,
             "method": self.method,
             "robot": self.robot.summary(),
             **({"mass_properties": mass} if mass is not None else {}),

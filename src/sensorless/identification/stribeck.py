@@ -32,7 +32,7 @@ from ..regressor.compress import NormalEquations
 from ..regressor.terms import ModelStructure
 from .base import base_parameters
 
-__all__ = ["SWEEPS", "StribeckCandidates", "choose_stribeck"]
+__all__ = ["SWEEPS", "StribeckCandidates", "carry_prior", "choose_stribeck"]
 
 #: coordinate-descent sweeps over the joints
 SWEEPS = 2
@@ -212,3 +212,17 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
                                  "sse_without": float(sse_x), "coefficient": coef[:n].tolist(),
                                  "vs": float(cand.grid[k, choice[k]]) if choice[k] >= 0 else None}
     return choice, record
+
+
+def carry_prior(prior, before: ModelStructure, after: ModelStructure):
+    """A prior vector of ``before`` moved onto ``after`` (the structure chosen by the Stribeck
+    search, which may have dropped terms): values by parameter label, ``after``'s own prior for a
+    label ``before`` lacks. None stays None."""
+    if prior is None:
+        return None
+    prior = np.asarray(prior, dtype=float)
+    if prior.shape != (len(before.labels),) or list(before.labels) == list(after.labels):
+        return prior  # (a wrong shape is reported by the solver that uses it)
+    given = dict(zip(before.labels, prior))
+    own = after.prior()
+    return np.array([given.get(lab, own[i]) for i, lab in enumerate(after.labels)])

@@ -13,14 +13,13 @@ containers, so a tampered file cannot execute code.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import torch
 from torch import nn
 
 from ..errors import DataError, SensorlessError
-from ..io import atomic_open, write_json_atomic
+from ..io import atomic_open, check_input_file, read_json, write_json_atomic
 from .mlp import build_network
 
 __all__ = ["META", "WEIGHTS", "MAX_NETWORK_PARAMETERS", "check_architecture", "load_network", "save_network"]
@@ -88,13 +87,11 @@ def load_network(directory: str | Path) -> tuple[nn.Module, dict]:
     meta_path, w_path = d / META, d / WEIGHTS
     if not meta_path.exists() or not w_path.exists():
         raise DataError(f"not a saved sensorless network (need {META} and {WEIGHTS})", str(d))
-    try:
-        if meta_path.stat().st_size > _MAX_META_BYTES:
-            raise ValueError(f"larger than {_MAX_META_BYTES} bytes")
-        meta = json.loads(meta_path.read_text())
-        arch = meta["architecture"]
-    except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
-        raise DataError(f"unreadable model description: {type(exc).__name__}: {exc}", str(meta_path)) from None
+    meta = read_json(meta_path, "model description (model.json)", _MAX_META_BYTES, error=DataError)
+    if not isinstance(meta, dict) or "architecture" not in meta:
+        raise DataError("unreadable model description: no 'architecture' object", str(meta_path))
+    arch = meta["architecture"]
+    check_input_file(w_path, "weights file")
     check_architecture(arch, str(meta_path))
     try:
         net = build_network(arch)

@@ -100,6 +100,8 @@ def write_html_report(out_dir: str | Path, doc: dict | None = None) -> Path:
     """``out_dir/report.html`` from ``doc`` (default: ``out_dir/result.json``) and the PNGs in ``out_dir``."""
     out_dir = Path(out_dir)
     if doc is None:
-        doc = json.loads((out_dir / "result.json").read_text())
+        from ..identification.artifact import read_result
+
+        doc = read_result(out_dir)
     figures = {p.stem.replace("_", " "): p.read_bytes() for p in sorted(out_dir.glob("*.png"))}
     return atomic_write_text(out_dir / "report.html", render_html_report(doc, figures))

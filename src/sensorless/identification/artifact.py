@@ -1,0 +1,226 @@
+"""The one reader of a model folder (``result.json`` from ``sensorless identify``, the demo, psm-identify).
+
+:func:`load_model_folder` is what every command and library reader uses: it refuses special
+files and files over :data:`MAX_MODEL_BYTES`, parses strict JSON, checks the document against
+the schema (:mod:`.artifact_schema`; ``schema_version`` :data:`SCHEMA_VERSION`, a file without
+one is version 0 and loads if it validates), rebuilds the model structure on the given robot
+and checks the parameters: the vector's labels and length, finite values, each body's mass
+(> 0, or ≥ 0 where the prior body is massless, and below :data:`MASS_CAP_FACTOR` × the prior
+robot's total mass, at least 100 kg), first and second moments of bounded size, and for physically consistent
+(``lmi``) models the pseudo-inertia and the signs of friction and armature. Paths stored in a
+model (e.g. a gains file) are resolved inside the model folder only. Every problem is one
+:class:`~sensorless.errors.ParameterError` line naming the file and the key path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError, SensorlessError
+from ..io import check_input_file, read_json
+from .artifact_schema import Checker, check_preprocessing_settings, check_structure_settings, summary
+
+__all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "ModelArtifact", "load_model_folder", "read_result",
+           "read_preprocessing", "result_path", "stamp"]
+
+#: version of the ``result.json`` schema written by every writer (0: files written before it existed)
+SCHEMA_VERSION = 1
+RESULT = "result.json"
+MAX_MODEL_BYTES = 64 * 1024 * 1024
+#: a body may weigh at most this many times the prior robot's total mass (at least :data:`MASS_CAP_FLOOR` kg;
+#: :data:`MASS_CAP_MASSLESS` kg when every prior body is massless, e.g. dvrk_psm)
+MASS_CAP_FACTOR = 10.0
+MASS_CAP_FLOOR = 100.0
+MASS_CAP_MASSLESS = 1e4
+#: first moments [kg·m] and inertias [kg·m²] of a body are bounded by its mass cap × this length (squared)
+LENGTH_CAP = 10.0
+_TERM_CAP = 1e6
+_CONSISTENCY_TOL = 1e-6
+
+
+def stamp(doc: dict) -> dict:
+    """``doc`` with ``schema_version`` set (every writer of a result.json calls this)."""
+    doc["schema_version"] = SCHEMA_VERSION
+    return doc
+
+
+def result_path(model: str | Path) -> Path:
+    """``model/result.json`` for a model folder, else ``model`` itself."""
+    model = Path(model)
+    return model / RESULT if model.is_dir() else model
+
+
+def read_result(model: str | Path) -> dict:
+    """The raw ``result.json`` document (bounded, strict JSON, an object, a known schema version)."""
+    path = result_path(model)
+    doc = read_json(path, "model file (result.json)", MAX_MODEL_BYTES, error=ParameterError)
+    if not isinstance(doc, dict):
+        raise ParameterError(f"{path}: not a sensorless result file (expected a JSON object, got {summary(doc)})")
+    version = doc.get("schema_version", 0)
+    Checker(path).number("schema_version", version, 0, 1e9, integer=True)
+    if version > SCHEMA_VERSION:
+        raise ParameterError(f"{path}: schema_version {version} is newer than this sensorless reads "
+                             f"({SCHEMA_VERSION}); upgrade sensorless")
+    return doc
+
+
+def read_preprocessing(model: str | Path) -> dict:
+    """The validated ``settings.preprocessing`` of a model (empty when it has none)."""
+    path = result_path(model)
+    doc = read_result(path)
+    c = Checker(path, path.parent)
+    settings = c.mapping("settings", doc.get("settings"))
+    return check_preprocessing_settings(c, settings.get("preprocessing"))
+
+
+@dataclasses.dataclass
+class ModelArtifact:
+    """A validated model folder: the document, the structure rebuilt on the robot, the parameters,
+    and the preprocessing its training logs had (a stored gains file resolved inside the folder)."""
+
+    path: Path
+    doc: dict
+    structure: Any
+    parameters: np.ndarray
+    preprocessing: dict
+
+    @property
+    def folder(self) -> Path:
+        return self.path.parent
+
+    @property
+    def schema_version(self) -> int:
+        return int(self.doc.get("schema_version", 0))
+
+
+def load_model_folder(model: str | Path, robot) -> ModelArtifact:
+    """Read and validate a model folder (or its ``result.json``) for ``robot`` (module docstring)."""
+    path = result_path(model)
+    check_input_file(path, "model file (result.json)")
+    doc = read_result(path)
+    c = Checker(path, path.parent)
+    settings = c.mapping("settings", doc.get("settings"))
+    values = c.mapping("parameters", doc.get("parameters"))
+    method = doc.get("method")
+    if method is not None:
+        c.string("method", method, max_len=32)
+    if doc.get("robot") is not None:
+        c.mapping("robot", doc["robot"])
+    check_structure_settings(c, settings)
+    pre = check_preprocessing_settings(c, settings.get("preprocessing"))
+    try:
+        structure = structure_from_settings(settings, doc, robot)
+    except ParameterError as exc:
+        raise ParameterError(f"{path}: {exc}") from None
+    except SensorlessError as exc:
+        raise ParameterError(f"{path}: settings do not fit robot '{robot.name}': {exc}") from None
+    except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
+        raise ParameterError(f"{path}: not a sensorless result file (settings: {type(exc).__name__})") from None
+    params = _parameters(c, structure, values, doc, robot)
+    _check_bodies(c, structure, params, physical=method == "lmi")
+    return ModelArtifact(path, doc, structure, params, pre)
+
+
+def _parameters(c: Checker, structure, values: dict, doc: dict, robot) -> np.ndarray:
+    missing = [lab for lab in structure.labels if lab not in values]
+    if missing:
+        name = doc.get("robot", {}).get("name") if isinstance(doc.get("robot"), dict) else None
+        raise c.fail("parameters", f"parameters {missing[:5]} are missing; was it identified for another robot "
+                                   f"(file says '{summary(name) if not isinstance(name, str) else name[:80]}', "
+                                   f"given '{robot.name}')?")
+    bad = [lab for lab in structure.labels if isinstance(values[lab], bool) or not isinstance(values[lab], (int, float))
+           or not np.isfinite(values[lab])]
+    if bad:
+        raise c.fail(f"parameters.{bad[0]}", f"parameter(s) {bad[:5]} are not finite numbers "
+                                             f"(e.g. {bad[0]} = {summary(values[bad[0]])})")
+    extra = len(values) - len(structure.labels)
+    if extra > 0:
+        unknown = [k for k in values if k not in set(structure.labels)][:3]
+        raise c.fail("parameters", f"{extra} parameter(s) the model structure does not have (e.g. "
+                                   f"{', '.join(k[:60] for k in unknown)}); the vector must have {len(structure.labels)}")
+    return np.array([float(values[lab]) for lab in structure.labels])
+
+
+def _check_bodies(c: Checker, structure, params: np.ndarray, physical: bool) -> None:
+    """Masses, moments (and for ``physical`` models consistency, friction and armature signs) in range."""
+    from ..parameters import check_physical_consistency
+
+    nb = structure.n_body_params
+    prior = np.asarray(structure.prior(), dtype=float)
+    m0 = prior[:nb:10]
+    total = float(np.sum(np.clip(m0, 0, None)))
+    cap = max(MASS_CAP_FACTOR * total, MASS_CAP_FLOOR) if total > 0 else MASS_CAP_MASSLESS
+    why = (f"{MASS_CAP_FACTOR:g} × the prior robot's {total:.6g} kg" if total > 0
+           else "the cap for a robot whose prior bodies are massless")
+    labels = structure.labels
+    for k in range(nb // 10):
+        lab, m = labels[10 * k], params[10 * k]
+        body = lab.rsplit(".", 1)[0]
+        if m < 0 or (m == 0 and m0[k] > 0):
+            raise c.fail(f"parameters.{lab}", f"body '{body}' has mass {m:.6g} kg; a mass must be > 0"
+                                              + (" (≥ 0 where the prior body is massless)" if m0[k] > 0 else ""))
+        if m > cap:
+            raise c.fail(f"parameters.{lab}", f"body '{body}' has mass {m:.6g} kg, more than the plausible "
+                                              f"{cap:.6g} kg ({why})")
+        for i in range(1, 10):
+            lim = cap * LENGTH_CAP ** (1 if i < 4 else 2)
+            if abs(params[10 * k + i]) > lim:
+                raise c.fail(f"parameters.{labels[10 * k + i]}", f"{params[10 * k + i]:.6g} is implausibly large "
+                                                                 f"for body '{body}' (|value| ≤ {lim:.6g})")
+    for i in range(nb, len(params)):
+        if abs(params[i]) > _TERM_CAP:
+            raise c.fail(f"parameters.{labels[i]}", f"{params[i]:.6g} is implausibly large (|value| ≤ {_TERM_CAP:g})")
+    if not physical:
+        return
+    bodies = [labels[10 * k].rsplit(".", 1)[0] for k in range(nb // 10)]
+    for rep in check_physical_consistency(params[:nb], bodies, tol=_CONSISTENCY_TOL):
+        if not rep.consistent:
+            raise c.fail(f"parameters.{rep.name}", f"body '{rep.name}' is not physically consistent (its "
+                                                   "pseudo-inertia is not positive semi-definite), yet the model "
+                                                   "says it was identified with method lmi")
+    start = getattr(structure, "n_block_params", nb)  # the joint-term block (drive terms are not constrained)
+    for i in range(start, len(params)):
+        term = labels[i].rsplit(".", 1)[-1]
+        if term in ("fv", "fc", "armature") and params[i] < -_CONSISTENCY_TOL * max(1.0, float(np.max(np.abs(params[start:])))):
+            raise c.fail(f"parameters.{labels[i]}", f"{term} = {params[i]:.6g} is negative; a physically "
+                                                    "consistent (lmi) model has it ≥ 0")
+
+
+def structure_from_settings(settings: dict, doc: dict, robot):
+    """The model structure ``settings`` describe, on ``robot`` (typed errors when it does not fit)."""
+    from ..regressor.terms import ModelStructure
+
+    file_robot = doc.get("robot", {}).get("name") if isinstance(doc.get("robot"), dict) else None
+    file_robot = file_robot[:80] if isinstance(file_robot, str) else summary(file_robot)
+    if settings.get("structure") == "transmission":
+        from ..regressor.transmission import TransmissionStructure
+
+        if not robot.coupled:
+            raise ParameterError(f"a model of a coupled-joint robot ('{file_robot}'); "
+                                 f"load it with that robot (e.g. --robot dvrk_psm), not '{robot.name}'")
+        lo, hi = robot.position_limits()
+        structure = TransmissionStructure.from_settings(robot.tree, settings, limits=(lo, hi),
+                                                        velocity_limits=robot.velocity_limits(), name=robot.name)
+        structure.robot.factory = getattr(robot, "factory", None)
+        return structure
+    if robot.coupled:
+        raise ParameterError(f"identified for '{file_robot}' (per-joint model), "
+                             f"not for the coupled-joint robot '{robot.name}'")
+    common = {"joint_terms": tuple(settings["joint_terms"]),
+              "coulomb_smoothing": float(settings.get("coulomb_smoothing", 0.0))}
+    by_joint = settings.get("joint_terms_by_joint")
+    if by_joint is not None:
+        common["per_joint_terms"] = {j: tuple(t) for j, t in by_joint.items()}
+    for key, name in (("coulomb_smoothing_by_joint", "coulomb_smoothing"), ("stribeck_velocity", "stribeck_velocity"),
+                      ("rest_velocity", "rest_velocity")):
+        if settings.get(key) is not None:
+            common[name] = settings[key]
+    if settings.get("contact_frames"):
+        from ..regressor.contact import ContactStructure
+
+        return ContactStructure.from_settings(robot, settings, **common)
+    return ModelStructure(robot, **common, rows=settings.get("rows"))
