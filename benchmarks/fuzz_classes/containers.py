@@ -79,9 +79,14 @@ def mcap_case(rng, d: Path, ctx: dict) -> tuple[str, str]:
     import warnings
 
     data = bytearray(ctx["mcap_bytes"])
-    kind = str(rng.choice(["zero_chunk", "zero_part", "truncate", "flip"]))
+    kind = str(rng.choice(["zero_records", "zero_records", "zero_chunk", "zero_part", "truncate", "flip"]))
     off, n = ctx["chunks"][int(rng.integers(len(ctx["chunks"])))]
-    if kind == "zero_chunk":
+    if kind == "zero_records":  # the chunk's records zeroed, its header (lengths) intact and its CRC cleared
+        clen = struct.unpack_from("<I", data, off + 28)[0]
+        rec = off + 32 + clen + 8
+        data[off + 24:off + 28] = bytes(4)
+        data[rec:off + n] = bytes(off + n - rec)
+    elif kind == "zero_chunk":
         data[off:off + n] = bytes(n)
     elif kind == "zero_part":
         a = off + int(rng.integers(0, n))
