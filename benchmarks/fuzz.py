@@ -1,25 +1,30 @@
-"""Long fuzz run (issue 12): ≥ 10,000 malformed inputs, outcome counts written to JSON.
+"""Long fuzz run (issues 12 and 26): ≥ 10,000 malformed inputs in ten classes, outcome counts to JSON.
 
-    python benchmarks/fuzz.py [--scale 1.0] [--seed 0] [--out benchmarks/results/fuzz.json]
+    python benchmarks/fuzz.py [--classes npz,csv,...] [--scale 1.0] [--seed 0] [--jobs 2] [--out PATH]
 
-Inputs (seeded numpy RNG): NPZ, CSV and HDF5 logs with random keys, shapes, dtypes,
-NaN/inf/huge values and truncated or corrupted bytes; ``identify`` on small random
-trajectories of a 2-link arm (all four methods, with NaN, spikes, still joints, huge
-values); ``sensorless identify`` with random option values. Each input is classified:
+Classes (default counts at --scale 1): ``npz`` 4000, ``csv`` 2500, ``hdf5`` 1500 (logs with random
+keys, shapes, dtypes, NaN/inf/huge values, truncated or corrupted bytes), ``identify`` 1800 (small
+random trajectories of a 2-link arm, all methods), ``cli`` 250 (random ``identify`` option values),
+and (issue 26, ``fuzz_classes/``) ``outputs`` 1500, ``descriptions`` 1000, ``oversize`` 400,
+``model_folder`` 400, ``containers`` 600. Each input is classified:
 
 * ``typed``   — a SensorlessError (the wanted failure);
 * ``ok``      — success with finite, sane values (identify: |π| < 1e6, or a warning said so);
-* ``generic`` — any other exception (a bug: the first messages are kept);
-* ``garbage`` — success with non-finite or huge values and no warning;
-* ``hang``    — over ``--timeout`` seconds (SIGALRM);
-* ``crash``   — the worker process died (segfault, abort); counted per lost input.
+* ``generic`` — any other exception, "internal error", exit 3 (a bug: the first messages are kept);
+* ``garbage`` — success with non-finite, huge or silently truncated values and no warning;
+* ``hang``    — over ``--timeout`` seconds (SIGALRM), or a worker silent for ``--timeout`` + 15 s;
+* ``crash``   — the worker process died (segfault, abort); one input, the rest go on in a new worker;
+* ``data_loss``, ``executed``, ``disclosure`` — see ``fuzz_classes/common.py``.
 
-Batches run in worker subprocesses so a crash cannot take the run down.
+Inputs run in worker subprocesses (an address-space limit, ``--max-memory-gb``, keeps memory
+bombs from taking the machine) that print one JSON line per input. The summary goes to ``--out``
+(default ``$XDG_CACHE_HOME/sensorless-bench/fuzz.json``, else ``/tmp/sensorless-bench/fuzz.json``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import signal
@@ -32,6 +37,10 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fuzz_classes import NEW, module as fuzz_module  # noqa: E402
+from fuzz_classes.common import OUTCOMES, Hang  # noqa: E402
 
 TWO_LINK = (Path(__file__).resolve().parents[1] / "tests" / "data" / "two_link.urdf").read_text()
 COUNTS = {"npz": 4000, "csv": 2500, "hdf5": 1500, "identify": 1800, "cli": 250}
@@ -197,14 +206,6 @@ def cli_args(rng, robot: Path, log: Path, out: Path) -> list[str]:
 
 
 # ---- classification ---------------------------------------------------------------------------
-class Hang(Exception):
-    pass
-
-
-def _alarm(signum, frame):
-    raise Hang()
-
-
 def _finite_traj(tr) -> bool:
     from sensorless.data.validation import MAX_ABS_VALUE
 
@@ -267,91 +268,202 @@ def run_cli(rng, d: Path) -> tuple[str, str]:
     return ("ok", "") if np.all(np.isfinite(vals)) else ("garbage", "cli: non-finite parameters")
 
 
-def worker(kind: str, seed: int, n: int, timeout: float) -> dict:
-    import shutil
-
+def _setup_old(kind: str, d: Path):
     from sensorless.robot import load_robot
 
-    counts = {k: 0 for k in ("typed", "ok", "generic", "garbage", "hang")}
-    examples: list[str] = []
-    signal.signal(signal.SIGALRM, _alarm)
-    with tempfile.TemporaryDirectory() as tmp:
-        d = Path(tmp)
-        (d / "two.urdf").write_text(TWO_LINK)
-        robot = load_robot(d / "two.urdf")
-        if kind == "cli":
-            from sensorless.data import write_npz
-            from sensorless.excitation import random_fourier
-            from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    (d / "two.urdf").write_text(TWO_LINK)
+    robot = load_robot(d / "two.urdf")
+    if kind == "cli":
+        from sensorless.data import write_npz
+        from sensorless.excitation import random_fourier
+        from sensorless.simulation import perturbed_truth, synthetic_trajectory
 
-            truth = perturbed_truth(robot, rng=0)
-            write_npz(synthetic_trajectory(truth, random_fourier(robot, rng=1).sample(100, 4.0), noise_std=0.05, rng=2),
-                      d / "log.npz")
-        for i in range(n):
+        truth = perturbed_truth(robot, rng=0)
+        write_npz(synthetic_trajectory(truth, random_fourier(robot, rng=1).sample(100, 4.0), noise_std=0.05, rng=2),
+                  d / "log.npz")
+    return robot
+
+
+def worker(kind: str, seed: int, start: int, n: int, timeout: float, d: Path, scale: float, emit=print) -> None:
+    """Run inputs ``start .. start+n-1`` of ``kind`` in folder ``d``; one JSON line per input."""
+    import shutil
+
+    fired = []
+
+    def alarm(signum, frame):
+        fired.append(1)
+        raise Hang()
+
+    signal.signal(signal.SIGALRM, alarm)
+    new = kind in NEW
+    mod = fuzz_module(kind) if new else None
+    ctx = mod.setup(d, scale) if new else _setup_old(kind, d)
+    try:
+        for i in range(start, start + n):
             rng = np.random.default_rng([seed, i])
-            shutil.rmtree(d / "o", ignore_errors=True)
+            for junk in ("o", "case"):
+                shutil.rmtree(d / junk, ignore_errors=True)
+            fired.clear()
             signal.setitimer(signal.ITIMER_REAL, timeout)
             try:
-                outcome, msg = run_case(kind, rng, d, robot)
+                outcome, msg = mod.case(rng, d, ctx) if new else run_case(kind, rng, d, ctx)
             except Hang:
-                outcome, msg = "hang", f"{kind}: case {seed}/{i} exceeded {timeout} s"
+                outcome, msg = "hang", ""
+            except Exception as exc:  # noqa: BLE001 - a bug of the harness itself: say so, do not hide it
+                outcome, msg = "generic", f"{kind}: harness: {type(exc).__name__}: {' '.join(str(exc).split())[:200]}"
             finally:
                 signal.setitimer(signal.ITIMER_REAL, 0)
-            counts[outcome] += 1
-            if msg and len(examples) < 10:
-                examples.append(msg)
-    return {"counts": counts, "examples": examples}
+            if fired:  # a timeout, even when the code under test caught it and raised something else
+                outcome, msg = "hang", f"{kind}: case {seed}/{i} exceeded {timeout} s"
+            emit(json.dumps({"i": i, "o": outcome, "m": msg}), flush=True)
+    finally:
+        if new and hasattr(mod, "teardown"):
+            mod.teardown(ctx)
+
+
+def _unmount_under(d: Path) -> None:
+    try:
+        mounts = [line.split()[1] for line in Path("/proc/mounts").read_text().splitlines()]
+    except OSError:
+        return
+    for m in mounts:
+        if m.startswith(str(d)):
+            subprocess.run(["umount", "-l", m], capture_output=True)
+
+
+def run_batch(kind: str, seed: int, start: int, n: int, a) -> tuple[dict, list, dict]:
+    """Inputs ``start .. start+n-1`` in worker processes; a worker that dies or stops answering for
+    ``timeout + 15`` s costs one input (``crash`` / ``hang``) and the rest continue in a new worker."""
+    import queue
+    import shutil
+    import threading
+
+    counts, examples, notes = {k: 0 for k in OUTCOMES}, [], {}
+    end = start + n
+    while start < end:
+        d = Path(tempfile.mkdtemp(prefix=f"fuzz-{kind}-", dir=a.tmp))
+        env = {**os.environ, "PYTHONWARNINGS": "ignore", "OPENBLAS_NUM_THREADS": "1", "TMPDIR": str(d)}
+        p = subprocess.Popen([sys.executable, __file__, "--worker", kind, str(seed), str(start), str(end - start),
+                              "--timeout", str(a.timeout), "--scale", str(a.scale), "--max-memory-gb",
+                              str(a.max_memory_gb), "--tmp", str(d)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True, env=env, start_new_session=True)
+        lines: queue.Queue = queue.Queue()
+        threading.Thread(target=lambda: [lines.put(x) for x in p.stdout] + [lines.put(None)], daemon=True).start()
+        err: list = []
+        threading.Thread(target=lambda: err.extend(p.stderr), daemon=True).start()
+        lost, first = None, True
+        while start < end:
+            try:  # the first answer also waits for the worker's setup
+                line = lines.get(timeout=a.timeout + 15 + (180 if first else 0))
+                first = False
+            except queue.Empty:
+                lost = "hang"
+                break
+            if line is None:
+                lost = "crash"
+                break
+            if not line.startswith("{"):
+                continue
+            r = json.loads(line)
+            if r["o"] == "skipped":
+                notes["skipped"] = notes.get("skipped", 0) + 1
+            else:
+                counts[r["o"]] += 1
+            if r["m"] and len(examples) < 10:
+                examples.append(r["m"])
+            start = r["i"] + 1
+        if lost:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+        if lost:
+            counts[lost] += 1
+            tail = "".join(err).strip().splitlines()[-1:] if lost == "crash" else []
+            examples.append(f"{kind}: input {seed}/{start}: worker {'stopped answering' if lost == 'hang' else 'died'} "
+                            f"(exit {p.returncode}) {tail}"[:300])
+            start += 1
+        _unmount_under(d)
+        shutil.rmtree(d, ignore_errors=True)
+    return counts, examples, notes
+
+
+def default_out() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME")
+    return (Path(base) if base else Path(tempfile.gettempdir())) / "sensorless-bench" / "fuzz.json"
 
 
 def main() -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    kinds = {**{k: (COUNTS[k], BATCH[k]) for k in COUNTS}, **NEW}
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scale", type=float, default=1.0, help="multiply the number of inputs per kind")
+    ap.add_argument("--scale", type=float, default=1.0, help="multiply the number of inputs per class")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds per input before it counts as a hang")
-    ap.add_argument("--out", type=Path, default=Path("benchmarks/results/fuzz.json"))
-    ap.add_argument("--worker", nargs=3, metavar=("KIND", "SEED", "N"), help=argparse.SUPPRESS)
+    ap.add_argument("--classes", default=",".join(kinds), help=f"comma-separated subset of {','.join(kinds)}")
+    ap.add_argument("--jobs", type=int, default=2, help="worker processes at a time")
+    ap.add_argument("--max-memory-gb", type=float, default=4.0, help="address-space limit of each worker (RLIMIT_AS)")
+    ap.add_argument("--out", type=Path, default=None, help=f"JSON summary (default {default_out()})")
+    ap.add_argument("--tmp", type=Path, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--worker", nargs=4, metavar=("KIND", "SEED", "START", "N"), help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.worker:
-        kind, seed, n = a.worker[0], int(a.worker[1]), int(a.worker[2])
-        print(json.dumps(worker(kind, seed, n, a.timeout)))
+        import resource
+
+        if a.max_memory_gb > 0:
+            lim = int(a.max_memory_gb * 2 ** 30)
+            resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
+        kind, seed, start, n = a.worker[0], int(a.worker[1]), int(a.worker[2]), int(a.worker[3])
+        worker(kind, seed, start, n, a.timeout, a.tmp, a.scale)
         return
+    chosen = [k.strip() for k in a.classes.split(",") if k.strip()]
+    unknown = sorted(set(chosen) - set(kinds))
+    if unknown:
+        ap.error(f"unknown class(es) {unknown}; choose from {sorted(kinds)}")
+    out = a.out or default_out()
+    a.tmp = Path(tempfile.mkdtemp(prefix="sensorless-fuzz-"))
     t0 = time.perf_counter()
-    total = {k: 0 for k in ("typed", "ok", "generic", "garbage", "hang", "crash")}
-    per_kind, examples = {}, []
-    for k_i, (kind, count) in enumerate(COUNTS.items()):
+    total = {k: 0 for k in OUTCOMES}
+    per_kind, examples, notes, seconds = {}, [], {}, {}
+    for kind in chosen:
+        count, batch = kinds[kind]
         count = int(round(count * a.scale))
-        kc = {k: 0 for k in total}
-        done = 0
-        while done < count:
-            n = min(BATCH[kind], count - done)
-            seed = a.seed * 1_000_000 + k_i * 10_000 + done
-            p = subprocess.run([sys.executable, __file__, "--worker", kind, str(seed), str(n), "--timeout", str(a.timeout)],
-                               capture_output=True, text=True, env={**os.environ, "PYTHONWARNINGS": "ignore"})
-            if p.returncode != 0:
-                kc["crash"] += n  # the batch's inputs are lost with the process
-                examples.append(f"{kind}: worker exit {p.returncode}: {p.stderr.strip().splitlines()[-1:]}")
-            else:
-                res = json.loads(p.stdout.strip().splitlines()[-1])
-                for k, v in res["counts"].items():
-                    kc[k] += v
-                examples += res["examples"][: max(0, 30 - len(examples))]
-            done += n
-            print(f"{kind}: {done}/{count} {kc}", file=sys.stderr, flush=True)
-        per_kind[kind] = kc
+        seed = a.seed * 1000 + list(kinds).index(kind)
+        t1 = time.perf_counter()
+        with ThreadPoolExecutor(max(1, a.jobs)) as pool:
+            results = list(pool.map(lambda s: run_batch(kind, seed, s, min(batch, count - s), a), range(0, count, batch)))
+        kc, kn = {k: 0 for k in OUTCOMES}, {}
+        for c, ex, nt in results:
+            for k, v in c.items():
+                kc[k] += v
+            for k, v in nt.items():
+                kn[k] = kn.get(k, 0) + v
+            examples += ex[: max(0, 60 - len(examples))]
+        per_kind[kind], notes[kind], seconds[kind] = kc, kn, round(time.perf_counter() - t1, 1)
         for k in total:
             total[k] += kc[k]
+        print(f"{kind}: {sum(kc.values())} inputs {kc} {kn or ''} {seconds[kind]} s", file=sys.stderr, flush=True)
     doc = {
         "n_inputs": sum(total.values()),
         "totals": total,
         "per_kind": per_kind,
+        "notes": notes,
         "examples": examples,
+        "classes": chosen,
+        "scale": a.scale,
         "seed": a.seed,
         "timeout_seconds": a.timeout,
+        "seconds_per_kind": seconds,
         "seconds": round(time.perf_counter() - t0, 1),
     }
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    a.out.write_text(json.dumps(doc, indent=2) + "\n")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=2) + "\n")
+    import shutil
+
+    _unmount_under(a.tmp)
+    shutil.rmtree(a.tmp, ignore_errors=True)
     print(json.dumps({k: doc[k] for k in ("n_inputs", "totals", "seconds")}))
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

@@ -230,3 +230,123 @@ def test_fuzz_cli_option_values(small_log, opts):
             assert np.all(np.isfinite(vals))
         else:
             assert not out.exists()
+
+
+# ---- issue 26: the fuzz classes of benchmarks/fuzz_classes (run through benchmarks/fuzz.py) ----------
+import json  # noqa: E402
+import os  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+sys.path.insert(0, str(BENCH))
+from fuzz_classes import common as fc  # noqa: E402
+from fuzz_classes.common import BAD  # noqa: E402
+
+NEEDS_FIXES = pytest.mark.xfail(strict=False, reason="needs the fixes on branches outputs/xacro/readers/artifact")
+
+
+def run_fuzz(tmp_path, classes: str, scale: float) -> dict:
+    out = tmp_path / "fuzz.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(BENCH.parent / "src"), os.environ.get("PYTHONPATH", "")])}
+    p = subprocess.run([sys.executable, str(BENCH / "fuzz.py"), "--classes", classes, "--scale", str(scale),
+                        "--timeout", "5", "--jobs", "1", "--out", str(out)], capture_output=True, text=True, env=env,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("kind,scale", [("outputs", 0.02), ("descriptions", 0.02), ("oversize", 0.025),
+                                        ("model_folder", 0.025), ("containers", 0.025)])
+@NEEDS_FIXES
+def test_fuzz_class_has_no_bad_outcome(tmp_path, kind, scale):
+    doc = run_fuzz(tmp_path, kind, scale)
+    counts = doc["per_kind"][kind]
+    assert doc["n_inputs"] >= 10
+    assert {k: counts[k] for k in BAD} == {k: 0 for k in BAD}, doc["examples"]
+
+
+def test_fuzz_driver_writes_every_outcome_and_counts(tmp_path):
+    doc = run_fuzz(tmp_path, "outputs", 0.004)
+    assert set(doc["totals"]) == set(fc.OUTCOMES) and {"data_loss", "executed", "disclosure"} <= set(doc["totals"])
+    assert doc["n_inputs"] + doc["notes"]["outputs"].get("skipped", 0) == 6
+    assert doc["per_kind"]["outputs"]["crash"] == 0 and doc["per_kind"]["outputs"]["hang"] == 0
+
+
+def _fake_loader(monkeypatch, effect):
+    import sensorless.robot
+    from sensorless.errors import RobotModelError
+
+    def load_robot(path, **kw):
+        effect(Path(path))
+        raise RobotModelError(f"{path}: fake failure")
+
+    monkeypatch.setattr(sensorless.robot, "load_robot", load_robot)
+
+
+def test_harness_classifies_a_written_marker_as_executed(tmp_path, monkeypatch):
+    from fuzz_classes import descriptions
+
+    ctx = descriptions.setup(tmp_path, 0.01)
+    _fake_loader(monkeypatch, lambda p: (p.parent / "EXECUTED").write_text("ran"))
+    assert descriptions.case(np.random.default_rng(0), tmp_path, ctx)[0] == "executed"
+
+
+def test_harness_classifies_a_leaked_secret_as_disclosure(tmp_path, monkeypatch):
+    from fuzz_classes import descriptions
+    from sensorless.errors import RobotModelError
+
+    ctx = descriptions.setup(tmp_path, 0.01)
+
+    def leak(p):
+        raise RobotModelError(f"{p}: first line: {ctx['secret'].read_text().splitlines()[0]}")
+
+    _fake_loader(monkeypatch, leak)
+    assert descriptions.case(np.random.default_rng(0), tmp_path, ctx)[0] == "disclosure"
+    _fake_loader(monkeypatch, lambda p: None)  # the same case without the leak is a typed error
+    import shutil
+
+    shutil.rmtree(tmp_path / "case")
+    assert descriptions.case(np.random.default_rng(0), tmp_path, ctx)[0] == "typed"
+
+
+def test_harness_classifies_a_deleted_output_as_data_loss(tmp_path, monkeypatch):
+    import contextlib
+    import shutil
+
+    import sensorless.io
+    from fuzz_classes import outputs
+
+    real = sensorless.io.atomic_output_dir
+
+    @contextlib.contextmanager
+    def losing(out, force=False, **kw):  # a replacement that loses a previous output (and writes elsewhere)
+        if not (Path(out) / fc.MANIFEST).exists():
+            with real(out, force=force, **kw) as tmp:
+                yield tmp
+            return
+        shutil.rmtree(out)
+        with real(Path(out).parent / "elsewhere", force=True, **kw) as tmp:
+            yield tmp
+
+    monkeypatch.setattr(outputs, "TARGETS", ["output"])
+    ctx = {"full": None, "ro": None, "mounted": []}
+    assert outputs.inprocess_case(np.random.default_rng(1), tmp_path, ctx)[0] in ("ok", "typed")
+    shutil.rmtree(tmp_path / "case")
+    monkeypatch.setattr(sensorless.io, "atomic_output_dir", losing)
+    assert outputs.inprocess_case(np.random.default_rng(1), tmp_path, ctx)[0] == "data_loss"
+
+
+def test_harness_snapshots_see_a_fifo_replaced_by_a_file(tmp_path):
+    f = tmp_path / "pipe"
+    os.mkfifo(f)
+    before = fc.digest(f)
+    f.unlink()
+    f.write_text("")
+    assert before == "fifo" and fc.digest(f) != before
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / fc.MANIFEST).write_text(json.dumps({"files": ["a.txt"]}))
+    assert not fc.complete_output(out)
+    (out / "a.txt").write_text("x")
+    assert fc.complete_output(out)
