@@ -91,7 +91,10 @@ def test_damped_solution_stays_bounded_at_a_singularity(ur5):
     lam = 0.05
     damped = damped_least_squares(J, tau, sigma_threshold=0.02, lambda_max=lam)
     assert damped.damping[0] == pytest.approx(lam)
-    assert np.linalg.norm(damped.F) <= np.linalg.norm(tau) / (2 * lam) + 1e-12
+    # exactly singular: the lost direction is unobservable (NaN and flagged), the rest stays bounded
+    unobs = damped.unobservable[0]
+    assert unobs.any() and not unobs.all() and np.isnan(damped.F[0, unobs]).all()
+    assert np.linalg.norm(damped.F[0, ~unobs]) <= np.linalg.norm(tau) / (2 * lam) + 1e-12
     # near (not at) the singularity the undamped solution explodes, the damped one does not
     q_near = q + 1e-7
     Jn = frame_jacobians(ur5, ur5.full_configuration(q_near), frame)[:, :, ur5.actuated_v_indices]
@@ -107,9 +110,13 @@ def test_damping_grows_continuously_as_sigma_min_drops():
     J[:, 0, 0] = 1.0
     J[:, 1, 1] = s
     sol = damped_least_squares(J, np.ones((len(s), 3)), sigma_threshold=0.01, lambda_max=0.1)
-    np.testing.assert_allclose(sol.sigma_min, s)
-    assert np.all(sol.damping[:4] == 0) and 0 < sol.damping[4] < sol.damping[5] == pytest.approx(0.1)
+    np.testing.assert_allclose(sol.sigma_min[:5], s[:5])
+    lam = 0.1 * np.sqrt(1 - (s[4] / 0.01) ** 2)
+    assert np.all(sol.damping[:4] == 0) and sol.damping[4] == pytest.approx(lam)
     np.testing.assert_allclose(sol.F[:4, 1], 1 / s[:4])  # exact inverse away from the singularity
+    # σ = 0: that direction is unobservable (NaN, flagged), the other one is exact and undamped
+    assert sol.unobservable[5].tolist() == [False, True] and np.isnan(sol.F[5, 1]) and sol.F[5, 0] == 1.0
+    assert sol.sigma_min[5] == 1.0 and sol.damping[5] == 0
 
 
 def test_external_torque_and_bad_inputs(panda):
@@ -242,3 +249,51 @@ def test_psm_force_estimate_from_a_log_and_model():
     log = mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + tau_ext)
     res = CartesianForceEstimator(psm_robot(), "tool_tip").estimate(log, PhysicalModel.from_parameters(s, p))
     np.testing.assert_allclose(res.F, F, atol=1e-8)
+
+
+# ---- unobservable force directions: NaN and flagged, never 0 -----------------------------------
+def test_frame_on_the_base_is_unobservable_on_every_sample(panda):
+    rng = np.random.default_rng(2)
+    Q = _random_configs(panda, 10, rng)
+    est = CartesianForceEstimator(panda, "panda_link0", "world")
+    res = est.from_external_torque(Q, rng.normal(size=(10, panda.n_actuated)))
+    assert res.unobservable.all() and np.isnan(res.F).all() and res.n_unobservable == 10
+
+
+def test_only_the_direction_the_joints_cannot_produce_is_nan(panda):
+    """Joint 1 alone (axis: world z) measures the moment about z, never about x or y: mz is
+    recovered exactly, mx and my are NaN and flagged on every sample."""
+    rng = np.random.default_rng(3)
+    Q = _random_configs(panda, 8, rng)
+    est = CartesianForceEstimator(panda, "panda_link3", "world", components="angular",
+                                  joints=[panda.actuated_joints[0]])
+    tau = np.zeros((8, panda.n_actuated))
+    tau[:, 0] = rng.normal(size=8)
+    res = est.from_external_torque(Q, tau)
+    assert res.unobservable[:, :2].all() and not res.unobservable[:, 2].any()
+    assert np.isnan(res.F[:, :2]).all()
+    np.testing.assert_allclose(res.F[:, 2], tau[:, 0], atol=1e-12)
+
+
+def test_cli_refuses_a_frame_whose_force_is_never_observable(panda, tmp_path):
+    from sensorless.cli import app
+    from sensorless.data import write_npz
+    from sensorless.excitation import random_fourier
+    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+
+    lock = ["--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
+    truth = perturbed_truth(panda, rng=0)
+    write_npz(synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(100, 6.0), noise_std=0.05, rng=2),
+              tmp_path / "log.npz")
+    r = CliRunner().invoke(app, ["identify", "--robot", "panda", *lock, "--data", str(tmp_path / "log.npz"),
+                                 "--method", "ols", "--joint-terms", "fv,fc,offset", "--no-plot", "--out",
+                                 str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    args = ["estimate-force", "--robot", "panda", "--model", str(tmp_path / "m"), "--data", str(tmp_path / "log.npz"),
+            *lock]
+    r = CliRunner().invoke(app, [*args, "--frame", "panda_link0", "--out", str(tmp_path / "f0.npz")])
+    assert r.exit_code == 2 and "unobservable" in r.output and not (tmp_path / "f0.npz").exists()
+    r = CliRunner().invoke(app, [*args, "--frame", "panda_hand", "--out", str(tmp_path / "f1.npz")])
+    assert r.exit_code == 0, r.output
+    z = np.load(tmp_path / "f1.npz")
+    assert z["unobservable"].shape == z["force"].shape and np.isfinite(z["force"][~z["unobservable"]]).all()

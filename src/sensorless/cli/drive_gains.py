@@ -115,8 +115,10 @@ def drive_gains(
 def _print(res, missing: list, nominal: bool) -> None:
     from rich.table import Table
 
+    al = res.diagnostics.get("alignment")
+    lag = f", loaded run aligned by a lag of {al['lag_s']:+.3f} s (r = {al['correlation']:.3f})" if al else ""
     t = Table(title=f"drive gains K [N·m/A] (block {res.diagnostics['block_seconds']:.2f} s, "
-                    f"{res.diagnostics['n_samples']} samples)")
+                    f"{res.diagnostics['n_samples']} samples{lag})")
     for col in ("joint", "K", "± σ", "95 % interval", "offset [A]", "status"):
         t.add_column(col, justify="right")
     for k, j in enumerate(res.joints):

@@ -88,10 +88,31 @@ def estimate_force(
         sigma_threshold=sigma_threshold, lambda_max=lambda_max,
     )
     res = est.estimate(traj, phys, residual=hybrid)
+    _check_observable(res, frame)
     write_npz_atomic(out, **res.arrays())
     damped = float(np.mean(res.damping > 0))
-    rms = np.sqrt(np.mean(res.F**2, axis=0))
+    with np.errstate(invalid="ignore"):
+        rms = np.sqrt(np.nanmean(res.F**2, axis=0))
+    unobs = (f"; {res.n_unobservable} sample(s) with an unobservable component (NaN, 'unobservable' in the file)"
+             if res.n_unobservable else "")
     console.print(
         f"{len(res.t)} samples; RMS {', '.join(f'{l}={v:.3g}' for l, v in zip(res.labels, rms))}; "
-        f"damped on {100 * damped:.1f}% of samples; wrote {out}"
+        f"damped on {100 * damped:.1f}% of samples{unobs}; wrote {out}"
     )
+
+
+def _check_observable(res, frame: str) -> None:
+    """Refuse a frame where a force component is unobservable on every sample; warn on some samples."""
+    import warnings
+
+    from ..errors import DataWarning, ExcitationError
+
+    never = [lab for lab, u in zip(res.labels, res.unobservable.all(axis=0)) if u] if res.unobservable is not None else []
+    if never:
+        raise ExcitationError(
+            f"frame '{frame}': the force component(s) {', '.join(never)} are unobservable on every sample (the "
+            "joints cannot move the frame that way, so no joint torque measures them); choose a frame on a moving "
+            "link (sensorless frames lists them) or --components")
+    if res.n_unobservable:
+        warnings.warn(f"frame '{frame}': {res.n_unobservable} of {len(res.t)} samples have a force component no "
+                      "joint torque measures (a singular configuration); written as NaN", DataWarning, stacklevel=2)

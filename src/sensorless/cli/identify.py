@@ -120,6 +120,8 @@ def identify(
     workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
                                                      "an address: wait until this many workers are connected"),
     skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
+    accept_implausible: bool = typer.Option(False, help="fit torque channels that look constant, dead or > 100× off "
+                                            "the prior model's scale (refused by default, naming the joint)"),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "
                               "held-out log, else of the first training log)"),
 ) -> None:
@@ -192,7 +194,8 @@ def identify(
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
             with progress_bar() as bar:
                 task = bar.add_task("regressor", total=total)
-                kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma, **lmi_kw)
+                kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma,
+                          check_torques=not accept_implausible, **lmi_kw)
                 fric, law = None, None
                 if friction:  # ε and the Stribeck candidates from the first training log, as on a cluster
                     _, law = _first_log_friction(structure, train[:1], data[0], r, prep, coulomb_smoothing,
@@ -231,8 +234,8 @@ def identify(
             try:  # unconstrained least squares on the same data, for the comparison table
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
-                    baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma
-                                             ).fit(fleet.equations if fleet is not None else train)
+                    baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
+                                             check_torques=False).fit(fleet.equations if fleet is not None else train)
             except SensorlessError:
                 baseline = None
         doc["validation"] = {}

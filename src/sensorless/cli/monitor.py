@@ -100,19 +100,27 @@ def monitor(
         }
         if frame:
             fe = _cartesian_force(dyn, traj, tau_ext, frame, reference)
-            arrays.update({"force": fe.F, "force_labels": np.array(fe.labels), "sigma_min": fe.sigma_min})
+            arrays.update({"force": fe.F, "force_labels": np.array(fe.labels), "sigma_min": fe.sigma_min,
+                           "force_unobservable": fe.arrays()["unobservable"]})
             doc["frame"] = {"name": frame, "reference": reference, "labels": fe.labels}
             for iv, d in zip(intervals, doc["contacts"]):
                 seg = fe.F[iv.start_index : iv.end_index + 1]
-                i = int(np.argmax(np.linalg.norm(seg, axis=1)))
+                norm = np.linalg.norm(seg, axis=1)  # NaN on samples with an unobservable component
+                if not np.any(np.isfinite(norm)):
+                    d.update(peak_force=None, peak_force_norm=None, peak_force_time=None)
+                    continue
+                i = int(np.nanargmax(norm))
                 d["peak_force"] = seg[i].tolist()
-                d["peak_force_norm"] = float(np.linalg.norm(seg[i]))
+                d["peak_force_norm"] = float(norm[i])
                 d["peak_force_time"] = float(traj.t[iv.start_index + i])
-        (tmp / "monitor.json").write_text(json.dumps(doc, indent=2))
+        from ..io import jsonable
+
+        (tmp / "monitor.json").write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
         np.savez(tmp / "monitor.npz", **arrays)
     console.print(f"observer order {order}, K = {gain:g} 1/s; thresholds k = {th.k:.2f} σ from {th.samples} quiet samples")
     for iv, d in zip(intervals, doc["contacts"]):
-        f = f", |F| peak {d['peak_force_norm']:.1f} N at {d['peak_force_time']:.2f} s" if frame else ""
+        f = (f", |F| peak {d['peak_force_norm']:.1f} N at {d['peak_force_time']:.2f} s"
+             if frame and d.get("peak_force_norm") is not None else ", |F| unobservable at this frame" if frame else "")
         console.print(f"contact {iv.start:8.3f} – {iv.end:8.3f} s  joints {','.join(iv.joints)}{f}")
     console.print(f"{len(intervals)} contact interval(s); wrote {out}/")
 
@@ -130,7 +138,8 @@ def _cartesian_force(dyn, traj, tau_ext, frame: str, reference: str):
     Qt = st.tree.full_configuration(st.joint_values(dyn.arrays(traj)[0]))
     J = frame_jacobians(st.tree, Qt, frame, reference)[:, :3] @ st.G
     sol = damped_least_squares(J, tau_ext)
-    return ForceEstimate(traj.t, sol.F, ["fx", "fy", "fz"], frame, reference, tau_ext, sol.sigma_min, sol.damping)
+    return ForceEstimate(traj.t, sol.F, ["fx", "fy", "fz"], frame, reference, tau_ext, sol.sigma_min, sol.damping,
+                         unobservable=sol.unobservable)
 
 
 @bench_command("observer")

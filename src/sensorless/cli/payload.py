@@ -84,17 +84,22 @@ def payload(
     path, structure, params = art.path, art.structure, art.parameters
     logs, opts = model_logs(art, data, r, prep)
     refs = model_logs(art, no_load, r, prep)[0] if no_load else None
+    lags = []
     if refs is not None and align == Align.time:
-        from ..identification.drive_gains import align_pair
+        from ..identification.drive_gains import align_pair, pair_lag
 
-        logs, refs = map(list, zip(*(align_pair(a, b) for a, b in zip(logs, refs))))
+        lags = [pair_lag(a, b) for a, b in zip(logs, refs)]
+        for p, lag in zip(data, lags):
+            console.print(f"{p}: aligned on its --no-load log by a lag of {lag.seconds:+.3f} s "
+                          f"(r = {lag.correlation:.3f})", highlight=False)
+        logs, refs = map(list, zip(*(align_pair(a, b, lag) for a, b, lag in zip(logs, refs, lags))))
     off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
     est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
                            com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
                            flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
     doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
-           **est.to_dict()}
+           "alignment": [lag.to_dict() for lag in lags], **est.to_dict()}
     gain_std = _gain_std(opts["gains"], r)
     if gain_std is not None:  # identified gains (sensorless drive-gains): their uncertainty enters the mass
         dm = []

@@ -17,7 +17,12 @@ singularities and grows as the smallest singular value σ_min drops below ε:
     λ² = λ_max² (1 − (σ_min / ε)²)  if σ_min < ε,  else 0.
 
 The gain of any direction is then at most 1/(2λ): the estimate stays bounded at a
-singularity instead of blowing up. All samples are solved at once (batched SVD); only the
+singularity instead of blowing up. A direction with σ = 0 (numerically: below ``UNOBSERVABLE`` · max(m, n) · ε_machine
+times the largest σ of J, the rank rule of ``numpy.linalg.matrix_rank``; or missing because J has
+fewer columns than rows) is *unobservable*: no joint
+torque measures a force along it (a frame that does not move that way under the joints). The
+force components with a share of such a direction (Σ U²_{c,null} > 10⁻⁶) are NaN on that sample,
+never 0, and ``unobservable`` flags them. All samples are solved at once (batched SVD); only the
 Jacobians are computed per sample, by Pinocchio.
 """
 
@@ -87,6 +92,10 @@ class DampedSolution:
     F: np.ndarray  # (N, m)
     sigma_min: np.ndarray  # (N,)
     damping: np.ndarray  # (N,) λ
+    unobservable: np.ndarray | None = None  # (N, m) bool: no joint torque measures this component
+
+
+UNOBSERVABLE = 10.0  # margin over matrix_rank's tolerance
 
 
 def damped_least_squares(
@@ -103,15 +112,31 @@ def damped_least_squares(
         raise ShapeMismatchError(f"need J (N, m, n) and tau (N, n); got J {J.shape}, tau {tau.shape}")
     U, s, Vt = np.linalg.svd(J, full_matrices=False)  # (N,m,k) (N,k) (N,k,n)
     k = s.shape[1]
-    # smallest singular value of the m-row map (0 if J has fewer columns than rows: rank-deficient)
-    smin = s[:, -1] if k == J.shape[1] else np.zeros(J.shape[0])
+    unobservable, tol = _unobservable(J, s)
+    # smallest singular value of the observable directions (the unobservable ones are NaN, not damped)
+    smin = np.where(s > tol[:, None], s, np.inf).min(axis=1, initial=np.inf)
+    smin[~np.isfinite(smin)] = 0.0
     ratio = np.clip(smin / sigma_threshold, 0.0, 1.0) if sigma_threshold > 0 else np.ones_like(smin)
     lam2 = lambda_max**2 * (1.0 - ratio**2)
     with np.errstate(divide="ignore", invalid="ignore"):
         denom = s**2 + lam2[:, None]
         gain = np.where(denom > 0, s / denom, 0.0)
     F = np.einsum("nmk,nk,nk->nm", U, gain, np.einsum("nkj,nj->nk", Vt, tau))
-    return DampedSolution(F, smin, np.sqrt(lam2))
+    F[unobservable] = np.nan
+    return DampedSolution(F, smin, np.sqrt(lam2), unobservable)
+
+
+def _unobservable(J: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, m) components of F with a share > 1e-6 of a direction Jᵀ does not see (σ ≈ 0 or missing),
+    and the per-sample σ tolerance."""
+    N, m, _ = J.shape
+    out = np.zeros((N, m), dtype=bool)
+    tol = UNOBSERVABLE * max(J.shape[1:]) * np.finfo(float).eps * np.maximum(s.max(axis=1, initial=0.0), 1e-300)
+    rank = np.sum(s > tol[:, None], axis=1)
+    for i in np.flatnonzero(rank < m):
+        Uf = np.linalg.svd(J[i])[0]  # full U: the last m − rank columns span what Jᵀ maps to zero
+        out[i] = np.sum(Uf[:, rank[i]:] ** 2, axis=1) > 1e-6
+    return out, tol
 
 
 def external_torque(
@@ -143,12 +168,19 @@ class ForceEstimate:
     sigma_min: np.ndarray
     damping: np.ndarray
     settings: dict = field(default_factory=dict)
+    unobservable: np.ndarray | None = None  # (N, m) bool; F is NaN there (see the module docstring)
+
+    @property
+    def n_unobservable(self) -> int:
+        """Samples with at least one component no joint torque measures."""
+        return 0 if self.unobservable is None else int(np.any(self.unobservable, axis=1).sum())
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Arrays for ``np.savez`` (plain dtypes only, loadable without pickle)."""
+        unobs = np.zeros(self.F.shape, dtype=bool) if self.unobservable is None else self.unobservable
         return {
             "t": self.t, "force": self.F, "labels": np.array(self.labels), "tau_ext": self.tau_ext,
-            "sigma_min": self.sigma_min, "damping": self.damping,
+            "sigma_min": self.sigma_min, "damping": self.damping, "unobservable": unobs,
             "frame": np.array(self.frame), "reference": np.array(self.reference),
         }
 
@@ -214,7 +246,7 @@ class CartesianForceEstimator:
         return ForceEstimate(
             t=np.arange(Q.shape[0], dtype=float) if t is None else np.asarray(t, float),
             F=sol.F, labels=self.labels, frame=self.frame, reference=self.reference, tau_ext=tau_ext,
-            sigma_min=sol.sigma_min, damping=sol.damping, settings=self.settings(),
+            sigma_min=sol.sigma_min, damping=sol.damping, settings=self.settings(), unobservable=sol.unobservable,
         )
 
     def estimate(self, traj: Trajectory, model, residual=None) -> ForceEstimate:

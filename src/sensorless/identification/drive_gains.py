@@ -33,16 +33,17 @@ the same bandwidth; the 95 % interval is K ± 1.96 · max(both) (delta method 1/
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..data.align import Lag, estimate_lag
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
 from .payload import payload_regressor, point_mass_parameters
 
-__all__ = ["ALIGNMENTS", "DriveGains", "align_pair", "clock_offset", "identify_drive_gains", "payload_torque"]
+__all__ = ["ALIGNMENTS", "DriveGains", "align_pair", "clock_offset", "identify_drive_gains", "pair_lag", "payload_torque"]
 
 #: samples within this time [s] of a velocity reversal are left out of a joint's fit (module docstring)
 REVERSAL_SECONDS = 0.1
@@ -105,7 +106,8 @@ def _currents(robot: Robot, traj: Trajectory) -> np.ndarray:
 ALIGNMENTS = ("time", "rows")
 
 
-def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str) -> tuple[np.ndarray, np.ndarray]:
+def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str,
+           lag: Lag | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unloaded currents at the loaded samples, and the mask of loaded samples covered."""
     if align == "rows":
         n = min(len(unloaded), len(loaded))
@@ -117,44 +119,52 @@ def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str
     if align not in ALIGNMENTS:
         raise DataError(f"align must be one of {ALIGNMENTS}, got {align!r}")
     tu, tl = unloaded.t - unloaded.t[0], loaded.t - loaded.t[0]
-    tl = tl + clock_offset(loaded, unloaded)
+    tl = tl + (lag if lag is not None else pair_lag(loaded, unloaded)).seconds
     mask = (tl >= tu[0]) & (tl <= tu[-1])
     out = np.column_stack([np.interp(tl, tu, i_u[:, k]) for k in range(i_u.shape[1])])
     return out, mask
 
 
-def clock_offset(load: Trajectory, ref: Trajectory, iterations: int = 4) -> float:
+def pair_lag(load: Trajectory, ref: Trajectory) -> Lag:
+    """The lag of ``load`` behind ``ref``: coarse by cross-correlation of the positions
+    (:func:`~sensorless.data.align.estimate_lag`, seconds apart; refuses a pair that is not one
+    trajectory), then to the sub-sample by :func:`clock_offset` started there."""
+    coarse = estimate_lag(load, ref)
+    return replace(coarse, seconds=clock_offset(load, ref, start=coarse.seconds))
+
+
+def clock_offset(load: Trajectory, ref: Trajectory, iterations: int = 4, start: float = 0.0) -> float:
     """δ [s] such that ``ref`` at (t − t₀_ref) = (t − t₀_load) + δ is where ``load`` is: two
     runs of one trajectory started from their first samples are off by that sample's jitter
     (a few ms), and d/dt of the robot's own torque × a few ms biases a gain by ~1 %. Gauss–
     Newton on the positions, q_load(t) ≈ q_ref(t + δ): δ += Σ (q_load − q_ref(t + δ)) q̇_ref / Σ q̇_ref²
-    over the samples that move (0 when the runs do not move or have no positions)."""
+    over the samples that move, from ``start`` (``start`` when the runs do not move or have no positions)."""
     if load.q is None or ref.q is None or ref.v is None or load.q.shape[1] != ref.q.shape[1]:
-        return 0.0
+        return start
     tl, tr = load.t - load.t[0], ref.t - ref.t[0]
     dt = float(np.median(np.diff(tr)))
-    delta = 0.0
+    delta = start
     for _ in range(iterations):
         t = tl + delta
         ok = (t >= tr[0]) & (t <= tr[-1])
         if ok.sum() < 10:
-            return 0.0
+            return start
         qr = np.column_stack([np.interp(t[ok], tr, ref.q[:, k]) for k in range(ref.q.shape[1])])
         vr = np.column_stack([np.interp(t[ok], tr, ref.v[:, k]) for k in range(ref.v.shape[1])])
         den = float(np.sum(vr**2))
         if den <= 0:
-            return 0.0
+            return start
         step = float(np.sum((load.q[ok] - qr) * vr) / den)
         delta += float(np.clip(step, -5 * dt, 5 * dt))
         if abs(step) < 1e-7:
             break
-    return delta if abs(delta) <= 10 * dt else 0.0
+    return delta if abs(delta - start) <= 10 * dt else start
 
 
-def align_pair(load: Trajectory, ref: Trajectory) -> tuple[Trajectory, Trajectory]:
+def align_pair(load: Trajectory, ref: Trajectory, lag: Lag | None = None) -> tuple[Trajectory, Trajectory]:
     """Two runs of one trajectory as row-aligned logs: ``ref`` linearly interpolated at the
-    times of ``load`` (both measured from their first sample), both cut to the overlap."""
-    tl, tr = load.t - load.t[0] + clock_offset(load, ref), ref.t - ref.t[0]
+    times of ``load`` shifted by the lag (default :func:`pair_lag`), both cut to the overlap."""
+    tl, tr = load.t - load.t[0] + (lag or pair_lag(load, ref)).seconds, ref.t - ref.t[0]
     keep = (tl >= tr[0]) & (tl <= tr[-1])
     if keep.sum() < 2:
         raise DataError("the two logs do not overlap in time (from their first samples)", ref.source)
@@ -243,7 +253,8 @@ def identify_drive_gains(
         raise DataError(f"payload mass must be a positive number of kg, got {payload_mass!r}")
     robot.frame_id(payload_frame)
     i_u, i_l = _currents(robot, unloaded), _currents(robot, loaded)
-    i_u_at, mask = _align(unloaded, loaded, i_u, align)
+    alignment = pair_lag(loaded, unloaded) if align == "time" else None
+    i_u_at, mask = _align(unloaded, loaded, i_u, align, alignment)
     y_all = payload_torque(robot, loaded, payload_frame, payload_mass, payload_com)
     y, d = y_all[mask], (i_l - i_u_at)[mask]
     n = len(y)
@@ -258,7 +269,7 @@ def identify_drive_gains(
     if v_l is not None:
         use &= ~_near_reversal(v_l, width)[mask]
     if v_u is not None:
-        v_u_at, _ = _align(unloaded, loaded, v_u, align)
+        v_u_at, _ = _align(unloaded, loaded, v_u, align, alignment)
         use &= ~_near_reversal(np.nan_to_num(v_u_at), width)[mask]
     y, d = np.where(use, y, 0.0), np.where(use, d, 0.0)  # a left-out sample weighs 0 in every sum below
     c, b, res = np.zeros(nj), np.zeros(nj), np.zeros((n, nj))
@@ -310,6 +321,7 @@ def identify_drive_gains(
     return DriveGains(
         joints=joints, gains=K, std=std_K, interval=np.column_stack([lo, hi]), identified=ident, offset=b,
         diagnostics={"n_samples": n, "block_samples": L, "block_seconds": L * dt,
+                     "alignment": None if alignment is None else alignment.to_dict(),
                      "samples_used": dict(zip(joints, map(int, use.sum(0)))),
                      "reversal_samples": width,
                      "payload_torque_rms": dict(zip(joints, map(float, yrms))),

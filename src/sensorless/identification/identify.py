@@ -34,6 +34,7 @@ from .least_squares import (
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
 from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
+from .torque_channels import TorqueChannels, check_torque_channels
 from .weights import check_weights
 from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
@@ -65,6 +66,7 @@ def identify(
     progress: Callable[[int], None] | None = None,
     outliers: str = "error",
     stribeck_grid: Mapping[str, Sequence[float]] | None = None,
+    check_torques: bool = True,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
@@ -105,15 +107,18 @@ def identify(
     each base parameter's standard deviation and relative standard deviation
     (:mod:`~.uncertainty`); base parameters above 100 % and joints that barely move are listed
     in ``diagnostics["poorly_identified"]`` / ``["warnings"]`` and issued as an
-    :class:`~sensorless.errors.IdentifiabilityWarning`.
+    :class:`~sensorless.errors.IdentifiabilityWarning`. Before the solve, each torque row is
+    checked (:mod:`~.torque_channels`: constant, dead while its joint moves, or > 100× off the
+    prior's scale) unless ``check_torques=False``.
     """
     _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard)
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
     weights = check_weights(weights, structure.row_names)
-    motion = None
+    motion = channels = None
     if not isinstance(data, NormalEquations):
         motion = JointMotion(structure.robot.joint_names)
-        data = _validated(data, structure.robot, outliers, motion)
+        channels = TorqueChannels(structure) if check_torques else None
+        data = _validated(data, structure.robot, outliers, motion, channels)
     prior_note = None
     if method == "lmi" and prior is None and regularization is not None and _massless_prior(structure):
         regularization, gamma = None, 0.0  # a pull toward zero mass everywhere is no prior
@@ -129,6 +134,8 @@ def identify(
     ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
                                                                   progress=progress)
     t_compress = time.perf_counter() - t0
+    if channels is not None:
+        check_torque_channels(channels)
     _check_finite_equations(ne)
     stribeck_search = None
     if cand is not None:
@@ -314,12 +321,13 @@ def _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, st
         raise SolverError(f"unknown standard-parameter choice '{standard}'; use 'closest_to_prior' or 'min_norm'")
 
 
-def _validated(data, robot: Robot, outliers: str, motion: JointMotion):
+def _validated(data, robot: Robot, outliers: str, motion: JointMotion, channels: TorqueChannels | None = None):
     """Validate each trajectory as the readers do; a list stays a list, a generator stays lazy."""
     def one(traj) -> Trajectory:
         if not isinstance(traj, Trajectory):
             raise DataError(f"identify() takes Trajectory objects (or NormalEquations), got {type(traj).__name__}")
-        return motion.add(validate_trajectory(traj, robot, outliers=outliers))
+        traj = motion.add(validate_trajectory(traj, robot, outliers=outliers))
+        return traj if channels is None else channels.add(traj)
 
     if isinstance(data, Trajectory):
         return [one(data)]

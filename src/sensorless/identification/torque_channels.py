@@ -1,0 +1,132 @@
+"""Torque channels checked before a fit: constant, dead while the joint moves, or off in scale.
+
+A channel that carries nothing about its joint (a constant or all-zero column, a sensor that
+holds one value while its joint moves) or whose scale is off by more than :data:`SCALE_FACTOR`
+from what the prior model predicts on the same samples (N·mm read as N·m, a current without
+gains) is fitted without complaint and yields garbage parameters. :class:`TorqueChannels`
+accumulates, log by log, what the checks need on the rows of the structure's target (the
+torque equations as fitted), and :func:`check_torque_channels` raises a typed error naming the
+joint. The scale rule compares root-mean-square values on a subsample of each log:
+
+* too large: ``rms(τ_j) > SCALE_FACTOR · max_k rms(τ̂_k)`` (larger than any joint of the prior
+  robot could need, by the factor; friction cannot explain that);
+* too small: ``rms(τ̂_j) ≥ 0.1 · max_k rms(τ̂_k)`` (a joint the prior loads) and
+  ``rms(τ_j) < rms(τ̂_j) / SCALE_FACTOR``.
+
+A prior without mass (``rms(τ̂) ≈ 0`` everywhere) gives no scale, and the rule is skipped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..data.trajectory import Trajectory
+from ..errors import DataError, UnitsError
+
+__all__ = ["SCALE_FACTOR", "DEAD_SECONDS", "TorqueChannels", "check_torque_channels"]
+
+SCALE_FACTOR = 100.0
+# a channel holding one exact value for this long (and ≥ DEAD_SAMPLES) while its joint's speed varies is dead
+DEAD_SECONDS = 1.0
+DEAD_SAMPLES = 100
+SUBSAMPLE = 2000  # prior torques per log for the scale rule (RNEA on a subsample)
+_FIX = "check the log's torque columns (--columns) and units (--gains for currents)"
+
+
+@dataclass
+class TorqueChannels:
+    """Running statistics of the measured torque rows of ``structure`` over the logs folded so far."""
+
+    structure: object
+    rows: tuple[str, ...] = ()
+    lo: np.ndarray = field(default=None)  # type: ignore[assignment]
+    hi: np.ndarray = field(default=None)  # type: ignore[assignment]
+    ss_meas: np.ndarray = field(default=None)  # type: ignore[assignment]
+    ss_prior: np.ndarray = field(default=None)  # type: ignore[assignment]
+    n_sub: int = 0
+    dead: dict = field(default_factory=dict)  # row -> (seconds, source, first time)
+
+    def __post_init__(self) -> None:
+        s = self.structure
+        joints = set(s.robot.joint_names)
+        self.rows = tuple(s.row_names) if all(r in joints for r in s.row_names) else ()
+        n = len(self.rows)
+        self.lo, self.hi = np.full(n, np.inf), np.full(n, -np.inf)
+        self.ss_meas, self.ss_prior = np.zeros(n), np.zeros(n)
+        self._prior = None
+
+    def add(self, traj: Trajectory) -> Trajectory:
+        if not self.rows or traj.tau is None or not len(traj):
+            return traj
+        y = self.structure.target(traj)
+        self.lo = np.minimum(self.lo, y.min(axis=0))
+        self.hi = np.maximum(self.hi, y.max(axis=0))
+        self._dead_runs(traj, y)
+        sub = traj.take(np.unique(np.linspace(0, len(traj) - 1, min(len(traj), SUBSAMPLE)).astype(int)))
+        if self._prior is None:
+            self._prior = self.structure.prior()
+        with np.errstate(all="ignore"):
+            pred = self.structure.torques(self._prior, sub)
+        ys = self.structure.target(sub)
+        if np.all(np.isfinite(pred)) and np.all(np.isfinite(ys)):
+            self.ss_meas += np.sum(ys**2, axis=0)
+            self.ss_prior += np.sum(pred**2, axis=0)
+            self.n_sub += len(sub)
+        return traj
+
+    def _dead_runs(self, traj: Trajectory, y: np.ndarray) -> None:
+        """Longest run of one exact value per row while that joint's speed varies by ≥ 20 % of its peak."""
+        if traj.v is None or len(traj) < DEAD_SAMPLES:
+            return
+        for i, row in enumerate(self.rows):
+            if row not in traj.joint_names:
+                continue
+            v = traj.v[:, traj.joint_names.index(row)]
+            peak = float(np.max(np.abs(v)))
+            if not peak > 0:
+                continue
+            same = np.flatnonzero(np.diff(y[:, i]) != 0)  # run boundaries
+            starts = np.concatenate(([0], same + 1))
+            ends = np.concatenate((same + 1, [len(y)]))
+            long = np.flatnonzero(ends - starts >= DEAD_SAMPLES)
+            for k in long:
+                a, b = starts[k], ends[k]
+                secs = float(traj.t[b - 1] - traj.t[a])
+                if secs < DEAD_SECONDS or np.ptp(v[a:b]) < 0.2 * peak:
+                    continue
+                if secs > self.dead.get(row, (0.0,))[0]:
+                    self.dead[row] = (secs, traj.source, float(traj.t[a]), float(y[a, i]))
+
+
+def check_torque_channels(ch: TorqueChannels) -> None:
+    """Raise DataError/UnitsError for the first row that is constant, dead while moving, or off in scale."""
+    if not ch.rows or not np.all(np.isfinite(ch.hi)):
+        return
+    for i, row in enumerate(ch.rows):
+        span = ch.hi[i] - ch.lo[i]
+        if not span > 1e-12 * max(1.0, abs(ch.hi[i]), abs(ch.lo[i])):
+            what = "zero" if ch.hi[i] == 0 and ch.lo[i] == 0 else f"constant ({ch.hi[i]:.6g})"
+            raise DataError(f"joint '{row}': the torque channel is {what} in every log, so it says nothing "
+                            f"about the joint; {_FIX}, or lock the joint (--lock {row})")
+    for row, (secs, src, t0, val) in ch.dead.items():
+        raise DataError(f"joint '{row}': the torque channel holds {val:.6g} for {secs:.3g} s from t = {t0:.6g} s "
+                        f"while the joint moves (a dead sensor?); {_FIX}, or trim the log (--trim)", src)
+    if ch.n_sub == 0:
+        return
+    rms_meas = np.sqrt(ch.ss_meas / ch.n_sub)
+    rms_prior = np.sqrt(ch.ss_prior / ch.n_sub)
+    top = float(np.max(rms_prior))
+    if not top > 1e-9:
+        return
+    for i, row in enumerate(ch.rows):
+        big = rms_meas[i] > SCALE_FACTOR * top
+        small = rms_prior[i] >= 0.1 * top and rms_meas[i] < rms_prior[i] / SCALE_FACTOR
+        if big or small:
+            ratio = rms_meas[i] / rms_prior[i] if rms_prior[i] > 0 else np.inf
+            raise UnitsError(
+                f"joint '{row}': the logged torque (rms {rms_meas[i]:.3g}) is {ratio:.3g}× what the prior model "
+                f"predicts on the same samples (rms {rms_prior[i]:.3g}{'' if small else f'; the largest joint: {top:.3g}'}), "
+                f"more than {SCALE_FACTOR:g}× off: a unit or gain mistake? {_FIX}; "
+                "--accept-implausible fits it anyway")
