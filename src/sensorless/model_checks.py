@@ -129,6 +129,10 @@ def check_urdf_file(path: str | Path) -> None:
                     raise RobotModelError(f"{src}: joint '{name}' has a negative {k} limit")
 
 
+#: no robot body is heavier (kg) or has a larger inertia (kg·m²): a value above it is a unit or typing error
+MAX_BODY_MASS = 1e5
+
+
 def check_model(model, src: str) -> None:
     """RobotModelError for non-finite inertias, zero joint axes or inverted limits in a Pinocchio model."""
     for j in range(1, model.njoints):
@@ -138,6 +142,9 @@ def check_model(model, src: str) -> None:
             raise RobotModelError(f"{src}: body '{model.names[j]}' has non-finite inertial values")
         if I.mass < 0:
             raise RobotModelError(f"{src}: body '{model.names[j]}' has a negative mass {I.mass:g}")
+        if I.mass > MAX_BODY_MASS or np.max(np.abs(np.asarray(I.inertia))) > MAX_BODY_MASS:
+            raise RobotModelError(f"{src}: body '{model.names[j]}' has an implausible mass {I.mass:.3g} kg or inertia "
+                                  f"(over {MAX_BODY_MASS:g} kg / kg·m²); check the file's units")
         jm = model.joints[j]
         axis = getattr(jm, "axis", None)
         if axis is not None and np.linalg.norm(np.asarray(axis)) < 1e-9:
