@@ -23,6 +23,7 @@ from .common import (
     lock_option,
     model_options,
     experiment_options,
+    force_option,
 )
 from .options import ForceComponents, ForceReference
 
@@ -60,6 +61,7 @@ def estimate_force(
     sigma_threshold: float = typer.Option(0.01, help="damping starts below this smallest singular value"),
     lambda_max: float = typer.Option(0.02, help="damping at a singularity"),
     lock: list[str] | None = lock_option(),
+    force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:
@@ -68,7 +70,7 @@ def estimate_force(
     from ..estimators import load_parameters
     from ..estimators import PhysicalModel
 
-    output_file(out, path_inputs(robot, model, data, residual))
+    output_file(out, path_inputs(robot, model, data, residual), force)
     r = load_robot_arg(robot, lock, False)
     path = model / "result.json" if model.is_dir() else model
     structure, params = load_parameters(path, r)
