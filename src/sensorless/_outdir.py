@@ -299,6 +299,7 @@ def recover_locked(out: Path) -> str | None:
         elif n.endswith(".tmp") and _dead_temp(n[len(prefix):-4]):
             _unlink(p)
     _unlink(journal)
+    remove_dead_temps(journal)
     return restored
 
 
