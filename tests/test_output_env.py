@@ -308,3 +308,21 @@ def test_eight_distinct_and_four_same_output_writers(tmp_path):
     assert _outdir.is_complete(same) and len(tags) == 1 and tags <= winners and len(list(same.glob("f*.txt"))) == 5
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
     print({"distinct_complete": 8, "same_succeeded": len(winners), "same_refused": codes.count(2)})
+
+
+@pytest.mark.slow  # twelve CLI processes at once on a tiny log
+def test_concurrent_identify_runs(log, tmp_path):
+    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", ""), "OPENBLAS_NUM_THREADS": "1"}
+    same = tmp_path / "same"
+    jobs = [tmp_path / f"d{i}" for i in range(8)] + [same] * 4
+    procs = [subprocess.Popen([sys.executable, "-c", "from sensorless.cli import app; app()", "identify", *ROBOT,
+                               "--data", str(log), "--out", str(o), "--force"], env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE, text=True) for o in jobs]
+    results = [(o, p.communicate(timeout=1200)[1], p.returncode) for o, p in zip(jobs, procs)]
+    for o, err, code in results[:8]:
+        assert code == 0 and _outdir.is_complete(o), err
+    codes = [code for *_, code in results[8:]]
+    assert set(codes) <= {0, 2} and 0 in codes and _outdir.is_complete(same), results[8:]
+    assert all(code == 0 or "another sensorless run" in err for _, err, code in results[8:])
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+    print({"distinct_complete": 8, "same_succeeded": codes.count(0), "same_refused": codes.count(2)})
