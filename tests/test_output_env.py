@@ -118,6 +118,10 @@ def test_check_output_file_rules(tmp_path):
     d.mkdir()
     (d / "log.csv").write_text("x")
     with pytest.raises(OutputError, match="inside the input folder"):
+        check_output_file(d / "log.csv", [d], force=True)  # an existing file in an input folder
+    assert check_output_file(d / "out.npz", [d]) == d / "out.npz"  # a new file next to plain inputs
+    (d / MANIFEST).write_text("{}")  # a sensorless output folder: nothing is written into it
+    with pytest.raises(OutputError, match="inside the input folder"):
         check_output_file(d / "out.npz", [d])
     (tmp_path / "f.npz").write_text("x")
     with pytest.raises(OutputError, match="--force"):

@@ -37,14 +37,16 @@ DRIVER = textwrap.dedent("""
     from pathlib import Path
     from sensorless import _outdir, io
     out, n, sig, mode, where = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5]
-    calls = [0]
+    calls, at = [0], [n]
 
     def counted(mod, name, real=None):
         real = real or getattr(mod, name)
         def f(*a, **k):
             calls[0] += 1
-            if calls[0] == n:
+            if calls[0] == at[0]:
                 os.kill(os.getpid(), sig)
+            if at[0] == -1 and name == "rename":  # -1: between the journal's two renames
+                at[0] = calls[0] + 1
             return real(*a, **k)
         setattr(mod, name, f)
 
@@ -168,8 +170,9 @@ def test_kill_at_every_point_of_a_force_replacement_keeps_one_complete_output(tm
     want = points or total
     assert len(tally["points"]["SIGKILL"]) >= want and len(tally["points"]["SIGTERM"]) >= want, tally["kills"]
     assert tally["old"] > 0 and tally["new"] > 0  # kills before and after the swap both happened
-    if mode == "journal":
-        assert tally["recovered"] > 0  # the window between the two renames was hit and repaired
+    if mode == "journal":  # and in the window between the two renames, repaired by the next command
+        between = _kill_points(tmp_path, mode, [(signal.SIGKILL, "main", -1), (signal.SIGTERM, "thread", -1)])
+        assert between["recovered"] == 2 and between["old"] == 2 and between["neither"] == [], between
 
 
 def test_stale_lock_of_a_killed_run_is_reused_with_a_warning(tmp_path):

@@ -191,9 +191,10 @@ def _special_kind(path: str | os.PathLike, st_mode: int | None = None) -> str | 
 def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = (), force: bool = False) -> Path:
     """``path`` if a command may write this output file; else :class:`~sensorless.errors.OutputError`.
 
-    Refused: an existing directory; a FIFO, device or socket; one of the ``inputs``; a path
-    inside an input folder (an input directory, or the sensorless output folder an input file
-    lies in, e.g. ``--model run/result.json`` protects ``run/``); an existing file without ``force``.
+    Refused: an existing directory; a FIFO, device or socket; one of the ``inputs``; an existing
+    file inside an input directory, or any path inside an input that is a sensorless output
+    folder (or the one an input file lies in: ``--model run/result.json`` protects ``run/``);
+    an existing file without ``force``.
     """
     path = Path(path)
     if path.is_dir():
@@ -209,7 +210,7 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
         if rp == real:
             raise OutputError(f"{path}: is the input file {p}; refusing to overwrite it")
         folder = rp if rp.is_dir() else rp.parent if (rp.parent / MANIFEST).is_file() else None
-        if folder is not None and _inside(real, folder):
+        if folder is not None and _inside(real, folder) and ((folder / MANIFEST).is_file() or path.exists()):
             raise OutputError(f"{path}: lies inside the input folder {folder}; refusing to write into it "
                               "(choose an --out outside it)")
     if (path.exists() or path.is_symlink()) and not force:
