@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml Makefile
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/sensorless demo --out demo_output
+	$(VENV)/bin/sensorless demo --out demo_output --force
 
 # One BLAS thread per pytest worker: two workers on two cores; threaded BLAS under
 # contention made small solves 50x slower.

@@ -5,13 +5,16 @@
   ``os.replace`` it into place (readers see the old file or the new one, never half of one).
 * :func:`atomic_output_dir` builds a whole output directory in a hidden sibling and renames
   it into place on success. Every directory it creates holds :data:`MANIFEST` (tool,
-  version, command, time, files written). An existing directory is replaced only with
-  ``force=True`` *and* when its manifest says sensorless wrote it and it holds nothing
-  else; ``.``, ``..``, ``/``, the home directory, the working directory or any ancestor
+  version, command, time, files written with size and SHA-256). An existing directory is
+  replaced only with ``force=True`` *and* when its manifest says sensorless wrote it, it holds
+  nothing else and no listed file was edited; ``.``, ``..``, ``/``, the home directory, the working directory or any ancestor
   of it, and a directory holding an input file are never replaced. A lock file next to
   the output makes a concurrent run on the same path fail with a clear error instead of
   silently losing one result. SIGTERM (and SIGHUP) during the run removes the temporary
-  directory before the process exits.
+  directory before the process exits; the swap itself is kill-safe, even under SIGKILL
+  (:mod:`sensorless._outdir`, :func:`recover_output`).
+* Single output files (:func:`check_output_file`) never replace an existing file without
+  ``force``, an input, a file inside an input folder, or a FIFO/device/socket.
 * Files and directories get the permissions of a normal ``open``/``mkdir``
   (``0o666``/``0o777`` minus the umask), not the ``0600``/``0700`` of ``tempfile``.
 * JSON is strict: non-finite floats are written as ``null`` (``allow_nan=False``).
@@ -22,7 +25,6 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import errno
-import fcntl
 import json
 import math
 import os
@@ -36,6 +38,8 @@ from typing import IO, Iterable, Iterator
 
 import numpy as np
 
+from . import _outdir
+from ._outdir import MANIFEST, TOOL, read_manifest, recover_output
 from .errors import InputError, OutputError
 
 __all__ = [
@@ -48,13 +52,11 @@ __all__ = [
     "jsonable",
     "read_json",
     "read_manifest",
+    "recover_output",
     "versions",
     "write_json_atomic",
     "write_npz_atomic",
 ]
-
-MANIFEST = ".sensorless-output.json"
-TOOL = "sensorless"
 
 
 # ---- version info -----------------------------------------------------------------------
@@ -82,19 +84,24 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", encoding: str | None =
 
     ``mode`` is ``"w"`` (text) or ``"wb"``. The file is created with mode ``0o666``
     minus the umask. An exception inside the block removes the temporary file and
-    leaves ``path`` untouched. ``path`` being a directory, or unwritable, raises
-    :class:`~sensorless.errors.OutputError`.
+    leaves ``path`` untouched. ``path`` being a directory, a FIFO/device/socket, or
+    unwritable (no space, read-only, permission) raises :class:`~sensorless.errors.OutputError`.
+    The temporary file is ``.NAME.PID-HEX.tmp``; those of dead processes are removed.
     """
     if mode not in ("w", "wb"):
         raise ValueError(f"atomic_open: mode must be 'w' or 'wb', got {mode!r}")
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"{path}: is a directory; give a file name")
+    kind = _special_kind(path)
+    if kind:
+        raise OutputError(f"{path}: is {kind}; refusing to replace it with a regular file")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise _oserror(path.parent, exc, "cannot create directory") from None
-    tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+    _outdir.remove_dead_temps(path)
+    tmp = path.parent / f".{path.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp"
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # kernel applies the umask
     except OSError as exc:
@@ -167,15 +174,48 @@ def _inside(child: Path, parent: Path) -> bool:
     return child == parent or parent in child.parents
 
 
-def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()) -> Path:
-    """Refuse an output file that is an existing directory or one of the ``inputs``."""
+def _special_kind(path: str | os.PathLike, st_mode: int | None = None) -> str | None:
+    """"a FIFO (named pipe)", "a socket", "a device" (or "not a regular file") for a special file; else None."""
+    import stat
+
+    if st_mode is None:
+        try:
+            st_mode = os.stat(path).st_mode
+        except OSError:
+            return None
+    if stat.S_ISREG(st_mode) or stat.S_ISDIR(st_mode):
+        return None
+    return ("a FIFO (named pipe)" if stat.S_ISFIFO(st_mode) else "a socket" if stat.S_ISSOCK(st_mode)
+            else "a device" if stat.S_ISCHR(st_mode) or stat.S_ISBLK(st_mode) else "not a regular file")
+
+
+def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = (), force: bool = False) -> Path:
+    """``path`` if a command may write this output file; else :class:`~sensorless.errors.OutputError`.
+
+    Refused: an existing directory; a FIFO, device or socket; one of the ``inputs``; an existing
+    file inside an input directory, or any path inside an input that is a sensorless output
+    folder (or the one an input file lies in: ``--model run/result.json`` protects ``run/``);
+    an existing file without ``force``.
+    """
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"{path}: is a directory; --out needs a file name (e.g. {path / 'out.npz'})")
+    kind = _special_kind(path)
+    if kind:
+        raise OutputError(f"{path}: is {kind}, not a regular file; refusing to write over it")
     real = _real(path)
     for p in inputs:
-        if p is not None and _real(p) == real:
+        if p is None:
+            continue
+        rp = _real(p)
+        if rp == real:
             raise OutputError(f"{path}: is the input file {p}; refusing to overwrite it")
+        folder = rp if rp.is_dir() else rp.parent if (rp.parent / MANIFEST).is_file() else None
+        if folder is not None and _inside(real, folder) and ((folder / MANIFEST).is_file() or path.exists()):
+            raise OutputError(f"{path}: lies inside the input folder {folder}; refusing to write into it "
+                              "(choose an --out outside it)")
+    if (path.exists() or path.is_symlink()) and not force:
+        raise OutputError(f"{path}: output file exists; pass --force to replace it")
     return path
 
 
@@ -197,8 +237,7 @@ def check_input_file(path: str | os.PathLike, what: str = "input file") -> Path:
     if stat.S_ISDIR(st.st_mode):
         raise InputError(f"{path}: is a directory; expected a {what}")
     if not stat.S_ISREG(st.st_mode):
-        kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
-                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
+        kind = _special_kind(path, st.st_mode)
         raise InputError(f"{path}: is {kind}, not a regular file; refusing to read it as a {what}")
     return path
 
@@ -251,28 +290,6 @@ def read_json(path: str | os.PathLike, what: str = "JSON file", max_bytes: int =
 
 
 # ---- output directories ---------------------------------------------------------------
-def read_manifest(directory: str | os.PathLike) -> dict | None:
-    """The manifest of a sensorless output directory, or None when there is none (or it is not ours)."""
-    f = Path(directory) / MANIFEST
-    try:
-        doc = json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(doc, dict) or doc.get("tool") != TOOL or not isinstance(doc.get("files"), list):
-        return None
-    return doc
-
-
-def _files(directory: Path) -> list[str]:
-    """Every non-directory entry below ``directory``, relative, sorted (symlinks not followed)."""
-    out = []
-    for root, dirs, files in os.walk(directory):
-        rel = Path(root).relative_to(directory)
-        out += [(rel / f).as_posix() for f in files]
-        out += [(rel / d).as_posix() for d in dirs if (Path(root) / d).is_symlink()]
-    return sorted(out)
-
-
 def _refusal(out: Path, inputs: Iterable[str | os.PathLike]) -> str | None:
     """Why ``out`` must never be created or replaced, or None."""
     raw = os.fspath(out)
@@ -312,45 +329,21 @@ def _check_replaceable(out: Path, force: bool, inputs) -> None:
             f"{out}: refusing to replace a directory sensorless did not create (no valid {MANIFEST}); "
             "choose a new --out or remove it yourself"
         )
-    extra = sorted(set(_files(out)) - set(doc["files"]) - {MANIFEST})
+    files, dirs = _outdir.tree(out)
+    listed = {str(f) for f in doc["files"]}
+    extra = sorted(set(files) - listed - {MANIFEST})
     if extra:
         shown = ", ".join(extra[:3]) + (f" and {len(extra) - 3} more" if len(extra) > 3 else "")
         raise OutputError(f"{out}: refusing to replace it: it holds files sensorless did not write ({shown})")
-
-
-@contextlib.contextmanager
-def _lock(out: Path) -> Iterator[None]:
-    """Exclusive, non-blocking ``flock`` on ``.<name>.lock`` next to ``out``; removed on exit.
-
-    After locking, the file's inode is compared with the path's: a lock taken on a file
-    another run has just unlinked is retried, so two runs never both hold the lock.
-    """
-    lock = out.parent / f".{out.name}.lock"
-    while True:
-        try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
-        except OSError as exc:
-            raise _oserror(out.parent, exc, "cannot create a lock file in") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            raise OutputError(
-                f"{out}: another sensorless run is writing this output directory; wait for it to finish "
-                "or choose another --out"
-            ) from None
-        try:
-            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    try:
-        yield
-    finally:
-        _unlink(lock)
-        os.close(fd)
+    known = set(doc["dirs"]) if isinstance(doc.get("dirs"), list) else set()
+    known |= {p.as_posix() for f in listed for p in Path(f).parents if p != Path(".")}
+    extra = sorted(set(dirs) - known)
+    if extra:
+        raise OutputError(f"{out}: refusing to replace it: it holds the folder {extra[0]} sensorless did not make")
+    edited = _outdir.changed_file(out, doc, missing_ok=True)
+    if edited is not None:
+        raise OutputError(f"{out}: refusing to replace it: {edited} was changed since sensorless wrote it "
+                          "(its SHA-256 differs from the manifest); move it away or choose another --out")
 
 
 @contextlib.contextmanager
@@ -377,15 +370,32 @@ def _terminate_as_exit() -> Iterator[None]:
 
 
 def _write_manifest(tmp: Path, command: dict | None) -> None:
+    files, dirs = _outdir.tree(tmp)
     doc = {
         "tool": TOOL,
         "version": versions().get("sensorless"),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "command": command or {},
-        "files": _files(tmp),
+        "files": files,
+        "dirs": dirs,
+        "hashes": {f: _outdir.digest(tmp / f) for f in files},
         "versions": versions(),
     }
     write_json_atomic(doc, tmp / MANIFEST)
+
+
+_ENVIRONMENT = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO)
+
+
+def _environment_error(out: Path, tmp: Path, exc: BaseException) -> OutputError | None:
+    """``exc`` from writing into ``tmp`` as an OutputError naming ``out`` (not the hidden tree), or None."""
+    if isinstance(exc, OutputError):
+        return OutputError(str(exc).replace(str(tmp), str(out)))
+    if isinstance(exc, OSError) and exc.errno in _ENVIRONMENT:
+        name = exc.filename if isinstance(exc.filename, str) else None
+        where = name.replace(str(tmp), str(out)) if name else str(out)
+        return OutputError(f"{where}: cannot write: {exc.strerror or exc}")
+    return None
 
 
 @contextlib.contextmanager
@@ -401,9 +411,13 @@ def atomic_output_dir(
     Refusals (:class:`~sensorless.errors.OutputError`, even with ``force``): ``.``/``..``,
     ``/``, home, the working directory or an ancestor, a directory holding one of
     ``inputs``, a symlink or a file, and an existing directory that is not a previous
-    sensorless output (manifest) or holds files it did not write. Without ``force`` an
-    existing ``out`` is never touched. On any exception (or SIGTERM) the temporary
-    directory is removed and ``out`` is left as it was.
+    sensorless output (manifest) or holds files or folders it did not write, or a listed file
+    the user has since edited (SHA-256 in the manifest). Without ``force`` an existing ``out``
+    is never touched. On any exception (or SIGTERM) the temporary directory is removed and
+    ``out`` is left as it was; no space left, a read-only file system or a permission denied
+    while writing are an OutputError naming ``out``. The swap is kill-safe (see
+    :mod:`sensorless._outdir`): first the lock is taken and any interrupted swap of an earlier
+    run is finished or undone (:func:`recover_output`).
     """
     out = Path(out)
     inputs = [p for p in inputs if p is not None]
@@ -412,39 +426,38 @@ def atomic_output_dir(
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise _oserror(out.parent, exc, "cannot create directory") from None
-    with _lock(out), _terminate_as_exit():
+    with _outdir.lock(out), _terminate_as_exit():
+        _outdir.recover_locked(out)
         _check_replaceable(out, force, inputs)  # again, now that no other run can change it
-        tmp = out.parent / f".{out.name}.tmp-{secrets.token_hex(6)}"
+        token = f"{os.getpid()}-{secrets.token_hex(6)}"
+        tmp = out.parent / f".{out.name}.tmp-{token}"
         try:
             os.mkdir(tmp, 0o777)  # the kernel applies the umask (mkdtemp would give 0700)
         except OSError as exc:
             raise _oserror(out.parent, exc, "cannot create the output directory in") from None
         try:
             yield tmp
-        except BaseException:
+        except BaseException as exc:
             shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        # the swap below is not interrupted half-way (a pending SIGTERM is handled after it)
+            err = _environment_error(out, tmp, exc)
+            if err is None:
+                raise
+            raise err from None
+        # the swap is one renameat2(RENAME_EXCHANGE): no instant without a complete OUT, whatever
+        # thread a signal reaches; blocking SIGTERM here only keeps the journal fallback tidy
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM, signal.SIGHUP})
         try:
             _write_manifest(tmp, command)
             _check_replaceable(out, force, inputs)
-            if out.exists():
-                old = out.parent / f".{out.name}.old-{secrets.token_hex(6)}"
-                os.rename(out, old)
-                try:
-                    os.rename(tmp, out)
-                except BaseException:
-                    os.rename(old, out)
-                    raise
-                shutil.rmtree(old, ignore_errors=True)  # a validated previous sensorless output
-            else:
-                os.rename(tmp, out)
-        except OSError as exc:
+            previous = _outdir.swap_in(tmp, out, token)
+        except BaseException as exc:
             shutil.rmtree(tmp, ignore_errors=True)
-            raise _oserror(out, exc) from None
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
+            if isinstance(exc, OSError):
+                raise (_environment_error(out, tmp, exc) or _oserror(out, exc)) from None
+            if isinstance(exc, OutputError):
+                raise _environment_error(out, tmp, exc) from None
             raise
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        if previous is not None:
+            shutil.rmtree(previous, ignore_errors=True)  # a validated previous sensorless output

@@ -167,11 +167,12 @@ def _current_context():
     return get_current_context(silent=True)
 
 
-def output_file(out: Path, inputs: Iterable = ()) -> Path:
-    """Check a single-file ``--out`` (not a directory, not an input)."""
+def output_file(out: Path, inputs: Iterable = (), force: bool = False) -> Path:
+    """Check a single-file ``--out``: not a directory or special file, not an input or inside an
+    input folder, not an existing file unless ``--force``."""
     from ..io import check_output_file
 
-    return check_output_file(out, inputs)
+    return check_output_file(out, inputs, force)
 
 
 def path_inputs(*values) -> list:
@@ -449,6 +450,6 @@ def write_result(res: dict, out: Path) -> None:
     """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
     from ..identification.result import write_json_atomic
 
-    out.parent.mkdir(parents=True, exist_ok=True)
+    output_file(out, force=True)  # benchmark results are regenerated in place; never a directory or FIFO
     write_json_atomic(res, out)
     console.print(f"wrote {out}")

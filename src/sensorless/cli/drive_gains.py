@@ -79,9 +79,7 @@ def drive_gains(
         raise OptionError(f"--n-boot must be at least 10, got {n_boot}")
     if block_seconds is not None and not (np.isfinite(block_seconds) and block_seconds > 0):
         raise OptionError(f"--block-seconds must be > 0, got {block_seconds}")
-    if out.exists() and not force:
-        raise OptionError(f"{out}: output exists; pass --force to replace it")
-    output_file(out, path_inputs(robot, unloaded, loaded))
+    output_file(out, path_inputs(robot, unloaded, loaded), force)
     r = load_robot_arg(robot, lock, False)
     c = _vector(com, "--com")
     u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trim, resample=resample,
@@ -106,7 +104,6 @@ def drive_gains(
     doc.update({"robot": r.name, "unloaded": str(unloaded), "loaded": str(loaded)})
     doc["settings"].update({"columns": columns, "trim": trim, "resample": resample, "savgol_window": savgol_window,
                             "lowpass": lowpass})
-    out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out)
     _print(res, missing, nominal is not None)
     console.print(f"wrote {out}")

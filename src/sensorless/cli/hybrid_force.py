@@ -24,6 +24,7 @@ from .common import (
     lock_option,
     model_options,
     experiment_options,
+    force_option,
 )
 from .options import ForceComponents, ForceReference
 
@@ -62,6 +63,7 @@ def estimate_force(
     sigma_threshold: float = typer.Option(0.01, help="damping starts below this smallest singular value"),
     lambda_max: float = typer.Option(0.02, help="damping at a singularity"),
     lock: list[str] | None = lock_option(),
+    force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:
@@ -70,7 +72,7 @@ def estimate_force(
     from ..estimators import PhysicalModel
     from ..identification.artifact import load_model_folder
 
-    output_file(out, path_inputs(robot, model, data, residual))
+    output_file(out, path_inputs(robot, model, data, residual), force)
     r = load_robot_arg(robot, lock, False)
     art = load_model_folder(model, r)
     phys = PhysicalModel.from_parameters(art.structure, art.parameters)

@@ -21,6 +21,8 @@ from .common import (
     force_option,
     lock_option,
     model_options,
+    output_file,
+    path_inputs,
 )
 from .options import Align, PayloadMode
 
@@ -75,8 +77,7 @@ def payload(
     from ..identification.payload import identify_payload
     from ..identification.result import write_json_atomic
 
-    if out.exists() and not force:
-        raise SensorlessError(f"{out}: output exists; pass --force to replace it")
+    output_file(out, path_inputs(robot, model, data, no_load), force)
     if no_load and len(no_load) != len(data):
         raise SensorlessError(f"{len(data)} --data log(s) but {len(no_load)} --no-load log(s); pair them one to one")
     r = load_robot_arg(robot, lock, False)
@@ -117,7 +118,6 @@ def payload(
                     "mass_sensitivity_to_gains": dict(zip(r.actuated_joints, map(float, dm)))})
         est.mass_std = doc["mass_std"]
     doc.setdefault("settings", {})["preprocessing"] = {**opts, "trim": prep["trim"]}
-    out.parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out)
     _print(est)
     console.print(f"wrote {out}")

@@ -26,6 +26,7 @@ from .common import (
     path_inputs,
     lock_option,
     floating_base_option,
+    force_option,
     model_options,
 )
 
@@ -43,6 +44,7 @@ def predict(
     lock: Optional[List[str]] = lock_option(),
     floating_base: Optional[bool] = floating_base_option(),
     outliers: Outliers = typer.Option(Outliers.error, help="gross outliers in the log"),
+    force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Predict joint torques of a log with an identified model. The log is preprocessed as the
@@ -52,7 +54,7 @@ def predict(
     from ..report import metrics_table
 
     check_preprocessing(prep["rate"], prep["lowpass"], prep["savgol_window"], 1)
-    output_file(out, path_inputs(robot, model, data))
+    output_file(out, path_inputs(robot, model, data), force)
     r = load_robot_arg(robot, lock, floating_base)
     art = load_model_folder(model, r)
     path, structure, params = art.path, art.structure, art.parameters
@@ -76,10 +78,11 @@ def predict(
 def demo(
     out: Path = typer.Option(Path("demo_output"), help="output directory"),
     seed: int = typer.Option(0, help="random seed"),
+    force: bool = force_option(),
 ) -> None:
     """End-to-end example on a simulated Panda: excite, identify, validate, export."""
     from ..demo import run_demo
 
-    with atomic_outdir(out, force=True) as tmp:
+    with atomic_outdir(out, force=force) as tmp:
         run_demo(tmp, seed=seed, console=console)
     console.print(f"wrote {out}/")
