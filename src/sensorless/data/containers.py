@@ -18,7 +18,7 @@ from typing import Iterable
 import numpy as np
 
 from ..errors import DataError, InputError
-from .limits import check_log_size, current_options, format_size, memory_budget
+from .limits import FIXES, check_log_size, current_options, format_size, memory_budget
 
 __all__ = ["check_npz", "check_hdf5"]
 
@@ -44,10 +44,12 @@ def check_npz(path: Path, src: str, members: Iterable[str], max_memory=None) -> 
                     continue
                 name = info.filename[:-4]
                 if info.file_size > limit:
+                    ratio = info.file_size / max(info.compress_size, 1)
                     raise InputError(
                         f"{src}: array '{name}' expands from {format_size(info.compress_size)} to "
-                        f"{format_size(info.file_size)} (zip directory), over the limit of {format_size(limit)} "
-                        f"({origin}); a zip bomb, or raise --max-log-memory")
+                        f"{format_size(info.file_size)} (zip directory" + (f"; {ratio:.0f}:1, a zip bomb?" if ratio > 50
+                                                                           else "") +
+                        f"), over the limit of {format_size(limit)} ({origin}); {FIXES}")
                 shape, dtype = _npy_shape(zf, info, src)
                 n = math.prod(shape)
                 if n * dtype.itemsize > info.file_size:

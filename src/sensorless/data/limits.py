@@ -27,7 +27,7 @@ from typing import Iterator
 from ..errors import InputError, OptionError
 
 __all__ = ["memory_budget", "parse_size", "format_size", "check_log_size", "prescan_text", "read_options",
-           "current_options", "ENV_VAR", "DEFAULT_FRACTION", "PIPELINE_FACTOR", "MAX_LINE_BYTES", "MAX_FIELDS"]
+           "current_options", "FIXES", "ENV_VAR", "DEFAULT_FRACTION", "PIPELINE_FACTOR", "MAX_LINE_BYTES", "MAX_FIELDS"]
 
 ENV_VAR = "SENSORLESS_MAX_LOG_MEMORY"
 #: share of the available memory one log may expand to by default
@@ -44,6 +44,8 @@ PRESCAN_LINES = 200
 _UNITS = {"": 1, "b": 1, "k": 1000, "kb": 1000, "m": 1000**2, "mb": 1000**2, "g": 1000**3, "gb": 1000**3,
           "t": 1000**4, "tb": 1000**4, "kib": 1 << 10, "mib": 1 << 20, "gib": 1 << 30, "tib": 1 << 40}
 
+#: what a user can do about a log over budget
+FIXES = f"raise --max-log-memory (or {ENV_VAR}), or split the log (then --decimate N to thin each part)"
 _OPTIONS: contextvars.ContextVar[dict] = contextvars.ContextVar("sensorless_read_options", default={})
 
 
@@ -121,8 +123,7 @@ def check_log_size(src: str, n_values: float, what: str, max_memory: "str | int 
         raise InputError(
             f"{src}: log too large for memory: {what} needs about {format_size(need)} to read and preprocess "
             f"(logs are not streamed: resampling and zero-phase filtering need the whole signal), over the limit "
-            f"of {format_size(limit)} ({origin}); raise --max-log-memory (or {ENV_VAR}), or split the log "
-            "(then --decimate N to thin each part)")
+            f"of {format_size(limit)} ({origin}); {FIXES}")
 
 
 def prescan_text(path: Path, src: str, max_memory: "str | int | None" = None) -> None:

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from ..errors import DataError, ShapeMismatchError, UnitsError
+from ..errors import DataError, InputError, ShapeMismatchError, UnitsError
 from ..io import check_input_file
 from .containers import check_hdf5, check_npz
 from .gains import currents_to_torques, split_gain_modifiers
@@ -319,7 +319,7 @@ def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray
             for field, key in picked.items():
                 raw[field] = _as_float(z[key], src, key)
             names = _names(z["joint_names"], src) if "joint_names" in keys else None
-        except DataError:
+        except (DataError, InputError):
             raise
         except _READ_ERRORS as exc:  # pickled/object or corrupt member (zlib.error, BadZipFile...)
             raise DataError(f"cannot read an array from the NPZ archive ({_one_line(exc)})", src) from None
@@ -338,7 +338,7 @@ def _read_hdf5(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarra
         raise DataError(f"not a readable HDF5 file ({_one_line(exc)})", src) from None
     try:
         return _hdf5_fields(f, src, columns)
-    except DataError:
+    except (DataError, InputError):
         raise
     except _READ_ERRORS as exc:  # corrupt dataset, bad link, undecodable names...
         raise DataError(f"cannot read a dataset from the HDF5 file ({_one_line(exc)})", src) from None
