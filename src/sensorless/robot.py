@@ -291,12 +291,14 @@ def _build(spec: str, floating_base: bool | None) -> tuple[pin.Model, str, str, 
     if suffix in {".urdf", ".xml", ".mjcf"}:
         if not path.exists():
             raise RobotModelError(f"{spec}: no such robot model file")
-        from .model_checks import check_model, check_urdf_file, quiet_stderr
+        from .model_checks import check_mjcf_file, check_model, check_urdf_file, quiet_stderr
 
         if not path.is_file():
             raise RobotModelError(f"{spec}: not a regular file")
         if suffix == ".urdf":
             check_urdf_file(path)  # one-line errors for malformed XML and impossible values
+        else:
+            check_mjcf_file(path)  # negative masses/inertias, which Pinocchio clamps to 0
         captured: list[str] = []
         try:
             with quiet_stderr() as captured:  # urdfdom/MuJoCo print multi-line C++ messages on fd 2

@@ -80,7 +80,7 @@ def load_gains(spec: Any) -> "float | list[float] | dict[str, float]":
     if isinstance(spec, Path) or (isinstance(spec, str) and Path(spec).suffix.lower() in (".json", ".csv", ".txt")):
         return _read_file(Path(spec))
     if isinstance(spec, str):
-        if Path(spec).is_file():
+        if Path(spec).exists():  # a file, or a FIFO/device that _read_file refuses
             return _read_file(Path(spec))
         return _parse_inline(spec, "<gains>")
     if isinstance(spec, (Sequence, np.ndarray)):
@@ -114,11 +114,10 @@ def _parse_inline(text: str, src: str) -> "list[float] | dict[str, float]":
 
 
 def _read_file(path: Path) -> "list[float] | dict[str, float]":
+    from .limits import read_small_text
+
     src = str(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise DataError(f"cannot read gains file: {exc.strerror or exc}", src) from None
+    text = read_small_text(path, "gains file")  # a FIFO or device is refused, not waited on
     if path.suffix.lower() == ".json":
         try:
             doc = json.loads(text)

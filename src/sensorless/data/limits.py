@@ -27,14 +27,14 @@ from typing import Iterator
 from ..errors import InputError, OptionError
 
 __all__ = ["memory_budget", "parse_size", "format_size", "check_log_size", "prescan_text", "read_options",
-           "current_options", "FIXES", "ENV_VAR", "DEFAULT_FRACTION", "PIPELINE_FACTOR", "MAX_LINE_BYTES", "MAX_FIELDS"]
+           "current_options", "read_small_text", "FIXES", "ENV_VAR", "DEFAULT_FRACTION", "PIPELINE_FACTOR", "MAX_LINE_BYTES", "MAX_FIELDS"]
 
 ENV_VAR = "SENSORLESS_MAX_LOG_MEMORY"
 #: share of the available memory one log may expand to by default
 DEFAULT_FRACTION = 0.25
-#: peak memory of read + validate + preprocess over the log's float64 size (measured on 10⁶ rows,
-#: 7 joints, q/v/tau logged: peak RSS growth 8.3× the raw array; rounded up)
-PIPELINE_FACTOR = 10.0
+#: peak memory of identify (read, preprocess, regressor) over the float64 size the log declares; measured
+#: on 10⁶ rows, 7 joints, t/q/v/tau logged: peak RSS growth 2.8× (load_log) and 3.0× (identify --method ols)
+PIPELINE_FACTOR = 4.0
 #: a CSV/TXT line longer than this is refused (no log needs a MiB per sample)
 MAX_LINE_BYTES = 1 << 20
 #: a CSV/TXT header or row with more fields than this is refused
@@ -149,3 +149,24 @@ def prescan_text(path: Path, src: str, max_memory: "str | int | None" = None) ->
     if lines:
         rows = size / (nbytes / lines)
         check_log_size(src, rows * fields, f"about {rows:.3g} rows × {fields} columns", max_memory)
+
+
+#: largest settings file (gains, weights, --config) read whole
+MAX_SMALL_FILE = 16 << 20
+
+
+def read_small_text(path: "str | os.PathLike", what: str, encoding: str = "utf-8-sig") -> str:
+    """The text of a small settings file (``what``: e.g. "--gains file"): a FIFO, device or
+    directory and a file over :data:`MAX_SMALL_FILE` are refused (InputError) before it is opened."""
+    from ..io import check_input_file
+
+    path = check_input_file(path, what)
+    size = path.stat().st_size
+    if size > MAX_SMALL_FILE:
+        raise InputError(f"{path}: {format_size(size)}, too large for a {what} (limit {format_size(MAX_SMALL_FILE)})")
+    try:
+        return path.read_text(encoding=encoding)
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not a UTF-8 text {what} (byte {exc.start})") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read this {what}: {exc.strerror or exc}") from None
