@@ -38,6 +38,8 @@ from .filtering import DEFAULT_DERIVATIVE_SECONDS, DEFAULT_SAVGOL_WINDOW, defaul
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
 from .filtering import trim as _trim
+from .limits import current_options, read_options
+from .plausibility import check_gain_plausibility
 from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
@@ -329,8 +331,6 @@ def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, ga
     that way is resampled onto its uniform grid even with ``resample="off"``. ``max_memory``,
     ``allow_external``, ``skip_bad`` and ``accept_implausible_gains``: :func:`sensorless.data.limits.read_options`.
     """
-    from .limits import read_options
-
     with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
                       accept_implausible_gains=accept_implausible_gains):
         return _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample,
@@ -352,6 +352,9 @@ def _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gain
     traj = read_trajectory(path, columns=cols, rate=rate, robot=robot, gains=gains, time_unit=time_unit,
                            allow_duplicate_times=mode != "off", outliers=outliers)
     dropped = "outlier" in traj.units.get("processing", "")
-    return prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
+    out = prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
                    savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
                    max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap, rest=rest or "auto")
+    if not current_options().get("accept_implausible_gains"):
+        check_gain_plausibility(out, robot)  # τ = K·i against the model's torque scale, per joint
+    return out
