@@ -10,6 +10,7 @@ import typer
 from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .common import (
+    log_reading_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -47,6 +48,7 @@ def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> N
 @guarded
 @model_preprocessing_options()
 @model_options()
+@log_reading_options()
 def estimate_force(
     robot: str,
     model: Path,

@@ -12,6 +12,7 @@ import typer
 
 from ..errors import SensorlessError
 from .common import (
+    log_reading_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -45,6 +46,7 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 @guarded
 @model_preprocessing_options()
 @model_options()
+@log_reading_options()
 def monitor(
     robot: str,
     model: Path,

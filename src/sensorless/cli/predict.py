@@ -13,6 +13,7 @@ from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .options import Outliers
 from .common import (
+    log_reading_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -33,6 +34,7 @@ from .common import (
 @guarded
 @model_preprocessing_options()
 @model_options()
+@log_reading_options()
 def predict(
     robot: str,
     model: Path,
