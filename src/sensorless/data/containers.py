@@ -11,7 +11,9 @@
 from __future__ import annotations
 
 import math
+import tokenize
 import zipfile
+import zlib
 from pathlib import Path
 from typing import Iterable
 
@@ -59,7 +61,8 @@ def check_npz(path: Path, src: str, members: Iterable[str], max_memory=None) -> 
                     total += n
     except (InputError, DataError):
         raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError, SyntaxError, OverflowError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError, SyntaxError, OverflowError, zlib.error,
+            tokenize.TokenError, TypeError) as exc:
         raise DataError(f"not a readable NPZ archive ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})",
                         src) from None
     check_log_size(src, total, f"{total:.3g} numbers", max_memory)
