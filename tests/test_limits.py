@@ -160,3 +160,41 @@ def test_fifo_log_is_refused_without_blocking(tmp_path):
         os.mkfifo(fifo)
         msg = _fast(lambda: read_trajectory(fifo), limit=2.0)
         assert "FIFO" in msg
+
+
+def test_cli_max_log_memory_refuses_in_one_line_and_bad_sizes_are_option_errors(tmp_path):
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+
+    log = _log_npz(tmp_path / "log.npz", n=5000, joints=2)
+    urdf = os.path.join(os.path.dirname(__file__), "data", "two_link.urdf")
+    base = ["identify", "--robot", urdf, "--data", str(log), "--method", "ols", "--out", str(tmp_path / "o")]
+    res = CliRunner().invoke(app, base + ["--max-log-memory", "100KB"])
+    assert res.exit_code == 2 and "log too large for memory" in res.output and "--max-log-memory" in res.output
+    assert not (tmp_path / "o").exists()
+    res = CliRunner().invoke(app, base + ["--max-log-memory", "lots"])
+    assert res.exit_code == 2 and "--max-log-memory must be a size" in res.output
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_ten_million_rows_are_refused_within_seconds(tmp_path, suffix, monkeypatch):
+    """10⁷ rows × 7 joints (t, q, v, tau): ~7 GB through the pipeline; over a 4 GiB budget it is refused
+    before anything is allocated (the default budget is a quarter of the available memory)."""
+    n, f = 10_000_000, np.arange(1, 8) * 0.05
+    path = tmp_path / f"big{suffix}"
+    if suffix == ".npz":
+        t = np.arange(n) / 1000.0
+        np.savez(path, times=t, positions=np.sin(np.outer(t, f)), velocities=np.cos(np.outer(t, f)),
+                 torques=np.sin(np.outer(t, f) + 1))
+    else:
+        with open(path, "w") as fh:
+            fh.write(",".join(["t"] + [f"{w}_j{i}" for w in ("q", "v", "tau") for i in range(7)]) + "\n")
+            for s in range(0, n, 1_000_000):
+                t = np.arange(s, s + 1_000_000) / 1000.0
+                ph = np.outer(t, f)
+                np.savetxt(fh, np.column_stack([t, np.sin(ph), np.cos(ph), np.sin(ph + 1)]), fmt="%.9g", delimiter=",")
+    monkeypatch.setenv("SENSORLESS_MAX_LOG_MEMORY", "4GiB")
+    msg = _fast(lambda: read_trajectory(path), limit=60.0)
+    assert "log too large for memory" in msg and "4.0 GiB" in msg

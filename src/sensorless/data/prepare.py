@@ -208,7 +208,8 @@ def prepare(
                 f"{info.duplicates} of {len(traj.t) - 1} time steps ({100 * info.duplicates / (len(traj.t) - 1):.0f} %) "
                 "repeat the previous stamp: the time column is coarser than the sampling, or every sample is logged "
                 "more than once; --resample auto will not guess which. Give the rate: --resample RATE_HZ merges the "
-                "duplicates and interpolates at that rate (or drop the time column and pass --rate)", src)
+                "duplicates and interpolates at that rate; if the samples themselves are uniform (a clock too coarse "
+                "for the rate), remove the time column and pass --rate HZ", src)
         if not info.is_uniform(jitter_tolerance):
             traj = _resample(traj, max_gap=max_gap)
             r = traj.provenance["resampled"]
