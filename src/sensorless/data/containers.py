@@ -38,7 +38,7 @@ def check_npz(path: Path, src: str, members: Iterable[str], max_memory=None) -> 
     """Refuse an NPZ whose ``members`` (names without ``.npy``) declare more than the budget."""
     wanted = {m + ".npy" for m in members}
     limit, origin = memory_budget(max_memory)
-    total = 0
+    total, bomb = 0, ""
     try:
         with zipfile.ZipFile(path) as zf:
             for info in zf.infolist():
@@ -59,13 +59,15 @@ def check_npz(path: Path, src: str, members: Iterable[str], max_memory=None) -> 
                                     f"holds {format_size(info.file_size)}; the archive is corrupt", src)
                 if dtype.kind in "biufc":
                     total += n
+                    if info.file_size > 50 * max(info.compress_size, 1) and info.file_size > 1 << 26:
+                        bomb = f" ('{name}' is compressed {info.file_size / max(info.compress_size, 1):.0f}:1)"
     except (InputError, DataError):
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError, SyntaxError, OverflowError, zlib.error,
             tokenize.TokenError, TypeError) as exc:
         raise DataError(f"not a readable NPZ archive ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})",
                         src) from None
-    check_log_size(src, total, f"{total:.3g} numbers", max_memory)
+    check_log_size(src, total, f"{total:.3g} numbers{bomb}", max_memory)
 
 
 def check_hdf5(f, keys: Iterable[str], src: str, allow_external: bool | None = None, max_memory=None) -> None:
