@@ -131,6 +131,36 @@ def check_urdf_file(path: str | Path) -> None:
 
 #: no robot body is heavier (kg) or has a larger inertia (kg·m²): a value above it is a unit or typing error
 MAX_BODY_MASS = 1e5
+def check_mjcf_file(path: str | Path) -> None:
+    """RobotModelError (one line, naming the body) for an MJCF mass, density or inertia below zero,
+    which Pinocchio would clamp to 0 silently."""
+    src = str(path)
+    try:
+        root = ET.parse(src).getroot()
+    except ET.ParseError as exc:
+        raise RobotModelError(f"{src}: not well-formed XML ({exc})") from None
+    except OSError as exc:
+        raise RobotModelError(f"{src}: cannot read ({exc.strerror or exc})") from None
+    for body in root.iter("body"):
+        name = body.get("name", "?")
+        for el in [body.find("inertial"), *body.findall("geom")]:
+            if el is None:
+                continue
+            what = f"body '{name}' {'inertial' if el.tag == 'inertial' else 'geom'}"
+            for key in ("mass", "density"):
+                if el.get(key) is not None and _number(el.get(key), f"{what} {key}", src) < 0:
+                    raise RobotModelError(f"{src}: {what} has a negative {key} {el.get(key)}")
+            if el.get("diaginertia") is not None:
+                d = _vector(el.get("diaginertia"), f"{what} diaginertia", src, (0.0, 0.0, 0.0))
+                if np.any(d < 0):
+                    raise RobotModelError(f"{src}: {what} has a negative diaginertia {d.tolist()}")
+            if el.get("fullinertia") is not None:
+                f = _vector(el.get("fullinertia"), f"{what} fullinertia", src, (0.0,) * 6)
+                if f.size == 6:
+                    inertia = np.array([[f[0], f[3], f[4]], [f[3], f[1], f[5]], [f[4], f[5], f[2]]])
+                    if np.linalg.eigvalsh(inertia)[0] < -1e-9 * max(1.0, float(np.abs(f).max())):
+                        raise RobotModelError(f"{src}: {what} has a fullinertia that is not positive "
+                                              f"semi-definite {f.tolist()}")
 
 
 def check_model(model, src: str) -> None:

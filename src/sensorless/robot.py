@@ -267,7 +267,7 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
     if suffix in {".urdf", ".xml", ".mjcf"}:
         if not path.exists():
             raise RobotModelError(f"{spec}: no such robot model file")
-        from .model_checks import check_model, check_urdf_file, quiet_stderr
+        from .model_checks import check_mjcf_file, check_model, check_urdf_file, quiet_stderr
 
         if not path.is_file():
             raise RobotModelError(f"{spec}: not a regular file")
@@ -277,6 +277,7 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
             from .robot_paths import check_mjcf_paths
 
             check_mjcf_paths(path, packages)  # includes and assets stay in the allowed folders
+            check_mjcf_file(path)  # negative masses/inertias, which Pinocchio clamps to 0
         captured: list[str] = []
         try:
             with quiet_stderr() as captured:  # urdfdom/MuJoCo print multi-line C++ messages on fd 2

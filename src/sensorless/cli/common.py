@@ -371,6 +371,41 @@ def add_options(options: dict, *, into: Optional[str] = None, first: bool = Fals
     return deco
 
 
+_READING_OPTIONS = {
+    "max_log_memory": (Optional[str], lambda: typer.Option(
+        None, help="memory a log may expand to when read and preprocessed, e.g. 8GiB (default: a quarter of the "
+                   "available memory, or $SENSORLESS_MAX_LOG_MEMORY); a larger log is refused before reading")),
+    "allow_hdf5_external": (bool, lambda: typer.Option(
+        False, help="read HDF5 datasets stored in other files (external raw storage, virtual datasets)")),
+    "accept_implausible_gains": (bool, lambda: typer.Option(
+        False, help="accept --gains whose torques are over 100× off the robot model's torque scale")),
+}
+
+
+def log_reading_options(skip_bad: bool = True):
+    """Decorator: ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains`` (and
+    ``--skip-bad`` unless the command has its own), applied to every log the command reads
+    (:func:`sensorless.data.limits.read_options`)."""
+    from ..data.limits import read_options
+
+    options = dict(_READING_OPTIONS)
+    if skip_bad:
+        options["skip_bad"] = (bool, lambda: typer.Option(
+            False, help="read the rest of a ROS bag / MCAP file with corrupt chunks (a warning counts what was lost)"))
+
+    def deco(fn):
+        @functools.wraps(fn)
+        def run(*args, reading: dict, **kwargs):
+            with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
+                              accept_implausible_gains=reading["accept_implausible_gains"],
+                              skip_bad=reading.get("skip_bad")):
+                return fn(*args, **kwargs)
+
+        return add_options(options, into="reading")(run)
+
+    return deco
+
+
 def model_preprocessing_options(names: tuple[str, ...] = MODEL_PREPROCESSING):
     """Decorator: the command gets the options ``names`` (columns, rate, lowpass, ...; each
     defaulting to the model's own, result.json settings.preprocessing) in one ``prep`` dict

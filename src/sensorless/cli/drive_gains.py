@@ -10,7 +10,7 @@ import typer
 
 from ..errors import DataError, OptionError
 from .common import (
-    robot_source_options,
+    log_reading_options,
     MultiValueCommand,
     app,
     console,
@@ -34,7 +34,7 @@ __all__ = ["drive_gains"]
 
 @app.command("drive-gains", cls=MultiValueCommand)
 @guarded
-@robot_source_options
+@log_reading_options()
 def drive_gains(
     robot: str = robot_option(),
     unloaded: Path = typer.Option(..., help="log of a trajectory run without the payload (motor currents)"),

@@ -11,6 +11,7 @@ from ..errors import SensorlessError
 from ..io import write_npz_atomic
 from .common import (
     robot_source_options,
+    log_reading_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -50,6 +51,7 @@ def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> N
 @robot_source_options
 @model_preprocessing_options()
 @model_options()
+@log_reading_options()
 def estimate_force(
     robot: str,
     model: Path,

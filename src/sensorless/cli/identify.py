@@ -11,6 +11,7 @@ import typer
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .common import (
     robot_source_options,
+    log_reading_options,
     MultiValueCommand,
     app,
     atomic_outdir,
@@ -56,6 +57,7 @@ from .identify_outputs import _export, _floating_base_checks, _plot_window, _pri
 @app.command(cls=MultiValueCommand)
 @guarded
 @robot_source_options
+@log_reading_options(skip_bad=False)  # identify's own --skip-bad also skips bad files
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),
@@ -278,6 +280,14 @@ def _load_training(data, r, prep: dict, skip_bad: bool):
     """Local path: every training log in memory; with --skip-bad a file that fails is left out and reported."""
     if not skip_bad:
         return load_logs(data, r, **prep), data, []
+    from ..data.limits import read_options
+    from .common import load_log
+
+    with read_options(skip_bad=True):  # corrupt bag/MCAP chunks: the rest of the file is read, with a warning
+        return _load_each(data, r, prep)
+
+
+def _load_each(data, r, prep: dict):
     from .common import load_log
 
     train, used, skipped = [], [], []

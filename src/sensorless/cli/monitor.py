@@ -13,6 +13,7 @@ import typer
 from ..errors import SensorlessError
 from .common import (
     robot_source_options,
+    log_reading_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -47,6 +48,7 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 @robot_source_options
 @model_preprocessing_options()
 @model_options()
+@log_reading_options()
 def monitor(
     robot: str,
     model: Path,

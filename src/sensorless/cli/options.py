@@ -58,8 +58,14 @@ def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
     kept for :func:`check_config` (raised inside the command, as one line)."""
     if value is None or ctx.resilient_parsing:
         return value
+    from ..data.limits import read_small_text
+    from ..errors import InputError
+
     try:
-        doc = tomllib.loads(Path(value).read_text())
+        doc = tomllib.loads(read_small_text(value, "--config file", encoding="utf-8"))  # FIFOs refused, not waited on
+    except InputError as exc:
+        ctx.meta[_CONFIG_ERROR] = str(exc)
+        return value
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         ctx.meta[_CONFIG_ERROR] = f"--config {value}: not a readable TOML file ({exc})"
         return value

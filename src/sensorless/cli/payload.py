@@ -11,6 +11,7 @@ import typer
 from ..errors import SensorlessError
 from .common import (
     robot_source_options,
+    log_reading_options,
     model_logs,
     model_preprocessing_options,
     MultiValueCommand,
@@ -46,6 +47,7 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
 @robot_source_options
 @model_preprocessing_options(("columns", "rate", "lowpass", "savgol_window", "gains", "trim", "resample"))
 @model_options("result.json (or its directory) of the robot identified WITHOUT the payload")
+@log_reading_options()
 def payload(
     robot: str,
     model: Path,

@@ -14,6 +14,7 @@ from ..io import write_npz_atomic
 from .options import Outliers
 from .common import (
     robot_source_options,
+    log_reading_options,
     model_logs,
     model_preprocessing_options,
     app,
@@ -36,6 +37,7 @@ from .common import (
 @robot_source_options
 @model_preprocessing_options()
 @model_options()
+@log_reading_options()
 def predict(
     robot: str,
     model: Path,

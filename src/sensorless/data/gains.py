@@ -80,7 +80,7 @@ def load_gains(spec: Any) -> "float | list[float] | dict[str, float]":
     if isinstance(spec, Path) or (isinstance(spec, str) and Path(spec).suffix.lower() in (".json", ".csv", ".txt")):
         return _read_file(Path(spec))
     if isinstance(spec, str):
-        if Path(spec).is_file():
+        if Path(spec).exists():  # a file, or a FIFO/device that _read_file refuses
             return _read_file(Path(spec))
         return _parse_inline(spec, "<gains>")
     if isinstance(spec, (Sequence, np.ndarray)):
@@ -113,10 +113,6 @@ def _parse_inline(text: str, src: str) -> "list[float] | dict[str, float]":
     return [_number(p, f"#{k}", src) for k, p in enumerate(parts)]
 
 
-#: a gains file is a few lines; anything bigger is not one
-MAX_GAINS_FILE_BYTES = 1024 * 1024
-
-
 def _file_number(val: Any, where: str, src: str) -> float:
     """A gain read from a file; the message names the row/key, never the file's text."""
     try:
@@ -134,21 +130,10 @@ def _key(name: Any) -> str:
 
 
 def _read_file(path: Path) -> "list[float] | dict[str, float]":
-    from ..errors import SensorlessError
-    from ..io import check_input_file
+    from .limits import read_small_text
 
     src = str(path)
-    try:
-        check_input_file(path, "gains file")
-        if path.stat().st_size > MAX_GAINS_FILE_BYTES:
-            raise DataError(f"gains file is larger than {MAX_GAINS_FILE_BYTES} bytes", src)
-        text = path.read_text(encoding="utf-8-sig")
-    except SensorlessError as exc:
-        raise DataError(str(exc).removeprefix(f"{src}: "), src) from None
-    except UnicodeDecodeError:
-        raise DataError("gains file is not UTF-8 text", src) from None
-    except OSError as exc:
-        raise DataError(f"cannot read gains file: {exc.strerror or exc}", src) from None
+    text = read_small_text(path, "gains file")  # a FIFO or device is refused, not waited on
     if path.suffix.lower() == ".json":
         try:
             doc = json.loads(text)

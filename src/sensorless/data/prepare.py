@@ -26,17 +26,20 @@ how), the drive gains, the trim window, the timing and the resampling.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, OptionError, TimestampError
+from ..errors import DataError, DataWarning, OptionError, TimestampError
 from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_derivatives
 from .filtering import DEFAULT_DERIVATIVE_SECONDS, DEFAULT_SAVGOL_WINDOW, default_savgol_window
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
 from .filtering import trim as _trim
+from .limits import current_options, read_options
+from .plausibility import check_gain_plausibility
 from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
@@ -46,6 +49,8 @@ __all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimW
            "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
 
 VELOCITY_SOURCES = ("logged", "from-q")
+#: ``resample="auto"`` refuses a log in which more than this share of the time steps are duplicates
+MAX_DUPLICATE_SHARE = 0.1
 _POLYORDER = 3
 
 
@@ -198,8 +203,20 @@ def prepare(
                 f"duplicate timestamp at sample {i} (t={traj.t[i]:.6f} s; {info.duplicates} in total) and "
                 "resampling is off; use --resample auto (resample='auto') to merge duplicates", src)
     elif mode == "auto":
+        if info.duplicates > MAX_DUPLICATE_SHARE * (len(traj.t) - 1):
+            raise TimestampError(
+                f"{info.duplicates} of {len(traj.t) - 1} time steps ({100 * info.duplicates / (len(traj.t) - 1):.0f} %) "
+                "repeat the previous stamp: the time column is coarser than the sampling, or every sample is logged "
+                "more than once; --resample auto will not guess which. Give the rate: --resample RATE_HZ merges the "
+                "duplicates and interpolates at that rate; if the samples themselves are uniform (a clock too coarse "
+                "for the rate), remove the time column and pass --rate HZ", src)
         if not info.is_uniform(jitter_tolerance):
             traj = _resample(traj, max_gap=max_gap)
+            r = traj.provenance["resampled"]
+            warnings.warn(f"{src}: --resample auto: the time stamps are not uniform ({info.duplicates} duplicate(s), "
+                          f"max step deviation {100 * info.max_deviation:.0f} %); merged {info.duplicates} duplicate "
+                          f"sample(s) and interpolated {info.n_samples - info.duplicates} onto {len(traj.t)} samples at "
+                          f"{r['rate_hz']:.6g} Hz", DataWarning, stacklevel=2)
     else:
         traj = _resample(traj, mode, max_gap=max_gap)
     traj = validate_trajectory(traj, check_units=False)
@@ -305,14 +322,24 @@ def with_imu_frame(traj: Trajectory, robot, frame: str, savgol_window: int | Non
 
 
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
-             resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None, time_unit=None):
+             resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None, time_unit=None,
+             max_memory=None, allow_external=None, skip_bad=None, accept_implausible_gains=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
 
     The one preprocessing function of both the local path (``sensorless.cli.common.load_logs``) and the Dask
     workers (:class:`sensorless.regressor.distributed.LogReader`), so both see the same samples.
     ``outliers`` ("error" | "drop" | "keep") is applied to the raw log; a log that lost samples
-    that way is resampled onto its uniform grid even with ``resample="off"``.
+    that way is resampled onto its uniform grid even with ``resample="off"``. ``max_memory``,
+    ``allow_external``, ``skip_bad`` and ``accept_implausible_gains``: :func:`sensorless.data.limits.read_options`.
     """
+    with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
+                      accept_implausible_gains=accept_implausible_gains):
+        return _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample,
+                         velocity, max_gap, outliers, rest, time_unit)
+
+
+def _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample, velocity, max_gap,
+              outliers, rest, time_unit):
     from .outliers import OUTLIER_MODES
     from .readers import read_trajectory
 
@@ -326,6 +353,9 @@ def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, ga
     traj = read_trajectory(path, columns=cols, rate=rate, robot=robot, gains=gains, time_unit=time_unit,
                            allow_duplicate_times=mode != "off", outliers=outliers)
     dropped = "outlier" in traj.units.get("processing", "")
-    return prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
+    out = prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
                    savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
                    max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap, rest=rest or "auto")
+    if not current_options().get("accept_implausible_gains"):
+        check_gain_plausibility(out, robot)  # τ = K·i against the model's torque scale, per joint
+    return out

@@ -32,9 +32,12 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from ..errors import DataError, ShapeMismatchError, UnitsError
+from ..errors import DataError, InputError, ShapeMismatchError, UnitsError
+from ..io import check_input_file
+from .containers import check_hdf5, check_npz
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
+from .limits import prescan_text, read_options
 from .tabular import Columns, _fields_from_frame, _read_csv, _read_parquet, _short
 from .trajectory import Trajectory, as_float_array
 from .validation import JOINT_EXTRAS, validate_trajectory
@@ -86,6 +89,9 @@ def read_trajectory(
     gains: Any = None,
     allow_duplicate_times: bool = False,
     outliers: str = "error",
+    max_memory: "str | int | None" = None,
+    allow_external: bool | None = None,
+    skip_bad: bool | None = None,
 ) -> Trajectory:
     """Read a log and return it validated (and reordered to ``robot.joint_names``).
 
@@ -97,14 +103,23 @@ def read_trajectory(
     to merge. ``outliers``: gross outliers (:mod:`~sensorless.data.outliers`) raise an
     OutlierError ("error", default), are dropped with a warning ("drop") or kept ("keep").
     Every problem raises a :class:`~sensorless.errors.DataError` subclass naming the file,
-    column and row.
+    column and row. ``max_memory`` (bytes or '8GiB'), ``allow_external`` (HDF5 external/virtual
+    datasets) and ``skip_bad`` (corrupt bag/MCAP chunks) are :mod:`sensorless.data.limits` options.
     """
-    path = Path(path)
+    with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad):
+        return _read_trajectory(Path(path), joint_names, columns, rate, robot, time_unit, gains,
+                                allow_duplicate_times, outliers)
+
+
+def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, gains, allow_duplicate_times,
+                     outliers) -> Trajectory:
     src = str(path)
     if not path.exists():
         raise DataError("no such file", src)
     from .rosbag import is_rosbag, read_rosbag, rosbag_options
 
+    if not path.is_dir():
+        check_input_file(path, "log file")  # a FIFO or device would block or never end
     if is_rosbag(path):  # ROS 1/2 bag or MCAP: topics instead of columns (sensorless.data.rosbag)
         if gains is not None or rate is not None or time_unit is not None:
             raise DataError("gains, rate and time_unit do not apply to a ROS bag (its stamps are in seconds)", src)
@@ -134,6 +149,8 @@ def read_trajectory(
     elif kind == "hdf5":
         raw, file_names = _read_hdf5(path, columns)
     else:
+        if kind == "csv":
+            prescan_text(path, src)  # line length, field count and size bounded before pandas
         df, header = _read_csv(path) if kind == "csv" else (_read_parquet(path), True)
         raw, file_names = _fields_from_frame(df, src, columns, joint_names, header)
     traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
@@ -296,13 +313,13 @@ def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray
     with archive as z:
         keys = list(z.files)
         raw: dict[str, np.ndarray] = {}
+        picked = {f: k for f in FIELDS if (k := _pick_key(f, keys, columns, src)) is not None}
+        check_npz(path, src, [*picked.values(), *(k for k in CONTACT_KEYS + IMU_KEYS if k in keys)])
         try:
-            for field in FIELDS:
-                key = _pick_key(field, keys, columns, src)
-                if key is not None:
-                    raw[field] = _as_float(z[key], src, key)
+            for field, key in picked.items():
+                raw[field] = _as_float(z[key], src, key)
             names = _names(z["joint_names"], src) if "joint_names" in keys else None
-        except DataError:
+        except (DataError, InputError):
             raise
         except _READ_ERRORS as exc:  # pickled/object or corrupt member (zlib.error, BadZipFile...)
             raise DataError(f"cannot read an array from the NPZ archive ({_one_line(exc)})", src) from None
@@ -321,7 +338,7 @@ def _read_hdf5(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarra
         raise DataError(f"not a readable HDF5 file ({_one_line(exc)})", src) from None
     try:
         return _hdf5_fields(f, src, columns)
-    except DataError:
+    except (DataError, InputError):
         raise
     except _READ_ERRORS as exc:  # corrupt dataset, bad link, undecodable names...
         raise DataError(f"cannot read a dataset from the HDF5 file ({_one_line(exc)})", src) from None
@@ -336,10 +353,10 @@ def _hdf5_fields(f, src: str, columns: Columns | None) -> tuple[dict[str, np.nda
     f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
     base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
     raw: dict[str, np.ndarray] = {}
-    for field in FIELDS:
-        key = _pick_key(field, keys, columns, src, base)
-        if key is not None:
-            raw[field] = _as_float(f[key][()], src, key)
+    picked = {fd: k for fd in FIELDS if (k := _pick_key(fd, keys, columns, src, base)) is not None}
+    check_hdf5(f, [*picked.values(), *(k for k in CONTACT_KEYS + IMU_KEYS + ("joint_names",) if k in keys)], src)
+    for field, key in picked.items():
+        raw[field] = _as_float(f[key][()], src, key)
     names = None
     if "joint_names" in keys:
         names = f["joint_names"][()]

@@ -229,6 +229,7 @@ def _read_streams(path: Path, src: str, js_topic, imu_topic, wrench_topics) -> d
             for conn, ns, raw in reader.messages(connections=conns):
                 msg = reader.deserialize(raw, conn.msgtype)
                 got[conn.topic].append((_stamp(msg, ns), msg))
+            _check_counts(reader, conns, got, src)
     except DataError:
         raise
     except Exception as exc:  # rosbags raises its own ReaderError/AnyReaderError/SerdeError, sqlite/OS errors
@@ -311,3 +312,39 @@ def _check_gaps(ts: np.ndarray, t: np.ndarray, max_gap: float, topic: str, src: 
         if np.any((t > ts[g]) & (t < ts[g + 1])):
             raise DataError(f"topic '{topic}' has a {steps[g]:.4g} s gap ({steps[g] / period:.0f} periods) at "
                             f"{ts[g] - ts[0]:.4f} s into the stream; joint samples there cannot be aligned", src)
+
+
+def _bad_chunks(reader) -> list[int]:
+    """Byte offsets of MCAP chunks whose record does not start with the chunk opcode (zeroed or
+    overwritten); best effort through rosbags' reader internals, [] when they are not there."""
+    bad = []
+    for r in getattr(reader, "readers", []):
+        for st in getattr(r, "storages", None) or [getattr(r, "storage", None)]:
+            bio = getattr(st, "bio", None)
+            for chunk in (getattr(st, "chunks", None) or []) if bio is not None else []:
+                bio.seek(chunk.chunk_start_offset)
+                if bio.read(1) != b"\x06":
+                    bad.append(int(chunk.chunk_start_offset))
+    return bad
+
+
+def _check_counts(reader, conns, got: dict, src: str) -> None:
+    """DataError when a topic yields fewer messages than the bag's index/statistics declare (a corrupt
+    chunk that the reader skips without a word); with ``skip_bad`` a DataWarning counting them."""
+    from .limits import current_options
+
+    declared: dict[str, int] = {}
+    for c in conns:
+        declared[c.topic] = declared.get(c.topic, 0) + int(getattr(c, "msgcount", 0) or 0)
+    lost = {t: n - len(got[t]) for t, n in declared.items() if n > len(got[t])}
+    if not lost:
+        return
+    chunks = _bad_chunks(reader)
+    where = (f"corrupt chunk(s) at byte offset(s) {', '.join(map(str, chunks[:5]))}" if chunks
+             else "unreadable data")
+    counts = "; ".join(f"'{t}': {k} of {declared[t]} messages lost" for t, k in sorted(lost.items()))
+    if current_options().get("skip_bad"):
+        warnings.warn(f"{src}: --skip-bad: skipped {len(chunks) or 'some'} {where} ({counts})", DataWarning,
+                      stacklevel=3)
+        return
+    raise DataError(f"{where} ({counts}); pass --skip-bad to read the rest", src)

@@ -76,6 +76,16 @@ def _read_parquet(path: Path) -> "pd.DataFrame":
     import pandas as pd
 
     try:
+        import pyarrow.parquet as pq
+
+        meta = pq.ParquetFile(path).metadata
+    except Exception as exc:  # noqa: BLE001  pyarrow raises ArrowInvalid/OSError/... for a bad file
+        raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(path)) from None
+    from .limits import check_log_size
+
+    n = meta.num_rows * meta.num_columns
+    check_log_size(str(path), n, f"{meta.num_rows} rows × {meta.num_columns} columns")
+    try:
         df = pd.read_parquet(path)
     except Exception as exc:  # pyarrow raises ArrowInvalid/OSError/... for a bad file
         raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(path)) from None
@@ -235,6 +245,8 @@ def _numeric(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarr
         if pd.api.types.is_numeric_dtype(s):
             cols.append(s.to_numpy(dtype=float, na_value=np.nan))
             continue
+        if s.map(lambda x: isinstance(x, (bytes, bytearray, memoryview))).any():
+            raise DataError(f"column '{c}' (for '{field}') holds bytes (binary values); expected real numbers", src)
         num = pd.to_numeric(s, errors="coerce")
         text = s.astype(str).str.strip()
         bad = (num.isna() & s.notna() & (text != "")).to_numpy()

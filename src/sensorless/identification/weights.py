@@ -79,10 +79,9 @@ def read_weights_file(path: str | Path, rows: Sequence[str]) -> np.ndarray:
     """Per-row σ from a JSON object ``{joint: σ}`` or a CSV file (module docstring)."""
     path = Path(path)
     rows = list(rows)
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise OptionError(f"--weights {path}: cannot read ({exc})") from None
+    from ..data.limits import read_small_text
+
+    text = read_small_text(path, "--weights file")  # a FIFO or device is refused, not waited on
     if path.suffix.lower() == ".json" or text.lstrip().startswith("{"):
         try:
             values = json.loads(text)
@@ -112,6 +111,6 @@ def weights_option(value: str, rows: Sequence[str]) -> str | np.ndarray | None:
     """The CLI's ``--weights auto|none|FILE`` as the ``weights`` argument of ``identify``."""
     if value in WEIGHT_MODES:
         return check_weights(value, rows)
-    if not Path(value).is_file():
+    if not Path(value).exists():
         raise OptionError(f"--weights must be auto, none or a JSON/CSV file of per-joint σ; no file '{value}'")
     return read_weights_file(value, rows)
