@@ -189,3 +189,30 @@ def test_cli_identifies_a_legged_robot_from_npz_logs_with_contact_flags(solo12, 
     # a contact frame that does not exist is a one-line error, and no output is left behind
     bad = CliRunner().invoke(app, [str(a) for a in args[:-14]] + ["--out", str(tmp_path / "bad"), "--contact-frames", "FL_FOOT,NOPE"])
     assert bad.exit_code != 0 and "NOPE" in bad.output and not (tmp_path / "bad").exists()
+
+
+def test_contacts_that_leave_no_equation_are_refused_with_the_reason(solo12, rigid):
+    """Four flat feet held on the ground constrain all 18 directions (the clamped-leg case): the
+    projection keeps none of the torques' energy, and identify says so instead of fitting noise."""
+    from sensorless.errors import ExcitationError
+
+    truth, log = rigid
+    clamped = log.with_(extras={**log.extras, "contact": np.ones_like(log.extras["contact"])})
+    s = ContactStructure(solo12, contact_frames=FEET, contact_dims=(6, 6, 6, 6))
+    with pytest.raises(ExcitationError, match=r"projection keeps .* % of the logged torques' energy.*FL_FOOT"):
+        identify(s, clamped, method="lmi", gamma=1e-3)
+    identify(ContactStructure(solo12, contact_frames=FEET), log, method="svd")  # the same log, point feet: fine
+
+
+def test_a_robot_held_still_is_refused(panda):
+    from sensorless.errors import ExcitationError
+
+    truth = perturbed_truth(panda, rng=0)
+    n = 500
+    q = np.tile(np.array([0.1, -0.3, 0.2, -1.5, 0.1, 1.2, 0.3]), (n, 1))
+    z = np.zeros_like(q)
+    tau = truth.torques(panda.full_configuration(q), panda.full_velocity(z), panda.full_velocity(z))
+    still = Trajectory(t=np.arange(n) * 0.01, q=q, v=z, a=z, tau=tau + np.random.default_rng(0).normal(0, 0.01, tau.shape),
+                       joint_names=panda.joint_names)
+    with pytest.raises(ExcitationError, match="no joint moves"):
+        identify(panda, still, joint_terms=("offset",), method="lmi", gamma=1e-3)

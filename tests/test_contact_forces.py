@@ -66,3 +66,18 @@ def test_contact_force_input_errors(trot):
     ur5 = ModelStructure(load_robot("ur5"))
     with pytest.raises(RobotModelError, match="floating-base"):
         estimate_contact_forces(MomentumDynamics(ur5, ur5.prior()), traj, feet)
+
+
+def test_a_massless_root_link_gives_finite_forces_not_nan(trot):
+    """The trunk's mass moved onto the first hip body: the robot's dynamics are unchanged except for
+    the trunk's own CoM, so the forces stay finite and near the truth (the NaN came from c = h/m)."""
+    traj, gt, dyn, weight, feet = trot
+    p = dyn.params.copy()
+    hip = 10 * 1  # the first body after the trunk
+    p[hip:hip + 10] += p[:10]
+    p[:10] = 0.0
+    est = estimate_contact_forces(MomentumDynamics(dyn.structure, p), traj.with_(a=gt.a, base_a=gt.base_a), feet,
+                                  method="inverse_dynamics", contact_offset=gt.foot_radius)
+    assert np.all(np.isfinite(est.forces))
+    total = est.forces[:, :, 2].sum(axis=1)
+    assert abs(np.median(total) / weight - 1) < 0.2  # the feet still carry the robot's weight

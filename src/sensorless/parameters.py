@@ -47,6 +47,7 @@ __all__ = [
     "parameter_labels",
     "as_bodies",
     "inertia_matrix",
+    "pin_inertia",
     "pseudo_inertia",
     "from_pseudo_inertia",
     "pseudo_inertia_basis",
@@ -112,6 +113,16 @@ def _skew_sq(c: np.ndarray) -> np.ndarray:
 
 
 # ---- pseudo-inertia ----------------------------------------------------------
+def pin_inertia(pi: np.ndarray) -> pin.Inertia:
+    """``pin.Inertia`` of one body's 10 parameters. Unlike ``Inertia.FromDynamicParameters``
+    (c = h/m: NaN for m = 0), a massless body is the zero spatial inertia plus its rotational
+    inertia (a massless link, a virtual frame): no NaN enters the dynamics."""
+    pi = _check10(pi)
+    if pi[0] > 0:
+        return pin.Inertia.FromDynamicParameters(pi)
+    return pin.Inertia(0.0, np.zeros(3), inertia_matrix(pi))
+
+
 def pseudo_inertia(pi: np.ndarray) -> np.ndarray:
     """``J = [[1/2 tr(I) 1 - I, h], [h^T, m]]``, shape ``(..., 4, 4)``."""
     pi = _check10(pi)

@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import JointNameError, RobotModelError
+from .parameters import pin_inertia
 from .xacro_expand import expand_xacro
 
 __all__ = ["Actuation", "Robot", "expand_xacro", "load_robot"]
@@ -154,7 +155,7 @@ class Robot(Actuation):
             raise RobotModelError(f"expected {10 * self.n_bodies} inertial parameters, got {pi.shape}")
         model = self.model.copy()
         for k in range(self.n_bodies):
-            model.inertias[k + 1] = pin.Inertia.FromDynamicParameters(pi[10 * k : 10 * k + 10])
+            model.inertias[k + 1] = pin_inertia(pi[10 * k : 10 * k + 10])
         return Robot(model, name=name or self.name, source=self.source, actuated_joints=self.actuated_joints)
 
     # ---- state assembly -----------------------------------------------------

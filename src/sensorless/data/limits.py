@@ -6,7 +6,10 @@ allocating, every reader checks what the file *declares* (the NPZ zip directory 
 headers, HDF5 dataset shapes, Parquet metadata, a CSV's size and first lines) against
 :func:`memory_budget`:
 
-* default: :data:`DEFAULT_FRACTION` of the available memory (``psutil``, else ``/proc/meminfo``);
+* default: :data:`DEFAULT_FRACTION` of the available memory (``psutil``, else ``/proc/meminfo``),
+  at most :data:`DEFAULT_CAP` (so that the default does not depend on the machine: a 10⁷-row
+  log, hours of 1 kHz data, is refused in seconds everywhere instead of running for many
+  minutes where memory happens to allow it);
 * ``SENSORLESS_MAX_LOG_MEMORY`` (environment, e.g. ``8GiB``), ``--max-log-memory`` (command
   line) or ``max_memory=`` (library) override it.
 
@@ -27,11 +30,13 @@ from typing import Iterator
 from ..errors import InputError, OptionError
 
 __all__ = ["memory_budget", "parse_size", "format_size", "check_log_size", "prescan_text", "read_options",
-           "current_options", "read_small_text", "FIXES", "ENV_VAR", "DEFAULT_FRACTION", "PIPELINE_FACTOR", "MAX_LINE_BYTES", "MAX_FIELDS"]
+           "current_options", "read_small_text", "FIXES", "ENV_VAR", "DEFAULT_FRACTION", "DEFAULT_CAP", "PIPELINE_FACTOR", "MAX_LINE_BYTES", "MAX_FIELDS"]
 
 ENV_VAR = "SENSORLESS_MAX_LOG_MEMORY"
 #: share of the available memory one log may expand to by default
 DEFAULT_FRACTION = 0.25
+#: the default budget never exceeds this [bytes], whatever the machine (module docstring)
+DEFAULT_CAP = 4 << 30
 #: peak memory of identify (read, preprocess, regressor) over the float64 size the log declares; measured
 #: on 10⁶ rows, 7 joints, t/q/v/tau logged: peak RSS growth 2.8× (load_log) and 3.0× (identify --method ols)
 PIPELINE_FACTOR = 4.0
@@ -111,7 +116,10 @@ def memory_budget(max_memory: "str | int | None" = None) -> tuple[int, str]:
     env = os.environ.get(ENV_VAR)
     if env:
         return parse_size(env, ENV_VAR), ENV_VAR
-    return int(available_memory() * DEFAULT_FRACTION), f"{DEFAULT_FRACTION:.0%} of the available memory"
+    share = int(available_memory() * DEFAULT_FRACTION)
+    if share > DEFAULT_CAP:
+        return DEFAULT_CAP, f"the default cap of {format_size(DEFAULT_CAP)}"
+    return share, f"{DEFAULT_FRACTION:.0%} of the available memory"
 
 
 def check_log_size(src: str, n_values: float, what: str, max_memory: "str | int | None" = None) -> None:

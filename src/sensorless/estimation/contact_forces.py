@@ -123,6 +123,10 @@ def estimate_contact_forces(
             threshold = 0.05 * mass * np.linalg.norm(dynamics.model.gravity.linear)
         flags = F[:, :, 2] > threshold
         F, resid = solve_contact_forces(Jc, tau_ext, flags)
+    bad = ~np.all(np.isfinite(F.reshape(len(F), -1)), axis=1)
+    if bad.any():
+        raise DataError(f"the contact forces are not finite on {int(bad.sum())} of {len(F)} samples (first: sample "
+                        f"{int(np.flatnonzero(bad)[0])}); the model or the log holds non-finite values", traj.source)
     return ContactForceEstimate(traj.t, F, flags, frames, tau_ext, resid,
                                 {"method": method, "gain": gain, "order": order, "contact_offset": contact_offset,
                                  "flags": "detect" if detect else "log", "threshold": threshold})

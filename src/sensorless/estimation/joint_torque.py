@@ -40,6 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import NonFiniteError, RobotModelError, ShapeMismatchError
+from ..parameters import pin_inertia
 from ..robot import Robot
 
 __all__ = ["FTSensor", "ImuSpec", "JointTorqueEstimate", "JointTorqueEstimator"]
@@ -164,7 +165,7 @@ class JointTorqueEstimator:
             self._sensor_placement.append(X)
             if s.distal_inertia is not None:
                 pi = m.inertias[k].toDynamicParameters() - X.act(s.distal_inertia).toDynamicParameters()
-                self._prox.inertias[k] = pin.Inertia.FromDynamicParameters(pi)
+                self._prox.inertias[k] = pin_inertia(pi)
         for j in beyond:
             self._prox.inertias[j] = pin.Inertia.Zero()
         self._beyond_v = sorted(int(m.joints[j].idx_v) for j in beyond)

@@ -43,6 +43,7 @@ from scipy import signal
 from ..data.integral_filter import observer_filter
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, ShapeMismatchError, TimestampError
+from ..parameters import pin_inertia
 
 __all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "benchmark_observer", "depth_first_model", "observer_filter"]
 
@@ -115,7 +116,7 @@ class MomentumDynamics:
             for j in range(1, model.njoints):
                 model.inertias[j] = pin.Inertia.Zero()
             for k, b in enumerate(ids):
-                model.inertias[int(b) + 1] = pin.Inertia.FromDynamicParameters(params[10 * k : 10 * k + 10])
+                model.inertias[int(b) + 1] = pin_inertia(params[10 * k : 10 * k + 10])
             model, perm = depth_first_model(model)
             self.tree = tree
             self._perm = perm

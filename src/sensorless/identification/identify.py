@@ -34,7 +34,7 @@ from .least_squares import (
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
 from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
-from .torque_channels import TorqueChannels, check_torque_channels
+from .torque_channels import TorqueChannels, check_information, check_torque_channels
 from .weights import check_weights
 from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
@@ -136,6 +136,7 @@ def identify(
     t_compress = time.perf_counter() - t0
     if channels is not None:
         check_torque_channels(channels)
+        check_information(ne, channels, motion)
     _check_finite_equations(ne)
     stribeck_search = None
     if cand is not None:

@@ -14,6 +14,12 @@ joint. The scale rule compares root-mean-square values on a subsample of each lo
   ``rms(τ_j) < rms(τ̂_j) / SCALE_FACTOR``.
 
 A prior without mass (``rms(τ̂) ≈ 0`` everywhere) gives no scale, and the rule is skipped.
+
+After the compression, :func:`check_information` refuses equations that keep almost nothing of
+the logged torques: a contact projection whose rows hold less than :data:`MIN_PROJECTED_ENERGY`
+of their energy, ``Σ‖P Sᵀ τ‖² < MIN_PROJECTED_ENERGY · Σ‖τ‖²`` (the contacts constrain every
+direction the torques act in: a clamped joint, a robot fixed to the ground), and logs in which
+no joint moves at all (one pose: only a few gravity combinations are measured).
 """
 
 from __future__ import annotations
@@ -25,12 +31,14 @@ import numpy as np
 from ..data.trajectory import Trajectory
 from ..errors import DataError, UnitsError
 
-__all__ = ["SCALE_FACTOR", "DEAD_SECONDS", "TorqueChannels", "check_torque_channels"]
+__all__ = ["SCALE_FACTOR", "DEAD_SECONDS", "MIN_PROJECTED_ENERGY", "TorqueChannels", "check_information",
+           "check_torque_channels"]
 
 SCALE_FACTOR = 100.0
 # a channel holding one exact value for this long (and ≥ DEAD_SAMPLES) while its joint's speed varies is dead
 DEAD_SECONDS = 1.0
 DEAD_SAMPLES = 100
+MIN_PROJECTED_ENERGY = 1e-3
 SUBSAMPLE = 2000  # prior torques per log for the scale rule (RNEA on a subsample)
 _FIX = "check the log's torque columns (--columns) and units (--gains for currents)"
 
@@ -46,6 +54,7 @@ class TorqueChannels:
     ss_meas: np.ndarray = field(default=None)  # type: ignore[assignment]
     ss_prior: np.ndarray = field(default=None)  # type: ignore[assignment]
     n_sub: int = 0
+    raw_energy: float = 0.0  # Σ‖τ‖² over every logged torque column
     dead: dict = field(default_factory=dict)  # row -> (seconds, source, first time)
 
     def __post_init__(self) -> None:
@@ -58,6 +67,8 @@ class TorqueChannels:
         self._prior = None
 
     def add(self, traj: Trajectory) -> Trajectory:
+        if traj.tau is not None and len(traj):
+            self.raw_energy += float(np.sum(np.square(traj.tau)))
         if not self.rows or traj.tau is None or not len(traj):
             return traj
         y = self.structure.target(traj)
@@ -130,3 +141,24 @@ def check_torque_channels(ch: TorqueChannels) -> None:
                 f"predicts on the same samples (rms {rms_prior[i]:.3g}{'' if small else f'; the largest joint: {top:.3g}'}), "
                 f"more than {SCALE_FACTOR:g}× off: a unit or gain mistake? {_FIX}; "
                 "--accept-implausible fits it anyway")
+
+
+def check_information(ne, ch: TorqueChannels, motion) -> None:
+    """ExcitationError when the equations keep (almost) nothing of the data (module docstring)."""
+    from ..errors import ExcitationError
+
+    s = ch.structure
+    if getattr(s, "mode", None) == "projected" and ch.raw_energy > 0:
+        ratio = float(np.sum(ne.c)) / ch.raw_energy
+        if ratio < MIN_PROJECTED_ENERGY:
+            frames = ", ".join(getattr(s, "contact_frames", ()) or ())
+            raise ExcitationError(
+                f"the contact projection keeps {100 * ratio:.2g} % of the logged torques' energy: the contacts "
+                f"({frames}) constrain every direction the joint torques act in, so nothing is left to identify "
+                "(a clamped or passive joint held by an unmodelled force, a robot fixed to the ground?); check "
+                "--contact-frames/--contact-dims, or log motion with fewer contacts")
+    ranges = motion.ranges if motion is not None and motion.n_samples else {}
+    if ranges and all(r < 1e-3 for r in ranges.values()):
+        raise ExcitationError(
+            f"no joint moves in the {motion.n_samples} samples (every position range < 1e-3): one pose measures "
+            "only a few gravity combinations; log a motion (sensorless excite designs one) or several poses")
