@@ -6,7 +6,8 @@ Classes (default counts at --scale 1): ``npz`` 4000, ``csv`` 2500, ``hdf5`` 1500
 keys, shapes, dtypes, NaN/inf/huge values, truncated or corrupted bytes), ``identify`` 1800 (small
 random trajectories of a 2-link arm, all methods), ``cli`` 250 (random ``identify`` option values),
 and (issue 26, ``fuzz_classes/``) ``outputs`` 1500, ``descriptions`` 1000, ``oversize`` 400,
-``model_folder`` 400, ``containers`` 600. Each input is classified:
+``model_folder`` 400, ``containers`` 600, ``numerics`` 600 (issue 23: constant, zero, dead,
+≥ 100× scaled, permuted and sign-flipped torque channels). Each input is classified:
 
 * ``typed``   — a SensorlessError (the wanted failure);
 * ``ok``      — success with finite, sane values (identify: |π| < 1e6, or a warning said so);

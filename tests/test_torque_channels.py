@@ -94,3 +94,17 @@ def test_cli_refuses_scaled_torques_naming_the_joint_unless_accepted(log, tmp_pa
     res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "b"), "--accept-implausible"])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "b" / "result.json").exists()
+
+
+def test_a_reversed_sign_names_the_joint(log):
+    robot, traj = log
+    with pytest.raises(DataError, match=rf"joint '{robot.joint_names[1]}'.*reversed sign"):
+        identify(robot, _with_tau(traj, 1, -traj.tau[:, 1]), weights=None)
+
+
+def test_swapped_columns_name_the_joint(log):
+    robot, traj = log
+    tau = traj.tau.copy()
+    tau[:, [1, 3]] = tau[:, [3, 1]]
+    with pytest.raises(DataError, match=r"swapped columns"):
+        identify(robot, traj.with_(tau=tau), weights=None)
