@@ -49,12 +49,12 @@ def test_fixed_origin_frame_refuses_mass_without_com_and_recovers_it_with_com(ca
         assert "origin does not move" in str(exc.value) and "'rcm'" in str(exc.value)
     est = identify_payload(result, log, "rcm", com=COM, n_boot=20)
     assert abs(est.mass - M) / M < 0.03, est
-    assert est.determinacy["mass"] == "from --com" and est.determinacy["first_moment"] == "data"
+    assert est.determinacy["mass"] == "from the given CoM" and est.determinacy["first_moment"] == "data"
     assert est.determinacy["mass_lever_m"] < 1e-9
     doc = est.to_dict()
-    assert doc["determinacy"]["mass"] == "from --com"
+    assert doc["determinacy"]["mass"] == "from the given CoM"
     # a CoM at the frame origin carries no mass through m·c
-    with pytest.raises(ExcitationError, match="m·c = 0"):
+    with pytest.raises(ExcitationError, match="carries no mass"):
         identify_payload(result, log, "rcm", com=np.zeros(3), n_boot=0)
     # a frame whose origin moves: the log determines m itself
     moving = identify_payload(result, _log(s, p, "pitch_end"), "pitch_end", mode="com", n_boot=0)
@@ -115,7 +115,7 @@ def test_cli_payload_at_a_fixed_origin_names_com(psm_cli):
     code, out = _run(base + ["--data", d / "rcm.csv", "--frame", "rcm", "--com", "0.01,0,0.05", "--out", d / "b.json"])
     assert code == 0, out
     doc = json.loads((d / "b.json").read_text())
-    assert abs(doc["mass"] - M) / M < 0.03 and doc["determinacy"]["mass"] == "from --com"
+    assert abs(doc["mass"] - M) / M < 0.03 and doc["determinacy"]["mass"] == "from the given CoM"
     assert "determined by the log" in out
 
 

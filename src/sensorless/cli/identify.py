@@ -9,6 +9,7 @@ from typing import List, Optional
 import typer
 
 from ..errors import ExcitationError, OptionError, SensorlessError
+from .frames import frame_options
 from .common import (
     robot_source_options,
     MultiValueCommand,
@@ -56,6 +57,7 @@ from .identify_outputs import _export, _floating_base_checks, _plot_window, _pri
 @app.command(cls=MultiValueCommand)
 @guarded
 @robot_source_options
+@frame_options
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),

@@ -9,6 +9,7 @@ import numpy as np
 import typer
 
 from ..errors import ExcitationError, SensorlessError
+from .frames import frame_options
 from .common import (
     robot_source_options,
     model_logs,
@@ -42,6 +43,7 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
 @app.command(cls=MultiValueCommand)
 @guarded
 @robot_source_options
+@frame_options
 @model_preprocessing_options(("columns", "rate", "lowpass", "savgol_window", "gains", "trim", "resample"))
 @model_options("result.json (or its directory) of the robot identified WITHOUT the payload")
 def payload(

@@ -249,18 +249,19 @@ def identify_payload(
                        mass_from_com=False)
         if det["mass"] == "undetermined":
             why = ("its origin does not move under the logged joints" if det["mass_lever_m"] < 1e-9 else
-                   "the log cannot separate m from m·c")
-            if not com_given:
+                   "the log cannot separate m from m·c (the frame's origin moves too little, or only rotates "
+                   "about a fixed point)")
+            if not com_given and used != "mass":
                 raise ExcitationError(
                     f"the payload mass at frame '{frame}' is not determined by the log: {why} (only m·c, the first "
                     "moment, is); give the payload's CoM in the frame with --com X,Y,Z to compute m from m·c, or "
                     "choose a frame whose origin moves")
             g = point_mass_parameters(1.0, com_arr)
-            if np.linalg.norm(com_arr) < LEVER_TOL or float(g @ system.Ar @ g) <= 0:
-                raise ExcitationError(f"the payload mass at frame '{frame}' is not determined: {why}, and the CoM "
-                                      f"given (--com) is at the frame origin, where m·c = 0 carries no mass")
+            if np.sqrt(max(float(g @ system.Ar @ g), 0.0) / np.linalg.eigvalsh(system.Ar[:4, :4])[-1]) < LEVER_TOL:
+                raise ExcitationError(f"the payload mass at frame '{frame}' is not determined: {why}, and at the CoM "
+                                      f"given ({', '.join(f'{x:g}' for x in com_arr)} m) m·c carries no mass either")
             used = "mass"
-            det = {**det, "mass": "from --com", "inertia": "assumed (point mass)"}
+            det = {**det, "mass": "from the given CoM", "inertia": "assumed (point mass)"}
         solver = _Solver(used, consistent, com_arr)
         phi, cov_unit, Gphi = solver(system.Ar, system.br)
         o = system.offsets_for(phi)

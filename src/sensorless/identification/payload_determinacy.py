@@ -12,8 +12,8 @@ a lever arm: √(s_m / λ_max) [m], the part of the mass column the first-moment
 not explain, relative to one metre of them. The inertia needs angular acceleration: the
 existing excitation measure of the inertia block decides it.
 
-Verdicts: ``"data"`` (the log determines it), ``"undetermined"``, ``"from --com"`` (m from
-m·c and a CoM the user gave), ``"at bound: not determined"`` (the estimate sits at m = 0,
+Verdicts: ``"data"`` (the log determines it), ``"undetermined"``, ``"from the given CoM"``
+(m from m·c and a CoM the user gave: --com, or the frame origin in mode mass), ``"at bound: not determined"`` (the estimate sits at m = 0,
 the bound of the fit), ``"assumed (point mass)"`` (inertia in modes com/mass).
 """
 
@@ -23,8 +23,9 @@ import numpy as np
 
 __all__ = ["LEVER_TOL", "first_moment_lever", "mass_lever"]
 
-LEVER_TOL = 1e-5
-"""[m] A mass column whose independent part is below this lever arm does not determine m."""
+LEVER_TOL = 5e-3
+"""[m] A mass column whose independent part is below this lever arm does not determine m (a frame
+that only rotates about a fixed point separates m from m·c through accelerations alone: ~1 mm)."""
 
 
 def _lam_max(A: np.ndarray) -> float:
@@ -55,7 +56,7 @@ def verdicts(A: np.ndarray, *, mode: str, inertia_excitation: float, inertia_thr
     """Per quantity ("mass", "first_moment", "inertia"): its verdict, and the measures behind them."""
     lever = mass_lever(A)
     fm = first_moment_lever(A, mass_known=lever >= LEVER_TOL)
-    mass = "from --com" if mass_from_com else ("data" if lever >= LEVER_TOL else "undetermined")
+    mass = "from the given CoM" if mass_from_com else ("data" if lever >= LEVER_TOL else "undetermined")
     if mode in ("com", "mass"):
         inertia = "assumed (point mass)"
     else:
