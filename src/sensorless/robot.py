@@ -28,7 +28,7 @@ from .errors import JointNameError, RobotModelError
 from .parameters import pin_inertia
 from .xacro_expand import expand_xacro
 
-__all__ = ["Actuation", "Robot", "expand_xacro", "load_robot"]
+__all__ = ["Actuation", "Robot", "add_frame", "expand_xacro", "frame_table", "load_robot"]
 
 
 class Actuation:
@@ -382,3 +382,52 @@ def _erd_model(name: str) -> tuple[pin.Model, str | None]:
         model.upperPositionLimit, model.lowerPositionLimit = ub, lb
     return model, urdf
 
+
+
+def add_frame(robot, name: str, parent: str, xyz: Sequence[float], rpy: Sequence[float] = (0.0, 0.0, 0.0)) -> int:
+    """Add an operational frame ``name`` at ``xyz`` [m] and roll-pitch-yaw ``rpy`` [rad] in the
+    axes of frame ``parent`` (any frame of the model: a link, a joint, another frame) and
+    return its id. Works on a :class:`Robot` and on a coordinate robot (the frame goes on its
+    tree); the robot's Pinocchio data is recreated. RobotModelError names the frame or parent."""
+    base = getattr(robot, "tree", robot)
+    model = base.model
+    label = getattr(robot, "source", "") or getattr(robot, "name", "robot")
+    xyz, rpy = np.asarray(xyz, float).reshape(-1), np.asarray(rpy, float).reshape(-1)
+    if not name or any(c in name for c in ":,") or not name.strip() == name:
+        raise RobotModelError(f"{label}: cannot add a frame named '{name}': give a name without ':', ',' or spaces around it")
+    if model.existFrame(name):
+        raise RobotModelError(f"{label}: cannot add frame '{name}': the model already has a frame of that name")
+    if not model.existFrame(parent):
+        raise RobotModelError(f"{label}: cannot add frame '{name}': unknown parent frame '{parent}'; known frames: "
+                              f"{[f.name for f in model.frames]}")
+    if xyz.shape != (3,) or rpy.shape != (3,) or not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(rpy))):
+        raise RobotModelError(f"{label}: frame '{name}' needs a finite position x,y,z and rotation r,p,y, "
+                              f"got {xyz.tolist()} and {rpy.tolist()}")
+    pid = model.getFrameId(parent)
+    pf = model.frames[pid]
+    placement = pf.placement * pin.SE3(pin.rpy.rpyToMatrix(*rpy), xyz)
+    fid = model.addFrame(pin.Frame(name, pf.parentJoint, pid, placement, pin.FrameType.OP_FRAME))
+    base.data = model.createData()
+    return int(fid)
+
+
+def frame_table(robot) -> list[dict]:
+    """Every frame of ``robot`` (of its tree for a coordinate robot): name, type, parent joint
+    and frame, placement in the parent joint's axes, and world origin and axes (columns x, y,
+    z of the rotation) at zero joint values."""
+    base = getattr(robot, "tree", robot)
+    model = base.model
+    data = model.createData()
+    zero = np.zeros((1, len(robot.joint_names)))
+    q = (robot.tree_state(zero)[0] if base is not robot else robot.full_configuration(zero))[0]
+    pin.framesForwardKinematics(model, data, q)
+    out = []
+    for k, f in enumerate(model.frames):
+        w = data.oMf[k]
+        out.append({
+            "name": f.name, "type": str(f.type).split(".")[-1], "parent_joint": model.names[f.parentJoint],
+            "parent_frame": model.frames[f.parentFrame].name if k else "",
+            "xyz": f.placement.translation.tolist(), "rpy": pin.rpy.matrixToRpy(f.placement.rotation).tolist(),
+            "world_origin": w.translation.tolist(), "world_axes": w.rotation.T.tolist(),
+        })
+    return out

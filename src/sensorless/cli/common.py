@@ -266,10 +266,17 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
 
         if lock or floating:
             raise SensorlessError(f"--robot {robot}: --lock and --floating-base do not apply to the PSM model")
-        return psm_robot()
-    return load_robot_cli(robot, lock_joints=lock or (), floating_base=floating)
+        r = psm_robot()
+    else:
+        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating)
+    from ..robot import add_frame
+
+    for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
+        add_frame(r, *spec)
+    return r
 
 
+_ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
 _ROBOT_SOURCE: "contextvars.ContextVar[dict]" = contextvars.ContextVar("robot_source", default={})
 
 

@@ -9,6 +9,7 @@ import typer
 
 from ..errors import SensorlessError
 from ..io import write_npz_atomic
+from .frames import frame_options
 from .common import (
     robot_source_options,
     log_reading_options,
@@ -49,6 +50,7 @@ def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> N
 @app.command("estimate-force")
 @guarded
 @robot_source_options
+@frame_options
 @model_preprocessing_options()
 @model_options()
 @log_reading_options()

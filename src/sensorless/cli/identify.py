@@ -9,6 +9,7 @@ from typing import List, Optional
 import typer
 
 from ..errors import ExcitationError, OptionError, SensorlessError
+from .frames import frame_options
 from .common import (
     robot_source_options,
     log_reading_options,
@@ -58,6 +59,7 @@ from .identify_outputs import _export, _floating_base_checks, _plot_window, _pri
 @guarded
 @robot_source_options
 @log_reading_options(skip_bad=False)  # identify's own --skip-bad also skips bad files
+@frame_options
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),

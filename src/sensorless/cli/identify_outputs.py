@@ -55,9 +55,12 @@ def _floating_base_checks(structure, result, doc: dict, train, val, validate) ->
     p = result.parameters
     fb = {"contact_rows": structure.settings()["contact_rows"], "wrench_offset": structure.offset_values(p),
           "train": [], "validation": {}}
+    from ..regressor.contact_inference import contact_summary
+
     for traj in train:
         fb["train"].append({"base_wrench": base_wrench_metrics(structure, p, traj),
-                            "com_cop": com_cop_check(structure, p, traj)})
+                            "com_cop": com_cop_check(structure, p, traj),
+                            "contacts": contact_summary(structure, traj)})
     for path, traj in zip(validate, val):
         fb["validation"][str(path)] = {"base_wrench": base_wrench_metrics(structure, p, traj),
                                        "com_cop": com_cop_check(structure, p, traj)}
@@ -70,6 +73,15 @@ def _floating_base_checks(structure, result, doc: dict, train, val, validate) ->
         f"{mass.get('urdf_total_mass', float('nan')):.3f} kg); base-wrench RMSE (world) {bw['force_rmse_norm']:.3g} N, "
         f"{bw['moment_rmse_norm']:.3g} N·m"
         + (f"; CoM–CoP on standing windows {1e3 * cc['distance_mean']:.1f} mm" if cc["n_samples"] else ""))
+    for traj_doc in fb["train"]:
+        c = traj_doc["contacts"]
+        console.print(f"contact flags from the {c['source']}: in contact "
+                      + ", ".join(f"{k} {100 * v:.0f} %" for k, v in c["fraction"].items()) + " of the samples",
+                      highlight=False)
+        missed = {k: v for k, v in c.get("loaded_unflagged", {}).items() if v}
+        if missed:
+            err_console.print(f"[yellow]warning:[/] the log's contact flags leave out samples whose measured normal "
+                              f"force is above the noise: {missed} (those forces are not used)")
     for traj_doc in fb["train"]:
         if traj_doc["com_cop"]["ok"] is False:
             err_console.print(f"[yellow]warning:[/] the identified CoM is {1e3 * traj_doc['com_cop']['distance_mean']:.1f} mm "
@@ -106,3 +118,4 @@ def _export(result, tmp: Path, doc: dict) -> None:
         doc["urdf"] = None
         doc["urdf_error"] = str(exc)
         err_console.print(f"[yellow]warning:[/] no URDF written: {exc}")
+

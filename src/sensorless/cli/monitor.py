@@ -11,6 +11,7 @@ import numpy as np
 import typer
 
 from ..errors import SensorlessError
+from .frames import frame_options
 from .common import (
     robot_source_options,
     log_reading_options,
@@ -46,6 +47,7 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 @app.command()
 @guarded
 @robot_source_options
+@frame_options
 @model_preprocessing_options()
 @model_options()
 @log_reading_options()

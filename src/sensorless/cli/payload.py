@@ -8,7 +8,8 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from ..errors import SensorlessError
+from ..errors import ExcitationError, SensorlessError
+from .frames import frame_options
 from .common import (
     robot_source_options,
     log_reading_options,
@@ -45,6 +46,7 @@ def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
 @app.command(cls=MultiValueCommand)
 @guarded
 @robot_source_options
+@frame_options
 @model_preprocessing_options(("columns", "rate", "lowpass", "savgol_window", "gains", "trim", "resample"))
 @model_options("result.json (or its directory) of the robot identified WITHOUT the payload")
 @log_reading_options()
@@ -62,7 +64,10 @@ def payload(
     offsets: str = typer.Option("auto", help="constant torque offset per joint (session drift, recalibration): auto "
                                              "(where distinguishable from the payload) | all | none | JOINT,JOINT"),
     mode: PayloadMode = typer.Option(PayloadMode.auto, help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
-    com: Optional[str] = typer.Option(None, help="mode mass: CoM 'x,y,z' [m] in the frame (default the frame origin)"),
+    com: Optional[str] = typer.Option(None, help="payload CoM 'x,y,z' [m] in the frame: mode mass (default the frame "
+                                               "origin), and m from m·c at a frame whose origin the log does not move"),
+    accept_bound: bool = typer.Option(False, help="write a result whose mass sits at its bound 0 (labelled 'at bound: "
+                                                  "not determined') instead of refusing it"),
     n_boot: int = typer.Option(200, help="block-bootstrap resamples (0: HAC covariance only)"),
     block_seconds: float = typer.Option(1.0, help="block length [s] of the HAC covariance and the bootstrap"),
     flag_sigma: float = typer.Option(3.0, help="flag a joint whose own mass is this many σ from the estimate ..."),
@@ -101,6 +106,11 @@ def payload(
     est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
                            com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
                            flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
+    if est.mass_at_bound and not accept_bound:
+        raise ExcitationError(
+            f"payload at '{frame}': the mass is at its bound 0 (least squares without the bound: "
+            f"{est.diagnostics['mass_unconstrained']:.4g} kg), so the log does not determine it; no payload is visible "
+            "at this frame, or the model or frame is wrong; rerun with --accept-bound to write it labelled 'at bound'")
     doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
            "alignment": [lag.to_dict() for lag in lags], **est.to_dict()}
     gain_std = _gain_std(opts["gains"], r)
@@ -158,9 +168,16 @@ def _print(est) -> None:
         com = "(" + ", ".join(f"{x:.1f}" + (f" ± {s:.1f}" if cs is not None else "") for x, s in zip(c, cs if cs is not None else c)) + ") mm"
     else:
         com = f"undefined (least-squares mass without the m ≥ 0 bound: {est.diagnostics['mass_unconstrained']:.4f} kg)"
-    console.print(f"[bold]payload at '{est.frame}'[/] \\[{est.mode}]: m = {est.mass:.4f} ± {est.mass_std:.4f} kg "
-                  f"(m·g = {est.weight:.3f} ± {est.mass_std * est.gravity:.3f} N), CoM = {com}, "
+    det = est.determinacy
+    m_txt = ("at its bound 0: not determined" if est.mass_at_bound else
+             f"{est.mass:.4f} ± {est.mass_std:.4f} kg (m·g = {est.weight:.3f} ± {est.mass_std * est.gravity:.3f} N)")
+    console.print(f"[bold]payload at '{est.frame}'[/] \\[{est.mode}]: m = {m_txt}, CoM = {com}, "
                   f"physically consistent: {est.consistent}")
+    console.print("determined by the log: " + ", ".join(f"{k.replace('_', ' ')} {det[k]}" for k in
+                                                         ("mass", "first_moment", "inertia") if k in det))
+    if est.headline_excludes:
+        console.print(f"[yellow]joint(s) {est.headline_excludes} contradict the others and are left out of the "
+                      f"estimate[/] (with them: m = {est.diagnostics['mass_with_flagged']:.4f} kg)")
     table = Table(title="per-joint consistency: mass this joint alone implies vs the other joints (CoM fixed)")
     for col in ("joint", "mass [kg]", "± σ", "others [kg]", "± σ", "z", "share", "offset", "flag"):
         table.add_column(col, justify="right")

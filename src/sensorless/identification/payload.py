@@ -81,6 +81,7 @@ from .payload_fit import (
     _System,
     _unconstrained_mass,
 )
+from .payload_determinacy import LEVER_TOL, verdicts
 from .payload_model import JointConsistency, PayloadEstimate, payload_regressor, point_mass_parameters
 
 # the payload regressor and estimate (.payload_model) and the solver (.payload_fit) are re-exported here
@@ -220,76 +221,101 @@ def identify_payload(
         z = np.concatenate([np.broadcast_to(phi, (rows, 10)), o[:, None]], axis=1)  # (rows, 11)
         return np.maximum(np.einsum("ri,rij,rj->r", z, A_r, z) - 2 * np.einsum("ri,ri->r", b_r, z) + c_r, 0.0)
 
-    def row_weights(mask: np.ndarray) -> np.ndarray:
-        """Two-step weights: inverse OLS residual variance per joint."""
+    def row_weights(mask: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
+        """Two-step weights: inverse OLS residual variance per joint (OLS on the ``keep`` rows)."""
+        keep = np.ones(rows, bool) if keep is None else keep
         if weights != "auto":
-            return np.ones(rows)
-        sys0 = _System(A_r, b_r, np.ones(rows), mask)
+            return keep.astype(float)
+        sys0 = _System(A_r, b_r, keep.astype(float), mask)
         phi0 = _solve_spd(sys0.Ar + 1e-12 * np.trace(sys0.Ar) * np.eye(10) / 10, sys0.br)
         res = row_ss(phi0, sys0.offsets_for(phi0)) / n
-        return 1.0 / np.maximum(res, 1e-12 * max(res.max(), 1e-300))
+        return keep / np.maximum(res, 1e-12 * max(res.max(), 1e-300))
 
     w = row_weights(off_mask)
     inflation = _offset_inflation(A_r, b_r, w)
     if auto_offsets:
         off_mask = np.array([v < max_offset_inflation for v in inflation])
         w = row_weights(off_mask)
-    system = _System(A_r, b_r, w, off_mask)
-    if np.linalg.eigvalsh(system.Ar)[-1] <= 0:
-        raise ExcitationError("the log does not move the payload frame (zero payload regressor)")
-    excitation = _inertia_excitation(system.Ar)
-    used = mode if mode != "auto" else ("full" if excitation > inertia_threshold else "com")
-    solver = _Solver(used, consistent, com_arr)
-    phi, cov_unit, Gphi = solver(system.Ar, system.br)
-    o = system.offsets_for(phi)
-    res_ss = row_ss(phi, o)
-    k_par = Gphi.shape[1] + int(off_mask.sum())
-    dof = max(n * rows - k_par, 1)
-    s2 = float(w @ res_ss) / dof
-    mass_std_a = float(np.sqrt(max(cov_unit[0, 0] * s2, 0.0)))
+    com_given = com is not None
 
-    # HAC (block sandwich) covariance of φ = Gφ x, offsets profiled out
-    nb = len(blocks.n)
-    scores = np.array([system.profile_score(blocks.A[i], blocks.b[i], w, phi, o) for i in range(nb)]) @ Gphi
-    cov_x = _sandwich(Gphi.T @ system.Ar @ Gphi, scores)
-    cov = Gphi @ cov_x @ Gphi.T
-    mass_std_hac = float(np.sqrt(max(cov[0, 0], 0.0)))
-    com_std = None
-    if used != "mass" and phi[0] > 0:
-        Jc = np.zeros((3, 10))  # c = h / m
-        Jc[:, 0] = -phi[1:4] / phi[0] ** 2
-        Jc[:, 1:4] = np.eye(3) / phi[0]
-        com_std = np.sqrt(np.maximum(np.diag(Jc @ cov @ Jc.T), 0.0))
+    def fit(wts: np.ndarray) -> dict:
+        """The estimate and its uncertainty from the joints with weight > 0."""
+        system = _System(A_r, b_r, wts, off_mask)
+        if np.linalg.eigvalsh(system.Ar)[-1] <= 0:
+            raise ExcitationError("the log does not move the payload frame (zero payload regressor)")
+        excitation = _inertia_excitation(system.Ar)
+        used = mode if mode != "auto" else ("full" if excitation > inertia_threshold else "com")
+        det = verdicts(system.Ar, mode=used, inertia_excitation=excitation, inertia_threshold=inertia_threshold,
+                       mass_from_com=False)
+        if det["mass"] == "undetermined":
+            why = ("its origin does not move under the logged joints" if det["mass_lever_m"] < 1e-9 else
+                   "the log cannot separate m from m·c (the frame's origin moves too little, or only rotates "
+                   "about a fixed point)")
+            if not com_given and used != "mass":
+                raise ExcitationError(
+                    f"the payload mass at frame '{frame}' is not determined by the log: {why} (only m·c, the first "
+                    "moment, is); give the payload's CoM in the frame with --com X,Y,Z to compute m from m·c, or "
+                    "choose a frame whose origin moves")
+            g = point_mass_parameters(1.0, com_arr)
+            if np.sqrt(max(float(g @ system.Ar @ g), 0.0) / np.linalg.eigvalsh(system.Ar[:4, :4])[-1]) < LEVER_TOL:
+                raise ExcitationError(f"the payload mass at frame '{frame}' is not determined: {why}, and at the CoM "
+                                      f"given ({', '.join(f'{x:g}' for x in com_arr)} m) m·c carries no mass either")
+            used = "mass"
+            det = {**det, "mass": "from the given CoM", "inertia": "assumed (point mass)"}
+        solver = _Solver(used, consistent, com_arr)
+        phi, cov_unit, Gphi = solver(system.Ar, system.br)
+        o = system.offsets_for(phi)
+        res_ss = row_ss(phi, o)
+        k_par = Gphi.shape[1] + int(off_mask.sum())
+        dof = max(n * int((wts > 0).sum()) - k_par, 1)
+        s2 = float(wts @ res_ss) / dof
+        # HAC (block sandwich) covariance of φ = Gφ x, offsets profiled out
+        nb = len(blocks.n)
+        scores = np.array([system.profile_score(blocks.A[i], blocks.b[i], wts, phi, o) for i in range(nb)]) @ Gphi
+        cov = Gphi @ _sandwich(Gphi.T @ system.Ar @ Gphi, scores) @ Gphi.T
+        com_std = None
+        if used != "mass" and phi[0] > 0:
+            Jc = np.zeros((3, 10))  # c = h / m
+            Jc[:, 0] = -phi[1:4] / phi[0] ** 2
+            Jc[:, 1:4] = np.eye(3) / phi[0]
+            com_std = np.sqrt(np.maximum(np.diag(Jc @ cov @ Jc.T), 0.0))
+        boot = None
+        if n_boot > 0 and nb >= 4:
+            rng = np.random.default_rng(seed)
+            samples = []
+            for _ in range(n_boot):
+                Ab, bb, _, _ = blocks.total(rng.integers(0, nb, nb))
+                sb = _System(Ab, bb, wts, off_mask)
+                samples.append(solver(sb.Ar, sb.br)[0])
+            samples = np.array(samples)
+            boot = float(samples[:, 0].std(ddof=1))
+            ok = samples[:, 0] > 0
+            if ok.sum() > 2 and used != "mass":
+                com_boot = (samples[ok, 1:4] / samples[ok, :1]).std(axis=0, ddof=1)
+                com_std = com_boot if com_std is None else np.maximum(com_std, com_boot)
+        hac = float(np.sqrt(max(cov[0, 0], 0.0)))
+        return dict(system=system, excitation=excitation, used=used, det=det, solver=solver, phi=phi, o=o,
+                    res_ss=res_ss, s2=s2, cov=cov, com_std=com_std, boot=boot, nb=nb, mass_std_hac=hac,
+                    mass_std_a=float(np.sqrt(max(cov_unit[0, 0] * s2, 0.0))),
+                    mass_std=max(hac, boot) if boot is not None else hac)
 
-    boot = None
-    if n_boot > 0 and nb >= 4:
-        rng = np.random.default_rng(seed)
-        samples = []
-        for _ in range(n_boot):
-            Ab, bb, _, _ = blocks.total(rng.integers(0, nb, nb))
-            sb = _System(Ab, bb, w, off_mask)
-            samples.append(solver(sb.Ar, sb.br)[0])
-        samples = np.array(samples)
-        boot = float(samples[:, 0].std(ddof=1))
-        ok = samples[:, 0] > 0
-        if ok.sum() > 2 and used != "mass":
-            com_boot = (samples[ok, 1:4] / samples[ok, :1]).std(axis=0, ddof=1)
-            com_std = com_boot if com_std is None else np.maximum(com_std, com_boot)
-    mass_std = max(mass_std_hac, boot) if boot is not None else mass_std_hac
+    F = fit(w)
     # per-joint check; a contradicting joint also distorts the fitted shape, so flagged joints are
     # set aside one at a time (largest |z| first) and the others re-checked without them
     excluded = np.zeros(rows, bool)
     final: dict[int, JointConsistency] = {}
-    phi_ok = phi
+    phi_ok = F["phi"]
     checks: list = []
     for _ in range(rows):
         if excluded.any():
-            phi_x = _solve_without(solver, A_r, b_r, w * ~excluded, off_mask)
-            if phi_x is None:  # the joints left cannot determine the payload: stop setting joints aside
-                final.update({r: c for r, c in enumerate(checks) if r not in final})
-                break
+            phi_x = _solve_without(F["solver"], A_r, b_r, w * ~excluded, off_mask)
+            if phi_x is None:  # the joints left cannot determine the payload: no headline without the flagged ones
+                names = [joints[r] for r in np.flatnonzero(excluded)]
+                raise ExcitationError(
+                    f"joint(s) {names} contradict the other joints' payload torque, and without them the log does "
+                    f"not determine the payload at '{frame}'; check their torque channels and drive gains")
             phi_ok = phi_x
-        checks = _per_joint(blocks, A_r, b_r, w, phi_ok, cov, off_mask, joints, flag_sigma, flag_rel, excluded)
+        checks = _per_joint(blocks, A_r, b_r, w, phi_ok, F["cov"], off_mask, joints, flag_sigma, flag_rel, excluded)
         bad = [r for r, c in enumerate(checks) if c.flagged and not excluded[r]]
         if not bad:
             final.update({r: c for r, c in enumerate(checks) if not excluded[r]})
@@ -298,22 +324,35 @@ def identify_payload(
         final[worst] = checks[worst]
         excluded[worst] = True
     per_joint = [final[r] for r in range(rows)]
+    mass_all = float(F["phi"][0])
+    if excluded.any():  # the headline is the fit without the flagged joints
+        w = row_weights(off_mask, ~excluded)
+        F = fit(w)
+    phi, cov, det = F["phi"], F["cov"], dict(F["det"])
+    if phi[0] <= max(1e-9, 1e-3 * F["mass_std"]):
+        det["mass"] = "at bound: not determined"
+        det["first_moment"] = "at bound: not determined"
     eig = float(np.linalg.eigvalsh(pseudo_inertia(phi))[0])
     gravity = float(np.linalg.norm(robot.model.gravity.linear))
+    dropped = [joints[r] for r in np.flatnonzero(excluded)]
     return PayloadEstimate(
-        frame=frame, mode=used, parameters=phi,
-        mass_std=mass_std, mass_std_analytic=mass_std_a, mass_std_bootstrap=boot, mass_std_hac=mass_std_hac,
-        com_std=com_std, consistent=eig >= -1e-9 * max(1.0, abs(phi[0])), min_pseudo_inertia_eig=eig,
-        residual_rms_before=np.sqrt(ss_before / n), residual_rms_after=np.sqrt(res_ss / n), joints=joints,
-        n_samples=int(n), covariance=cov, offsets=o if off_mask.any() else None, per_joint=per_joint, gravity=gravity,
+        frame=frame, mode=F["used"], parameters=phi,
+        mass_std=F["mass_std"], mass_std_analytic=F["mass_std_a"], mass_std_bootstrap=F["boot"],
+        mass_std_hac=F["mass_std_hac"], com_std=F["com_std"], consistent=eig >= -1e-9 * max(1.0, abs(phi[0])),
+        min_pseudo_inertia_eig=eig, residual_rms_before=np.sqrt(ss_before / n),
+        residual_rms_after=np.sqrt(F["res_ss"] / n), joints=joints, n_samples=int(n), covariance=cov,
+        offsets=F["o"] if off_mask.any() else None, per_joint=per_joint, gravity=gravity, determinacy=det,
+        headline_excludes=dropped,
         settings={"mode": mode, "consistent": consistent, "weights": weights, "n_boot": n_boot,
                   "block_seconds": block_seconds, "inertia_threshold": inertia_threshold, "seed": seed,
                   "com": None if com is None else list(map(float, com)),
                   "offsets": [j for j, f in zip(joints, off_mask) if f],
                   "paired_no_load": refs is not None, "flag_sigma": flag_sigma, "flag_rel": flag_rel},
-        diagnostics={"inertia_excitation": excitation, "mode_used": used, "row_weights": dict(zip(joints, w.tolist())),
+        diagnostics={"inertia_excitation": F["excitation"], "mode_used": F["used"],
+                     "row_weights": dict(zip(joints, w.tolist())),
                      "offset_variance_inflation": dict(zip(joints, map(float, inflation))),
-                     "n_blocks": nb, "residual_variance_factor": s2,
-                     "mass_without_flagged": float(phi_ok[0]) if excluded.any() else None,
-                     "mass_unconstrained": _unconstrained_mass(system, phi, com_arr)},
+                     "n_blocks": F["nb"], "residual_variance_factor": F["s2"],
+                     "mass_without_flagged": float(phi[0]) if excluded.any() else None,
+                     "mass_with_flagged": mass_all if excluded.any() else None,
+                     "mass_unconstrained": _unconstrained_mass(F["system"], phi, com_arr)},
     )

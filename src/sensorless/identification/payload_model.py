@@ -89,6 +89,8 @@ class PayloadEstimate:
     offsets: np.ndarray | None = None  # per-joint offsets (when fitted)
     per_joint: list[JointConsistency] = field(default_factory=list)
     gravity: float = 9.81
+    determinacy: dict = field(default_factory=dict)  # per quantity: "data", "undetermined", ... (.payload_determinacy)
+    headline_excludes: list[str] = field(default_factory=list)  # flagged joints left out of the estimate
 
     @property
     def mass(self) -> float:
@@ -112,14 +114,21 @@ class PayloadEstimate:
         return I - self.mass * _skew_sq(self.com) if self.mass > 0 else I
 
     @property
+    def mass_at_bound(self) -> bool:
+        """The mass sits at its bound m = 0: not an estimate."""
+        return self.determinacy.get("mass") == "at bound: not determined"
+
+    @property
     def flagged_joints(self) -> list[str]:
         return [c.joint for c in self.per_joint if c.flagged]
 
     def __str__(self) -> str:
         c = ", ".join(f"{x * 1e3:.1f}" for x in self.com)
+        if self.mass_at_bound:
+            return f"payload at '{self.frame}': m at its bound 0 (not determined) [{self.mode}]"
         out = f"payload at '{self.frame}': m = {self.mass:.4f} ± {self.mass_std:.4f} kg, CoM = ({c}) mm [{self.mode}]"
         if self.flagged_joints:
-            out += f"; joint(s) {self.flagged_joints} contradict the others"
+            out += f"; joint(s) {self.flagged_joints} contradict the others and are left out"
         return out
 
     def to_dict(self) -> dict:
@@ -133,6 +142,7 @@ class PayloadEstimate:
             "covariance": None if self.covariance is None else self.covariance.tolist(),
             "offsets": None if self.offsets is None else dict(zip(self.joints, self.offsets.tolist())),
             "per_joint": [c.to_dict() for c in self.per_joint], "flagged_joints": self.flagged_joints,
+            "headline_excludes": list(self.headline_excludes), "determinacy": dict(self.determinacy),
             "consistent": self.consistent, "min_pseudo_inertia_eig": self.min_pseudo_inertia_eig,
             "residual_rms_before": dict(zip(self.joints, self.residual_rms_before.tolist())),
             "residual_rms_after": dict(zip(self.joints, self.residual_rms_after.tolist())),

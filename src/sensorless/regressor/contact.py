@@ -54,6 +54,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from .compress import NormalEquations
 # re-exported: sensorless.regressor.contact.null_space_projector etc. keep working
+from .contact_inference import infer_contacts, normal_forces
 from .contact_kinematics import contact_jacobians, contact_rotations, detect_contacts, null_space_basis, null_space_projector
 from .rowmap import ContactNullSpace, RowMap
 from .terms import ModelStructure, _in_robot_order
@@ -111,8 +112,9 @@ class ContactStructure(ModelStructure):
     so ``identify(..., method="wls")`` gives base and torque rows their own weights.
     ``wrench_offset`` / ``offset_axes``: constant wrench bias parameters (module docstring),
     labelled ``bias.<frame|net>.f<axis>`` after the joint terms.
-    Contact flags come from ``traj.extras[contact_key]`` (N, n_contacts) or, when absent,
-    from :func:`detect_contacts`. ``contact_offset`` is the radius of spherical feet: point
+    Contact flags come from ``traj.extras[contact_key]`` (N, n_contacts) or, when absent, from
+    the measured normal forces (wrench mode, :func:`~.contact_inference.infer_contacts`) or
+    :func:`detect_contacts` (projected mode). ``contact_offset`` is the radius of spherical feet: point
     contacts are taken that far below the foot frame (world z), where the ground touches.
     ``fold_basis`` (projected mode): ``"nullspace"`` folds k = nv − rank Jc pooled rows per sample
     (module docstring), ``"projector"`` the nv projected rows kept apart.
@@ -219,6 +221,9 @@ class ContactStructure(ModelStructure):
     # ---- contacts -------------------------------------------------------------------
     def contacts(self, traj: Trajectory) -> np.ndarray:
         flags = traj.extras.get(self.contact_key)
+        if flags is None and self.mode == "wrench" and traj.extras.get("contact_forces") is not None:
+            # measured wrenches: a foot is in contact where its normal force stands out of the noise
+            return infer_contacts(normal_forces(self.measured_wrenches(traj), self.contact_dims))[0]
         if flags is None:
             return detect_contacts(self.robot, traj, self.contact_frames)
         flags = np.asarray(flags, dtype=bool)
