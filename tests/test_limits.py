@@ -44,7 +44,7 @@ def test_parse_size_and_budget(monkeypatch):
         assert memory_budget()[0] == 1 << 30
     monkeypatch.delenv("SENSORLESS_MAX_LOG_MEMORY")
     limit, origin = memory_budget()
-    assert 0 < limit and "available memory" in origin
+    assert 0 < limit <= 4 << 30 and ("available memory" in origin or "default cap" in origin)
 
 
 @pytest.mark.parametrize("suffix", [".npz", ".csv"])

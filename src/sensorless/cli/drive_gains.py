@@ -11,6 +11,7 @@ import typer
 from ..errors import DataError, OptionError
 from .common import (
     log_reading_options,
+    robot_source_options,
     MultiValueCommand,
     app,
     console,
@@ -34,6 +35,7 @@ __all__ = ["drive_gains"]
 
 @app.command("drive-gains", cls=MultiValueCommand)
 @guarded
+@robot_source_options
 @log_reading_options()
 def drive_gains(
     robot: str = robot_option(),
