@@ -1,5 +1,5 @@
 """Class ``numerics`` (issue 23 item 8): torque channels that are constant, zero, dead while the
-joint moves, off by ≥ 100× in scale, permuted or sign-flipped, fed to ``identify`` (OLS, WLS or
+joint moves, scaled by 10⁻⁶…10⁻² or 10³…10⁶, permuted or sign-flipped, fed to ``identify`` (OLS, WLS or
 LMI) on the worker's simulated two-link log.
 
 ``typed``: a SensorlessError (the wanted answer). ``garbage``: the fit succeeded without a
@@ -50,7 +50,7 @@ def corrupt(rng, tau: np.ndarray, t: np.ndarray) -> tuple[str, np.ndarray]:
         a = int(rng.integers(0, max(n - span, 1)))
         tau[a:a + span, j] = tau[a, j]
     elif kind == "scaled":
-        factor = float(10.0 ** rng.choice([-6, -4, -3, -2, 2, 3, 4, 6]))
+        factor = float(10.0 ** rng.choice([-6, -4, -3, -2, 3, 4, 6]))  # 100× up is the threshold itself
         if rng.random() < 0.5:
             tau *= factor
         else:

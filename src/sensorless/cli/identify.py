@@ -124,7 +124,7 @@ def identify(
     workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
                                                      "an address: wait until this many workers are connected"),
     skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
-    accept_implausible: bool = typer.Option(False, help="fit torque channels that look constant, dead, swapped, sign-flipped or > 30× off "
+    accept_implausible: bool = typer.Option(False, help="fit torque channels that look constant, dead, swapped, sign-flipped or > 100× off "
                                             "the prior model's scale (refused by default, naming the joint)"),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "
                               "held-out log, else of the first training log)"),
