@@ -19,6 +19,7 @@ __all__ = [
     "ExcitationError",
     "SolverError",
     "PhysicalConsistencyError",
+    "PlausibilityError",
     "OutputError",
     "InputError",
     "ParameterError",
@@ -100,6 +101,11 @@ class SolverError(SensorlessError):
 
 class PhysicalConsistencyError(SensorlessError, ValueError):
     """Inertial parameters that no real body can have (e.g. mass <= 0, indefinite pseudo-inertia)."""
+
+
+class PlausibilityError(SensorlessError, ValueError):
+    """An identified model with an implausible quantity (non-finite, a body heavier than the whole
+    prior robot, a CoM far outside its body, a determined total mass far from the prior's)."""
 
 
 class OutputError(SensorlessError):

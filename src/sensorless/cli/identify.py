@@ -124,8 +124,14 @@ def identify(
     workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
                                                      "an address: wait until this many workers are connected"),
     skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
-    accept_implausible: bool = typer.Option(False, help="fit torque channels that look constant, dead, swapped, sign-flipped or > 100× off "
-                                            "the prior model's scale (refused by default, naming the joint)"),
+    accept_implausible: bool = typer.Option(False, help="keep going when a torque channel looks constant, dead, swapped, sign-flipped or > 100× "
+                                            "off the prior model's scale, or the identified model is implausible (a "
+                                            "non-finite value, a body heavier than the whole prior robot, a CoM "
+                                            "outside its body, a determined total mass > 50 % off the prior's); "
+                                            "refused by default, naming the joint or quantity"),
+    urdf_values: str = typer.Option("prior", help="model.urdf: prior (a body whose mass the data do not determine "
+                                    "gets the prior's mass, the identified dynamics unchanged) | regularised (the "
+                                    "regularised values of result.json)"),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "
                               "held-out log, else of the first training log)"),
 ) -> None:
@@ -136,6 +142,10 @@ def identify(
     from ..report import metrics_table
 
     check_config()
+    from ..identification.urdf_values import URDF_VALUES
+
+    if urdf_values not in URDF_VALUES:
+        raise OptionError(f"--urdf-values must be one of {', '.join(URDF_VALUES)}, got '{urdf_values}'")
     coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
     check_preprocessing(rate, lowpass, savgol_window, decimate)
@@ -229,6 +239,7 @@ def identify(
             result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
         for f, e in skipped:
             err_console.print(f"[yellow]warning:[/] skipped {e}", highlight=False, soft_wrap=True)
+        _plausible(result, lmi_kw, accept_implausible)
         doc = result.to_dict()
         if scheduler is not None:  # identified on the workers: the same model, for scoring and plots
             model = PhysicalModel.from_parameters(structure, result.parameters)
@@ -263,7 +274,7 @@ def identify(
 
             plot_friction(structure, result.parameters, train, tmp / "friction.png",
                           title=f"{r.name}: joint friction (training logs)")
-        _export(result, tmp, doc)
+        _export(result, tmp, doc, urdf_values)
         from ..identification.result import write_json_atomic
 
         write_json_atomic(doc, tmp / "result.json")
@@ -271,9 +282,12 @@ def identify(
 
         write_html_report(tmp, doc)
     d = result.diagnostics
-    extra = (f"γ = {d['gamma']:.3g}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
+    extra = (f"{_gamma_note(d)}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
              f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
              else f"condition number {d['condition_number']:.1f}")
+    counts = (d.get("verdicts") or {}).get("counts")
+    if counts:
+        extra += f"; body masses: {counts['data']} from the data, {counts['prior']} prior, {counts['undetermined']} undetermined"
     skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
     console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
 
@@ -355,3 +369,29 @@ def _imu_frame_logs(logs, robot, frame: str, savgol_window):
     from ..data.prepare import with_imu_frame
 
     return [with_imu_frame(t, robot, frame, savgol_window) for t in logs]
+
+
+def _gamma_note(d: dict) -> str:
+    """γ used, with the cross-validation winner and floor when the runaway guard raised it, and active bounds."""
+    g = d.get("gamma_guard") or {}
+    note = f"γ = {d['gamma']:.3g}"
+    if g.get("applied"):
+        note += f" (cross-validation chose {g['gamma_cv']:.3g}; raised to the floor {g['floor']:.3g})"
+    bounds = ((d.get("verdicts") or {}).get("active_bounds") or {}).get("bodies") or {}
+    if bounds:
+        note += "; active bounds: " + ", ".join(f"{b} ({'/'.join(v)})" for b, v in list(bounds.items())[:4])
+        note += " ..." if len(bounds) > 4 else ""
+    return note
+
+
+def _plausible(result, lmi_kw: dict, accept: bool) -> None:
+    """Plausibility of the fitted model before anything is written (PlausibilityError → exit 2, no
+    output folder); with --accept-implausible the problems are printed and kept in result.json."""
+    from ..identification.plausibility import check_plausibility
+
+    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept)
+    if problems:
+        result.diagnostics["implausible_accepted"] = problems
+        for p in problems:
+            err_console.print(f"[yellow]warning:[/] implausible (kept: --accept-implausible): {p}",
+                              highlight=False, soft_wrap=True)

@@ -30,18 +30,30 @@ def _plot_window(traj, structure, models: dict, path: Path, title: str) -> None:
 
 
 def _print_bodies(result) -> None:
-    """Identified mass per body, named by joint and link (result.json: parameter_links)."""
+    """Mass per body, named by joint and link (result.json: parameter_links), with its verdict
+    (diagnostics.verdicts): a mass the data do not determine is shown as '—', never as identified."""
     from rich.table import Table
 
     from ..identification.result import body_links
 
     links = body_links(result.robot)
-    t = Table(title="identified bodies (parameters 'joint.p' in result.json; 'link.p' in parameter_links)")
-    for col in ("joint", "link", "m [kg]", "CAD m [kg]"):
-        t.add_column(col, justify="right" if "m" in col else "left")
+    verdicts = (result.diagnostics.get("verdicts") or {}).get("bodies", {})
+    t = Table(title="identified bodies (parameters 'joint.p' in result.json; 'link.p' in parameter_links; "
+                    "verdicts in diagnostics.verdicts)")
+    for col in ("joint", "link", "m [kg]", "± (data) [kg]", "CAD m [kg]", "mass from", "CoM / inertia from"):
+        t.add_column(col, justify="left" if col in ("joint", "link", "mass from", "CoM / inertia from") else "right")
     pi, pi0 = result.inertial_parameters.reshape(-1, 10), result.robot.inertial_parameters().reshape(-1, 10)
     for k, b in enumerate(result.robot.body_names):
-        t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}", f"{pi0[k, 0]:.3f}")
+        v = verdicts.get(b)
+        if v is None:  # no verdicts (an older result): the value, unlabelled
+            t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}", "", f"{pi0[k, 0]:.3f}", "", "")
+            continue
+        mv = v["mass"]["verdict"]
+        std = v["mass"]["std_data"]
+        rest = [v[q]["verdict"] for q in v if q != "mass"]
+        t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}" if mv == "data" else "—",
+                  f"{std:.2g}" if mv == "data" and std is not None else "", f"{pi0[k, 0]:.3f}", mv,
+                  ", ".join(f"{n} {rest.count(n)}" for n in ("data", "prior", "undetermined") if rest.count(n)))
     console.print(t)
 
 
@@ -88,8 +100,10 @@ def _floating_base_checks(structure, result, doc: dict, train, val, validate) ->
                               "from the measured CoP on standing windows (a wrench bias? try --wrench-offset)")
 
 
-def _export(result, tmp: Path, doc: dict) -> None:
-    """URDF + joint terms; a model that is not a physical body is reported, not exported."""
+def _export(result, tmp: Path, doc: dict, urdf_values: str = "prior") -> None:
+    """URDF + joint terms; a model that is not a physical body is reported, not exported. ``urdf_values``:
+    :func:`~sensorless.identification.urdf_values.urdf_inertials` (prior masses where the data do not
+    determine them, said in an XML comment) or the regularised values."""
     from ..errors import SensorlessError as _E
     from ..export import write_joint_terms
     from ..parameters import JointTerms, check_physical_consistency
@@ -112,10 +126,25 @@ def _export(result, tmp: Path, doc: dict) -> None:
     try:
         from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf
 
-        _, doc["urdf_export"] = export_urdf(result.robot, result.inertial_parameters, tmp / "model.urdf", joint_terms=terms)
+        from ..identification.urdf_values import urdf_comment, urdf_inertials
+
+        pi, doc["urdf_values"] = urdf_inertials(result, urdf_values)
+        _, doc["urdf_export"] = export_urdf(result.robot, pi, tmp / "model.urdf", joint_terms=terms)
+        _comment_urdf(tmp / "model.urdf", urdf_comment(doc["urdf_values"]))
         doc["urdf"] = "model.urdf"
     except _E as exc:
         doc["urdf"] = None
         doc["urdf_error"] = str(exc)
         err_console.print(f"[yellow]warning:[/] no URDF written: {exc}")
 
+
+def _comment_urdf(path: Path, comment: str | None) -> None:
+    """Insert ``<!-- comment -->`` after the XML declaration of ``path`` (atomic rewrite)."""
+    if not comment:
+        return
+    from ..io import atomic_write_text
+
+    text = path.read_text()
+    line = "<!-- " + comment.replace("--", "–") + " -->\n"
+    head, sep, rest = text.partition("?>\n") if text.startswith("<?xml") else ("", "", text)
+    atomic_write_text(path, head + sep + line + rest if sep else line + text)

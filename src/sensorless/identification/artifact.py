@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import ParameterError, SensorlessError
 from ..io import check_input_file, read_json
-from .artifact_schema import Checker, check_preprocessing_settings, check_structure_settings, summary
+from .artifact_schema import Checker, check_preprocessing_settings, check_structure_settings, check_verdicts, summary
 
 __all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "ModelArtifact", "load_model_folder", "read_result",
            "read_preprocessing", "result_path", "stamp"]
@@ -111,6 +111,7 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
     if doc.get("robot") is not None:
         c.mapping("robot", doc["robot"])
     check_structure_settings(c, settings)
+    check_verdicts(c, (doc.get("diagnostics") or {}).get("verdicts") if isinstance(doc.get("diagnostics"), dict) else None)
     pre = check_preprocessing_settings(c, settings.get("preprocessing"))
     try:
         structure = structure_from_settings(settings, doc, robot)

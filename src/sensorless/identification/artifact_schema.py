@@ -15,7 +15,7 @@ from typing import Any, Mapping
 
 from ..errors import ParameterError
 
-__all__ = ["Checker", "summary", "check_preprocessing_settings", "check_structure_settings"]
+__all__ = ["Checker", "summary", "check_preprocessing_settings", "check_structure_settings", "check_verdicts"]
 
 #: bounds of the stored preprocessing (outside them no log can be processed sensibly)
 MIN_RATE, MAX_RATE = 1e-3, 1e6
@@ -284,3 +284,33 @@ def check_structure_settings(c: Checker, s: Mapping) -> None:
         for name in ("contact_offset", "rcond"):
             if s.get(name) is not None:
                 c.number(f"settings.{name}", s[name], -1e3, 1e3)
+
+
+VERDICTS = ("data", "prior", "undetermined")
+
+
+def check_verdicts(c: Checker, v: Any, key: str = "diagnostics.verdicts") -> None:
+    """``diagnostics.verdicts`` (optional; files before it have none), written by
+    :mod:`~sensorless.identification.verdicts`::
+
+        {"bodies": {body: {quantity: entry}},   # mass, com_x/y/z, ixx, ixy, iyy, ixz, iyz, izz
+         "joints": {joint: {term: entry}},       # fv, fc, stribeck, offset, armature
+         "robot": {"total_mass": entry},
+         "counts": {verdict: number of body masses}, "settings": {...thresholds},
+         "active_bounds": {"bodies": {body: [bound]}, "joint_terms_at_zero": [...]}}   # LMI only
+        entry = {"value", "prior", "std_data" (null: the data alone cannot determine it),
+                 "prior_share" (null: no regulariser), "verdict": "data" | "prior" | "undetermined"}
+    """
+    if v is None:
+        return
+    c.mapping(key, v)
+    for group in ("bodies", "joints"):
+        for name, entries in c.mapping(f"{key}.{group}", v.get(group, {})).items():
+            for q, e in c.mapping(f"{key}.{group}.{name}", entries).items():
+                k = f"{key}.{group}.{name}.{q}"
+                c.mapping(k, e)
+                c.string(f"{k}.verdict", e.get("verdict"), VERDICTS)
+                if e.get("std_data") is not None:
+                    c.number(f"{k}.std_data", e["std_data"], 0.0)
+                if e.get("prior_share") is not None:
+                    c.number(f"{k}.prior_share", e["prior_share"], 0.0, 1.0)

@@ -36,6 +36,8 @@ from .result import IdentificationResult
 from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
 from .torque_channels import TorqueChannels, check_information, check_torque_channels
 from .weights import check_weights
+from .verdicts import compute_verdicts
+from .runaway import active_bounds, gamma_guard
 from .uncertainty import MAX_RELATIVE_STD, JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
 __all__ = ["identify", "METHODS", "CONSTRAINT_RESIDUAL_RISE", "JOINT_TERM_MAX_VIF"]
@@ -178,6 +180,11 @@ def identify(
             extra["gamma_selection"] = cv.to_dict()
             if cv.edge is not None:
                 fit_notes.append(cv.edge_message())
+            guard = gamma_guard(ne, row_w, cv.gamma, report, regularization)
+            extra["gamma_guard"] = guard
+            if guard["applied"]:
+                gamma = guard["gamma"]
+                fit_notes.append(guard["message"])
         lmi = solve_lmi(ne, structure, base=base, prior=prior, regularization=regularization, gamma=float(gamma),
                         ellipsoids=ellipsoids, row_weights=row_w, **opts)
         params = lmi.params
@@ -222,6 +229,12 @@ def identify(
     train = metrics_from_sums(
         structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
     )
+    verdicts = compute_verdicts(structure, ne, params, row_weights=row_w, method=method,
+                                prior=prior, gamma=float(gamma) if method == "lmi" else 0.0,
+                                regularization=regularization, lmi=extra.get("lmi"), standard=standard,
+                                rank=base.rank)
+    if method == "lmi":
+        verdicts["active_bounds"] = active_bounds(extra["lmi"], params, structure)
     diagnostics = {
         "rank": base.rank,
         "n_standard": structure.n_params,
@@ -236,6 +249,7 @@ def identify(
         **({"not_excited": report["not_excited"]} if report and report["not_excited"] else {}),
         **extra,
         **({"stribeck_search": stribeck_search} if stribeck_search else {}),
+        "verdicts": verdicts,
         "compress_seconds": t_compress,
         "solve_seconds": t_solve,
     }

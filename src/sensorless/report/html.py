@@ -51,6 +51,26 @@ def _metrics_table(columns: dict[str, dict]) -> str:
     return f"<table><tr><th class=l>joint</th>{head}</tr>{rows}<tr><th class=l>mean</th>{means}</tr></table>"
 
 
+def _verdict_table(v: dict | None) -> str:
+    """Per body: mass, its prior, data-alone std, prior share and verdict (diagnostics.verdicts)."""
+    if not v or not v.get("bodies"):
+        return ""
+    rows = []
+    for body, e in v["bodies"].items():
+        m = e["mass"]
+        rest = [x["verdict"] for q, x in e.items() if q != "mass"]
+        shown = _num(m["value"]) if m["verdict"] == "data" else "—"
+        rows.append(f"<tr><td class=l>{_e(body)}</td><td>{shown}</td><td>{_num(m['prior'])}</td>"
+                    f"<td>{'∞' if m['std_data'] is None else _num(m['std_data'])}</td>"
+                    f"<td>{'' if m['prior_share'] is None else _num(m['prior_share'])}</td>"
+                    f"<td class=l>{_e(m['verdict'])}</td><td class=l>"
+                    + _e(", ".join(f"{n} {rest.count(n)}" for n in ("data", "prior", "undetermined") if rest.count(n)))
+                    + "</td></tr>")
+    return ("<h2>Verdicts (what the data determine)</h2><table><tr><th class=l>body</th><th>m [kg]</th>"
+            "<th>prior m</th><th>std (data alone)</th><th>prior share</th><th class=l>verdict</th>"
+            "<th class=l>CoM / inertia</th></tr>" + "".join(rows) + "</table>")
+
+
 def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title: str | None = None) -> str:
     """The page for a result document (``result.json`` as written by ``identify``)."""
     d = doc.get("diagnostics", {})
@@ -88,6 +108,7 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
     if poor:
         parts.append("<table><tr><th class=l>base parameter</th></tr>" + "".join(
             f"<tr><td class=l>{_e(p if not isinstance(p, dict) else json.dumps(p))}</td></tr>" for p in poor[:40]) + "</table>")
+    parts.append(_verdict_table(d.get("verdicts")))
     if doc.get("urdf"):
         parts.append(f"<h2>Model</h2><p>URDF: {_e(doc['urdf'])} — {_e(doc.get('urdf_export', ''))}</p>")
     parts.append("<h2>Settings</h2><pre>" + _e(json.dumps(doc.get("settings", {}), indent=1, default=str)[:20000]) + "</pre>")

@@ -1,0 +1,114 @@
+"""Which inertial values go into ``model.urdf``: the prior's masses where the data do not determine them.
+
+A body whose mass verdict (:mod:`.verdicts`) is not ``data`` gets the prior's mass in the URDF.
+Individual masses of a fixed-base arm lie in the base-parameter null space (they regroup into
+the first moments and inertias of the bodies above), so the remaining parameters are moved
+along that null space, ``π_u = π̂ + Δ`` with ``B Δ = 0`` (``B``: standard → base parameters) and
+``‖S⁻¹Δ‖`` minimal (``S``: per-body mass/length scales): the URDF then predicts exactly the
+identified dynamics on every motion. When the prior's masses cannot be reached that way, or a
+body would stop being physical, the regularised values are written and the reason recorded.
+``mode="regularised"`` (``--urdf-values regularised``) always writes the regularised values.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+__all__ = ["URDF_VALUES", "urdf_inertials", "urdf_comment"]
+
+URDF_VALUES = ("prior", "regularised")
+
+
+def _prior_bodies(verdicts: dict, names) -> np.ndarray:
+    """The prior's (n, 10) body parameters, rebuilt from the verdict entries."""
+    out = np.zeros((len(names), 10))
+    keys = ("ixx", "ixy", "iyy", "ixz", "iyz", "izz")
+    for k, b in enumerate(names):
+        e = verdicts["bodies"][b]
+        m0 = e["mass"]["prior"] or 0.0
+        out[k, 0] = m0
+        out[k, 1:4] = [m0 * (e[f"com_{a}"]["prior"] or 0.0) for a in "xyz"]
+        out[k, 4:10] = [e[q]["prior"] or 0.0 for q in keys]
+    return out
+
+
+def urdf_inertials(result, mode: str = "prior") -> tuple[np.ndarray, dict]:
+    """``(π for the URDF, info)``; ``info["prior_mass_bodies"]`` lists the bodies written with the
+    prior's mass, ``info["fallback"]`` why the regularised values were written instead."""
+    pi = np.array(result.inertial_parameters, dtype=float)
+    verdicts = result.diagnostics.get("verdicts")
+    names = list(result.robot.body_names)
+    info: dict = {"values": mode, "prior_mass_bodies": []}
+    if mode == "regularised" or not verdicts:
+        return pi, info
+    P0 = _prior_bodies(verdicts, names)
+    fix = [k for k, b in enumerate(names) if verdicts["bodies"][b]["mass"]["verdict"] != "data" and P0[k, 0] > 0]
+    if not fix:
+        return pi, info
+    nb = len(pi)
+    m = np.where(P0[:, 0] > 0, P0[:, 0], max(P0[:, 0].mean(), 1e-3))
+    ell = 0.1
+    S = np.repeat(m, 10) * np.tile([1, ell, ell, ell] + [ell**2] * 6, len(m))
+    # greedily, farthest from the prior first: keep each body whose prior mass stays reachable
+    order = sorted(fix, key=lambda k: -abs(np.log(max(pi[10 * k], 1e-12) / P0[k, 0])))
+    kept: list[int] = []
+    cand = pi
+    for k in order:
+        trial = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept + [k]), P0[kept + [k], 0])
+        if trial is not None:
+            kept, cand = kept + [k], trial
+    info["prior_mass_bodies"] = [names[k] for k in fix if k in kept]
+    rest = [names[k] for k in fix if k not in kept]
+    if rest:
+        info["undetermined_mass_bodies"] = rest
+        info["fallback"] = (f"regularised masses for {', '.join(rest)}: with the prior's, no physical bodies "
+                            "reproduce the identified dynamics")
+    if not kept:
+        info["values"] = "regularised"
+    return cand, info
+
+
+def _reach_prior_masses(pi, B, S, fix, m0) -> np.ndarray | None:
+    """``π̂ + Δ`` with ``B Δ = 0``, the masses ``fix`` at ``m0``, every body's pseudo-inertia ⪰ 0 and
+    ``‖S⁻¹Δ‖`` minimal (a small SDP); None when infeasible or unsolved."""
+    import cvxpy as cp
+
+    from ..parameters import pseudo_inertia_basis
+
+    basis = pseudo_inertia_basis()
+    y = cp.Variable(len(pi))
+    x = (pi / S) + y  # scaled parameters
+    cons = [(B * S[None, :]) @ y == 0, x[fix * 10] == m0 / S[fix * 10]]
+    for k in range(len(pi) // 10):
+        J = sum(x[10 * k + i] * basis[i] for i in range(10))
+        cons.append(0.5 * (J + J.T) >> 0)
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(y)), cons)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an inaccurate solve is rejected below
+            prob.solve()
+    except (cp.error.SolverError, ValueError, ArithmeticError):
+        return None
+    if prob.status != cp.OPTIMAL or y.value is None:
+        return None
+    from ..parameters import check_physical_consistency
+
+    out = pi + S * np.asarray(y.value)
+    out[fix * 10] = m0
+    return None if not all(r.consistent for r in check_physical_consistency(out)) else out
+
+
+def urdf_comment(info: dict) -> str | None:
+    """The XML comment for model.urdf (None when every mass is the regularised, data-determined one)."""
+    out = []
+    if info.get("prior_mass_bodies"):
+        out.append(f"sensorless: the data do not determine the mass of {', '.join(info['prior_mass_bodies'])}: "
+                   "the prior's mass is written (the other inertial parameters moved along directions no "
+                   "joint-torque log sees, so the identified dynamics are unchanged); --urdf-values regularised "
+                   "writes the regularised values")
+    if info.get("undetermined_mass_bodies"):
+        out.append(f"sensorless: the data do not determine the mass of {', '.join(info['undetermined_mass_bodies'])} "
+                   f"either; {info.get('fallback', '')}")
+    return " | ".join(out) or None
