@@ -78,8 +78,19 @@ def test_monitor_cli_finds_the_pushes(arm_logs):
     for iv, push in zip(ivs, gt.pushes):
         assert push.start <= iv["start"] <= push.end and iv["end"] <= push.end + 0.2
         assert abs(iv["peak_force_norm"] - np.linalg.norm(push.peak)) < 0.3 * np.linalg.norm(push.peak)
+        # estimate-force's convention: the force the robot exerts on its environment, i.e. minus the push
+        assert np.dot(iv["peak_force"], push.peak) < -0.8 * np.linalg.norm(push.peak) * iv["peak_force_norm"]
     arrays = np.load(d / "mon" / "monitor.npz")
     assert arrays["tau_ext"].shape == (len(gt.t), 6) and arrays["force"].shape == (len(gt.t), 3)
+    # the same log through estimate-force: the same force, sign included, during the first push
+    out = d / "force.npz"
+    res = runner.invoke(app, ["estimate-force", "--robot", "ur5", "--model", str(d / "id"), "--data",
+                              str(d / "pushed.npz"), "--frame", "tool0", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    ef = np.load(out)
+    push = gt.pushes[0]
+    i = int(np.argmin(np.abs(gt.t - 0.5 * (push.start + push.end))))
+    assert np.dot(ef["force"][i], arrays["force"][i]) > 0 and np.dot(ef["force"][i], push.peak) < 0
     assert set(doc["peak_external_torque"]) == set(load_robot("ur5").joint_names)
 
 

@@ -4,7 +4,9 @@
 2. two different Fourier excitation trajectories, 200 Hz, torques by RNEA + noise (σ = 0.2 N·m);
 3. identify OLS, WLS and LMI (physically consistent, γ by cross-validation) on the first;
    validate on the second against the CAD model;
-4. write the logs, result.json, model.urdf (from LMI), joint_terms.json and torques.png.
+4. write the logs, the model folder of the LMI model (result.json, model.urdf, joint_terms.json;
+   :func:`~sensorless.identification.artifact.save_model_folder`, as ``identify`` does) and torques.png;
+   the other methods' held-out scores are in result.json ``demo``.
 """
 
 from __future__ import annotations
@@ -17,10 +19,9 @@ from rich.console import Console
 from .data import write_npz
 from .estimators import CADModel
 from .excitation import random_fourier
-from .export import write_joint_terms, write_urdf
 from .identification import identify
-from .identification.result import write_json_atomic
-from .parameters import JointTerms, check_physical_consistency
+from .identification.artifact import save_model_folder
+from .parameters import check_physical_consistency
 from .regressor import ModelStructure
 from .report import metrics_table, plot_torques
 from .robot import load_robot
@@ -54,37 +55,32 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
     console.print(metrics_table("Panda, held-out trajectory", scores, field="rmse"))
     console.print(metrics_table("Panda, held-out trajectory", scores, field="nrmse"))
 
-    ols = results["ols"]
+    ols, lmi = results["ols"], results["lmi"]
     B = ols.base
     truth_base = B.base(truth.parameters(structure.joint_terms))
     rel_err = float(np.linalg.norm(ols.base_values - truth_base) / np.linalg.norm(truth_base))
-    doc = ols.to_dict()
+    doc = lmi.to_dict()  # the model folder holds the LMI model: result.json and model.urdf are one model
     doc["demo"] = {
         "noise_std": NOISE_STD,
         "held_out": {k: v.to_dict() for k, v in scores.items()},
-        "held_out_rmse_over_noise": (scores["OLS"].rmse / NOISE_STD).tolist(),
-        "relative_base_parameter_error_norm": rel_err,
+        "held_out_rmse_over_noise": {m: (scores[m].rmse / NOISE_STD).tolist() for m in ("OLS", "WLS", "LMI")},
+        "ols_relative_base_parameter_error_norm": rel_err,
+        "inconsistent_bodies": {
+            m: [r.name for r in check_physical_consistency(res.inertial_parameters, list(robot.body_names))
+                if not r.consistent] for m, res in results.items()},
         "settings": {"seed": seed, "rate_hz": rate, "duration_s": duration, "robot": "panda (fingers locked)"},
     }
-    doc["physical_consistency"] = {
-        m: [r.name for r in check_physical_consistency(res.inertial_parameters, list(robot.body_names)) if not r.consistent]
-        for m, res in results.items()
-    }
-    doc["lmi"] = results["lmi"].diagnostics["lmi"] | {"gamma": results["lmi"].diagnostics["gamma"]}
-    lmi = results["lmi"]
-    terms = JointTerms.from_dict(lmi.joint_terms())
-    write_joint_terms(terms, out / "joint_terms.json")
-    write_urdf(robot, lmi.inertial_parameters, out / "model.urdf", joint_terms=terms)
     plot_torques(test.t, structure.target(test), {"OLS": ols.predict(test), "LMI": lmi.predict(test), "CAD": cad.predict(test)},
                  structure.row_names, out / "torques.png", title="Panda: held-out torques")
-    write_json_atomic(doc, out / "result.json")
+    save_model_folder(out, lmi, doc)
     console.print(
         f"held-out RMSE / noise σ: OLS {np.round(scores['OLS'].rmse / NOISE_STD, 3).tolist()}, "
         f"LMI {np.round(scores['LMI'].rmse / NOISE_STD, 3).tolist()} (1.0 = noise floor)"
     )
     console.print(
         "physically inconsistent bodies: "
-        + ", ".join(f"{m.upper()} {len(b)}/{robot.n_bodies}" for m, b in doc["physical_consistency"].items())
-        + f"; OLS base-parameter relative error (norm) {rel_err:.2e}; model.urdf from LMI (γ = {doc['lmi']['gamma']:.3g})"
+        + ", ".join(f"{m.upper()} {len(b)}/{robot.n_bodies}" for m, b in doc["demo"]["inconsistent_bodies"].items())
+        + f"; OLS base-parameter relative error (norm) {rel_err:.2e}; result.json and model.urdf: the LMI model "
+        f"(γ = {lmi.diagnostics['gamma']:.3g})"
     )
     return doc

@@ -52,7 +52,7 @@ from .options import (
     resolved_options,
 )
 from .identify_model import _check_identify_options, _friction_options, _lmi_kwargs, _plain, _structure
-from .identify_outputs import _export, _floating_base_checks, _plot_window, _print_bodies
+from .identify_outputs import _floating_base_checks, _plot_window, _print_bodies
 
 
 @app.command(cls=MultiValueCommand)
@@ -274,10 +274,9 @@ def identify(
 
             plot_friction(structure, result.parameters, train, tmp / "friction.png",
                           title=f"{r.name}: joint friction (training logs)")
-        _export(result, tmp, doc, urdf_values)
-        from ..identification.result import write_json_atomic
+        from ..identification.artifact import save_model_folder
 
-        write_json_atomic(doc, tmp / "result.json")
+        save_model_folder(tmp, result, doc, urdf_values=urdf_values)
         from ..report.html import write_html_report
 
         write_html_report(tmp, doc)

@@ -87,7 +87,9 @@ def monitor(
         (traj,), opts = model_logs(art, [data], r, prep)
         dt = _uniform_dt(traj)
         res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
-        tau_ext = res.tau_ext
+        # one convention with estimate-force (docs/monitoring.md): τ_ext = τ_measured − τ_model = Jᵀ F, F the
+        # force the robot exerts on its environment at --frame; the observer's r is the torque acting on the robot
+        tau_ext = -res.tau_ext
         names = dyn.actuated_names
         mask = quiet_mask(traj.t, q0, q1, str(data))
         th = quiet_thresholds(tau_ext, mask, names, k=k, false_alarm_rate=None if k is not None else false_alarm_rate, dt=dt)

@@ -38,7 +38,7 @@ def psm_identify(
 
     from ..identification.result import write_json_atomic
     from ..experiments.psm_identification import psm_identification_study
-    from .core import _export
+    from ..identification.artifact import save_model_folder
 
     if data is None and (train is None or test is None):
         raise OptionError("give --data (the WPI folder) or both --train and --test")
@@ -66,8 +66,7 @@ def psm_identify(
         })
         doc = result.to_dict()
         doc["validation"] = {report["settings"]["test"]: report["identified"][save]}
-        _export(result, tmp, doc)
-        write_json_atomic(doc, tmp / "result.json")
+        save_model_folder(tmp, result, doc)
     table = Table(title=f"held-out NRMSE (RMSE / range), ε = {report['settings']['coulomb_smoothing']:g}")
     table.add_column("model")
     for c in report["coordinates"]:

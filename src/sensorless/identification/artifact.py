@@ -1,4 +1,10 @@
-"""The one reader of a model folder (``result.json`` from ``sensorless identify``, the demo, psm-identify).
+"""The one reader and writer of a model folder (``sensorless identify``, the demo, psm-identify).
+
+A model folder holds ``result.json`` (the model: parameters, structure and preprocessing
+settings, diagnostics, identifiability verdicts; ``schema_version``), ``model.urdf`` and
+``joint_terms.json`` (or ``drive_terms.json`` for coupled joints, which no URDF can hold).
+:func:`save_model_folder` writes all of them from one :class:`~.result.IdentificationResult`,
+so the URDF and ``result.json`` are always the same model.
 
 :func:`load_model_folder` is what every command and library reader uses: it refuses special
 files and files over :data:`MAX_MODEL_BYTES`, parses strict JSON, checks the document against
@@ -25,7 +31,7 @@ from ..io import check_input_file, read_json
 from .artifact_schema import Checker, check_preprocessing_settings, check_structure_settings, check_verdicts, summary
 
 __all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "ModelArtifact", "load_model_folder", "read_result",
-           "read_preprocessing", "result_path", "stamp"]
+           "read_preprocessing", "result_path", "save_model_folder", "stamp", "write_result"]
 
 #: version of the ``result.json`` schema written by every writer (0: files written before it existed)
 SCHEMA_VERSION = 1
@@ -225,3 +231,70 @@ def structure_from_settings(settings: dict, doc: dict, robot):
 
         return ContactStructure.from_settings(robot, settings, **common)
     return ModelStructure(robot, **common, rows=settings.get("rows"))
+
+
+# ---- writing ------------------------------------------------------------------------------
+def write_result(doc: dict, path: str | Path) -> Path:
+    """``doc`` stamped with the schema version, as strict JSON, written atomically to ``path``."""
+    from ..io import write_json_atomic
+
+    write_json_atomic(stamp(doc), path)
+    return Path(path)
+
+
+def save_model_folder(directory: str | Path, result, doc: dict | None = None, *, urdf_values: str = "prior") -> dict:
+    """Write the model folder of ``result`` into ``directory`` (module docstring) and return the
+    ``result.json`` document written (``doc``, default ``result.to_dict()``, completed with the
+    physical-consistency report and what was exported). ``urdf_values``: ``"prior"`` (a body whose
+    mass the data do not determine gets the prior's mass, the identified dynamics unchanged, said in
+    an XML comment; :mod:`.urdf_values`) or ``"regularised"``. A model that is no physical body, or
+    whose robot cannot be written as a URDF, is reported in ``doc["urdf_error"]`` with a warning."""
+    import warnings
+
+    from ..errors import RobotModelWarning
+    from ..export import write_joint_terms
+    from ..io import write_json_atomic
+    from ..parameters import JointTerms, check_physical_consistency
+    from .urdf_values import urdf_comment, urdf_inertials
+
+    directory = Path(directory)
+    doc = result.to_dict() if doc is None else doc
+    reports = check_physical_consistency(result.inertial_parameters, list(result.robot.body_names))
+    doc["physical_consistency"] = {"inconsistent_bodies": [r.name for r in reports if not r.consistent],
+                                   "n_bodies": len(reports)}
+    s = result.structure
+    if s.robot.transmission_matrix is not None:
+        write_json_atomic(s.drive_values(result.parameters), directory / "drive_terms.json")
+        doc["urdf"] = None
+        doc["urdf_error"] = f"'{result.robot.name}' has coupled joints; a URDF cannot hold it (result.json does)"
+        write_result(doc, directory / RESULT)
+        return doc
+    law = {j: {"stribeck_velocity": float((s.stribeck_velocity or {}).get(j, 0.0)) if "stribeck" in s.terms_of(j)
+               else 0.0, "coulomb_smoothing": s.smoothing_of(j)} for j in s.robot.actuated_joints}
+    terms = JointTerms.from_dict({j: {**d, **law[j]} for j, d in result.joint_terms().items()})
+    write_joint_terms(terms, directory / "joint_terms.json")
+    try:
+        from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf
+
+        pi, doc["urdf_values"] = urdf_inertials(result, urdf_values)
+        _, doc["urdf_export"] = export_urdf(result.robot, pi, directory / "model.urdf", joint_terms=terms)
+        _comment_urdf(directory / "model.urdf", urdf_comment(doc["urdf_values"]))
+        doc["urdf"] = "model.urdf"
+    except SensorlessError as exc:
+        doc["urdf"] = None
+        doc["urdf_error"] = str(exc)
+        warnings.warn(f"no URDF written: {exc}", RobotModelWarning, stacklevel=2)
+    write_result(doc, directory / RESULT)
+    return doc
+
+
+def _comment_urdf(path: Path, comment: str | None) -> None:
+    """Insert ``<!-- comment -->`` after the XML declaration of ``path`` (atomic rewrite)."""
+    if not comment:
+        return
+    from ..io import atomic_write_text
+
+    text = path.read_text()
+    line = "<!-- " + comment.replace("--", "–") + " -->\n"
+    head, sep, rest = text.partition("?>\n") if text.startswith("<?xml") else ("", "", text)
+    atomic_write_text(path, head + sep + line + rest if sep else line + text)

@@ -120,7 +120,10 @@ class IdentificationResult:
         }
 
     def save_json(self, path: str | Path) -> None:
-        write_json_atomic(self.to_dict(), path)
+        """Only ``result.json``; :func:`~.artifact.save_model_folder` writes the whole model folder."""
+        from .artifact import write_result
+
+        write_result(self.to_dict(), path)
 
 
 def body_links(robot) -> dict[str, str]:
