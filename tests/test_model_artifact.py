@@ -332,3 +332,37 @@ def test_no_second_reader_of_result_json_remains():
     bad = [f"{p.relative_to(src)}:{i}" for p in src.rglob("*.py") if p.name not in ("artifact.py",)
            for i, line in enumerate(p.read_text().splitlines(), 1) if pat.search(line)]
     assert bad == [], bad
+
+
+def test_no_second_writer_of_a_model_folder_remains():
+    """Every result.json, model.urdf and joint_terms.json of a model folder is written by
+    sensorless.identification.artifact (save_model_folder / write_result)."""
+    import pathlib
+    import re
+
+    src = pathlib.Path(__file__).resolve().parents[1] / "src" / "sensorless"
+    pat = re.compile(r"(write|save|dump)\w*\(.*[\"'](result\.json|model\.urdf|joint_terms\.json)[\"']")
+    bad = [f"{p.relative_to(src)}:{i}" for p in src.rglob("*.py") if p.name != "artifact.py"
+           for i, line in enumerate(p.read_text().splitlines(), 1) if pat.search(line)]
+    assert bad == [], bad
+
+
+def test_demo_result_json_is_the_model_of_its_urdf(tmp_path, panda_locked):
+    """make demo used to write an OLS result.json next to an LMI model.urdf."""
+    from sensorless.robot import load_robot
+
+    code, out = _run(["demo", "--out", tmp_path / "demo"])
+    assert code == 0, out
+    art = load_model_folder(tmp_path / "demo", panda_locked)
+    assert art.doc["method"] == "lmi" and art.doc["urdf"] == "model.urdf"
+    urdf = load_robot(tmp_path / "demo" / "model.urdf")  # written without the locked fingers
+    nb = art.structure.n_body_params
+    from sensorless.excitation import random_fourier
+
+    traj = random_fourier(panda_locked, rng=5).sample(50, 2.0)
+    from sensorless.regressor import ModelStructure
+
+    s = ModelStructure(urdf, joint_terms=())
+    ref = ModelStructure(panda_locked, joint_terms=()).torques(art.parameters[:nb], traj)
+    got = s.torques(urdf.inertial_parameters(), traj)
+    assert np.allclose(got, ref, atol=1e-6 * np.abs(ref).max()), np.abs(got - ref).max()
