@@ -239,7 +239,7 @@ def identify(
             result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
         for f, e in skipped:
             err_console.print(f"[yellow]warning:[/] skipped {e}", highlight=False, soft_wrap=True)
-        _plausible(result, lmi_kw, accept_implausible)
+        _plausible(result, lmi_kw, accept_implausible, urdf_values)
         doc = result.to_dict()
         if scheduler is not None:  # identified on the workers: the same model, for scoring and plots
             model = PhysicalModel.from_parameters(structure, result.parameters)
@@ -383,12 +383,13 @@ def _gamma_note(d: dict) -> str:
     return note
 
 
-def _plausible(result, lmi_kw: dict, accept: bool) -> None:
+def _plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -> None:
     """Plausibility of the fitted model before anything is written (PlausibilityError → exit 2, no
     output folder); with --accept-implausible the problems are printed and kept in result.json."""
     from ..identification.plausibility import check_plausibility
 
-    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept)
+    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept,
+                                  urdf_values=urdf_values)
     if problems:
         result.diagnostics["implausible_accepted"] = problems
         for p in problems:

@@ -12,6 +12,11 @@
 
 :func:`check_plausibility` raises :class:`~sensorless.errors.PlausibilityError` with them
 (``sensorless identify`` exits 2 and writes no output folder) unless ``accept`` is set.
+
+The mass and CoM rules judge what is *presented* as a body: the inertials ``model.urdf`` will
+hold (:func:`~.urdf_values.urdf_inertials` for ``urdf_values``: the prior's mass where the data do
+not determine it, the identified dynamics unchanged; ``"regularised"``: the fitted values).
+A mass the data do not determine is labelled ``prior`` in ``result.json`` and never presented.
 """
 
 from __future__ import annotations
@@ -26,8 +31,11 @@ TOTAL_MASS_TOLERANCE = 0.5  # relative
 COM_SIZE_FACTOR = 3.0  # |c − centre| > this × the ellipsoid's largest semi-axis
 
 
-def plausibility_problems(result, prior: np.ndarray | None = None, ellipsoids=None) -> list[str]:
+def plausibility_problems(result, prior: np.ndarray | None = None, ellipsoids=None, *,
+                          urdf_values: str = "prior") -> list[str]:
     """One line per implausible quantity of ``result`` (module docstring)."""
+    from .urdf_values import urdf_inertials
+
     from .ellipsoids import resolve_ellipsoids
 
     s = result.structure
@@ -37,7 +45,7 @@ def plausibility_problems(result, prior: np.ndarray | None = None, ellipsoids=No
     out = [f"parameter '{lab}' is {v}" for lab, v in zip(s.labels, p) if not np.isfinite(v)]
     if out:
         return out
-    P = p[: s.n_body_params].reshape(-1, 10)
+    P = urdf_inertials(result, urdf_values)[0].reshape(-1, 10)
     total0 = float(prior[0: s.n_body_params: 10].sum())
     if total0 > 0:
         out += [f"body '{b}' mass {m:.4g} kg is more than the whole prior robot ({total0:.4g} kg)"
@@ -58,16 +66,17 @@ def plausibility_problems(result, prior: np.ndarray | None = None, ellipsoids=No
                        f"centre, more than its size ({2 * size:.3g} m) outside it")
     tot = (result.diagnostics.get("verdicts") or {}).get("robot", {}).get("total_mass")
     if tot and tot.get("verdict") == "data" and total0 > 0:
-        m = float(P[:, 0].sum())
+        m = float(p[: s.n_body_params: 10].sum())
         if abs(m - total0) > TOTAL_MASS_TOLERANCE * total0:
             out.append(f"total mass {m:.4g} kg is off by {100 * (m / total0 - 1):+.0f} % from the prior's "
                        f"{total0:.4g} kg (more than {100 * TOTAL_MASS_TOLERANCE:.0f} %)")
     return out
 
 
-def check_plausibility(result, prior: np.ndarray | None = None, ellipsoids=None, *, accept: bool = False) -> list[str]:
+def check_plausibility(result, prior: np.ndarray | None = None, ellipsoids=None, *, accept: bool = False,
+                       urdf_values: str = "prior") -> list[str]:
     """:class:`PlausibilityError` naming the first problems unless ``accept``; returns the problems."""
-    problems = plausibility_problems(result, prior, ellipsoids)
+    problems = plausibility_problems(result, prior, ellipsoids, urdf_values=urdf_values)
     if problems and not accept:
         more = f" (+{len(problems) - 3} more)" if len(problems) > 3 else ""
         raise PlausibilityError("implausible model: " + "; ".join(problems[:3]) + more

@@ -5,8 +5,11 @@ Individual masses of a fixed-base arm lie in the base-parameter null space (they
 the first moments and inertias of the bodies above), so the remaining parameters are moved
 along that null space, ``π_u = π̂ + Δ`` with ``B Δ = 0`` (``B``: standard → base parameters) and
 ``‖S⁻¹Δ‖`` minimal (``S``: per-body mass/length scales): the URDF then predicts exactly the
-identified dynamics on every motion. When the prior's masses cannot be reached that way, or a
-body would stop being physical, the regularised values are written and the reason recorded.
+identified dynamics on every motion. A second step then moves every other direction the data do
+not see to the prior as well, ``min ‖S⁻¹(π_u − π_prior)‖`` with the same constraints (the CoMs and
+inertias of links seen only through a floating base's rows). When the prior's masses cannot be
+reached, or a body would stop being physical, the regularised values are written and the reason
+recorded.
 ``mode="regularised"`` (``--urdf-values regularised``) always writes the regularised values.
 """
 
@@ -36,7 +39,16 @@ def _prior_bodies(verdicts: dict, names) -> np.ndarray:
 
 def urdf_inertials(result, mode: str = "prior") -> tuple[np.ndarray, dict]:
     """``(π for the URDF, info)``; ``info["prior_mass_bodies"]`` lists the bodies written with the
-    prior's mass, ``info["fallback"]`` why the regularised values were written instead."""
+    prior's mass, ``info["fallback"]`` why the regularised values were written instead. Memoised on
+    ``result`` per mode (the plausibility check and the writer ask for the same values)."""
+    memo = result.__dict__.setdefault("_urdf_inertials", {})
+    if mode not in memo:
+        memo[mode] = _urdf_inertials(result, mode)
+    pi, info = memo[mode]
+    return pi.copy(), dict(info)
+
+
+def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     pi = np.array(result.inertial_parameters, dtype=float)
     verdicts = result.diagnostics.get("verdicts")
     names = list(result.robot.body_names)
@@ -45,7 +57,9 @@ def urdf_inertials(result, mode: str = "prior") -> tuple[np.ndarray, dict]:
         return pi, info
     P0 = _prior_bodies(verdicts, names)
     fix = [k for k, b in enumerate(names) if verdicts["bodies"][b]["mass"]["verdict"] != "data" and P0[k, 0] > 0]
-    if not fix:
+    blind = any(q.get("verdict") != "data" for v in verdicts["bodies"].values() for q in v.values()
+                if isinstance(q, dict))
+    if not fix and not blind:
         return pi, info
     nb = len(pi)
     m = np.where(P0[:, 0] > 0, P0[:, 0], max(P0[:, 0].mean(), 1e-3))
@@ -59,20 +73,29 @@ def urdf_inertials(result, mode: str = "prior") -> tuple[np.ndarray, dict]:
         trial = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept + [k]), P0[kept + [k], 0])
         if trial is not None:
             kept, cand = kept + [k], trial
+    # then every other direction the data do not see goes to the prior too (CoMs and inertias of
+    # bodies the log cannot resolve, e.g. links seen only through the floating-base rows)
+    polished = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept, dtype=int), P0[kept, 0],
+                                   target=P0.ravel())
+    if polished is not None:
+        cand = polished
     info["prior_mass_bodies"] = [names[k] for k in fix if k in kept]
     rest = [names[k] for k in fix if k not in kept]
     if rest:
         info["undetermined_mass_bodies"] = rest
         info["fallback"] = (f"regularised masses for {', '.join(rest)}: with the prior's, no physical bodies "
                             "reproduce the identified dynamics")
-    if not kept:
+    if not kept and polished is None:
         info["values"] = "regularised"
+    elif polished is not None:
+        info["unseen_to_prior"] = True
     return cand, info
 
 
-def _reach_prior_masses(pi, B, S, fix, m0) -> np.ndarray | None:
+def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
     """``π̂ + Δ`` with ``B Δ = 0``, the masses ``fix`` at ``m0``, every body's pseudo-inertia ⪰ 0 and
-    ``‖S⁻¹Δ‖`` minimal (a small SDP); None when infeasible or unsolved."""
+    ``‖S⁻¹Δ‖`` minimal, or with ``target`` ``‖S⁻¹(π̂ + Δ − target)‖`` minimal (a small SDP); None
+    when infeasible or unsolved."""
     import cvxpy as cp
 
     from ..parameters import pseudo_inertia_basis
@@ -84,7 +107,7 @@ def _reach_prior_masses(pi, B, S, fix, m0) -> np.ndarray | None:
     for k in range(len(pi) // 10):
         J = sum(x[10 * k + i] * basis[i] for i in range(10))
         cons.append(0.5 * (J + J.T) >> 0)
-    prob = cp.Problem(cp.Minimize(cp.sum_squares(y)), cons)
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(y if target is None else x - target / S)), cons)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # an inaccurate solve is rejected below
