@@ -76,15 +76,21 @@ def _vector(text: str | None, what: str, src: str, default: tuple[float, ...]) -
     return np.array([_number(p, what, src) for p in parts])
 
 
+def read_xml(path: str | Path) -> ET.Element:
+    """The root element of a robot description; RobotModelError (one line) when it is not
+    well-formed XML or cannot be read."""
+    try:
+        return ET.parse(str(path)).getroot()
+    except ET.ParseError as exc:
+        raise RobotModelError(f"{path}: not well-formed XML ({exc})") from None
+    except OSError as exc:
+        raise RobotModelError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
 def check_urdf_file(path: str | Path) -> None:
     """RobotModelError (one line) for a URDF that is not well-formed or has impossible values."""
     src = str(path)
-    try:
-        root = ET.parse(src).getroot()
-    except ET.ParseError as exc:
-        raise RobotModelError(f"{src}: not well-formed XML ({exc})") from None
-    except OSError as exc:
-        raise RobotModelError(f"{src}: cannot read ({exc.strerror or exc})") from None
+    root = read_xml(src)
     if root.tag != "robot":
         raise RobotModelError(f"{src}: not a URDF (root element is <{root.tag}>, expected <robot>)")
     for link in root.iter("link"):
@@ -131,16 +137,13 @@ def check_urdf_file(path: str | Path) -> None:
 
 #: no robot body is heavier (kg) or has a larger inertia (kg·m²): a value above it is a unit or typing error
 MAX_BODY_MASS = 1e5
+
+
 def check_mjcf_file(path: str | Path) -> None:
     """RobotModelError (one line, naming the body) for an MJCF mass, density or inertia below zero,
     which Pinocchio would clamp to 0 silently."""
     src = str(path)
-    try:
-        root = ET.parse(src).getroot()
-    except ET.ParseError as exc:
-        raise RobotModelError(f"{src}: not well-formed XML ({exc})") from None
-    except OSError as exc:
-        raise RobotModelError(f"{src}: cannot read ({exc.strerror or exc})") from None
+    root = read_xml(src)
     for body in root.iter("body"):
         name = body.get("name", "?")
         for el in [body.find("inertial"), *body.findall("geom")]:

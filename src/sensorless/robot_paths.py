@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from .errors import RobotModelError, RobotModelWarning
+from .model_checks import read_xml
 
 __all__ = ["PathEscape", "check_mjcf_paths", "confine_urdf_meshes", "package_roots", "resolve_resource"]
 
@@ -115,12 +116,7 @@ def check_mjcf_paths(path: str | os.PathLike, packages: Sequence[Path] = (), _de
     directory or asset file outside its folder and the package folders."""
     path = Path(path)
     base = path.parent
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise RobotModelError(f"{path}: not well-formed XML ({exc})") from None
-    except OSError as exc:
-        raise RobotModelError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    root = read_xml(path)
     dirs = {}
     for comp in root.iter("compiler"):
         for key in _DIRS:
