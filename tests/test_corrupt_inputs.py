@@ -161,3 +161,23 @@ def test_fifo_gains_weights_and_config_are_refused_without_blocking(tmp_path):
     res = CliRunner().invoke(app, ["identify", "--config", str(toml), "--robot", TWO_LINK, "--data", "x.csv",
                                    "--out", str(tmp_path / "o")])
     assert time.monotonic() - start < 2 and res.exit_code == 2 and "FIFO" in res.output
+
+
+def test_npz_with_an_unknown_compression_method_is_a_data_error(tmp_path):
+    """zipfile raises NotImplementedError for it (found by the fuzz run): a typed error, not 'internal'."""
+    import struct
+
+    from sensorless.data import read_trajectory
+    from sensorless.errors import DataError
+
+    f = tmp_path / "log.npz"
+    np.savez(f, t=np.arange(10.0), q=np.zeros((10, 2)))
+    data = bytearray(f.read_bytes())
+    for sig, off in ((b"PK\x03\x04", 8), (b"PK\x01\x02", 10)):  # local headers and central directory
+        i = data.find(sig)
+        while i >= 0:
+            struct.pack_into("<H", data, i + off, 99)
+            i = data.find(sig, i + 4)
+    f.write_bytes(bytes(data))
+    with pytest.raises(DataError, match="not a readable NPZ"):
+        read_trajectory(f)

@@ -64,7 +64,8 @@ def check_npz(path: Path, src: str, members: Iterable[str], max_memory=None) -> 
     except (InputError, DataError):
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError, SyntaxError, OverflowError, zlib.error,
-            tokenize.TokenError, TypeError) as exc:
+            tokenize.TokenError, TypeError, RuntimeError) as exc:  # RuntimeError: zipfile's NotImplementedError
+        # for an unknown compression method or encryption flag
         raise DataError(f"not a readable NPZ archive ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})",
                         src) from None
     check_log_size(src, total, f"{total:.3g} numbers{bomb}", max_memory)
