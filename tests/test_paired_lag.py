@@ -81,3 +81,24 @@ def test_payload_from_a_pair_shifted_by_1_2_s_within_3_percent(shifted_pair, tmp
     doc = json.loads((tmp_path / "p.json").read_text())
     assert doc["alignment"][0]["lag_s"] == pytest.approx(-LAG, abs=0.02) and "lag of -1.2" in " ".join(r.output.split())
     assert doc["mass"] == pytest.approx(4.0, rel=0.03), doc["mass"]
+
+
+def test_payload_heavier_than_the_robot_is_refused_unless_accepted(shifted_pair, tmp_path):
+    """Currents read with gains 20× too large: an 80 kg 'payload' on a 33 kg arm is refused, naming the mass."""
+    d, robot, K = shifted_pair
+    good, bad = tmp_path / "K.json", tmp_path / "K20.json"
+    good.write_text(json.dumps(dict(zip(robot.actuated_joints, map(float, K)))))
+    bad.write_text(json.dumps(dict(zip(robot.actuated_joints, map(float, 20 * K)))))
+    common = ["--robot", "ur10", "--columns", COLS, "--savgol-window", "21", "--trim", "1.5:-1"]
+    r = CliRunner().invoke(app, ["identify", *common, "--data", str(d / "u.csv"), "--gains", str(good),
+                                 "--method", "ols", "--no-plot", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    args = ["payload", *common, "--model", str(tmp_path / "m"), "--data", str(d / "l.csv"), "--no-load",
+            str(d / "u.csv"), "--align", "time", "--frame", "tool0", "--com", "0.06,0.02,0.05", "--n-boot", "20",
+            "--gains", str(bad)]
+    r = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "p.json")])
+    out = " ".join(r.output.split())
+    assert r.exit_code == 2 and "more than the whole robot model" in out and "--accept-implausible" in out, out
+    assert not (tmp_path / "p.json").exists()
+    r = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "p.json"), "--accept-implausible"])
+    assert r.exit_code == 0, r.output

@@ -66,6 +66,8 @@ def payload(
     mode: PayloadMode = typer.Option(PayloadMode.auto, help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
     com: Optional[str] = typer.Option(None, help="payload CoM 'x,y,z' [m] in the frame: mode mass (default the frame "
                                                "origin), and m from m·c at a frame whose origin the log does not move"),
+    accept_implausible: bool = typer.Option(False, help="write a payload mass that is not finite or heavier than the "
+                                            "whole robot model (refused by default)"),
     accept_bound: bool = typer.Option(False, help="write a result whose mass sits at its bound 0 (labelled 'at bound: "
                                                   "not determined') instead of refusing it"),
     n_boot: int = typer.Option(200, help="block-bootstrap resamples (0: HAC covariance only)"),
@@ -111,6 +113,7 @@ def payload(
             f"payload at '{frame}': the mass is at its bound 0 (least squares without the bound: "
             f"{est.diagnostics['mass_unconstrained']:.4g} kg), so the log does not determine it; no payload is visible "
             "at this frame, or the model or frame is wrong; rerun with --accept-bound to write it labelled 'at bound'")
+    _check_payload_mass(est, r, frame, accept_implausible)
     doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
            "alignment": [lag.to_dict() for lag in lags], **est.to_dict()}
     gain_std = _gain_std(opts["gains"], r)
@@ -133,6 +136,24 @@ def payload(
     write_json_atomic(doc, out)
     _print(est)
     console.print(f"wrote {out}")
+
+
+def _check_payload_mass(est, robot, frame: str, accept: bool) -> None:
+    """PlausibilityError for a payload mass that is not finite or heavier than the whole robot model
+    (no model states a payload rating; a robot that carries more than itself is a unit or model error)."""
+    from ..errors import PlausibilityError
+
+    total = float(sum(robot.model.inertias[j].mass for j in range(1, robot.model.njoints)))
+    m = float(est.mass)
+    if accept:
+        return
+    if not np.isfinite(m):
+        raise PlausibilityError(f"payload at '{frame}': the mass is {m}; check the logs and --frame "
+                                "(--accept-implausible writes it anyway)")
+    if total > 0 and m > total:
+        raise PlausibilityError(f"payload at '{frame}': mass {m:.4g} kg is more than the whole robot model "
+                                f"({total:.4g} kg); check the units, --gains and --frame (--accept-implausible writes "
+                                "it anyway)")
 
 
 def _gain_std(gains, robot):
