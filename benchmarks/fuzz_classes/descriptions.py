@@ -12,6 +12,7 @@ URDF; ``garbage``: a negative/NaN mass or inertia accepted without a warning.
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 
@@ -101,7 +102,22 @@ def _mutate_urdf(rng, text: str) -> tuple[str, bool]:
             for k in rng.integers(0, len(chars), size=int(rng.integers(1, 6))):
                 chars[int(k)] = chr(int(rng.integers(32, 127)))
             text = "".join(chars)
-    return text, bad
+    return text, bad and _declares_impossible(text)
+
+
+def _declares_impossible(text: str) -> bool:
+    """Whether the final text still holds a negative (< −1e-9) or non-finite mass or diagonal inertia
+    (a later mutation may have dropped the tag an earlier one broke)."""
+    import re
+
+    for m in re.finditer(r'\b(mass value|ixx|iyy|izz)="([^"]*)"', text):
+        try:
+            v = float(m.group(2))
+        except ValueError:
+            continue  # not a number at all: the loader's parse error, not an impossible value
+        if not math.isfinite(v) or v < -1e-9:
+            return True
+    return False
 
 
 def make(rng, d: Path, secret: Path, marker: Path) -> tuple[Path, bool]:

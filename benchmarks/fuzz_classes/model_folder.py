@@ -49,11 +49,11 @@ def _walk(doc, rng, depth=0):
     return doc, k
 
 
-def mutate(rng, m: Path, ctx: dict) -> tuple[str, bool]:
+def mutate(rng, m: Path, ctx: dict, ops: int = 10) -> tuple[str, bool]:
     """Mutate the model folder ``m``; (description, True when the mutation is physically absurd)."""
     doc = json.loads(json.dumps(ctx["doc"]))
     secret = str(ctx["secret"])
-    op = int(rng.integers(10))
+    op = int(rng.integers(ops))
     absurd = False
     if op == 0:  # a body mass
         key = _pick(rng, ["j1.m", "j2.m"])
@@ -92,7 +92,10 @@ def mutate(rng, m: Path, ctx: dict) -> tuple[str, bool]:
         doc["urdf"] = secret
         desc = "stored paths → secret"
     elif op == 7:  # joint_terms.json
-        jt = json.loads((m / "joint_terms.json").read_text())
+        try:
+            jt = json.loads((m / "joint_terms.json").read_text())
+        except ValueError:  # truncated by the first of two edits
+            return "joint_terms.json truncated", False
         j = _pick(rng, list(jt))
         jt[j][_pick(rng, list(jt[j]))] = _pick(rng, VALUES)
         (m / "joint_terms.json").write_text(json.dumps(jt) if rng.random() < 0.8 else json.dumps(jt)[:20])
@@ -116,7 +119,8 @@ def mutate(rng, m: Path, ctx: dict) -> tuple[str, bool]:
             f.write_bytes(bytes(rng.integers(0, 256, 300).tolist()))
         return f"result.json {kind}", False
     else:  # several at once
-        desc = "; ".join(mutate(rng, m, ctx)[0] for _ in range(2))
+        # two edits of the document (not of the file itself: a replaced result.json cannot be edited)
+        desc = "; ".join(mutate(rng, m, ctx, ops=8)[0] for _ in range(2))
         return desc, False
     (m / "result.json").write_text(json.dumps(doc, allow_nan=True))
     return desc, absurd

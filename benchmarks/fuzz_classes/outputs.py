@@ -210,6 +210,14 @@ def cli_case(rng, d: Path, ctx: dict) -> tuple[str, str]:
     protected = {m: digest(m), log: digest(log)}
     if what != "disk_full":
         protected[out] = digest(out)
+    # --force replaces a file the user names (as `cp -f` does), and identify (which reads no model) may
+    # replace a previous sensorless output folder: not data loss, as long as the result is complete
+    replaceable = force and cmd in ("payload", "identify", "monitor") and (
+        what == "user_file" or (what == "result_json" and cmd == "identify"))
+    if replaceable:
+        protected.pop(out, None)
+        if cmd == "identify":
+            protected.pop(m, None)
     before = digest(out)
     base = ["--robot", robot, "--data", log, "--out", out]
     args = {"predict": ["predict", *base, "--model", m],
