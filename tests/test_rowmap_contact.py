@@ -61,6 +61,7 @@ def _oracle_parts(robot, s, pi, Q, V, A, flags, tau):
 
 def test_projected_residual_equals_null_space_projection_of_rnea_minus_torques(solo12):
     rng = np.random.default_rng(31)
+    pin.seed(31)  # Inertia.Random draws from Pinocchio's own generator: the test must not depend on test order
     s = ContactStructure(solo12, joint_terms=TERMS, contact_frames=FEET)
     rm = s.row_map
     assert isinstance(rm, RowMap) and isinstance(rm, ContactNullSpace)
@@ -75,7 +76,9 @@ def test_projected_residual_equals_null_space_projection_of_rnea_minus_torques(s
     np.testing.assert_allclose(s.torques(pi, tr) - s.target(tr), expected, rtol=0, atol=1e-9 * scale)
     np.testing.assert_allclose(rm.apply(full - st_tau, Q, flags), expected, rtol=0, atol=1e-9 * scale)
     np.testing.assert_allclose(rm.apply(full[:1] - st_tau[:1], Q[:1], flags[:1]), (full - st_tau)[:1], atol=1e-12)
-    assert np.abs(expected).max() < 0.99 * scale  # the projection really removes something
+    # the projection really removes something on the samples in contact (P = I on the others)
+    c = flags.any(axis=1)
+    assert c.any() and np.linalg.norm(expected[c]) < 0.99 * np.linalg.norm((full - st_tau)[c])
 
 
 def test_wrench_mode_rows_are_rnea_with_measured_wrenches_on_the_known_side(solo12):
