@@ -41,6 +41,15 @@ def kuka():
     return load_robot(realdata(KUKA / "model" / "kuka_lwr4.urdf"))
 
 
+@pytest.fixture(autouse=True)
+def _seed_pinocchio():
+    """Pinocchio's own generator (Inertia.Random, SE3.Random, randomConfiguration) seeded per test,
+    so that no test depends on which tests ran before it in the same worker."""
+    import pinocchio as pin
+
+    pin.seed(1234)
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
