@@ -347,13 +347,20 @@ def _check_replaceable(out: Path, force: bool, inputs) -> None:
 
 
 @contextlib.contextmanager
-def _terminate_as_exit() -> Iterator[None]:
-    """In the main thread, turn SIGTERM/SIGHUP into ``SystemExit(128 + signum)`` so cleanup runs."""
+def _terminate_as_exit() -> Iterator[list]:
+    """In the main thread, turn SIGTERM/SIGHUP into ``SystemExit(128 + signum)`` so cleanup runs.
+
+    Yields a list that receives the signal number: a C extension that polls for signals while it
+    runs (Clarabel does, to stop on Ctrl-C) may swallow the exception and report a stopped solve,
+    so :func:`atomic_output_dir` also checks the list before the swap and never swaps in a run
+    that was asked to terminate."""
+    received: list = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield received
         return
 
     def handler(signum, frame):
+        received.append(signum)
         raise SystemExit(128 + signum)
 
     previous = {}
@@ -363,7 +370,7 @@ def _terminate_as_exit() -> Iterator[None]:
             previous[sig] = old
             signal.signal(sig, handler)
     try:
-        yield
+        yield received
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old if old is not None else signal.SIG_DFL)
@@ -426,7 +433,7 @@ def atomic_output_dir(
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise _oserror(out.parent, exc, "cannot create directory") from None
-    with _outdir.lock(out), _terminate_as_exit():
+    with _outdir.lock(out), _terminate_as_exit() as terminated:
         _outdir.recover_locked(out)
         _check_replaceable(out, force, inputs)  # again, now that no other run can change it
         token = f"{os.getpid()}-{secrets.token_hex(6)}"
@@ -437,6 +444,8 @@ def atomic_output_dir(
             raise _oserror(out.parent, exc, "cannot create the output directory in") from None
         try:
             yield tmp
+            if terminated:  # the exception was swallowed on the way (see _terminate_as_exit)
+                raise SystemExit(128 + terminated[0])
         except BaseException as exc:
             shutil.rmtree(tmp, ignore_errors=True)
             err = _environment_error(out, tmp, exc)
