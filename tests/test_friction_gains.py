@@ -247,3 +247,52 @@ def test_clock_offset_between_two_runs_is_found_from_the_positions():
                       tau=np.zeros((2000, 2)), joint_names=("a", "b"))
     assert clock_offset(load, ref) == pytest.approx(0.003, abs=1e-4)
     assert clock_offset(ref, ref) == pytest.approx(0.0, abs=1e-9)
+
+
+def _single_joint_logs(panda):
+    """One log per joint, only that joint moving (its encoder velocity noisy, the others' v ≡ 0)."""
+    from sensorless.excitation import random_fourier
+    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+
+    truth = perturbed_truth(panda, rng=0)
+    rng = np.random.default_rng(3)
+    logs = []
+    for k in range(len(panda.joint_names)):
+        m = random_fourier(panda, rng=10 + k, base_freq=0.2).sample(100, 8.0)
+        q, v, a = m.q.copy(), np.zeros_like(m.v), np.zeros_like(m.a)
+        still = [j for j in range(q.shape[1]) if j != k]
+        q[:, still] = q[0, still]
+        v[:, k], a[:, k] = m.v[:, k], m.a[:, k]
+        tr = synthetic_trajectory(truth, m.with_(q=q, v=v, a=a), noise_std=0.05, rng=k)
+        v_noisy = v.copy()
+        v_noisy[:, k] += rng.normal(0, 0.01, len(v))  # the moving joint's encoder velocity is noisy
+        logs.append(tr.with_(v=v_noisy))
+    return logs
+
+
+def test_coulomb_smoothing_per_joint_from_the_logs_where_it_moves(panda):
+    """Six single-joint calibration logs (real-log issue): each joint's ε comes from the log where it
+    moves. Pooled over every log (or read from the first log only) the still joints' v ≡ 0 pulled
+    ε to 0 and Coulomb friction collapsed into viscous."""
+    from sensorless.identification.friction import friction_structure
+
+    logs = _single_joint_logs(panda)
+    s = ModelStructure(panda, joint_terms=("fv", "fc"))
+    _, together = friction_structure(s, logs)
+    for k, j in enumerate(panda.actuated_joints):
+        _, alone = friction_structure(s, [logs[k]])
+        assert together.coulomb_smoothing[j] > 1e-3, together.coulomb_smoothing
+        assert together.coulomb_smoothing[j] == pytest.approx(alone.coulomb_smoothing[j], rel=0.05)
+
+
+def test_cli_single_joint_logs_give_every_joint_its_own_coulomb_smoothing(panda, tmp_path):
+    from sensorless.data import write_npz
+
+    paths = [write_npz(t, tmp_path / f"j{k}.npz") for k, t in enumerate(_single_joint_logs(panda))]
+    r = CliRunner().invoke(app, ["identify", "--robot", "panda", "--lock", "panda_finger_joint1", "--lock",
+                                 "panda_finger_joint2", "--data", *map(str, paths), "--method", "lmi", "--gamma", "1e-2",
+                                 "--joint-terms", "fv,fc", "--no-plot", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    fr = json.loads((tmp_path / "m" / "result.json").read_text())["settings"]["friction"]
+    assert min(fr["coulomb_smoothing"].values()) > 1e-3, fr["coulomb_smoothing"]
+    assert len(fr["coulomb_smoothing_from"]) == len(paths)  # every log, since the first leaves joints still

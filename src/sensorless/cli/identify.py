@@ -211,8 +211,10 @@ def identify(
                 kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma,
                           check_torques=not accept_implausible, **lmi_kw)
                 fric, law = None, None
-                if friction:  # ε and the Stribeck candidates from the first training log, as on a cluster
-                    _, law = _first_log_friction(structure, train[:1], data[0], r, prep, coulomb_smoothing,
+                if friction:  # ε and the Stribeck candidates from the first training log, as on a cluster,
+                    # or from every training log when the first leaves a joint still (each joint where it moves)
+                    logs, paths = _friction_logs(structure, train, data)
+                    _, law = _first_log_friction(structure, logs, paths, r, prep, coulomb_smoothing,
                                                  stribeck_velocity, lowpass)
                     fric = dict(coulomb_smoothing=law.coulomb_smoothing if coulomb_smoothing == "auto"
                                 else coulomb_smoothing,
@@ -223,7 +225,7 @@ def identify(
                     raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
                 result, structure = model.result_, model.structure_
                 if friction:
-                    result.settings["friction"] = _friction_settings(model.friction_fit_, law, data[0])
+                    result.settings["friction"] = _friction_settings(model.friction_fit_, law, paths)
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate,
@@ -321,18 +323,32 @@ def _friction_settings(fit, measured, first) -> dict:
     """result.json ``settings.friction``; ``measured``: the fit ε was measured by (auto smoothing), if any."""
     doc = fit.to_dict()
     if measured is not None and measured.coulomb_smoothing_mode == "auto":
-        doc.update(coulomb_smoothing_mode="auto", coulomb_smoothing_from=str(first),
+        doc.update(coulomb_smoothing_mode="auto",
+                   coulomb_smoothing_from=[str(p) for p in first] if isinstance(first, (list, tuple)) else str(first),
                    velocity_noise=measured.to_dict().get("velocity_noise"))
     return doc
 
 
+def _friction_logs(structure, train: list, data: list) -> tuple[list, list]:
+    """The logs the friction law is measured on: the first training log when every joint moves in
+    it (the same as on a cluster), else all of them (a joint held still has v ≡ 0, and six
+    single-joint calibration logs gave ε ≈ 0 on five joints)."""
+    from ..identification.friction import moving_joints
+
+    if len(train) == 1 or moving_joints(structure, train[0]).all():
+        return train[:1], data[:1]
+    return train, list(data)
+
+
 def _first_log_friction(structure, first: list, path, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
-    """The friction law (ε, and the Stribeck candidates) measured on the first training log, the same
-    way for the local path and a cluster (:func:`~sensorless.identification.friction.friction_structure`);
-    the velocity noise is read before the low-pass colours it."""
+    """The friction law (ε, and the Stribeck candidates) measured on the training logs ``first``
+    read from ``path`` (one path, or one per log: every training log locally, the first one on a
+    cluster; :func:`~sensorless.identification.friction.friction_structure`, each joint measured on
+    the logs where it moves); the velocity noise is read before the low-pass colours it."""
     from ..identification.friction import friction_structure
 
-    raw = load_logs([path], r, **{**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto" else None
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    raw = load_logs(paths, r, **{**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto" else None
     return friction_structure(structure, first, coulomb_smoothing=coulomb_smoothing,
                               stribeck_velocity=stribeck_velocity, noise_logs=raw, lowpass_hz=lowpass)
 

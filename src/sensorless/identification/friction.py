@@ -57,6 +57,7 @@ from ..regressor.terms import ModelStructure, _in_robot_order
 __all__ = [
     "FrictionFit",
     "coulomb_smoothing_from_noise",
+    "moving_joints",
     "friction_curve",
     "friction_residual",
     "identify_friction",
@@ -91,13 +92,34 @@ def lowpass_noise_gain(cutoff_hz: float, rate_hz: float, order: int = 4) -> floa
     return float(np.sqrt(np.mean(np.abs(h) ** 4)))
 
 
-def _pooled_noise(arrays: Sequence[np.ndarray]) -> np.ndarray:
-    """Noise std pooled over logs (sample-count weighted variance)."""
-    s = [(signal_noise(a), len(a)) for a in arrays if len(a) > 30]
-    if not s:
+def _pooled_noise(arrays: Sequence[np.ndarray], moving: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Noise std pooled over logs (sample-count weighted variance); with ``moving`` (per log, a bool
+    per column) each column pools only the logs where it moves (:func:`_moving_weights`)."""
+    keep = [k for k, a in enumerate(arrays) if len(a) > 30]
+    if not keep:
         raise DataError("no log is long enough (> 30 samples) to estimate the noise")
-    n = sum(k for _, k in s)
-    return np.sqrt(sum(k * sig**2 for sig, k in s) / n)
+    sig = np.array([signal_noise(arrays[k]) for k in keep])
+    w = _moving_weights([len(arrays[k]) for k in keep], None if moving is None else [moving[k] for k in keep])
+    return np.sqrt(np.sum(w * sig**2, axis=0) / np.sum(w, axis=0))
+
+
+def _moving_weights(lengths: Sequence[int], moving: Sequence[np.ndarray] | None) -> np.ndarray:
+    """(logs, joints) weights: a log's sample count where the joint moves in it (every log for a
+    joint that moves in none). A joint held still in a log has v ≡ 0 there: its 'noise' would pull
+    the Coulomb smoothing ε of that joint to 0 (six single-joint calibration logs gave ε ~ 1e-56)."""
+    n = np.asarray(lengths, dtype=float)[:, None]
+    if moving is None:
+        return n
+    m = np.asarray(moving, dtype=bool)
+    m[:, ~m.any(axis=0)] = True
+    return n * m
+
+
+def moving_joints(structure: ModelStructure, traj: Trajectory) -> np.ndarray:
+    """Per actuated joint: does it move in this log (position range ≥ 1e-3)?"""
+    t, cols = _act_columns(structure, traj)
+    q = np.asarray(t.q)[:, cols]
+    return np.ptp(q, axis=0) >= 1e-3 if len(q) else np.zeros(len(cols), dtype=bool)
 
 
 def coulomb_smoothing_from_noise(
@@ -261,13 +283,17 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
     speed, sigma_v = None, None
     if auto_eps or auto_rest or auto_vs:
         v_all = [_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in train]
-        speed = np.percentile(np.abs(np.concatenate(v_all)), 95, axis=0)
+        w = _moving_weights([len(v) for v in v_all], [moving_joints(structure, t) for t in train]) > 0
+        speed = np.array([np.percentile(np.abs(np.concatenate([v[:, k] for v, use in zip(v_all, w[:, k]) if use])), 95)
+                          for k in range(len(joints))])  # per joint, over the logs where it moves
         speed = np.where(speed > 0, speed, 1.0)
     if auto_eps or auto_rest:
         raw = list(noise_logs) if noise_logs is not None else train
-        sigma_v = _logged_velocity_noise(structure, raw)
+        moving = [moving_joints(structure, t) for t in raw]
+        sigma_v = _logged_velocity_noise(structure, raw, moving)
         if sigma_v is None:
-            sigma_v = _pooled_noise([_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in raw])
+            sigma_v = _pooled_noise([_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in raw],
+                                    moving)
         sigma_raw = sigma_v
         if lowpass_hz:
             sigma_v = sigma_v * lowpass_noise_gain(lowpass_hz, float(np.median([t.rate for t in train])))
@@ -327,18 +353,20 @@ def stribeck_grid(speed: np.ndarray, eps: np.ndarray, rest: np.ndarray, joints: 
     return out
 
 
-def _logged_velocity_noise(structure: ModelStructure, logs: list) -> "np.ndarray | None":
+def _logged_velocity_noise(structure: ModelStructure, logs: list, moving: list | None = None) -> "np.ndarray | None":
     """σ_v per actuated joint measured by the rest detection of every log (its v is 0 at rest
-    afterwards, which would bias a new estimate low), pooled; None if a log has none."""
+    afterwards, which would bias a new estimate low), pooled over the logs where the joint moves
+    (:func:`_moving_weights`); None if a log has none."""
     infos = [t.provenance.get("rest") for t in logs]
     if not infos or any(i is None for i in infos):
         return None
     joints = structure.robot.actuated_joints
     try:
-        var = sum(len(t) * np.array([i["velocity_noise"][j] for j in joints]) ** 2 for t, i in zip(logs, infos))
+        sig = np.array([[i["velocity_noise"][j] for j in joints] for i in infos], dtype=float)
     except KeyError:
         return None
-    return np.sqrt(var / sum(len(t) for t in logs))
+    w = _moving_weights([len(t) for t in logs], moving)
+    return np.sqrt(np.sum(w * sig**2, axis=0) / np.sum(w, axis=0))
 
 
 def _per_joint_terms(structure: ModelStructure):
