@@ -34,7 +34,10 @@ __all__ = ["TorqueModel", "PhysicalModel", "CADModel", "load_parameters", "score
 def score(model: "TorqueModel", traj: Trajectory) -> TorqueMetrics:
     """The one scoring function: per-row RMSE/NRMSE/R² of ``model.predict(traj)`` against
     the measured rows ``model.target(traj)`` (:func:`~sensorless.identification.torque_metrics`)."""
-    return torque_metrics(model.target(traj), model.predict(traj), model.row_names())
+    from .identification.metrics import static_rows
+
+    rows = model.row_names()
+    return torque_metrics(model.target(traj), model.predict(traj), rows, static=static_rows(traj, rows))
 
 
 class TorqueModel(ABC):

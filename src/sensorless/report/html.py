@@ -32,6 +32,8 @@ def _e(x: Any) -> str:
 
 
 def _num(x: Any) -> str:
+    if x is None:
+        return "—"
     if isinstance(x, dict):
         return ", ".join(f"{_e(k)} {_num(v)}" for k, v in x.items())
     return f"{x:.4g}" if isinstance(x, (int, float)) and not isinstance(x, bool) else _e(x)

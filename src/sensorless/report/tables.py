@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from rich.table import Table
 
 from ..identification.metrics import TorqueMetrics
@@ -17,12 +19,21 @@ def metrics_table(title: str, columns: dict[str, TorqueMetrics], field: str = "n
     for name in columns:
         table.add_column(name, justify="right")
     first = next(iter(columns.values()))
+    static = np.zeros(len(first.joints), bool) if first.static is None or field != "nrmse" else first.static
     for j, joint in enumerate(first.joints):
-        row = [joint]
+        row = [joint + (" (at rest)" if static[j] else "")]
         for m in columns.values():
             v = getattr(m, field)[j]
-            row.append(f"{100 * v:.2f}" if pct else f"{v:.4g}")
+            if static[j]:  # the range is noise: RMSE and bias in N·m instead (metrics module docstring)
+                row.append(f"{m.rmse[j]:.3g} N·m rms, bias {m.bias[j]:+.3g}" if m.bias is not None else "—")
+            else:
+                row.append(f"{100 * v:.2f}" if pct else f"{v:.4g}")
         table.add_row(*row)
-    means = [f"{100 * getattr(m, field).mean():.2f}" if pct else f"{getattr(m, field).mean():.4g}" for m in columns.values()]
-    table.add_row("mean", *means, style="bold")
+    means = []
+    for m in columns.values():
+        vals = getattr(m, field)[~static]
+        means.append("—" if not vals.size else f"{100 * vals.mean():.2f}" if pct else f"{vals.mean():.4g}")
+    table.add_row("mean" + (" (moving joints)" if static.any() else ""), *means, style="bold")
+    if static.any():
+        table.caption = "at rest: " + first.STATIC_NOTE + "; RMSE and bias [N·m] shown instead"
     return table
