@@ -50,6 +50,19 @@ def _seed_pinocchio():
     pin.seed(1234)
 
 
+@pytest.fixture(scope="session")
+def panda_train_npz(tmp_path_factory, panda):
+    """A 10 s simulated Panda log (50 Hz, σ_τ = 0.1 N·m) as NPZ, shared by the output-safety tests."""
+    from sensorless.data import write_npz
+    from sensorless.excitation import random_fourier
+    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+
+    d = tmp_path_factory.mktemp("panda_log")
+    truth = perturbed_truth(panda, rng=0)
+    tr = synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(50, 10.0), noise_std=0.1, rng=2)
+    return write_npz(tr, d / "train.npz")
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)

@@ -21,10 +21,7 @@ import pytest
 from typer.testing import CliRunner
 
 from sensorless.cli import app
-from sensorless.data import write_npz
-from sensorless.excitation import random_fourier
 from sensorless.io import MANIFEST, atomic_output_dir, read_manifest
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
@@ -32,12 +29,8 @@ SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 
 @pytest.fixture(scope="module")
-def log(tmp_path_factory, panda):
-    d = tmp_path_factory.mktemp("log")
-    truth = perturbed_truth(panda, rng=0)
-    tr = synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(50, 10.0), noise_std=0.1, rng=2)
-    write_npz(tr, d / "train.npz")
-    return d / "train.npz"
+def log(panda_train_npz):
+    return panda_train_npz
 
 
 def _run(*args):

@@ -34,16 +34,8 @@ SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 
 @pytest.fixture(scope="module")
-def log(tmp_path_factory, panda):
-    from sensorless.data import write_npz
-    from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
-
-    d = tmp_path_factory.mktemp("log")
-    truth = perturbed_truth(panda, rng=0)
-    tr = synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(50, 10.0), noise_std=0.1, rng=2)
-    write_npz(tr, d / "train.npz")
-    return d / "train.npz"
+def log(panda_train_npz):
+    return panda_train_npz
 
 
 @pytest.fixture(scope="module")
