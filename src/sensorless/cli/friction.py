@@ -33,7 +33,7 @@ from .common import (
 )
 from .options import FrictionState, TimeUnit, Velocity
 
-__all__ = ["friction", "read_bench_logs"]
+__all__ = ["friction", "friction_model_log", "predict_friction", "read_bench_logs"]
 
 #: the preprocessing keys a friction model stores (settings.preprocessing) and predict reuses
 BENCH_KEYS = ("columns", "gains", "rate", "time_unit", "max_gap", "velocity", "savgol_window")
@@ -173,8 +173,9 @@ def _print(model, errors: dict, held_out: bool) -> None:
         for col in ("term", "value", "95 % interval"):
             t.add_column(col, justify="right")
         for term, val in law.coef.items():
-            lo, hi = fit.intervals[term]
-            t.add_row(term if term != "stribeck" else "fs − fc", f"{val:.4g}", f"[{lo:.4g}, {hi:.4g}]")
+            iv = fit.intervals[term]
+            t.add_row(term if term != "stribeck" else "fs − fc", f"{val:.4g}",
+                      "at its bound 0" if iv is None else f"[{iv[0]:.4g}, {iv[1]:.4g}]")
         if law.vs:
             t.add_row("vs", f"{law.vs:.4g}", "(grid)")
         if law.kind == "state":
@@ -191,4 +192,70 @@ def _print(model, errors: dict, held_out: bool) -> None:
             m, s = e["model"], e["static"]
             t.add_row(Path(log).name, j, e["chosen"], f"{_fmt(m['rmse'])} / {_fmt(m['rmse_reversals'])}",
                       f"{_fmt(s['rmse'])} / {_fmt(s['rmse_reversals'])}")
+    console.print(t)
+
+
+def friction_model_log(model: Path, data: Path, prep: dict, *, need_acceleration: "bool | None" = None):
+    """A friction-only model (:func:`~sensorless.identification.artifact.load_friction_model`) and a log
+    read as its training logs were (each option in ``prep`` given wins): ``(artifact, trajectory, options)``."""
+    from ..identification.artifact import load_friction_model
+
+    art = load_friction_model(model)
+    bad = [f"--{k}" for k in ("lowpass", "resample") if prep.get(k) is not None]
+    if bad:
+        raise OptionError(f"{' and '.join(bad)} {'does' if len(bad) == 1 else 'do'} not apply to a friction-only "
+                          "model (its logs are neither filtered nor resampled)")
+    opts = {k: prep.get(k) if prep.get(k) is not None else art.preprocessing.get(k) for k in BENCH_KEYS}
+    opts["trim"] = prep.get("trim")
+    joints = list(art.model.joint_names_)
+    if need_acceleration is None:
+        need_acceleration = any("inertia" in law.coef for law in art.model.laws_.values())
+    (traj,) = read_bench_logs([data], opts, joints=joints if len(joints) == 1 else None,
+                              need_acceleration=need_acceleration)
+    return art, traj, opts
+
+
+def predict_friction(model: Path, data: Path, out: Path, prep: dict) -> None:
+    """`sensorless predict` with a friction-only model: τ̂ of the log (states from zero), the
+    measured τ, the best static law's τ̂ when the model has a state; metrics overall and near reversals."""
+    import json
+
+    from ..identification.metrics import torque_metrics
+    from ..io import write_npz_atomic
+    from ..report import metrics_table
+
+    art, traj, opts = friction_model_log(model, data, prep)
+    fm = art.model
+    joints = list(fm.joint_names_)
+    pred = fm.predict(traj)
+    if not np.all(np.isfinite(pred)):
+        raise OptionError(f"{art.path}: the friction model predicts non-finite torques on {data}")
+    cols = [list(traj.joint_names).index(j) for j in joints]
+    arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(joints), "tau_measured": traj.tau[:, cols],
+              "preprocessing": np.array(json.dumps({**{k: None if v is None else str(v) if k in ("time_unit", "velocity")
+                                                      else v for k, v in opts.items()},
+                                                   "signals": traj.provenance}, default=str))}
+    rows = {"model": torque_metrics(traj.tau[:, cols], pred, joints)}
+    if fm.has_state and fm.static_laws_:
+        arrays["tau_pred_static"] = fm.predict(traj, static=True)
+        rows["best static law"] = torque_metrics(traj.tau[:, cols], arrays["tau_pred_static"], joints)
+    console.print(metrics_table(Path(data).name, rows))
+    window = float(art.doc.get("settings", {}).get("reversal_window", 1.0) or 1.0)
+    _print_reversals(fm, {str(data): _errors(fm, traj, window)} if fm.static_laws_ else {}, window)
+    write_npz_atomic(out, **arrays)
+    console.print(f"wrote {out}")
+
+
+def _print_reversals(model, errors: dict, window: float) -> None:
+    from rich.table import Table
+
+    if not errors:
+        return
+    t = Table(title=f"RMSE near velocity reversals (± {window:g} s)")
+    for col in ("joint", "law", "model", "best static law", "samples"):
+        t.add_column(col, justify="right")
+    for per in errors.values():
+        for j, e in per.items():
+            t.add_row(j, e["chosen"], _fmt(e["model"]["rmse_reversals"]), _fmt(e["static"]["rmse_reversals"]),
+                      str(e["model"]["samples_near_reversals"]))
     console.print(t)

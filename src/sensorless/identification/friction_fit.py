@@ -43,6 +43,8 @@ DEFAULT_TERMS = ("fc", "stribeck", "fv", "offset", "inertia")
 STATE_MODES = ("auto", "on", "off")
 #: presliding distances 1/k, × the median stroke between reversals
 PRESLIDING_GRID = np.geomspace(1e-4, 0.3, 25)
+#: dissipative or inertial terms kept ≥ 0 (a negative slope at low speed is the Stribeck term's)
+NONNEGATIVE = ("damping", "fv", "inertia")
 #: play half-width h = this × the position noise std
 PLAY_SIGMAS = 3.0
 _Z95 = 1.959964
@@ -125,13 +127,24 @@ class _Gram:
         self.yy += float(y @ y)
         return self
 
-    def fit(self, idx: Sequence[int]) -> tuple[np.ndarray, float]:
-        """(coefficients, SSE) of the columns ``idx`` (equilibrated least squares)."""
+    def fit(self, idx: Sequence[int], nonneg: Sequence[int] = ()) -> tuple[np.ndarray, float, int]:
+        """(coefficients, SSE, columns used) of the columns ``idx`` (equilibrated least squares), the
+        coefficients at positions ``nonneg`` kept ≥ 0: a negative one is fixed at 0 (its column
+        dropped, the most negative first) and the rest refitted."""
         idx = np.asarray(idx, dtype=int)
-        G, b = self.G[np.ix_(idx, idx)], self.b[idx]
-        d = np.sqrt(np.maximum(np.diag(G), 1e-300))
-        c = np.linalg.lstsq(G / np.outer(d, d), b / d, rcond=1e-12)[0] / d
-        return c, float(max(self.yy - 2 * c @ b + c @ G @ c, 0.0))
+        free = np.ones(idx.size, dtype=bool)
+        nonneg = np.asarray(list(nonneg), dtype=int)
+        while True:
+            sub = idx[free]
+            G, b = self.G[np.ix_(sub, sub)], self.b[sub]
+            d = np.sqrt(np.maximum(np.diag(G), 1e-300))
+            c = np.zeros(idx.size)
+            c[free] = np.linalg.lstsq(G / np.outer(d, d), b / d, rcond=1e-12)[0] / d
+            bad = [i for i in nonneg if free[i] and c[i] < 0]
+            if not bad:
+                cf = c[free]
+                return c, float(max(self.yy - 2 * cf @ b + cf @ G @ cf, 0.0)), int(free.sum())
+            free[min(bad, key=lambda i: c[i])] = False
 
 
 def _turning_strokes(qp: np.ndarray) -> np.ndarray:
@@ -229,10 +242,9 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     cands: list[_Candidate] = []
 
     def add(gram, idx, kind, names, vs=0.0, k=0.0, extra=0) -> _Candidate:
-        c, sse = gram.fit(idx)
+        c, sse, used = gram.fit(idx, [i for i, t in enumerate(names) if t in NONNEGATIVE])
         ok = all(c[names.index(t)] > 0 for t in ("fc", "stribeck") if t in names and (kind == "state" or t != "fc"))
-        ok &= not ("damping" in names and c[names.index("damping")] < 0)
-        p = len(idx) + extra
+        p = used + extra
         cand = _Candidate(kind, tuple(names), vs, k, c, sse, p, bool(ok), bic_of(sse, p))
         cands.append(cand)
         return cand
@@ -292,9 +304,13 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     law, static_law = _law(chosen, eps, h), _law(static_best, eps, h)
     X = _design(chosen, series, qps, eps, starts)
     e = y - X @ chosen.coef
-    cov, infl = _hac(X, e, starts)
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    intervals = {t: [float(chosen.coef[i] - _Z95 * sd[i]), float(chosen.coef[i] + _Z95 * sd[i])]
+    free = np.array([not (i < len(chosen.terms) and chosen.terms[i] in NONNEGATIVE and chosen.coef[i] == 0.0)
+                     for i in range(X.shape[1])])
+    cov, infl = _hac(X[:, free], e, starts)
+    sd = np.zeros(X.shape[1])
+    sd[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    # a term held at its bound 0 (its unconstrained value was negative) has no interval (None)
+    intervals = {t: [float(chosen.coef[i] - _Z95 * sd[i]), float(chosen.coef[i] + _Z95 * sd[i])] if free[i] else None
                  for i, t in enumerate(chosen.terms)}
     pre = None
     if chosen.kind == "state":
