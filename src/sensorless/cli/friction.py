@@ -106,9 +106,9 @@ def friction(
             "velocity": str(velocity), "savgol_window": savgol_window, "trim": trim}
     with atomic_outdir(out, force, inputs=path_inputs(data, test)) as tmp:
         need_a = "inertia" in term_list
-        bare = len(names) == 1 if names else True
-        train = read_bench_logs(data, prep, joints=names if bare else None, need_acceleration=need_a)
-        held = read_bench_logs(test, prep, joints=names if bare else None, need_acceleration=need_a)
+        one = names if names and len(names) == 1 else None  # names the joint of a bare-column log
+        train = read_bench_logs(data, prep, joints=one, need_acceleration=need_a)
+        held = read_bench_logs(test, prep, joints=one, need_acceleration=need_a)
         model = FrictionModel(term_list, str(state), smoothing, joints=names).fit(train)
         validation = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(test, held)}
         training = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(data, train)}

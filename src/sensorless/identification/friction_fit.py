@@ -34,7 +34,7 @@ from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, OptionError
 from .friction import coulomb_smoothing_from_noise, stribeck_grid
-from .friction_state import FrictionLaw, dahl_state_blocks, dahl_states, play
+from .friction_state import STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
 
 __all__ = ["DEFAULT_TERMS", "STATE_MODES", "JointFit", "JointSeries", "fit_joint_friction", "joint_series"]
 
@@ -166,8 +166,9 @@ def _lagged_products(Z: np.ndarray, starts: Sequence[int], max_lag: int) -> np.n
     out = np.zeros((max_lag + 1, p, p))
     for s, t in zip(starts, ends):
         F = np.fft.rfft(Z[s:t], n=2 * (t - s), axis=0)
-        c = np.fft.irfft(F[:, :, None] * np.conj(F[:, None, :]), n=2 * (t - s), axis=0)[: max_lag + 1]
-        out[: c.shape[0]] += c
+        for i in range(p):  # one column at a time: memory O(N p), not O(N p²)
+            c = np.fft.irfft(F[:, i, None] * np.conj(F), n=2 * (t - s), axis=0)[: max_lag + 1]
+            out[: c.shape[0], i, :] += c
     return out
 
 
@@ -251,8 +252,11 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
 
     sgn = np.tanh(v_all / eps) if eps > 0 else np.sign(v_all)
     nb, m = B.shape[1], len(grid_vs)
-    M = np.column_stack([sgn] + [np.exp(-((v_all / vs) ** 2)) * sgn for vs in grid_vs] + [B])
-    gram = _Gram(M.shape[1]).add(M, y)
+    gram = _Gram(1 + m + nb)
+    for i0 in range(0, N, STATE_BLOCK):
+        sl = slice(i0, i0 + STATE_BLOCK)
+        gram.add(np.column_stack([sgn[sl]] + [np.exp(-((v_all[sl] / vs) ** 2)) * sgn[sl] for vs in grid_vs]
+                                 + [B[sl]]), y[sl])
     for j, vs in enumerate([None] + list(grid_vs)):
         idx = [0] + ([j] if vs else []) + list(range(1 + m, 1 + m + nb))
         add(gram, idx, "static", ["fc"] + (["stribeck"] if vs else []) + base_terms, vs or 0.0, extra=1 if vs else 0)

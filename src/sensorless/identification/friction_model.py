@@ -65,10 +65,13 @@ class FrictionModel:
             if missing:
                 raise JointNameError(f"joint(s) {missing} are not in the log (it has {list(tr.joint_names)})",
                                      tr.source)
+        from ..regressor.compress import one_blas_thread  # small products: threaded BLAS only waits
+
         self.fits_: dict[str, JointFit] = {}
-        for j in joints:
-            self.fits_[j] = fit_joint_friction([joint_series(tr, j) for tr in logs], joint=j, terms=self.terms,
-                                               state=self.state, coulomb_smoothing=self.coulomb_smoothing)
+        with one_blas_thread():
+            for j in joints:
+                self.fits_[j] = fit_joint_friction([joint_series(tr, j) for tr in logs], joint=j, terms=self.terms,
+                                                   state=self.state, coulomb_smoothing=self.coulomb_smoothing)
         self.joint_names_ = tuple(joints)
         self.laws_ = {j: f.law for j, f in self.fits_.items()}
         self.static_laws_ = {j: f.static for j, f in self.fits_.items()}
