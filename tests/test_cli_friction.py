@@ -61,6 +61,8 @@ def test_friction_command_keeps_the_state_where_it_is_and_halves_the_error_near_
     signals = doc["settings"]["signals"][str(d / "train.csv")]["bench"]
     assert signals["irregular"] and signals["n_gaps"] == 1 and signals["gaps"][0][0] < 20.0 < signals["gaps"][0][1]
     assert doc["settings"]["preprocessing"]["max_gap"] == 10.0
+    rows = len(pd.read_csv(d / "train.csv"))
+    assert doc["diagnostics"]["slide"]["n_samples"] == rows - 1  # every sample, the duplicate stamp merged
     assert (d / "model" / "friction.png").stat().st_size > 0
     assert "state" in output and "near reversals" in output
 
@@ -89,6 +91,17 @@ def test_single_joint_bare_columns_position_only_irregular_steps(tmp_path):
     doc = json.loads((tmp_path / "m" / "result.json").read_text())
     assert doc["joints"] == ["motor"] and doc["laws"]["motor"]["kind"] == "state"
     assert "d/dt q" in doc["settings"]["signals"][str(tmp_path / "bench.csv")]["v"]
+
+
+def test_motor_currents_with_gains(tmp_path):
+    tr, _ = simulate_lugre_joint(STATIC, duration=20.0, seed=6)
+    pd.DataFrame({"time": tr.t, "position": tr.q[:, 0], "velocity": tr.v[:, 0],
+                  "current": tr.tau[:, 0] / 2.5}).to_csv(tmp_path / "cur.csv", index=False)
+    r = runner.invoke(app, ["friction", "--data", str(tmp_path / "cur.csv"), "--gains", "2.5", "--state", "off",
+                            "--no-plot", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "m" / "result.json").read_text())
+    assert doc["laws"]["joint"]["coef"]["fc"] == pytest.approx(STATIC.fc, rel=0.05)
 
 
 def test_monitor_with_a_friction_model_finds_a_push(bench, tmp_path):
