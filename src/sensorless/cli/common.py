@@ -437,11 +437,13 @@ def floating_base_option():
     return typer.Option(None, "--floating-base/--fixed-base")
 
 
-def model_options(model: str = "result.json (or its directory) from `sensorless identify`"):
+def model_options(model: str = "result.json (or its directory) from `sensorless identify`", robot_required: bool = True):
     """Decorator: ``--robot`` and ``--model`` (an identified model, help ``model``) as the first
-    options; one definition for the commands that apply a model."""
-    return add_options({"robot": (str, robot_option), "model": (Path, lambda: typer.Option(..., help=model))},
-                       first=True)
+    options; one definition for the commands that apply a model. Without ``robot_required``,
+    ``--robot`` may be left out (a friction-only model from `sensorless friction` has no robot)."""
+    robot = (str, robot_option) if robot_required else (Optional[str], lambda: typer.Option(
+        None, help=ROBOT_HELP + "; not needed for a friction-only model (sensorless friction)"))
+    return add_options({"robot": robot, "model": (Path, lambda: typer.Option(..., help=model))}, first=True)
 
 
 def bench_out_option(name: str):

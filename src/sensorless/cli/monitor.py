@@ -49,10 +49,11 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 @robot_source_options
 @frame_options
 @model_preprocessing_options()
-@model_options()
+@model_options("result.json (or its directory) from `sensorless identify` or `sensorless friction`",
+               robot_required=False)
 @log_reading_options()
 def monitor(
-    robot: str,
+    robot: Optional[str],
     model: Path,
     data: Path = typer.Option(..., help="log to monitor (.csv .npz .parquet .h5)"),
     out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json + monitor.npz (written atomically)"),
@@ -76,15 +77,28 @@ def monitor(
     from ..estimation.momentum import MomentumDynamics, MomentumObserver, _uniform_dt
     from ..identification.artifact import load_model_folder
 
-    r = load_robot_arg(robot, lock, floating_base)
-    art = load_model_folder(model, r)
-    path = art.path
-    dyn = MomentumDynamics(art.structure, art.parameters)
+    from ..identification.artifact import is_friction_model
+
+    bench = is_friction_model(model)  # a friction-only model: its joints and friction state, no robot
+    if bench and frame:
+        raise SensorlessError("--frame needs a robot model; a friction-only model (sensorless friction) has none")
+    if not bench and robot is None:
+        raise SensorlessError("--robot is required for a model from `sensorless identify`")
+    r = None if bench else load_robot_arg(robot, lock, floating_base)
+    art = None if bench else load_model_folder(model, r)
+    if bench:
+        from ..estimation.friction_dynamics import FrictionDynamics
+        from .friction import friction_model_log
+
+        bench_art, bench_log, _ = friction_model_log(model, data, prep, need_acceleration=False)
+        path, dyn = bench_art.path, FrictionDynamics(bench_art.model)
+    else:
+        path, dyn = art.path, MomentumDynamics(art.structure, art.parameters)
     if k is not None and k <= 0:
         raise SensorlessError(f"--k must be > 0, got {k}")
     q0, q1 = _parse_quiet(quiet)
     with atomic_outdir(out, force, inputs=path_inputs(robot, model, data)) as tmp:
-        (traj,), opts = model_logs(art, [data], r, prep)
+        (traj,) = (bench_log,) if bench else model_logs(art, [data], r, prep)[0]
         dt = _uniform_dt(traj)
         res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
         # one convention with estimate-force (docs/monitoring.md): τ_ext = τ_measured − τ_model = Jᵀ F, F the
@@ -97,7 +111,7 @@ def monitor(
         arrays = {"t": traj.t, "tau_ext": tau_ext, "contact": flag, "joints": np.array(names), "r": res.r,
                   "coordinates": np.array(res.names)}
         doc = {
-            "data": str(data), "model": str(path), "robot": r.name,
+            "data": str(data), "model": str(path), "robot": None if bench else r.name,
             "observer": res.settings, "thresholds": th.to_dict(),
             "quiet_segment_s": [q0, q1],
             "contacts": [iv.to_dict() for iv in intervals],

@@ -20,7 +20,7 @@ from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "ContactMode", "ContactRows",
            "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align",
-           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "config_option", "check_config",
+           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "FrictionState", "config_option", "check_config",
            "resolved_options"]
 
 
@@ -48,6 +48,7 @@ Training = _choices("Training", ("rich", "stance"))
 Acceleration = _choices("Acceleration", ("simulator", "logged", "savgol", "savgol_imu", "none"))
 TauLog = _choices("TauLog", ("sample", "mean"))
 TimeUnit = _choices("TimeUnit", ("s", "ms", "us", "ns"))
+FrictionState = _choices("FrictionState", ("auto", "on", "off"))
 
 _CONFIG_ERROR = "sensorless_config_error"
 

@@ -9,7 +9,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from ..errors import SensorlessError
+from ..errors import OptionError, SensorlessError
 from ..io import write_npz_atomic
 from .options import Outliers
 from .common import (
@@ -36,10 +36,11 @@ from .common import (
 @guarded
 @robot_source_options
 @model_preprocessing_options()
-@model_options()
+@model_options("result.json (or its directory) from `sensorless identify` or `sensorless friction`",
+               robot_required=False)
 @log_reading_options()
 def predict(
-    robot: str,
+    robot: Optional[str],
     model: Path,
     data: Path = typer.Option(..., help="log to predict"),
     out: Path = typer.Option(..., help="output .npz with t, tau_pred (and tau_measured, metrics if available)"),
@@ -50,13 +51,22 @@ def predict(
     prep: dict = None,
 ) -> None:
     """Predict joint torques of a log with an identified model. The log is preprocessed as the
-    model's training logs were (result.json settings.preprocessing) unless an option says otherwise."""
-    from ..identification.artifact import load_model_folder
+    model's training logs were (result.json settings.preprocessing) unless an option says otherwise.
+    A friction-only model (`sensorless friction`) needs no --robot; its friction states are
+    integrated along the log from zero."""
+    from ..identification.artifact import is_friction_model, load_model_folder
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
     check_preprocessing(prep["rate"], prep["lowpass"], prep["savgol_window"], 1)
     output_file(out, path_inputs(robot, model, data), force)
+    if is_friction_model(model):
+        from .friction import predict_friction
+
+        return predict_friction(model, data, out, prep)
+    if robot is None:
+        raise OptionError("--robot is required for a model from `sensorless identify` (only a friction-only "
+                              "model from `sensorless friction` has none)")
     r = load_robot_arg(robot, lock, floating_base)
     art = load_model_folder(model, r)
     path, structure, params = art.path, art.structure, art.parameters

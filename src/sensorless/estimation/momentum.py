@@ -22,7 +22,10 @@ on a whole log (:meth:`MomentumObserver.run`, scipy ``lfilter``) or one sample a
 M, C and g come from Pinocchio (``crba``, ``computeCoriolisMatrix``,
 ``computeGeneralizedGravity``) on a copy of the model whose inertias and armature are the
 *identified* ones (:class:`MomentumDynamics`), τ_f from the identified joint terms
-(viscous, Coulomb, offset). Coordinates:
+(viscous, Coulomb, offset). A dynamics object may carry a friction *state* (a friction-only
+model, :class:`~sensorless.estimation.friction_dynamics.FrictionDynamics`): its
+``friction_integrator()`` gives the state, which :meth:`MomentumObserver.step` advances every
+sample (β −= τ_f,state) and which ``momentum_series`` integrates along a whole log. Coordinates:
 
 * fixed-base arm: the nv joint velocities (τ = Sᵀ τ_actuated);
 * floating base: nv = 6 + n_joints (base twist in the base frame, Pinocchio LOCAL); the
@@ -198,6 +201,18 @@ class MomentumDynamics:
         tau[:, self._act] = tr.tau[:, cols]
         return Q, V, tau
 
+    def step_arrays(self, q, v, tau, base_q=None, base_v=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, v, τ) of one sample in observer coordinates (joint arrays in ``joint_names`` order;
+        τ of the actuated joints, or of all coordinates for a transmission)."""
+        if self.transmission:
+            return np.asarray(q, float), np.asarray(v, float), np.asarray(tau, float)
+        robot = self.structure.robot
+        qf = robot.full_configuration(np.asarray(q, float)[None], None if base_q is None else np.asarray(base_q)[None])[0]
+        vf = robot.full_velocity(np.asarray(v, float)[None], None if base_v is None else np.asarray(base_v)[None])[0]
+        tf = np.zeros(self.n)
+        tf[self.actuated_rows] = tau
+        return qf, vf, tf
+
     # ---- dynamics -----------------------------------------------------------------------
     def friction(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """τ_f (n,) or (N, n): identified joint/drive terms at zero acceleration."""
@@ -307,6 +322,8 @@ class MomentumObserver:
         self._p0 = None
         self._zp = self._zu = None
         self._coef = None
+        make = getattr(self.dynamics, "friction_integrator", None)
+        self._friction = make() if make is not None else None
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, base_q: np.ndarray | None = None,
              base_v: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
@@ -319,16 +336,10 @@ class MomentumObserver:
                 raise TimestampError("MomentumObserver.step needs the sample period dt at the first call")
             self.dt = dt
             self._coef = observer_filter(self.gain, self.order, dt, self.damping)
-        if dyn.transmission:
-            qf, vf = np.asarray(q, float), np.asarray(v, float)
-            tf = np.asarray(tau, float)
-        else:
-            robot = dyn.structure.robot
-            qf = robot.full_configuration(np.asarray(q, float)[None], None if base_q is None else np.asarray(base_q)[None])[0]
-            vf = robot.full_velocity(np.asarray(v, float)[None], None if base_v is None else np.asarray(base_v)[None])[0]
-            tf = np.zeros(dyn.n)
-            tf[dyn.actuated_rows] = tau
+        qf, vf, tf = dyn.step_arrays(q, v, tau, base_q, base_v)
         p, beta = dyn.momentum_terms(qf, vf)
+        if self._friction is not None:  # a friction state, integrated sample by sample
+            beta = beta - self._friction.step(qf, vf)
         b_p, b_u, a = self._coef
         if self._p0 is None:
             self._p0 = p.copy()

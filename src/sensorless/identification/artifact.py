@@ -30,8 +30,9 @@ from ..errors import ParameterError, SensorlessError
 from ..io import check_input_file, read_json
 from .artifact_schema import Checker, check_preprocessing_settings, check_structure_settings, check_verdicts, summary
 
-__all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "ModelArtifact", "load_model_folder", "read_result",
-           "read_preprocessing", "result_path", "save_model_folder", "stamp", "write_result"]
+__all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "FrictionArtifact", "ModelArtifact", "is_friction_model",
+           "load_friction_model", "load_model_folder", "read_result", "read_preprocessing", "result_path",
+           "save_friction_model", "save_model_folder", "stamp", "write_result"]
 
 #: version of the ``result.json`` schema written by every writer (0: files written before it existed)
 SCHEMA_VERSION = 1
@@ -46,6 +47,8 @@ MASS_CAP_MASSLESS = 1e4
 LENGTH_CAP = 10.0
 _TERM_CAP = 1e6
 _CONSISTENCY_TOL = 1e-6
+#: ``kind`` of a friction-only model's result.json (``sensorless friction``)
+FRICTION_KIND = "friction"
 
 
 def stamp(doc: dict) -> dict:
@@ -108,6 +111,9 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
     path = result_path(model)
     check_input_file(path, "model file (result.json)")
     doc = read_result(path)
+    if doc.get("kind") == FRICTION_KIND:
+        raise ParameterError(f"{path}: a friction-only model (from `sensorless friction`) has no body model; "
+                             "use it with `sensorless predict --model MODEL --data LOG` without --robot")
     c = Checker(path, path.parent)
     settings = c.mapping("settings", doc.get("settings"))
     values = c.mapping("parameters", doc.get("parameters"))
@@ -298,3 +304,75 @@ def _comment_urdf(path: Path, comment: str | None) -> None:
     line = "<!-- " + comment.replace("--", "–") + " -->\n"
     head, sep, rest = text.partition("?>\n") if text.startswith("<?xml") else ("", "", text)
     atomic_write_text(path, head + sep + line + rest if sep else line + text)
+
+
+# ---- friction-only models (``sensorless friction``) -------------------------------------------
+@dataclasses.dataclass
+class FrictionArtifact:
+    """A validated friction-only model folder: the document, the model
+    (:class:`~.friction_model.FrictionModel`) and the preprocessing of its training logs."""
+
+    path: Path
+    doc: dict
+    model: Any
+    preprocessing: dict
+
+    @property
+    def folder(self) -> Path:
+        return self.path.parent
+
+
+def is_friction_model(model: str | Path) -> bool:
+    """Whether ``model`` (a folder or its result.json) is a friction-only model; False when it is
+    no readable model (the loader that follows names the problem)."""
+    path = result_path(model)
+    if not path.is_file():
+        return False
+    try:
+        return read_result(path).get("kind") == FRICTION_KIND
+    except SensorlessError:
+        return False
+
+
+def save_friction_model(directory: str | Path, model, doc: dict | None = None) -> dict:
+    """Write ``directory/result.json`` of a fitted :class:`~.friction_model.FrictionModel`: ``kind``
+    "friction", the joints, each joint's chosen and best static law, and ``doc`` (settings,
+    diagnostics, validation) merged in. Returns the document written."""
+    out = dict(doc or {})
+    out.update({"kind": FRICTION_KIND, "joints": list(model.joint_names_),
+                "laws": {j: model.laws_[j].to_dict() for j in model.joint_names_},
+                "static_laws": {j: model.static_laws_[j].to_dict() for j in model.joint_names_
+                                if j in model.static_laws_}})
+    out.setdefault("settings", {})["friction"] = model.get_params()
+    write_result(out, Path(directory) / RESULT)
+    return out
+
+
+def load_friction_model(model: str | Path) -> FrictionArtifact:
+    """Read and validate a friction-only model folder (or its result.json): every law's kind, terms
+    and numbers (:func:`.artifact_schema.check_friction_law`), the preprocessing settings."""
+    from .artifact_schema import check_friction_law
+    from .friction_model import FrictionModel
+
+    path = result_path(model)
+    check_input_file(path, "model file (result.json)")
+    doc = read_result(path)
+    c = Checker(path, path.parent)
+    if doc.get("kind") != FRICTION_KIND:
+        raise ParameterError(f"{path}: not a friction-only model (no \"kind\": \"friction\"); a model from "
+                             "`sensorless identify` needs --robot")
+    joints = c.strings("joints", doc.get("joints"))
+    if not joints or len(set(joints)) != len(joints):
+        raise c.fail("joints", "expected a non-empty list of distinct joint names")
+    laws, static = c.mapping("laws", doc.get("laws")), c.mapping("static_laws", doc.get("static_laws", {}))
+    missing = [j for j in joints if j not in laws]
+    if missing:
+        raise c.fail("laws", f"no law for joint(s) {missing}")
+    settings = c.mapping("settings", doc.get("settings", {}))
+    params = c.mapping("settings.friction", settings.get("friction", {}))
+    pre = check_preprocessing_settings(c, settings.get("preprocessing"))
+    fm = FrictionModel.from_laws({j: check_friction_law(c, f"laws.{j}", laws[j]) for j in joints},
+                                 {j: check_friction_law(c, f"static_laws.{j}", static[j]) for j in joints if j in static},
+                                 state=params.get("state", "auto") if params.get("state") in ("auto", "on", "off")
+                                 else "auto")
+    return FrictionArtifact(path, doc, fm, pre)

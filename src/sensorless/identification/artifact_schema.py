@@ -15,7 +15,8 @@ from typing import Any, Mapping
 
 from ..errors import ParameterError
 
-__all__ = ["Checker", "summary", "check_preprocessing_settings", "check_structure_settings", "check_verdicts"]
+__all__ = ["Checker", "summary", "check_friction_law", "check_preprocessing_settings", "check_structure_settings",
+           "check_verdicts"]
 
 #: bounds of the stored preprocessing (outside them no log can be processed sensibly)
 MIN_RATE, MAX_RATE = 1e-3, 1e6
@@ -314,3 +315,27 @@ def check_verdicts(c: Checker, v: Any, key: str = "diagnostics.verdicts") -> Non
                     c.number(f"{k}.std_data", e["std_data"], 0.0)
                 if e.get("prior_share") is not None:
                     c.number(f"{k}.prior_share", e["prior_share"], 0.0, 1.0)
+
+
+#: bounds of a stored friction law: amplitudes [N·m, N·m·s/rad, kg·m²], k [1/rad], play [rad]
+MAX_FRICTION_TERM = 1e6
+MAX_PRESLIDING_K = 1e9
+
+
+def check_friction_law(c: Checker, key: str, d: Any):
+    """A friction law of a friction-only model (:class:`~.friction_state.FrictionLaw`), checked key by key."""
+    from .friction_state import LAW_KINDS, LAW_TERMS, FrictionLaw
+
+    d = c.mapping(key, d)
+    kind = c.string(f"{key}.kind", d.get("kind"), LAW_KINDS)
+    coef = c.mapping(f"{key}.coef", d.get("coef"))
+    for t, v in coef.items():
+        if t not in LAW_TERMS:
+            raise c.fail(f"{key}.coef.{t[:40]}", f"unknown friction term (expected {', '.join(LAW_TERMS)})")
+        c.number(f"{key}.coef.{t}", v, -MAX_FRICTION_TERM, MAX_FRICTION_TERM)
+    nums = {name: c.number(f"{key}.{name}", d.get(name, 0.0), 0, hi)
+            for name, hi in (("eps", MAX_SMOOTHING), ("vs", MAX_SMOOTHING), ("k", MAX_PRESLIDING_K), ("play", 1e3))}
+    try:
+        return FrictionLaw(kind, dict(coef), **nums)
+    except ParameterError as exc:
+        raise c.fail(key, str(exc)) from None

@@ -1,0 +1,279 @@
+"""`sensorless friction`: a friction-only model from test-bench logs (no robot model).
+
+Reads one or more logs of one or more joints (t, q and/or v, τ or currents with --gains) at their
+own time stamps (:mod:`sensorless.data.bench_log`: irregular steps are kept, gaps only split the
+differentiation), fits per joint the static law and the friction state and keeps the state where
+BIC supports it (:mod:`sensorless.identification.friction_fit`), reports the terms with 95 %
+intervals and, on --test logs, the error overall and near velocity reversals, and writes a model
+folder (result.json; :func:`~sensorless.identification.artifact.save_friction_model`) that
+`sensorless predict` reads without --robot, and friction.png.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
+import typer
+
+from ..errors import OptionError
+from .common import (
+    MultiValueCommand,
+    app,
+    bench_command,
+    atomic_outdir,
+    console,
+    gains_option,
+    guarded,
+    log_reading_options,
+    path_inputs,
+    force_option,
+    time_unit_option,
+    trim_option,
+)
+from .options import FrictionState, TimeUnit, Velocity
+
+__all__ = ["bench_friction_state", "friction", "friction_model_log", "predict_friction", "read_bench_logs"]
+
+#: the preprocessing keys a friction model stores (settings.preprocessing) and predict reuses
+BENCH_KEYS = ("columns", "gains", "rate", "time_unit", "max_gap", "velocity", "savgol_window")
+
+
+def read_bench_logs(paths, prep: dict, *, joints=None, need_acceleration: bool = True) -> list:
+    """Bench logs (:func:`~sensorless.data.bench_log.read_bench_log`) with the options ``prep``
+    (:data:`BENCH_KEYS` and ``trim``)."""
+    from ..data.bench_log import DEFAULT_BENCH_GAP, read_bench_log
+    from ..data.prepare import check_preprocessing, parse_columns
+
+    check_preprocessing(prep.get("rate"), None, prep.get("savgol_window"), 1)
+    cols = prep.get("columns")
+    cols = parse_columns(cols) if isinstance(cols, str) else cols
+    gap = prep.get("max_gap")
+    return [read_bench_log(p, columns=cols, joints=joints, gains=prep.get("gains"), rate=prep.get("rate"),
+                           time_unit=None if prep.get("time_unit") is None else str(prep["time_unit"]),
+                           trim=prep.get("trim"), max_gap=DEFAULT_BENCH_GAP if gap is None else float(gap),
+                           velocity=str(prep.get("velocity") or "logged"), savgol_window=prep.get("savgol_window"),
+                           need_acceleration=need_acceleration) for p in paths]
+
+
+@app.command("friction", cls=MultiValueCommand)
+@guarded
+@log_reading_options()
+def friction(
+    data: List[Path] = typer.Option(..., help="bench log(s) to fit (.csv .npz .parquet .h5): time, position and/or "
+                                              "velocity, torque (or currents with --gains) per joint; a single-joint "
+                                              "CSV may have bare columns t,q,v,tau"),
+    test: List[Path] = typer.Option([], help="held-out log(s): RMSE overall and near velocity reversals"),
+    out: Path = typer.Option(Path("friction_model"), help="output folder: result.json (a model for `sensorless "
+                                                          "predict`), friction.png (written atomically)"),
+    joints: Optional[str] = typer.Option(None, help="joints to fit, comma-separated (default: every joint of the "
+                                                    "first log); the name of the joint of a bare-column log"),
+    terms: str = typer.Option("fc,stribeck,fv,offset,inertia", help="linear terms among fc, stribeck, damping, fv, "
+                                                                    "offset, inertia (J v̇); stribeck, damping and the "
+                                                                    "state are kept only where BIC supports them"),
+    state: FrictionState = typer.Option(FrictionState.auto, help="friction state (presliding, hysteresis): auto "
+                                                                 "(kept where BIC supports it) | on | off"),
+    coulomb_smoothing: str = typer.Option("auto", help="ε of the static law's tanh(v/ε): auto (3 velocity-noise "
+                                                       "stds) or a number [rad/s]"),
+    columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=pos_{joint};v=vel_{joint};tau=trq_{joint}'"),
+    gains: Optional[str] = gains_option(),
+    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    time_unit: Optional[TimeUnit] = time_unit_option(),
+    trim: Optional[str] = trim_option(),
+    max_gap: float = typer.Option(10.0, help="a time step over this many median periods splits a log for "
+                                             "differentiation (reported, never refused; steps are not resampled)"),
+    velocity: Velocity = typer.Option(Velocity.logged, help="logged (keep a logged v) | from-q (v from q)"),
+    savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window [samples] for derivatives "
+                                                           "(default 0.2 s)"),
+    reversal_window: float = typer.Option(1.0, help="seconds on each side of a velocity reversal counted as near it"),
+    plot: bool = typer.Option(True, help="write friction.png"),
+    force: bool = force_option(),
+) -> None:
+    """Identify joint friction from test-bench logs, without a robot model: static law (Coulomb,
+    Stribeck, viscous, offset, inertia) or a Dahl/LuGre-type state for presliding and hysteresis,
+    chosen per joint by BIC; terms with 95 % intervals; held-out error near reversals."""
+    from ..identification.artifact import save_friction_model
+    from ..identification.friction_fit import DEFAULT_TERMS
+    from ..identification.friction_model import FrictionModel
+
+    smoothing = _smoothing(coulomb_smoothing)
+    if not (np.isfinite(reversal_window) and reversal_window > 0):
+        raise OptionError(f"--reversal-window must be > 0 s, got {reversal_window}")
+    term_list = tuple(t.strip() for t in terms.split(",") if t.strip()) or DEFAULT_TERMS
+    names = [j.strip() for j in joints.split(",") if j.strip()] if joints else None
+    prep = {"columns": columns, "gains": gains, "rate": rate, "time_unit": time_unit, "max_gap": max_gap,
+            "velocity": str(velocity), "savgol_window": savgol_window, "trim": trim}
+    with atomic_outdir(out, force, inputs=path_inputs(data, test)) as tmp:
+        need_a = "inertia" in term_list
+        one = names if names and len(names) == 1 else None  # names the joint of a bare-column log
+        train = read_bench_logs(data, prep, joints=one, need_acceleration=need_a)
+        held = read_bench_logs(test, prep, joints=one, need_acceleration=need_a)
+        model = FrictionModel(term_list, str(state), smoothing, joints=names).fit(train)
+        validation = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(test, held)}
+        training = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(data, train)}
+        doc = {"settings": {"data": [str(p) for p in data], "test": [str(p) for p in test],
+                            "reversal_window": reversal_window,
+                            "preprocessing": {k: (None if prep[k] is None else
+                                                  str(prep[k]) if k in ("time_unit", "velocity") else prep[k])
+                                              for k in BENCH_KEYS} | {"trim": trim},
+                            "signals": {str(p): tr.provenance for p, tr in zip([*data, *test], [*train, *held])}},
+               "diagnostics": {j: {k: v for k, v in f.to_dict().items() if k not in ("law", "static")}
+                               for j, f in model.fits_.items()},
+               "training": training, "validation": validation}
+        resolved = next((t.provenance["gains"] for t in train if "gains" in t.provenance), None)
+        if resolved is not None:
+            doc["settings"]["preprocessing"]["gains"] = resolved
+        save_friction_model(tmp, model, doc)
+        if plot:
+            from ..report.friction_bench_plot import plot_bench_friction
+
+            plot_bench_friction(model, held or train, tmp / "friction.png", window=reversal_window,
+                                title="held-out log" if held else "training log")
+    _print(model, validation or training, bool(validation))
+    console.print(f"wrote {out}/")
+
+
+def _smoothing(text: str):
+    if text == "auto":
+        return "auto"
+    try:
+        val = float(text)
+    except ValueError:
+        val = float("nan")
+    if not (np.isfinite(val) and val >= 0):
+        raise OptionError(f"--coulomb-smoothing must be 'auto' or a number >= 0 [rad/s], got '{text}'")
+    return val
+
+
+def _errors(model, traj, window: float) -> dict:
+    """Per joint: the chosen and the best static law's RMSE overall and near reversals."""
+    from ..identification.friction_model import friction_errors
+
+    pred, stat = model.predict(traj), model.predict(traj, static=True)
+    out = {}
+    for k, j in enumerate(model.joint_names_):
+        c = list(traj.joint_names).index(j)
+        args = (traj.t, traj.v[:, c])
+        out[j] = {"chosen": model.laws_[j].kind,
+                  "model": friction_errors(traj.tau[:, c], pred[:, k], *args, window=window),
+                  "static": friction_errors(traj.tau[:, c], stat[:, k], *args, window=window)}
+    return out
+
+
+def _fmt(x) -> str:
+    return "–" if x is None else f"{x:.4g}"
+
+
+def _print(model, errors: dict, held_out: bool) -> None:
+    from rich.table import Table
+
+    for j in model.joint_names_:
+        fit, law = model.fits_[j], model.laws_[j]
+        t = Table(title=f"{j}: {law.kind} law — {fit.reason}")
+        for col in ("term", "value", "95 % interval"):
+            t.add_column(col, justify="right")
+        for term, val in law.coef.items():
+            iv = fit.intervals[term]
+            t.add_row(term if term != "stribeck" else "fs − fc", f"{val:.4g}",
+                      "at its bound 0" if iv is None else f"[{iv[0]:.4g}, {iv[1]:.4g}]")
+        if law.vs:
+            t.add_row("vs", f"{law.vs:.4g}", "(grid)")
+        if law.kind == "state":
+            lo, hi = fit.presliding_interval or (None, None)
+            t.add_row("presliding 1/k", f"{1 / law.k:.4g}", f"[{_fmt(lo)}, {_fmt(hi)}]")
+        else:
+            t.add_row("ε (tanh)", f"{law.eps:.4g}", "(noise)")
+        console.print(t)
+    t = Table(title=("held-out" if held_out else "training") + " RMSE: overall / near reversals")
+    for col in ("log", "joint", "law", "model", "best static law"):
+        t.add_column(col, justify="right")
+    for log, per in errors.items():
+        for j, e in per.items():
+            m, s = e["model"], e["static"]
+            t.add_row(Path(log).name, j, e["chosen"], f"{_fmt(m['rmse'])} / {_fmt(m['rmse_reversals'])}",
+                      f"{_fmt(s['rmse'])} / {_fmt(s['rmse_reversals'])}")
+    console.print(t)
+
+
+def friction_model_log(model: Path, data: Path, prep: dict, *, need_acceleration: "bool | None" = None):
+    """A friction-only model (:func:`~sensorless.identification.artifact.load_friction_model`) and a log
+    read as its training logs were (each option in ``prep`` given wins): ``(artifact, trajectory, options)``."""
+    from ..identification.artifact import load_friction_model
+
+    art = load_friction_model(model)
+    bad = [f"--{k}" for k in ("lowpass", "resample") if prep.get(k) is not None]
+    if bad:
+        raise OptionError(f"{' and '.join(bad)} {'does' if len(bad) == 1 else 'do'} not apply to a friction-only "
+                          "model (its logs are neither filtered nor resampled)")
+    opts = {k: prep.get(k) if prep.get(k) is not None else art.preprocessing.get(k) for k in BENCH_KEYS}
+    opts["trim"] = prep.get("trim")
+    joints = list(art.model.joint_names_)
+    if need_acceleration is None:
+        need_acceleration = any("inertia" in law.coef for law in art.model.laws_.values())
+    (traj,) = read_bench_logs([data], opts, joints=joints if len(joints) == 1 else None,
+                              need_acceleration=need_acceleration)
+    return art, traj, opts
+
+
+def predict_friction(model: Path, data: Path, out: Path, prep: dict) -> None:
+    """`sensorless predict` with a friction-only model: τ̂ of the log (states from zero), the
+    measured τ, the best static law's τ̂ when the model has a state; metrics overall and near reversals."""
+    import json
+
+    from ..identification.metrics import torque_metrics
+    from ..io import write_npz_atomic
+    from ..report import metrics_table
+
+    art, traj, opts = friction_model_log(model, data, prep)
+    fm = art.model
+    joints = list(fm.joint_names_)
+    pred = fm.predict(traj)
+    if not np.all(np.isfinite(pred)):
+        raise OptionError(f"{art.path}: the friction model predicts non-finite torques on {data}")
+    cols = [list(traj.joint_names).index(j) for j in joints]
+    arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(joints), "tau_measured": traj.tau[:, cols],
+              "preprocessing": np.array(json.dumps({**{k: None if v is None else str(v) if k in ("time_unit", "velocity")
+                                                      else v for k, v in opts.items()},
+                                                   "signals": traj.provenance}, default=str))}
+    rows = {"model": torque_metrics(traj.tau[:, cols], pred, joints)}
+    if fm.has_state and fm.static_laws_:
+        arrays["tau_pred_static"] = fm.predict(traj, static=True)
+        rows["best static law"] = torque_metrics(traj.tau[:, cols], arrays["tau_pred_static"], joints)
+    console.print(metrics_table(Path(data).name, rows))
+    window = float(art.doc.get("settings", {}).get("reversal_window", 1.0) or 1.0)
+    _print_reversals(fm, {str(data): _errors(fm, traj, window)} if fm.static_laws_ else {}, window)
+    write_npz_atomic(out, **arrays)
+    console.print(f"wrote {out}")
+
+
+def _print_reversals(model, errors: dict, window: float) -> None:
+    from rich.table import Table
+
+    if not errors:
+        return
+    t = Table(title=f"RMSE near velocity reversals (± {window:g} s)")
+    for col in ("joint", "law", "model", "best static law", "samples"):
+        t.add_column(col, justify="right")
+    for per in errors.values():
+        for j, e in per.items():
+            t.add_row(j, e["chosen"], _fmt(e["model"]["rmse_reversals"]), _fmt(e["static"]["rmse_reversals"]),
+                      str(e["model"]["samples_near_reversals"]))
+    console.print(t)
+
+
+@bench_command("friction-state")
+def bench_friction_state(
+    seeds: int = typer.Option(10, help="random velocity profiles (and noise) per simulated joint"),
+) -> dict:
+    """Simulated bench joints (LuGre with three stiffness/damping settings, and a static joint): held-out RMSE
+    near reversals of the chosen law vs the best static law, and the BIC choice."""
+    from ..benchmarks.friction_state import bench_friction_state as run
+
+    if seeds < 1:
+        raise OptionError(f"--seeds must be >= 1, got {seeds}")
+    res = run(seeds, console=console)
+    for name, d in res["truths"].items():
+        console.print(f"{name}: state chosen on {d['chosen_state']}/{seeds}; near-reversal RMSE ratio (chosen / best "
+                      f"static) median {d['median_ratio_reversals']:.3f}, max {d['max_ratio_reversals']:.3f}")
+    return res

@@ -1,0 +1,403 @@
+"""Choosing and fitting one joint's friction law from bench logs: a static law, or a state.
+
+Data: per log the joint's position q, velocity v, acceleration v̇ (for an ``inertia`` term) and
+torque τ at its own time stamps (no uniform sampling needed). Every candidate is linear in its
+amplitudes given its non-linear parameters (:mod:`.friction_state`), so each is a least-squares
+fit of τ, and the non-linear ones are chosen on grids (variable projection):
+
+* **static**: τ_f = fc tanh(v/ε) [+ (fs − fc) e^{−(v/vs)²} tanh(v/ε)] + fv v + o [+ J v̇], ε from
+  the velocity noise (:func:`~.friction.coulomb_smoothing_from_noise`), vs on the grid of
+  :func:`~.friction.stribeck_grid`;
+* **state**: the Dahl/LuGre states s_c, s_s for each inverse presliding distance k on a grid
+  (1/k from 10⁻⁴ to 0.3 × the median stroke between reversals, and at least twice the play
+  half-width h = 3 position-noise stds), each vs, with or without the damping σ1 (q̇ − |q̇| s_c),
+  plus one initial-state column e^{−kS} per log.
+
+Each candidate is scored by BIC = N ln(SSE/N) + p ln N (p: its amplitudes, initial states and
+non-linear parameters). A Stribeck term counts only with fs − fc > 0 (as in :mod:`.stribeck`), a
+state only with fc > 0, σ1 ≥ 0 and a presliding distance above the grid's shortest (a state that
+wants an even shorter one is the static law). With ``state="auto"`` the state law is taken only
+if its BIC is lower than the best static law's: a joint without presliding or hysteresis keeps
+its static law. Intervals (95 %) of the amplitudes are from the Newey–West covariance (the
+residuals of a friction fit are correlated over many samples), that of 1/k from the BIC-scaled
+profile of the residual over the k grid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import numpy as np
+
+from ..data.rest import signal_noise
+from ..data.trajectory import Trajectory
+from ..errors import DataError, ExcitationError, OptionError
+from .friction import coulomb_smoothing_from_noise, stribeck_grid
+from .friction_state import STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
+
+__all__ = ["DEFAULT_TERMS", "STATE_MODES", "JointFit", "JointSeries", "fit_joint_friction", "joint_series"]
+
+#: terms fitted by default (``damping`` is offered with a state; ``stribeck`` and the state by BIC)
+DEFAULT_TERMS = ("fc", "stribeck", "fv", "offset", "inertia")
+STATE_MODES = ("auto", "on", "off")
+#: presliding distances 1/k, × the median stroke between reversals
+PRESLIDING_GRID = np.geomspace(1e-4, 0.3, 25)
+#: dissipative or inertial terms kept ≥ 0 (a negative slope at low speed is the Stribeck term's)
+NONNEGATIVE = ("damping", "fv", "inertia")
+#: play half-width h = this × the position noise std
+PLAY_SIGMAS = 3.0
+_Z95 = 1.959964
+
+
+@dataclasses.dataclass
+class JointSeries:
+    """One joint of one log: 1-D arrays at the log's own stamps."""
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    tau: np.ndarray
+    a: "np.ndarray | None" = None
+    source: str = "<array>"
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+def joint_series(traj: Trajectory, joint: str) -> JointSeries:
+    """Joint ``joint`` of ``traj`` (it must have v and τ)."""
+    if joint not in traj.joint_names:
+        raise DataError(f"no joint '{joint}' in the log (joints: {list(traj.joint_names)})", traj.source)
+    if traj.v is None or traj.tau is None:
+        raise DataError(f"the friction fit needs the velocity and the torque of '{joint}'", traj.source)
+    j = list(traj.joint_names).index(joint)
+    return JointSeries(traj.t, traj.q[:, j], traj.v[:, j], traj.tau[:, j], None if traj.a is None else traj.a[:, j],
+                       traj.source)
+
+
+@dataclasses.dataclass
+class JointFit:
+    """The chosen law of a joint, the best static law, and how they were chosen."""
+
+    joint: str
+    law: FrictionLaw
+    static: FrictionLaw
+    bic: dict
+    reason: str
+    intervals: dict
+    presliding_interval: "list[float] | None"
+    profile: dict
+    n_samples: int
+    noise: dict
+
+    def to_dict(self) -> dict:
+        return {"law": self.law.to_dict(), "static": self.static.to_dict(), "bic": self.bic, "reason": self.reason,
+                "intervals": self.intervals, "presliding_interval": self.presliding_interval,
+                "presliding_profile": self.profile, "n_samples": self.n_samples, "noise": self.noise}
+
+
+@dataclasses.dataclass
+class _Candidate:
+    kind: str
+    terms: tuple
+    vs: float
+    k: float
+    coef: np.ndarray
+    sse: float
+    n_params: int
+    ok: bool
+    bic: float = np.inf
+
+    def summary(self) -> dict:
+        return {"kind": self.kind, "terms": list(self.terms), "vs": self.vs or None,
+                "presliding_distance": 1.0 / self.k if self.k else None, "bic": float(self.bic), "valid": bool(self.ok)}
+
+
+class _Gram:
+    """Normal equations of a column set M (N, c) against y, to fit any subset of its columns;
+    accumulated over blocks of rows (:meth:`add`)."""
+
+    def __init__(self, c: int) -> None:
+        self.G, self.b, self.yy = np.zeros((c, c)), np.zeros(c), 0.0
+
+    def add(self, M: np.ndarray, y: np.ndarray) -> "_Gram":
+        self.G += M.T @ M
+        self.b += M.T @ y
+        self.yy += float(y @ y)
+        return self
+
+    def fit(self, idx: Sequence[int], nonneg: Sequence[int] = ()) -> tuple[np.ndarray, float, int]:
+        """(coefficients, SSE, columns used) of the columns ``idx`` (equilibrated least squares), the
+        coefficients at positions ``nonneg`` kept ≥ 0: a negative one is fixed at 0 (its column
+        dropped, the most negative first) and the rest refitted."""
+        idx = np.asarray(idx, dtype=int)
+        free = np.ones(idx.size, dtype=bool)
+        nonneg = np.asarray(list(nonneg), dtype=int)
+        while True:
+            sub = idx[free]
+            G, b = self.G[np.ix_(sub, sub)], self.b[sub]
+            d = np.sqrt(np.maximum(np.diag(G), 1e-300))
+            c = np.zeros(idx.size)
+            c[free] = np.linalg.lstsq(G / np.outer(d, d), b / d, rcond=1e-12)[0] / d
+            bad = [i for i in nonneg if free[i] and c[i] < 0]
+            if not bad:
+                cf = c[free]
+                return c, float(max(self.yy - 2 * cf @ b + cf @ G @ cf, 0.0)), int(free.sum())
+            free[min(bad, key=lambda i: c[i])] = False
+
+
+def _turning_strokes(qp: np.ndarray) -> np.ndarray:
+    """Distances travelled between consecutive reversals of a (played) position."""
+    dq = np.diff(qp)
+    idx = np.flatnonzero(dq != 0)
+    if idx.size < 2:
+        return np.zeros(0)
+    s = np.sign(dq[idx])
+    turns = idx[np.flatnonzero(s[1:] != s[:-1]) + 1]
+    pts = np.concatenate([[0], turns, [qp.size - 1]])
+    return np.abs(np.diff(qp[pts]))[1:-1] if turns.size >= 2 else np.zeros(0)
+
+
+def _lagged_products(Z: np.ndarray, starts: Sequence[int], max_lag: int) -> np.ndarray:
+    """C[l] = Σ_i Z[i + l]ᵀ Z[i] (p, p) for l = 0 … max_lag, with i and i + l in the same log (FFT)."""
+    n, p = Z.shape
+    ends = list(starts[1:]) + [n]
+    out = np.zeros((max_lag + 1, p, p))
+    for s, t in zip(starts, ends):
+        F = np.fft.rfft(Z[s:t], n=2 * (t - s), axis=0)
+        for i in range(p):  # one column at a time: memory O(N p), not O(N p²)
+            c = np.fft.irfft(F[:, i, None] * np.conj(F), n=2 * (t - s), axis=0)[: max_lag + 1]
+            out[: c.shape[0], i, :] += c
+    return out
+
+
+def _hac(X: np.ndarray, e: np.ndarray, starts: Sequence[int]) -> tuple[np.ndarray, float]:
+    """Newey–West covariance of least-squares coefficients (Bartlett weights; the lag is twice the
+    one where the residual autocorrelation falls below 0.05, at most N/4; lags within a log only)
+    and the long-run inflation 1 + 2 Σ w_l ρ_l of the residual variance."""
+    n = e.size
+    r = (e - e.mean())[:, None]
+    rho = _lagged_products(r, starts, max(min(n // 4, 2000), 1))[:, 0, 0]
+    rho = rho / max(rho[0], 1e-300)
+    below = np.flatnonzero(rho < 0.05)
+    lag = int(min(2 * (below[0] if below.size else rho.size), n // 4, 4000))
+    w = 1.0 - np.arange(1, lag + 1) / (lag + 1)
+    C = _lagged_products(X * e[:, None], starts, lag)
+    S = C[0] + np.einsum("l,lij->ij", w, C[1:] + C[1:].transpose(0, 2, 1))
+    rho = _lagged_products(r, starts, lag)[:, 0, 0] / max(float(r[:, 0] @ r[:, 0]), 1e-300)
+    infl = 1.0 + 2.0 * float(w @ rho[1:])
+    Ginv = np.linalg.pinv(X.T @ X)
+    return Ginv @ S @ Ginv, max(infl, 1.0)
+
+
+def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", terms: Sequence[str] = DEFAULT_TERMS,
+                       state: str = "auto", coulomb_smoothing: "str | float" = "auto") -> JointFit:
+    """Fit one joint's friction on its logs ``series`` and choose static or state (module docstring).
+    ``terms``: among fc, stribeck, damping, fv, offset, inertia (fc is required); ``state``: "auto" (BIC),
+    "on" (the best state law) or "off"."""
+    terms = tuple(terms)
+    bad = [t for t in terms if t not in ("fc", "stribeck", "damping", "fv", "offset", "inertia")]
+    if bad or "fc" not in terms:
+        raise OptionError(f"friction terms of '{joint}' must include fc and be among fc, stribeck, damping, fv, "
+                          f"offset, inertia; got {list(terms)}")
+    if state not in STATE_MODES:
+        raise OptionError(f"--state must be one of {', '.join(STATE_MODES)}, got {state!r}")
+    series = [s for s in series if len(s)]
+    if not series or sum(len(s) for s in series) < 50:
+        raise DataError(f"joint '{joint}': fewer than 50 samples to fit friction on")
+    for s in series:
+        arrays = [("t", s.t), ("q", s.q), ("v", s.v), ("tau", s.tau)] + ([("v̇", s.a)] if "inertia" in terms else [])
+        for name, x in arrays:
+            if x is None:
+                raise DataError(f"joint '{joint}': the inertia term needs the acceleration v̇ (no log has it)", s.source)
+            bad_i = np.flatnonzero(~np.isfinite(x))
+            if bad_i.size:
+                raise DataError(f"joint '{joint}': {name} is not finite at sample {int(bad_i[0])}", s.source)
+    y = np.concatenate([s.tau for s in series])
+    v_all = np.concatenate([s.v for s in series])
+    N = y.size
+    speed = float(np.percentile(np.abs(v_all), 95))
+    if not speed > 0:
+        raise ExcitationError(f"joint '{joint}' does not move in the logs: its friction cannot be identified")
+    long = [s for s in series if len(s) > 30]
+    sig_v = float(np.median([signal_noise(s.v)[0] for s in long])) if long else 0.0
+    sig_q = float(np.median([signal_noise(s.q)[0] for s in long])) if long else 0.0
+    dt = float(np.median(np.concatenate([np.diff(s.t) for s in series])))
+    eps = (float(coulomb_smoothing_from_noise(np.array([sig_v]), speed=np.array([speed]))[0])
+           if coulomb_smoothing == "auto" else float(coulomb_smoothing))
+    h = PLAY_SIGMAS * max(sig_q, sig_v * dt)
+    grid_vs = (stribeck_grid(np.array([speed]), np.array([eps]), np.array([0.0]), [joint], [joint])[joint]
+               if "stribeck" in terms else [])
+    starts = np.cumsum([0] + [len(s) for s in series[:-1]]).tolist()
+    qps = [play(s.q, h) for s in series]
+    strokes = np.concatenate([_turning_strokes(qp) for qp in qps])
+    noise = {"velocity": sig_v, "position": sig_q, "coulomb_smoothing": eps, "play": h,
+             "median_stroke": float(np.median(strokes)) if strokes.size else None, "reversals": int(strokes.size)}
+
+    fixed = {"fv": v_all, "offset": np.ones(N),
+             "inertia": np.concatenate([s.a for s in series]) if "inertia" in terms else None}
+    base_terms = [t for t in ("fv", "offset", "inertia") if t in terms]
+    B = np.column_stack([fixed[t] for t in base_terms]) if base_terms else np.zeros((N, 0))
+    bic_of = lambda sse, p: N * np.log(max(sse, 1e-300) / N) + p * np.log(N)  # noqa: E731
+    cands: list[_Candidate] = []
+
+    def add(gram, idx, kind, names, vs=0.0, k=0.0, extra=0) -> _Candidate:
+        c, sse, used = gram.fit(idx, [i for i, t in enumerate(names) if t in NONNEGATIVE])
+        ok = all(c[names.index(t)] > 0 for t in ("fc", "stribeck") if t in names and (kind == "state" or t != "fc"))
+        p = used + extra
+        cand = _Candidate(kind, tuple(names), vs, k, c, sse, p, bool(ok), bic_of(sse, p))
+        cands.append(cand)
+        return cand
+
+    sgn = np.tanh(v_all / eps) if eps > 0 else np.sign(v_all)
+    nb, m = B.shape[1], len(grid_vs)
+    gram = _Gram(1 + m + nb)
+    for i0 in range(0, N, STATE_BLOCK):
+        sl = slice(i0, i0 + STATE_BLOCK)
+        gram.add(np.column_stack([sgn[sl]] + [np.exp(-((v_all[sl] / vs) ** 2)) * sgn[sl] for vs in grid_vs]
+                                 + [B[sl]]), y[sl])
+    for j, vs in enumerate([None] + list(grid_vs)):
+        idx = [0] + ([j] if vs else []) + list(range(1 + m, 1 + m + nb))
+        add(gram, idx, "static", ["fc"] + (["stribeck"] if vs else []) + base_terms, vs or 0.0, extra=1 if vs else 0)
+    static_best = min((c for c in cands if c.kind == "static" and c.ok), key=lambda c: c.bic)
+
+    why_not = None
+    lengths = noise["median_stroke"] * PRESLIDING_GRID if strokes.size else np.zeros(0)
+    lengths = lengths[lengths >= 2 * h]
+    if state == "off":
+        why_not = "state off (--state off)"
+    elif strokes.size < 2:
+        why_not = "fewer than two strokes between reversals: presliding cannot be seen"
+    elif lengths.size < 3:
+        why_not = "the position noise hides every presliding distance shorter than 0.3 × the stroke"
+    else:
+        k_grid = 1.0 / lengths
+        ctx = (series, qps, starts, B, y, base_terms)
+        _state_candidates(ctx, k_grid, list(grid_vs), (False, True), add)
+        sharp = float(k_grid.max()) * (1 - 1e-12)
+        for c in cands:
+            if c.kind == "state" and c.k >= sharp:
+                c.ok = False  # sharper than the grid resolves: that is the static law
+        ok_state = [c for c in cands if c.kind == "state" and c.ok]
+        if ok_state:  # refine k around the best grid point for its vs and damping choice
+            best = min(ok_state, key=lambda c: c.bic)
+            g = int(np.argmin(np.abs(k_grid - best.k)))
+            fine = np.geomspace(k_grid[max(g - 1, 0)], k_grid[min(g + 1, k_grid.size - 1)], 17)
+            _state_candidates(ctx, fine[fine < sharp], [best.vs] if best.vs else [], ("damping" in best.terms,), add,
+                              with_none=not best.vs)
+    ok_state = [c for c in cands if c.kind == "state" and c.ok]
+    state_best = min(ok_state, key=lambda c: c.bic) if ok_state else None
+    if why_not is None and state_best is None:
+        why_not = "no state law with fc > 0 and a presliding distance longer than the grid's shortest"
+    profile = {}
+    if state_best is not None:
+        same = sorted((c for c in cands if c.kind == "state" and c.terms == state_best.terms
+                       and c.vs == state_best.vs), key=lambda c: -c.k)
+        profile = {"presliding_distance": [1.0 / c.k for c in same], "bic": [float(c.bic) for c in same]}
+    if state == "on" and state_best is None:
+        raise ExcitationError(f"joint '{joint}': --state on, but {why_not}")
+    if state_best is not None and (state == "on" or state_best.bic < static_best.bic):
+        chosen = state_best
+        reason = ("state (--state on)" if state == "on" else
+                  f"state: BIC {state_best.bic:.1f} below the static law's {static_best.bic:.1f}")
+    else:
+        chosen = static_best
+        reason = why_not or (f"static: the state law's BIC {state_best.bic:.1f} is not below the static "
+                             f"law's {static_best.bic:.1f}")
+    law, static_law = _law(chosen, eps, h), _law(static_best, eps, h)
+    X = _design(chosen, series, qps, eps, starts)
+    e = y - X @ chosen.coef
+    free = np.array([not (i < len(chosen.terms) and chosen.terms[i] in NONNEGATIVE and chosen.coef[i] == 0.0)
+                     for i in range(X.shape[1])])
+    cov, infl = _hac(X[:, free], e, starts)
+    sd = np.zeros(X.shape[1])
+    sd[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    # a term held at its bound 0 (its unconstrained value was negative) has no interval (None)
+    intervals = {t: [float(chosen.coef[i] - _Z95 * sd[i]), float(chosen.coef[i] + _Z95 * sd[i])] if free[i] else None
+                 for i, t in enumerate(chosen.terms)}
+    pre = None
+    if chosen.kind == "state":
+        # N ln(SSE/SSE_min) ≈ ΔSSE/σ² ≤ χ²₁(95 %) × the long-run inflation of the residual variance
+        pre = _profile_interval(np.array(profile["presliding_distance"]), np.array(profile["bic"]), 3.84 * infl)
+    best_of = {}
+    for c in cands:
+        key = (c.kind, "stribeck" in c.terms, "damping" in c.terms)
+        if c.ok and (key not in best_of or c.bic < best_of[key].bic):
+            best_of[key] = c
+    bic = {"static": float(static_best.bic), "state": None if state_best is None else float(state_best.bic),
+           "chosen": chosen.kind, "candidates": [c.summary() for c in sorted(best_of.values(), key=lambda c: c.bic)]}
+    return JointFit(joint, law, static_law, bic, reason, intervals, pre, profile, int(N), noise)
+
+
+def _profile_interval(L: np.ndarray, b: np.ndarray, level: float) -> list[float]:
+    """Where the profile b(L) stays within ``level`` of its minimum: the grid points, widened by the
+    parabola in ln L through the minimum and its neighbours (the grid is coarser than the interval)."""
+    x, order = np.log(L), np.argsort(L)
+    x, b = x[order], b[order]
+    keep = np.concatenate([[True], np.diff(x) > 1e-9])
+    x, b = x[keep], b[keep]
+    i = int(np.argmin(b))
+    lo, hi = x[b - b[i] <= level].min(), x[b - b[i] <= level].max()
+    if 0 < i < x.size - 1:
+        c2 = np.polyfit(x[i - 1:i + 2], b[i - 1:i + 2], 2)
+        if c2[0] > 0:
+            x0 = -c2[1] / (2 * c2[0])
+            half = np.sqrt(level / c2[0])
+            lo, hi = min(lo, x0 - half), max(hi, x0 + half)
+    return [float(np.exp(lo)), float(np.exp(hi))]
+
+
+def _initial_columns(qps, starts, k: float) -> np.ndarray:
+    """(N, n_logs): e^{−k S} on each log's rows (S the distance travelled since its start)."""
+    N = starts[-1] + qps[-1].size
+    out = np.zeros((N, len(qps)))
+    for i, (s0, qp) in enumerate(zip(starts, qps)):
+        out[s0:s0 + qp.size, i] = np.exp(-k * np.concatenate([[0.0], np.cumsum(np.abs(np.diff(qp)))]))
+    return out
+
+
+def _state_candidates(ctx, k_grid, vs_list, damping, add, with_none: bool = True) -> None:
+    """Add, via ``add``, the state candidates for each k of ``k_grid``, each vs of ``vs_list`` (and no
+    Stribeck term with ``with_none``), with each ``damping`` choice. The columns of each k are
+    [s_c, s_s (each vs), damping, fixed terms, initial states], folded into one Gram matrix per k
+    block by block (:func:`~.friction_state.dahl_state_blocks`: memory independent of the log length)."""
+    series, qps, starts, B, y, base_terms = ctx
+    if len(k_grid) == 0:
+        return
+    k_grid = np.asarray(k_grid, dtype=float)
+    m, nb, n_logs = len(vs_list), B.shape[1], len(series)
+    grams = [_Gram(2 + m + nb + n_logs) for _ in k_grid]
+    for i, (qp, ser, s0) in enumerate(zip(qps, series, starts)):
+        travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(qp)))])
+        for i0, i1, S in dahl_state_blocks(qp, ser.v, k_grid, vs_list):
+            v, Bb, yb = ser.v[i0:i1], B[s0 + i0:s0 + i1], y[s0 + i0:s0 + i1]
+            init = np.zeros((i1 - i0, n_logs))
+            for g, k in enumerate(k_grid):
+                init[:, i] = np.exp(-k * travel[i0:i1])
+                sc = S[:, g, 0]
+                grams[g].add(np.column_stack([S[:, g, :], v - np.abs(v) * sc, Bb, init]), yb)
+    rest = list(range(2 + m, 2 + m + nb + n_logs))
+    for g, k in enumerate(k_grid):
+        for j, vs in ([(None, None)] if with_none else []) + list(enumerate(vs_list)):
+            for d in damping:
+                idx = [0] + ([1 + j] if vs else []) + ([1 + m] if d else []) + rest
+                names = ["fc"] + (["stribeck"] if vs else []) + (["damping"] if d else []) + base_terms
+                add(grams[g], idx, "state", names, vs or 0.0, float(k), extra=1 + (1 if vs else 0))
+
+
+def _law(c: _Candidate, eps: float, h: float) -> FrictionLaw:
+    coef = dict(zip(c.terms, map(float, c.coef[: len(c.terms)])))
+    if c.kind == "state":
+        return FrictionLaw("state", coef, vs=c.vs, k=c.k, play=h)
+    return FrictionLaw("static", coef, eps=eps, vs=c.vs)
+
+
+def _design(c: _Candidate, series, qps, eps: float, starts) -> np.ndarray:
+    """The regressor of candidate ``c`` (a state's with its initial-state columns)."""
+    law = _law(c, eps, 0.0)
+    if c.kind == "static":
+        return np.concatenate([law.columns(s.q, s.v, s.a) for s in series])
+    X = np.concatenate([law.columns(qp, s.v, s.a, states=dahl_states(qp, s.v, [c.k], [c.vs or 1.0])[:, 0, :])
+                        for qp, s in zip(qps, series)])
+    return np.column_stack([X, _initial_columns(qps, starts, c.k)])
