@@ -6,7 +6,9 @@ and quaternions whose sign flips. :func:`clean_base_pose` turns them into Pinocc
 floating-base convention on a uniform (or given) time grid:
 
 1. **clean**: non-finite samples, held samples (position and rotation identical to the
-   previous sample's, within ``hold_tol``) and duplicate stamps are dropped. At the ends of the
+   previous sample's, within ``hold_tol``) and duplicate stamps are dropped; a run of identical
+   poses after which the base moves by less than a tenth of its median sample-to-sample step is
+   a base at rest, kept as measured (a tracker that held its value jumps). At the ends of the
    stream they are not gaps but samples without a pose: a leading run of repeats keeps its last
    sample, a trailing run its first, and what lies outside is clipped (counted in ``report``,
    a :class:`~sensorless.errors.DataWarning` when requested times fall there). Inside, a gap
@@ -53,6 +55,9 @@ ORIENTATION_FORMATS = ("quat_xyzw", "quat_wxyz", "rpy")
 #: Largest gap inside the pose stream [median periods of the kept samples] that is interpolated:
 #: a 100 Hz tracker that loses markers for 0.1 s; longer, a spline through walking motion is a guess
 DEFAULT_POSE_MAX_GAP = 10.0
+#: a run of identical poses followed by a move smaller than this share of the median sample-to-sample
+#: step is a base at rest (kept), not a held tracker output (dropped and interpolated)
+REST_STEP_SHARE = 0.1
 
 
 @dataclass
@@ -94,25 +99,43 @@ def _rotations(orientation: np.ndarray, fmt: str, src: str) -> np.ndarray:
 
 
 def _valid_samples(t, p, quat, hold_tol: float, source: str) -> tuple[np.ndarray, dict]:
-    """Indices of the usable pose samples (step 1 of the module docstring) and their counts."""
+    """Indices of the usable pose samples (step 1 of the module docstring) and their counts.
+
+    A run of identical poses (within ``hold_tol``; q ≡ −q) is a tracker holding its last value, unless
+    the pose after it moves by less than :data:`REST_STEP_SHARE` of the median sample-to-sample step:
+    then it is a base at rest, and its samples are kept as measured."""
     n = len(t)
     finite = np.isfinite(t) & np.isfinite(p).all(axis=1) & np.isfinite(quat).all(axis=1)
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         raise TimestampError(f"time goes backwards at sample {back[0] + 1} ({t[back[0]]:.6g} → {t[back[0] + 1]:.6g} s)",
                              source)
-    same = np.zeros(n, bool)  # held: same position and rotation (q ≡ −q) as the previous sample
+    dup = np.zeros(n, bool)
+    dup[1:] = np.diff(t) == 0
+    eq = np.zeros(n, bool)  # same position and rotation as the previous sample
     with np.errstate(invalid="ignore"):
-        dot = np.abs(np.sum(quat[1:] * quat[:-1], axis=1))
-        same[1:] = ((np.all(np.abs(np.diff(p, axis=0)) <= hold_tol, axis=1) & (1.0 - dot <= max(hold_tol, 1e-12)))
-                    | (np.diff(t) == 0))
-    idx = np.flatnonzero(finite & ~same)
-    if idx.size and idx[0] + 1 < n:
-        run = np.flatnonzero(~(same[idx[0] + 1:] & finite[idx[0] + 1:]))  # the leading run of repeats ends
-        last = idx[0] + (run[0] if run.size else n - 1 - idx[0])         # at its last sample: keep that one
-        if last > idx[0]:
-            idx = np.concatenate([[last], idx[1:]])
-    counts = {"n_in": n, "n_nonfinite": int((~finite).sum()), "n_held": int((same & finite).sum()),
+        dot = np.clip(np.abs(np.sum(quat[1:] * quat[:-1], axis=1)), 0.0, 1.0)
+        eq[1:] = (finite[1:] & finite[:-1] & np.all(np.abs(np.diff(p, axis=0)) <= hold_tol, axis=1)
+                  & (1.0 - dot <= max(hold_tol, 1e-12)))
+        step_p, step_r = np.linalg.norm(np.diff(p, axis=0), axis=1), 2.0 * np.arccos(dot)
+    moving = finite[1:] & finite[:-1] & ~eq[1:] & ~dup[1:]
+    typical = (np.median(step_p[moving]), np.median(step_r[moving])) if moving.any() else (0.0, 0.0)
+    edges = np.diff(np.concatenate([[0], eq.astype(np.int8), [0]]))
+    first, last = np.flatnonzero(edges == 1) - 1, np.flatnonzero(edges == -1) - 1  # runs first..last identical
+    nxt = np.minimum(last + 1, n - 1)
+    at_rest = ((last + 1 < n) & finite[nxt] & ~dup[nxt] & (step_p[np.minimum(last, n - 2)] <= REST_STEP_SHARE * typical[0])
+               & (step_r[np.minimum(last, n - 2)] <= REST_STEP_SHARE * typical[1]))
+    mark = np.zeros(n + 1, int)
+    np.add.at(mark, first[~at_rest] + 1, 1)
+    np.add.at(mark, last[~at_rest] + 1, -1)
+    held = np.cumsum(mark)[:n] > 0
+    keep = finite & ~held & ~dup
+    idx = np.flatnonzero(keep)
+    lead = np.flatnonzero(~at_rest & (first == (idx[0] if idx.size else -1)))
+    if lead.size:  # a leading run of repeats: keep its last sample (the tracker's first)
+        idx = np.concatenate([[last[lead[0]]], idx[1:]])
+    counts = {"n_in": n, "n_nonfinite": int((~finite).sum()), "n_held": int((held & finite).sum()),
+              "n_at_rest": int(np.sum(last[at_rest] - first[at_rest] + 1)),
               "leading": int(idx[0]) if idx.size else n, "trailing": int(n - 1 - idx[-1]) if idx.size else 0}
     if idx.size < 4:
         raise DataError(f"the base pose changes in only {idx.size} of {n} samples (the others are missing or repeat "
@@ -122,9 +145,12 @@ def _valid_samples(t, p, quat, hold_tol: float, source: str) -> tuple[np.ndarray
 
 
 def _clip_note(counts: dict, dropped: tuple[int, int], t_lo: float, t_hi: float, source: str) -> str:
-    return (f"{source}: base pose: {counts['leading']} leading and {counts['trailing']} trailing pose sample(s) "
-            f"repeat the next/previous one or are missing (a tracker not yet or no longer tracking); clipped "
-            f"{dropped[0]} sample(s) before t = {t_lo:.6g} s and {dropped[1]} after t = {t_hi:.6g} s")
+    parts = [f"{what}: clipped {k} sample(s) {side} t = {at:.6g} s" for what, k, side, at in (
+        (f"the first {counts['leading']} pose sample(s) repeat the next one or are missing (a tracker not yet "
+         "tracking)", dropped[0], "before", t_lo),
+        (f"the last {counts['trailing']} pose sample(s) repeat the one before them or are missing (a tracker no "
+         "longer tracking)", dropped[1], "after", t_hi)) if k]
+    return f"{source}: base pose: " + "; ".join(parts)
 
 
 def clean_base_pose(
