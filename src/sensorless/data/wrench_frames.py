@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import DataError, OptionError, RobotModelError
 from .trajectory import Trajectory
 
-__all__ = ["WORLD", "CONTACT", "wrench_frame_map", "express_wrenches"]
+__all__ = ["WORLD", "CONTACT", "check_frame", "wrench_frame_map", "express_wrenches"]
 
 #: the wrench is already in world axes at its contact frame (nothing to do)
 WORLD = "world"
