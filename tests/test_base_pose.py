@@ -217,3 +217,9 @@ def test_pose_ends_rest_and_gap_rules(truth):
         clean_base_pose(t, moving[:, :3], moving[:, 3:])
     ok = clean_base_pose(t, moving[:, :3], moving[:, 3:], max_gap_periods=15)
     assert ok.report["max_gap"] == pytest.approx(0.12) and ok.report["n_held"] == 11
+
+
+def test_a_pose_that_never_changes_is_a_base_at_rest():
+    t = np.arange(200) / 100.0
+    pose = clean_base_pose(t, np.tile([0.1, 0.2, 0.9], (200, 1)), np.tile([0, 0, 0.6, 0.8], (200, 1)))
+    assert pose.report["n_at_rest"] == 200 and np.abs(pose.base_v).max() < 1e-9 and np.abs(pose.base_a).max() < 1e-9

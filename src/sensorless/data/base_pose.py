@@ -34,9 +34,8 @@ mocap stream on another clock; :func:`base_motion_from_pose` does it for a log w
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
@@ -122,9 +121,10 @@ def _valid_samples(t, p, quat, hold_tol: float, source: str) -> tuple[np.ndarray
     typical = (np.median(step_p[moving]), np.median(step_r[moving])) if moving.any() else (0.0, 0.0)
     edges = np.diff(np.concatenate([[0], eq.astype(np.int8), [0]]))
     first, last = np.flatnonzero(edges == 1) - 1, np.flatnonzero(edges == -1) - 1  # runs first..last identical
-    nxt = np.minimum(last + 1, n - 1)
-    at_rest = ((last + 1 < n) & finite[nxt] & ~dup[nxt] & (step_p[np.minimum(last, n - 2)] <= REST_STEP_SHARE * typical[0])
-               & (step_r[np.minimum(last, n - 2)] <= REST_STEP_SHARE * typical[1]))
+    nxt, jump = np.minimum(last + 1, n - 1), np.minimum(last, n - 2)  # the sample after each run, the step to it
+    at_rest = (((first == 0) & (last == n - 1))  # a pose that never changes: a base held in place
+               | ((last + 1 < n) & finite[nxt] & ~dup[nxt] & (step_p[jump] <= REST_STEP_SHARE * typical[0])
+                  & (step_r[jump] <= REST_STEP_SHARE * typical[1])))
     mark = np.zeros(n + 1, int)
     np.add.at(mark, first[~at_rest] + 1, 1)
     np.add.at(mark, last[~at_rest] + 1, -1)
@@ -138,9 +138,8 @@ def _valid_samples(t, p, quat, hold_tol: float, source: str) -> tuple[np.ndarray
               "n_at_rest": int(np.sum(last[at_rest] - first[at_rest] + 1)),
               "leading": int(idx[0]) if idx.size else n, "trailing": int(n - 1 - idx[-1]) if idx.size else 0}
     if idx.size < 4:
-        raise DataError(f"the base pose changes in only {idx.size} of {n} samples (the others are missing or repeat "
-                        "the previous one): a tracker that never updated? Log the base velocity instead "
-                        "(--base-velocity logged)" if n >= 4 else f"only {n} pose samples", source)
+        raise DataError(f"only {idx.size} of the {n} pose samples are usable (the others are missing or repeat the "
+                        "previous one)", source)
     return idx, counts
 
 

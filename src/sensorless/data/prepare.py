@@ -178,14 +178,16 @@ def _velocity_source(velocity: str) -> str:
     return v
 
 
-def _from_pose(base_velocity: str, traj: Trajectory) -> bool:
-    """Whether the base twist is derived from the logged base pose (``BASE_VELOCITY_SOURCES``)."""
+def _from_pose(base_velocity: str, traj: Trajectory, robot) -> bool:
+    """Whether the base twist is derived from the logged base pose (``BASE_VELOCITY_SOURCES``; "auto":
+    a log with ``base_q`` and no ``base_v``, unless ``robot`` is fixed-base)."""
     mode = str(base_velocity).strip().lower().replace("_", "-")
     if mode not in BASE_VELOCITY_SOURCES:
         raise OptionError(f"--base-velocity must be one of {', '.join(BASE_VELOCITY_SOURCES)}, got {base_velocity!r}")
     if mode == "from-pose" and traj.base_q is None:
         raise DataError("--base-velocity from-pose: the log has no base pose ('base_q': x y z qx qy qz qw)", traj.source)
-    return traj.base_q is not None and (mode == "from-pose" or (mode == "auto" and traj.base_v is None))
+    floating = robot is None or getattr(robot, "floating_base", False)
+    return traj.base_q is not None and (mode == "from-pose" or (mode == "auto" and traj.base_v is None and floating))
 
 
 def prepare(
@@ -227,7 +229,7 @@ def prepare(
 
     if trim is not None:
         traj = trim_window(traj, trim)
-    from_pose = _from_pose(base_velocity, traj)
+    from_pose = _from_pose(base_velocity, traj, robot)
     if from_pose:  # imported on use: SciPy's interpolation and rotations
         from .base_pose import DEFAULT_POSE_MAX_GAP, base_motion_from_pose, clip_to_pose
 
