@@ -72,7 +72,13 @@ def test_express_wrenches_inverts_the_frame_change(legs, world_log):
 def test_frame_map_and_its_errors(legs, world_log):
     assert wrench_frame_map("contact", FEET, legs) == dict(zip(FEET, FEET))
     assert wrench_frame_map(["left_ft", "world"], FEET, legs) == {"left_sole_link": "left_ft", "right_sole_link": "world"}
-    assert wrench_frame_map("world", FEET, legs) is None and wrench_frame_map(None, FEET) is None
+    assert wrench_frame_map(None, FEET) is None
+    world = wrench_frame_map("world", FEET, legs)
+    assert world == dict.fromkeys(FEET, "world")
+    # world-aligned wrench topics of a ROS bag ('wrench') become the contact wrenches unchanged
+    bag = world_log.with_(base_q=None, extras={"wrench": world_log.extras["contact_forces"]})
+    np.testing.assert_array_equal(express_wrenches(bag, legs, world).extras["contact_forces"],
+                                  world_log.extras["contact_forces"])
     with pytest.raises(RobotModelError, match="did you mean 'left_sole_link'"):
         wrench_frame_map("left_sole_lnk,contact", FEET, legs)
     with pytest.raises(OptionError, match="gives 1 frame"):

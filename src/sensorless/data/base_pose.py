@@ -104,6 +104,8 @@ def _valid_samples(t, p, quat, hold_tol: float, source: str) -> tuple[np.ndarray
     the pose after it moves by less than :data:`REST_STEP_SHARE` of the median sample-to-sample step:
     then it is a base at rest, and its samples are kept as measured."""
     n = len(t)
+    if n < 4:
+        raise DataError(f"only {n} pose samples; at least 4 are needed", source)
     finite = np.isfinite(t) & np.isfinite(p).all(axis=1) & np.isfinite(quat).all(axis=1)
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:

@@ -57,7 +57,7 @@ def check_frame(robot, name: str, what: str = "--wrench-frame") -> int:
 def wrench_frame_map(spec: "str | Sequence[str] | Mapping[str, str] | None", contact_frames: Sequence[str],
                      robot=None) -> dict[str, str] | None:
     """``{contact frame: frame its wrench is logged in}`` from ``spec`` (module docstring), or None
-    when every wrench is already world-aligned. ``spec``: one frame per contact frame, in their
+    when no frame is given (the wrenches are world-aligned). ``spec``: one frame per contact frame, in their
     order (comma-separated or a list), or one of ``contact`` / ``world`` for all; a mapping is
     checked and returned. With ``robot``, every frame name is checked against the model."""
     contact_frames = list(contact_frames)
@@ -83,7 +83,7 @@ def wrench_frame_map(spec: "str | Sequence[str] | Mapping[str, str] | None", con
             check_frame(robot, c, "--contact-frames")
             if s != WORLD:
                 check_frame(robot, s)
-    return None if all(s == WORLD for s in out.values()) else out
+    return out
 
 
 def _wrench_array(traj: Trajectory, n_c: int) -> tuple[str, np.ndarray]:
@@ -104,7 +104,8 @@ def _wrench_array(traj: Trajectory, n_c: int) -> tuple[str, np.ndarray]:
 def express_wrenches(traj: Trajectory, robot, frames: Mapping[str, str]) -> Trajectory:
     """``traj`` with its wrenches, logged in the model frames ``frames`` (``{contact frame: wrench
     frame}``, in the contact frames' order), in world axes about the contact frames (module
-    docstring), as ``extras["contact_forces"]`` (N, n_contacts, 3|6)."""
+    docstring), as ``extras["contact_forces"]`` (N, n_contacts, 3|6); a bag's ``extras["wrench"]``
+    is moved there (all ``world``: unchanged otherwise)."""
     import pinocchio as pin  # imported on use (start-up time of the data layer)
 
     frames = dict(frames)
@@ -112,7 +113,8 @@ def express_wrenches(traj: Trajectory, robot, frames: Mapping[str, str]) -> Traj
     cids = [check_frame(robot, c, "--contact-frames") for c in contacts]
     sids = [None if s == WORLD else check_frame(robot, s) for s in frames.values()]
     key, f = _wrench_array(traj, len(contacts))
-    if getattr(robot, "floating_base", False) and traj.base_q is None:
+    moving = any(sid is not None for sid in sids)
+    if moving and getattr(robot, "floating_base", False) and traj.base_q is None:
         raise DataError("--wrench-frame: the sensor frames move with the floating base, but the log has no base pose "
                         "('base_q'); log the base pose (position + quaternion) or give world-aligned wrenches",
                         traj.source)
@@ -121,7 +123,7 @@ def express_wrenches(traj: Trajectory, robot, frames: Mapping[str, str]) -> Traj
     model, data = robot.model, robot.data
     out = f.copy()
     six = f.shape[2] == 6
-    for i in range(len(traj)):
+    for i in range(len(traj) if moving else 0):
         pin.framesForwardKinematics(model, data, Q[i])
         for k, (cid, sid) in enumerate(zip(cids, sids)):
             if sid is None:
