@@ -18,7 +18,8 @@ from rich.text import Text
 
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
-from .options import TimeUnit
+from .channel_options import base_velocity_option, pose_max_gap_option
+from .options import BaseVelocity, TimeUnit
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -192,9 +193,6 @@ def progress_bar() -> Progress:
     )
 
 
-
-
-
 def gains_option():
     return typer.Option(None, help="per-joint drive gains τ = K·i for logs of motor currents: a .json/.csv file "
                                    "(joint → gain), 'K1,K2,...' in column order, or 'joint=K,...'; "
@@ -226,7 +224,8 @@ def max_gap_option(default: Optional[float] = None):
 
 
 def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
-                           decimate, max_gap, rest="auto", time_unit=None) -> dict:
+                           decimate, max_gap, rest="auto", time_unit=None, base_velocity="auto", pose_max_gap=None,
+                           wrench_frames=None) -> dict:
     """settings.preprocessing for result.json: the options (gains resolved per joint name,
     column map parsed, gain suffix moved to ``gains``) and each log's provenance."""
     from ..data.gains import split_gain_modifiers
@@ -236,7 +235,8 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
     resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
     return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
             "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
-            "trim": trim, "decimate": decimate, "rest": rest, "time_unit": time_unit}
+            "trim": trim, "decimate": decimate, "rest": rest, "time_unit": time_unit,
+            "base_velocity": base_velocity, "pose_max_gap": pose_max_gap, "wrench_frames": wrench_frames}
 
 
 def model_preprocessing(model, **given) -> dict:
@@ -324,9 +324,6 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **o
     return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, **options) for p in paths]
 
 
-
-
-
 ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
 
 
@@ -346,6 +343,8 @@ _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
     "velocity": (Optional[str], lambda: velocity_option(None)),
     "max_gap": (Optional[float], lambda: max_gap_option()),
     "time_unit": (Optional[TimeUnit], lambda: time_unit_option()),
+    "base_velocity": (Optional[BaseVelocity], lambda: base_velocity_option(None)),
+    "pose_max_gap": (Optional[float], lambda: pose_max_gap_option()),
 }
 MODEL_PREPROCESSING = tuple(_PREPROCESSING_OPTIONS)
 
@@ -486,7 +485,8 @@ def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> t
     trajs = load_logs(paths, robot, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
                       gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
                       velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"),
-                      time_unit=opts.get("time_unit"))
+                      time_unit=opts.get("time_unit"), base_velocity=opts.get("base_velocity"),
+                      pose_max_gap=opts.get("pose_max_gap"), wrench_frames=opts.get("wrench_frames"))
     return trajs, opts
 
 

@@ -9,6 +9,7 @@ from typing import List, Optional
 import typer
 
 from ..errors import ExcitationError, OptionError, SensorlessError
+from .channel_options import base_velocity_option, pose_max_gap_option, wrench_frame_option
 from .frames import frame_options
 from .common import (
     robot_source_options,
@@ -38,6 +39,7 @@ from .common import (
 )
 from .options import (
     TimeUnit,
+    BaseVelocity,
     ContactMode,
     ContactRows,
     Ellipsoids,
@@ -91,6 +93,8 @@ def identify(
     velocity: Velocity = velocity_option(),
     max_gap: Optional[float] = max_gap_option(),
     time_unit: Optional[TimeUnit] = time_unit_option(),
+    base_velocity: BaseVelocity = base_velocity_option(),
+    pose_max_gap: Optional[float] = pose_max_gap_option(),
     lock: Optional[List[str]] = lock_option(),
     floating_base: Optional[bool] = floating_base_option(),
     contact_frames: Optional[str] = typer.Option(
@@ -106,6 +110,7 @@ def identify(
                                       "foot (world axes, per foot) | sole (force in each sole frame)"),
     offset_axes: str = typer.Option("xy", help="force axes of --wrench-offset (xyz adds the vertical one, "
                                     "confounded with m·g on standing data)"),
+    wrench_frame: Optional[List[str]] = wrench_frame_option(),
     imu_frame: Optional[str] = typer.Option(None, help="model frame of the accelerometer ('imu_acc'): rotation and "
                                             "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
@@ -154,12 +159,17 @@ def identify(
     if floating_base is None and contact_frames:
         floating_base = True  # contact structures need a floating base; a URDF would load fixed
     r = load_robot_arg(robot, lock, floating_base)
+    from ..data.wrench_frames import wrench_frame_map
     from ..regressor.distributed import LogReader, expand_paths
 
+    if wrench_frame and contact_mode != "wrench":
+        raise OptionError("--wrench-frame needs --contact-mode wrench (measured contact wrenches)")
+    wrench_frames = wrench_frame_map(wrench_frame, [f.strip() for f in (contact_frames or "").split(",") if f.strip()], r)
     data = [Path(p) for p in expand_paths(data)]
     prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
                 gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
-                rest=rest, time_unit=time_unit)
+                rest=rest, time_unit=time_unit, base_velocity=base_velocity, pose_max_gap=pose_max_gap,
+                wrench_frames=wrench_frames)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
         skipped: list = []
         if scheduler is None:
@@ -233,7 +243,8 @@ def identify(
                                     train + val, columns=columns, gains=gains, rate=rate, trim=trim,
                                     resample=resample, lowpass=lowpass, savgol_window=savgol_window,
                                     velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest,
-                                    time_unit=time_unit),
+                                    time_unit=time_unit, base_velocity=base_velocity, pose_max_gap=pose_max_gap,
+                                    wrench_frames=wrench_frames),
                                 "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
                                 if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
         result.settings["config"] = {"file": None if config is None else str(config), "options": resolved_options()}

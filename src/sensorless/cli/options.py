@@ -18,7 +18,7 @@ import typer
 
 from ..errors import OptionError
 
-__all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "ContactMode", "ContactRows",
+__all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
            "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align",
            "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "FrictionState", "config_option", "check_config",
            "resolved_options"]
@@ -33,6 +33,7 @@ Regularization = _choices("Regularization", ("pullback", "entropic", "euclidean"
 Ellipsoids = _choices("Ellipsoids", ("auto", "kinematic", "none"))
 Outliers = _choices("Outliers", ("error", "drop", "keep"))
 Velocity = _choices("Velocity", ("logged", "from-q"))
+BaseVelocity = _choices("BaseVelocity", ("auto", "from-pose", "logged"))
 ContactMode = _choices("ContactMode", ("projected", "wrench"))
 ContactRows = _choices("ContactRows", ("auto", "base", "all"))
 WrenchOffset = _choices("WrenchOffset", ("none", "net", "foot", "sole"))

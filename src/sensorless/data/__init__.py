@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 
 from .._lazy import lazy_exports
 
-from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, resample_uniform, savgol_derivatives, trim
+from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, lowpass_channels, resample_uniform, savgol_derivatives, trim
 from .gains import currents_to_torques, load_gains, resolve_gains
 from .prepare import TrimWindow, default_savgol_window, prepare, trim_window
 from .rest import rest_mask, zero_at_rest
@@ -16,17 +16,19 @@ from .resample import Timing, resample, timing
 from .rosbag import is_rosbag, read_rosbag
 from .trajectory import Trajectory
 from .validation import validate_trajectory
+from .wrench_frames import express_wrenches, wrench_frame_map
 
 # The modules that load SciPy's interpolation/signal packages or Pinocchio are imported on first use
 _EXPORTS = {
-    **dict.fromkeys(["BasePose", "clean_base_pose", "with_base_pose"], ".base_pose"),
+    **dict.fromkeys(["BasePose", "clean_base_pose", "with_base_pose", "clip_to_pose", "base_motion_from_pose"],
+                    ".base_pose"),
     **dict.fromkeys(["base_acceleration", "imu_base_acceleration", "imu_frame_base_acceleration"], ".imu"),
     **dict.fromkeys(["LowpassChain", "observer_filter"], ".integral_filter"),
 }
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
 if TYPE_CHECKING:
-    from .base_pose import BasePose, clean_base_pose, with_base_pose
+    from .base_pose import BasePose, base_motion_from_pose, clean_base_pose, clip_to_pose, with_base_pose
     from .imu import base_acceleration, imu_base_acceleration, imu_frame_base_acceleration
     from .integral_filter import LowpassChain, observer_filter
 
@@ -64,6 +66,11 @@ __all__ = [
     "BasePose",
     "clean_base_pose",
     "with_base_pose",
+    "clip_to_pose",
+    "base_motion_from_pose",
+    "express_wrenches",
+    "wrench_frame_map",
+    "lowpass_channels",
     "find_outliers",
     "check_outliers",
     "drop_outliers",

@@ -24,6 +24,10 @@ __all__ = [
     "default_savgol_window",
     "butter_lowpass",
     "lowpass",
+    "lowpass_channels",
+    "LOWPASS_FIELDS",
+    "LOWPASS_EXTRAS",
+    "sign_continuous",
     "SavitzkyGolay",
     "savgol_derivatives",
     "trim",
@@ -116,25 +120,57 @@ def butter_lowpass(x: np.ndarray, cutoff_hz: float, rate_hz: float, order: int =
     return sosfiltfilt(sos, x, axis=0)
 
 
+#: Trajectory fields :func:`lowpass` filters by default; the base pose ``base_q``: its position, and its
+#: quaternion made sign-continuous, filtered and renormalised
+LOWPASS_FIELDS = ("q", "v", "a", "tau", "base_q", "base_v", "base_a")
+#: ``extras`` it filters by default: the measured signals (motor currents, accelerometer, gyro, contact
+#: wrenches, a ROS bag's wrench topics); contact flags and commands are left alone
+LOWPASS_EXTRAS = ("current", "imu_acc", "imu_gyro", "contact_forces", "wrench")
+
+
+def lowpass_channels(traj: Trajectory) -> list[str]:
+    """The channels of ``traj`` that :func:`lowpass` filters by default (fields and extras present)."""
+    return ([n for n in LOWPASS_FIELDS if getattr(traj, n) is not None]
+            + [k for k in LOWPASS_EXTRAS if traj.extras.get(k) is not None])
+
+
+def sign_continuous(quat: np.ndarray) -> np.ndarray:
+    """(N, 4) quaternions with the sign of each flipped where needed so that consecutive ones have a
+    non-negative dot product (q and −q are the same rotation; filters and interpolation need continuity)."""
+    quat = np.array(quat, dtype=float)
+    if len(quat) > 1:
+        flip = np.cumprod(np.where(np.sum(quat[1:] * quat[:-1], axis=1) < 0, -1.0, 1.0))
+        quat[1:] *= flip[:, None]
+    return quat
+
+
 def lowpass(
     traj: Trajectory,
     cutoff_hz: float,
     order: int = 4,
-    fields: Sequence[str] = ("q", "v", "a", "tau"),
+    fields: Sequence[str] | None = None,
 ) -> Trajectory:
-    """``traj`` with ``fields`` (trajectory fields or ``extras`` keys) low-passed by
-    :func:`butter_lowpass`. Missing (None) fields are skipped."""
+    """``traj`` with ``fields`` (trajectory fields or ``extras`` keys; default
+    :func:`lowpass_channels`: every measured channel) low-passed by :func:`butter_lowpass`.
+    Missing (None) fields are skipped. The base pose keeps unit quaternions (filtered sign-continuous,
+    renormalised)."""
     traj = validate_trajectory(traj, check_units=False)
     dt = _uniform_dt(traj, "lowpass")
     arrays: dict[str, np.ndarray] = {}
-    for name in fields:
+    for name in lowpass_channels(traj) if fields is None else fields:
         if name in _PER_SAMPLE:
             val, key = getattr(traj, name), name
         elif name in traj.extras:
             val, key = traj.extras[name], f"extras.{name}"
         else:
             raise DataError(f"lowpass: unknown field '{name}'; valid: {list(_PER_SAMPLE) + list(traj.extras)}", traj.source)
-        if val is not None:
+        if val is None:
+            continue
+        if name == "base_q":
+            pos = _with_source(butter_lowpass, traj.source, val[:, :3], cutoff_hz, 1.0 / dt, order)
+            quat = _with_source(butter_lowpass, traj.source, sign_continuous(val[:, 3:]), cutoff_hz, 1.0 / dt, order)
+            arrays[key] = np.hstack([pos, quat / np.linalg.norm(quat, axis=1, keepdims=True)])
+        else:
             arrays[key] = _with_source(butter_lowpass, traj.source, val, cutoff_hz, 1.0 / dt, order)
     done = [k.removeprefix("extras.") for k in arrays]
     return _rebuild(traj, arrays, units=_note(traj, f"lowpass(butterworth order={order}, zero-phase, {cutoff_hz:g} Hz) of {done}"))
@@ -344,6 +380,8 @@ def resample_uniform(traj: Trajectory, rate_hz: float | None = None) -> Trajecto
     t_new = np.arange(n) / rate
     arrays = {}
     for name, val in _per_sample_arrays(traj).items():
+        if name == "base_q":
+            val = np.hstack([val[:, :3], sign_continuous(val[:, 3:])])
         arrays[name] = make_interp_spline(rel, np.asarray(val, dtype=float), k=1, axis=0)(t_new)
     if "base_q" in arrays:
         quat = arrays["base_q"][:, 3:]

@@ -4,20 +4,32 @@
 
 1. **trim** to a time window (:class:`TrimWindow`: ``"1.9:49.6"`` = seconds after the
    first sample, a negative number counts back from the last sample, ``"abs:A:B"``
-   uses the log's own time stamps; either end may be left open, ``":49.6"``);
+   uses the log's own time stamps; either end may be left open, ``":49.6"``); with the base
+   twist taken from the logged base pose (``base_velocity``), the samples before the first
+   and after the last valid pose are clipped, with a warning counting them
+   (:func:`~sensorless.data.base_pose.clip_to_pose`);
 2. **resample** (``"auto"``: only when the stamps are not uniform — duplicates, or a
    step more than ``jitter_tolerance`` off the median period; ``"off"``; or a rate in Hz)
    with :func:`sensorless.data.resample.resample` (gaps over ``max_gap`` periods are errors);
-3. **low-pass** (zero-phase Butterworth, :func:`~sensorless.data.filtering.lowpass`);
-4. **derivatives**, keeping what was logged: a logged v is kept and differentiated once,
+3. **base pose** → base twist and acceleration
+   (:func:`~sensorless.data.base_pose.base_motion_from_pose`, from the pose samples as logged,
+   low-passed at the same cut-off and differentiated with the same window as the joints);
+   **wrench frames**: wrenches logged in model frames are expressed in world axes at the
+   contact frames (:func:`~sensorless.data.wrench_frames.express_wrenches`);
+4. **low-pass** (zero-phase Butterworth, :func:`~sensorless.data.filtering.lowpass`) of every
+   measured channel (:func:`~sensorless.data.filtering.lowpass_channels`: q, v, v̇, τ, the base
+   pose, twist and acceleration, motor currents, IMU, contact wrenches), recorded in
+   ``provenance["lowpass"]``;
+5. **derivatives**, keeping what was logged: a logged v is kept and differentiated once,
    v̇ = d/dt v (Savitzky–Golay); only without a logged v are v and v̇ taken from q
    (d/dt q, d²/dt² q). ``velocity="from-q"`` forces the latter. A logged v̇ is kept
    unless ``savgol_window`` is given;
-5. **rest** (``rest="auto"``, with a logged v): a joint whose |v| stays within 5 noise stds
+6. **rest** (``rest="auto"``, with a logged v): a joint whose |v| stays within 5 noise stds
    of zero and whose q moves less than 8 noise stds over the derivative window is at rest,
    v = v̇ = 0 there
    (:mod:`sensorless.data.rest`; no friction chatter through sgn(noise) at rest);
-6. **decimate** (anti-aliased).
+7. **base acceleration** from the accelerometer or the base twist (:mod:`sensorless.data.imu`);
+8. **decimate** (anti-aliased).
 
 ``Trajectory.provenance`` records which signals were logged and which derived (and
 how), the drive gains, the trim window, the timing and the resampling.
@@ -37,18 +49,23 @@ from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_de
 from .filtering import DEFAULT_DERIVATIVE_SECONDS, DEFAULT_SAVGOL_WINDOW, default_savgol_window
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
+from .filtering import lowpass_channels
 from .filtering import trim as _trim
 from .limits import current_options, read_options
 from .plausibility import check_gain_plausibility
+from .imu import IMU_KEY
 from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError, validate_trajectory
 
 __all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
-           "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
+           "BASE_VELOCITY_SOURCES", "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
 
 VELOCITY_SOURCES = ("logged", "from-q")
+#: where the base twist comes from: ``auto`` (from the logged base pose when no base velocity is logged),
+#: ``from-pose`` (always, :func:`~sensorless.data.base_pose.base_motion_from_pose`), ``logged``
+BASE_VELOCITY_SOURCES = ("auto", "from-pose", "logged")
 #: ``resample="auto"`` refuses a log in which more than this share of the time steps are duplicates
 MAX_DUPLICATE_SHARE = 0.1
 _POLYORDER = 3
@@ -161,6 +178,18 @@ def _velocity_source(velocity: str) -> str:
     return v
 
 
+def _from_pose(base_velocity: str, traj: Trajectory, robot) -> bool:
+    """Whether the base twist is derived from the logged base pose (``BASE_VELOCITY_SOURCES``; "auto":
+    a log with ``base_q`` and no ``base_v``, unless ``robot`` is fixed-base)."""
+    mode = str(base_velocity).strip().lower().replace("_", "-")
+    if mode not in BASE_VELOCITY_SOURCES:
+        raise OptionError(f"--base-velocity must be one of {', '.join(BASE_VELOCITY_SOURCES)}, got {base_velocity!r}")
+    if mode == "from-pose" and traj.base_q is None:
+        raise DataError("--base-velocity from-pose: the log has no base pose ('base_q': x y z qx qy qz qw)", traj.source)
+    floating = robot is None or getattr(robot, "floating_base", False)
+    return traj.base_q is not None and (mode == "from-pose" or (mode == "auto" and traj.base_v is None and floating))
+
+
 def prepare(
     traj: Trajectory,
     *,
@@ -173,24 +202,39 @@ def prepare(
     max_gap: float = DEFAULT_MAX_GAP,
     jitter_tolerance: float = MAX_JITTER,
     rest: str = "auto",
+    base_velocity: str = "auto",
+    pose_max_gap: float | None = None,
+    robot=None,
+    wrench_frames: "dict[str, str] | None" = None,
 ) -> Trajectory:
     """Trim, resample, low-pass, differentiate and decimate ``traj`` (module docstring).
 
     ``savgol_window`` [samples, odd] re-derives v̇ (and v when it comes from q) even if
     logged; default :func:`default_savgol_window` (0.2 s, at least 11 samples) when a
-    derivative is missing.
+    derivative is missing. ``base_velocity``: "auto" (the base twist from ``base_q`` when no
+    ``base_v`` is logged), "from-pose" or "logged"; ``pose_max_gap`` [median pose periods]:
+    :func:`~sensorless.data.base_pose.clean_base_pose`. ``wrench_frames`` ``{contact frame:
+    model frame}`` (with ``robot``): :func:`~sensorless.data.wrench_frames.express_wrenches`.
     """
     src = traj.source
     mode = parse_resample(resample)
     vel = _velocity_source(velocity)
     prov = dict(traj.provenance)
-    for f in ("q", "v", "a", "tau"):
+    for f in ("q", "v", "a", "tau", "base_q", "base_v", "base_a"):
         if getattr(traj, f) is not None:
             prov.setdefault(f, "logged")
     traj = traj.with_(provenance=prov)
+    if wrench_frames and robot is None:
+        raise OptionError("wrench frames need the robot model (prepare(..., robot=...))")
 
     if trim is not None:
         traj = trim_window(traj, trim)
+    from_pose = _from_pose(base_velocity, traj, robot)
+    if from_pose:  # imported on use: SciPy's interpolation and rotations
+        from .base_pose import DEFAULT_POSE_MAX_GAP, base_motion_from_pose, clip_to_pose
+
+        traj = clip_to_pose(traj)
+        pose_samples = (traj.t.copy(), traj.base_q.copy())
 
     info = timing(traj.t, src)
     prov = {**traj.provenance, "timing": info.to_dict()}
@@ -223,9 +267,11 @@ def prepare(
 
     derive_v = traj.v is None or vel == "from-q"
     derive_a = derive_v or traj.a is None or savgol_window is not None
-    base_a = traj.base_v is not None and traj.base_q is not None and (traj.base_a is None or savgol_window is not None)
+    imu = traj.extras.get(IMU_KEY) is not None
+    base_a = (from_pose and imu) or (not from_pose and traj.base_v is not None and traj.base_q is not None
+                                     and (traj.base_a is None or savgol_window is not None))
     steps = [name for name, on in (("lowpass", lowpass), ("derivatives", derive_a), ("decimate", decimate > 1),
-                                    ("base acceleration", base_a)) if on]
+                                    ("base acceleration", base_a), ("base velocity from the pose", from_pose)) if on]
     if steps and mode == "off":
         now = timing(traj.t, src)
         if not now.is_uniform(jitter_tolerance):
@@ -239,12 +285,23 @@ def prepare(
     if rest == "auto" and not derive_v and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:
         sigma_v = signal_noise(traj.v)  # before the low-pass colours it (sensorless.data.rest)
         sigma_q = signal_noise(traj.q)
-    if lowpass:
-        traj = _lowpass(traj, lowpass)
-        traj = traj.with_(provenance={**traj.provenance, "lowpass_hz": float(lowpass)})
-
     w = int(savgol_window) if savgol_window is not None else default_savgol_window(
         1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 and np.median(np.diff(traj.t)) > 0 else float("nan"))
+    if from_pose:  # from the pose samples as logged, low-passed at the same cut-off, the same derivative window
+        traj = base_motion_from_pose(traj.with_(base_a=None) if imu else traj, *pose_samples, cutoff_hz=lowpass,
+                                     window=w, keep_base_a=imu,
+                                     max_gap_periods=DEFAULT_POSE_MAX_GAP if pose_max_gap is None else pose_max_gap)
+    if wrench_frames:
+        from .wrench_frames import express_wrenches
+
+        traj = express_wrenches(traj, robot, wrench_frames)
+    if lowpass:
+        channels = [c for c in lowpass_channels(traj) if not (from_pose and c in ("base_q", "base_v", "base_a"))]
+        traj = _lowpass(traj, lowpass, fields=channels)
+        traj = traj.with_(provenance={**traj.provenance, "lowpass_hz": float(lowpass), "lowpass": {
+            "cutoff_hz": float(lowpass), "filter": "Butterworth order 4, zero-phase (sosfiltfilt)", "channels": channels
+            + (["base_q", "base_v", "base_a"] if from_pose else [])}})
+
     if derive_v:
         traj = savgol_derivatives(traj, window=w, polyorder=_POLYORDER)
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
@@ -264,7 +321,8 @@ def prepare(
         from .imu import base_acceleration  # imported on use: it loads Pinocchio
 
         traj = base_acceleration(traj, window=w)
-        traj = traj.with_(provenance={**traj.provenance, "base_a": "derived (base_acceleration)"})
+        traj = traj.with_(provenance={**traj.provenance, "base_a": "derived (base_acceleration: "
+                                      + ("linear part from imu_acc, " if imu else "") + f"Savitzky-Golay window {w})"})
     if decimate and decimate > 1:
         traj = _decimate(traj, decimate)
         traj = traj.with_(provenance={**traj.provenance, "decimate": int(decimate)})
@@ -292,7 +350,7 @@ def parse_columns(spec: "str | None") -> "dict | None":
 
 
 PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap",
-                      "rest", "time_unit")
+                      "rest", "time_unit", "base_velocity", "pose_max_gap", "wrench_frames")
 """Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
 The trim window and decimation belong to one log and are recorded but not reused."""
 
@@ -323,6 +381,7 @@ def with_imu_frame(traj: Trajectory, robot, frame: str, savgol_window: int | Non
 
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
              resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None, time_unit=None,
+             base_velocity=None, pose_max_gap=None, wrench_frames=None,
              max_memory=None, allow_external=None, skip_bad=None, accept_implausible_gains=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
 
@@ -335,17 +394,19 @@ def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, ga
     with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
                       accept_implausible_gains=accept_implausible_gains):
         return _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample,
-                         velocity, max_gap, outliers, rest, time_unit)
+                         velocity, max_gap, outliers, rest, time_unit, base_velocity, pose_max_gap, wrench_frames)
 
 
 def _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample, velocity, max_gap,
-              outliers, rest, time_unit):
+              outliers, rest, time_unit, base_velocity, pose_max_gap, wrench_frames):
     from .outliers import OUTLIER_MODES
     from .readers import read_trajectory
 
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if outliers not in OUTLIER_MODES:
         raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got {outliers!r}")
+    if pose_max_gap is not None and not (math.isfinite(pose_max_gap) and pose_max_gap > 1):
+        raise OptionError(f"--pose-max-gap must be a number of median pose periods > 1, got {pose_max_gap!r}")
     mode = parse_resample(resample)
     cols = parse_columns(columns) if isinstance(columns, str) else columns
     if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):
@@ -354,8 +415,10 @@ def _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gain
                            allow_duplicate_times=mode != "off", outliers=outliers)
     dropped = "outlier" in traj.units.get("processing", "")
     out = prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
-                   savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
-                   max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap, rest=rest or "auto")
+                  savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
+                  max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap, rest=rest or "auto",
+                  base_velocity=base_velocity or "auto", pose_max_gap=pose_max_gap, robot=robot,
+                  wrench_frames=wrench_frames or None)
     if not current_options().get("accept_implausible_gains"):
         check_gain_plausibility(out, robot)  # τ = K·i against the model's torque scale, per joint
     return out

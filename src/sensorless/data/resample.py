@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import DataError, TimestampError
-from .filtering import MAX_JITTER, _rebuild
+from .filtering import MAX_JITTER, _rebuild, sign_continuous
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError
 
@@ -161,9 +161,9 @@ def resample(
             continue
         val = np.asarray(val, dtype=float)
         k = 3 if field in CUBIC_FIELDS and rel.size >= 4 else 1
-        if name == "base_q":  # position cubic, quaternion linear then renormalised
+        if name == "base_q":  # position cubic, quaternion (sign-continuous: q ≡ −q) linear then renormalised
             pos = make_interp_spline(rel, val[:, :3], k=3 if rel.size >= 4 else 1, axis=0)(grid)
-            quat = interp1d(rel, val[:, 3:], axis=0, assume_sorted=True)(grid)
+            quat = interp1d(rel, sign_continuous(val[:, 3:]), axis=0, assume_sorted=True)(grid)
             out[name] = np.hstack([pos, quat / np.linalg.norm(quat, axis=1, keepdims=True)])
         else:
             out[name] = make_interp_spline(rel, val, k=k, axis=0)(grid)

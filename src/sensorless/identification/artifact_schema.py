@@ -28,6 +28,7 @@ MIN_GAIN, MAX_GAIN = 1e-6, 1e5
 MAX_SMOOTHING = 1e3  # [rad/s or m/s]: Coulomb smoothing, Stribeck and rest velocities
 TIME_UNITS = ("s", "ms", "us", "ns")
 VELOCITY = ("logged", "from-q")
+BASE_VELOCITY = ("auto", "from-pose", "logged")
 REST = ("auto", "off")
 ROWS = ("actuated", "all")
 
@@ -231,6 +232,11 @@ def check_preprocessing_settings(c: Checker, pre: Any, key: str = "settings.prep
     out["max_gap"] = opt("max_gap", lambda kk, v: c.number(kk, v, 0, MAX_GAP, lo_open=True))
     out["rest"] = opt("rest", lambda kk, v: c.string(kk, v, REST))
     out["time_unit"] = opt("time_unit", lambda kk, v: c.string(kk, v, TIME_UNITS))
+    out["base_velocity"] = opt("base_velocity", lambda kk, v: c.string(kk, v, BASE_VELOCITY))
+    out["pose_max_gap"] = opt("pose_max_gap", lambda kk, v: c.number(kk, v, 1, MAX_GAP, lo_open=True))
+    out["wrench_frames"] = opt("wrench_frames", lambda kk, v: {c.string(f"{kk} key", f, max_len=256):
+                                                               c.string(f"{kk}.{f}", s, max_len=256)
+                                                               for f, s in c.mapping(kk, v).items()})
     out["decimate"] = opt("decimate", lambda kk, v: c.number(kk, v, 1, MAX_DECIMATE, integer=True))
     out["trim"] = _trim(c, k("trim"), pre.get("trim"))
     return out

@@ -78,6 +78,9 @@ class LogReader:
     outliers: str = "error"
     rest: str = "auto"
     time_unit: str | None = None
+    base_velocity: str | None = None
+    pose_max_gap: float | None = None
+    wrench_frames: dict | None = None  # {contact frame: frame its wrench is logged in} (data.wrench_frames)
     imu_frame: str | None = None  # base_a from the accelerometer in this model frame (data.prepare.with_imu_frame)
 
     def __call__(self, path: str | Path, robot) -> Trajectory:
@@ -85,7 +88,9 @@ class LogReader:
 
         traj = load_log(path, robot, self.columns, self.rate, self.lowpass, self.savgol_window, self.decimate,
                         gains=self.gains, trim=self.trim, resample=self.resample, velocity=self.velocity,
-                        max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit)
+                        max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit,
+                        base_velocity=self.base_velocity, pose_max_gap=self.pose_max_gap,
+                        wrench_frames=self.wrench_frames)
         return with_imu_frame(traj, robot, self.imu_frame, self.savgol_window) if self.imu_frame else traj
 
     def settings(self) -> dict:

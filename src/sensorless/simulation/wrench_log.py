@@ -78,13 +78,16 @@ def wrench_log(
     seed: int = 0,
     q0: np.ndarray | None = None,
     dims: int = 6,
+    wrench_frames: Sequence[str] | None = None,
 ) -> Trajectory:
     """A log of ``truth`` with 6-D contact wrenches at ``frames`` (module docstring).
 
     ``base_amplitude`` = (linear [m/s], angular [rad/s]) peak twist; ``flags`` (N, n_contacts)
     default all in contact; ``noise`` is the std of Gaussian noise on the wrenches [N, N·m].
     ``dims`` = 3 gives point contacts (forces only). ``extras``: ``contact`` flags and
-    ``contact_forces`` (N, n_contacts, dims).
+    ``contact_forces`` (N, n_contacts, dims). ``wrench_frames`` (one model frame per contact, e.g. a sole
+    or an F/T sensor) writes each wrench in that frame's axes about its origin instead, as such a sensor
+    logs it: f_S = R_Sᵀ f, τ_S = R_Sᵀ (τ_C − (p_S − p_C) × f) (``--wrench-frame`` undoes it).
     """
     rng = np.random.default_rng(seed)
     model = truth.model.copy()
@@ -150,11 +153,26 @@ def wrench_log(
             measured[:, :, :3] += b
     if noise:
         measured += rng.normal(scale=noise, size=measured.shape)
+    if wrench_frames is not None:
+        measured = _in_frames(model, data, Q, fids, [model.getFrameId(f) for f in wrench_frames], measured)
     return Trajectory(
         t=t, q=qj, v=vj, a=aj, tau=tau if torques else None, base_q=base_q, base_v=vb, base_a=ab,
         joint_names=truth.joint_names, extras={"contact": flags, "contact_forces": measured},
         source=f"<wrench_log {truth.name}>",
     )
+
+
+def _in_frames(model, data, Q, contacts, sensors, w):
+    """World-aligned wrenches at the contact frames ``w`` (N, n, 3|6) in the LOCAL frames ``sensors``."""
+    out = w.copy()
+    for i in range(len(Q)):
+        pin.framesForwardKinematics(model, data, Q[i])
+        for k, (c, s) in enumerate(zip(contacts, sensors)):
+            R, f = data.oMf[s].rotation, w[i, k, :3]
+            out[i, k, :3] = R.T @ f
+            if w.shape[2] == 6:
+                out[i, k, 3:] = R.T @ (w[i, k, 3:] - np.cross(data.oMf[s].translation - data.oMf[c].translation, f))
+    return out
 
 
 _FF: list = []
