@@ -18,7 +18,7 @@ from rich.text import Text
 
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
-from .options import TimeUnit
+from .options import RATE_HELP, TIME_UNIT_HELP, TimeUnit
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -217,8 +217,7 @@ def velocity_option(default: Optional[str] = "logged"):
 
 
 def time_unit_option():
-    return typer.Option(None, help="unit of the logs' time column when it is not seconds (epoch stamps in ms/us/ns "
-                                   "are recognised without it)")
+    return typer.Option(None, help=TIME_UNIT_HELP)
 
 
 def max_gap_option(default: Optional[float] = None):
@@ -335,8 +334,7 @@ _MODEL_DEFAULT = " (default: the model's)"
 _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
     "columns": (Optional[str], lambda: typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or "
                                                               "'q=pos_{joint}'" + _MODEL_DEFAULT)),
-    "rate": (Optional[float], lambda: typer.Option(None, help="sample rate [Hz] for logs without a time column"
-                                                              + _MODEL_DEFAULT)),
+    "rate": (Optional[float], lambda: typer.Option(None, help=RATE_HELP + _MODEL_DEFAULT)),
     "lowpass": (Optional[float], lambda: typer.Option(None, help="zero-phase low-pass cut-off [Hz]" + _MODEL_DEFAULT)),
     "savgol_window": (Optional[int], lambda: typer.Option(None, help="Savitzky-Golay window [samples] for v̇"
                                                                      + _MODEL_DEFAULT)),

@@ -37,6 +37,7 @@ from .common import (
     robot_option,
 )
 from .options import (
+    RATE_HELP,
     TimeUnit,
     ContactMode,
     ContactRows,
@@ -80,7 +81,7 @@ def identify(
                                     "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
                                     "listed, else none) (dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
-    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    rate: Optional[float] = typer.Option(None, help=RATE_HELP),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
     savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window: re-derive v̇ from the logged v "
                                                        "(v and v̇ from q when v is not logged)"),
