@@ -113,8 +113,7 @@ def _fields(leaves: Mapping[str, Any], columns: Mapping | None, src: str, value,
     extras = {e: value(leaves[k], k, src, False) for e, k in extra.items()}
     names = joint_names_of(value(leaves[name_key], name_key, src, True), src, name_key) if name_key else None
     used = {*picked.values(), *extra.values(), name_key}
-    return RawLog(arrays, names, dict(picked), extras, [k for k in keys if k not in used],
-                  notes={"layout": "MATLAB .mat"})
+    return RawLog(arrays, names, dict(picked), extras, [k for k in keys if k not in used])
 
 
 # ---- v7.3 (HDF5) ---------------------------------------------------------------------------

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import DataError, DataWarning
 
-__all__ = ["FIELD_NAMES", "TICK_NAMES", "JOINT_NAME_KEYS", "RawLog", "normalise", "field_of", "pick_key",
+__all__ = ["FIELD_NAMES", "TICK_NAMES", "JOINT_NAME_KEYS", "RawLog", "normalise", "field_of", "is_tick_name", "pick_key",
            "warn_unused", "short_list"]
 
 #: field -> recognised names, first = the default header word (``q_{joint}``) where it is one
@@ -75,7 +75,6 @@ class RawLog:
     origin: dict[str, str] = field(default_factory=dict)
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     unused: list[str] = field(default_factory=list)
-    notes: dict[str, str] = field(default_factory=dict)
 
 
 def pick_key(fld: str, keys: Sequence[str], columns: Mapping | None, src: str,

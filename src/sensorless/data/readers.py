@@ -47,14 +47,14 @@ from .limits import prescan_text, read_options
 from .names import FIELD_NAMES, RawLog, warn_unused
 from .orientation import orient_samples
 from .tabular import Columns, fields_from_frame, read_parquet_table, read_text_table
-from .timebase import MAX_RATE, MIN_RATE, check_rate, check_time_unit, to_seconds
+from .timebase import check_rate, check_time_unit, to_seconds
 from .trajectory import Trajectory, as_float_array
 from .validation import JOINT_EXTRAS, validate_trajectory
 
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["read_trajectory", "write_npz", "SUPPORTED_EXTENSIONS", "FIELDS", "MIN_RATE", "MAX_RATE"]
+__all__ = ["read_trajectory", "write_npz", "SUPPORTED_EXTENSIONS", "FIELDS"]
 
 SUPPORTED_EXTENSIONS = {
     ".csv": "text",
@@ -69,6 +69,8 @@ SUPPORTED_EXTENSIONS = {
     ".log": "text",
 }
 FIELDS = tuple(FIELD_NAMES)
+#: what array files hold (the readers' word for their items): they may store channels × samples
+ARRAY_ITEMS = ("arrays", "datasets", "variables")
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
 
 
@@ -133,7 +135,7 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
     warn_unused(src, raw.unused, what)
     n_hint = (len(joint_names) if joint_names is not None else len(raw.names) if raw.names is not None
               else len(robot.joint_names) if robot is not None else None)
-    flipped = orient_samples(raw, n_hint, src)
+    flipped = orient_samples(raw, n_hint, src) if what in ARRAY_ITEMS else []  # tables are sample-major
     traj = _assemble(raw, src, joint_names, rate, robot, time_unit)
     if flipped:
         traj.units["layout"] = f"stored channels × samples, transposed: {', '.join(flipped)}"
@@ -270,7 +272,7 @@ def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: fl
             raise DataError("--time-unit tick: the log has no time/tick column (name it t, time or tick, or map it "
                             "with --columns t=NAME)", src)
         if rate is None:
-            raise DataError(f"no time column in {src}; pass rate=... (Hz)", src)
+            raise DataError(f"no time column in {src}; pass rate=... (Hz) (command line: --rate HZ)", src)
         rate = check_rate(rate, src)
         t = np.arange(q.shape[0]) / rate
         units["t"] = f"s (built from rate={rate:g} Hz)"

@@ -167,4 +167,4 @@ def read_signal_folder(path: Path, columns: Mapping | None) -> RawLog:
     unused = [f.name for stem, f in files.items() if stem not in used]
     if names is not None and any(field_of(n) is not None for n in names):
         names = None  # a header of field words (q1?) is not joint names
-    return RawLog(arrays, names, origin, {}, unused, notes={"layout": f"one file per signal ({len(read)} files)"})
+    return RawLog(arrays, names, origin, {}, unused)
