@@ -64,8 +64,9 @@ from .identify_outputs import _floating_base_checks, _plot_window, _print_bodies
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
-                                         "folder; several after one flag (--data a.csv b.csv) or repeated"),
+    data: List[Path] = typer.Option(..., help="training log(s): .csv .dat .npz .parquet .h5 .mat, a folder of "
+                                         "per-signal text files, ROS .bag / .mcap / ROS 2 bag folder (docs/logs.md); "
+                                         "several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
     method: Method = typer.Option(Method.lmi, help="lmi: physically consistent, regularised toward the prior (the URDF); ols/wls: unconstrained least squares; svd: minimum-norm truncated SVD"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
