@@ -19,7 +19,7 @@ from rich.text import Text
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
-from .options import BaseVelocity, TimeUnit
+from .options import RATE_HELP, TIME_UNIT_HELP, BaseVelocity, TimeUnit
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -215,8 +215,7 @@ def velocity_option(default: Optional[str] = "logged"):
 
 
 def time_unit_option():
-    return typer.Option(None, help="unit of the logs' time column when it is not seconds (epoch stamps in ms/us/ns "
-                                   "are recognised without it)")
+    return typer.Option(None, help=TIME_UNIT_HELP)
 
 
 def max_gap_option(default: Optional[float] = None):
@@ -332,8 +331,7 @@ _MODEL_DEFAULT = " (default: the model's)"
 _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
     "columns": (Optional[str], lambda: typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or "
                                                               "'q=pos_{joint}'" + _MODEL_DEFAULT)),
-    "rate": (Optional[float], lambda: typer.Option(None, help="sample rate [Hz] for logs without a time column"
-                                                              + _MODEL_DEFAULT)),
+    "rate": (Optional[float], lambda: typer.Option(None, help=RATE_HELP + _MODEL_DEFAULT)),
     "lowpass": (Optional[float], lambda: typer.Option(None, help="zero-phase low-pass cut-off [Hz]" + _MODEL_DEFAULT)),
     "savgol_window": (Optional[int], lambda: typer.Option(None, help="Savitzky-Golay window [samples] for v̇"
                                                                      + _MODEL_DEFAULT)),

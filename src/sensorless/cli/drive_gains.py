@@ -28,7 +28,7 @@ from .common import (
     lock_option,
     robot_option,
 )
-from .options import Align, TimeUnit
+from .options import RATE_HELP, Align, TimeUnit
 
 __all__ = ["drive_gains"]
 
@@ -50,7 +50,7 @@ def drive_gains(
                                                            "(same forms as --gains)"),
     columns: Optional[str] = typer.Option(None, help="column map; the currents on 'tau' or 'current', e.g. "
                                                      "'q=pos_{joint};v=vel_{joint};tau=i_{joint}'"),
-    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    rate: Optional[float] = typer.Option(None, help=RATE_HELP),
     time_unit: Optional[TimeUnit] = time_unit_option(),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz]"),
     savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window for v̇ (from the logged v)"),

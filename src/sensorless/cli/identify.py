@@ -38,6 +38,7 @@ from .common import (
     robot_option,
 )
 from .options import (
+    RATE_HELP,
     TimeUnit,
     BaseVelocity,
     ContactMode,
@@ -65,8 +66,9 @@ from .identify_outputs import _floating_base_checks, _plot_window, _print_bodies
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .npz .parquet .h5, ROS .bag / .mcap / ROS 2 bag "
-                                         "folder; several after one flag (--data a.csv b.csv) or repeated"),
+    data: List[Path] = typer.Option(..., help="training log(s): .csv .dat .npz .parquet .h5 .mat, a folder of "
+                                         "per-signal text files, ROS .bag / .mcap / ROS 2 bag folder (docs/logs.md); "
+                                         "several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
     method: Method = typer.Option(Method.lmi, help="lmi: physically consistent, regularised toward the prior (the URDF); ols/wls: unconstrained least squares; svd: minimum-norm truncated SVD"),
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
@@ -82,7 +84,7 @@ def identify(
                                     "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
                                     "listed, else none) (dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
-    rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
+    rate: Optional[float] = typer.Option(None, help=RATE_HELP),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
     savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window: re-derive v̇ from the logged v "
                                                        "(v and v̇ from q when v is not logged)"),

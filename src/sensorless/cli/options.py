@@ -48,8 +48,13 @@ PsmModel = _choices("PsmModel", ("ols", "wls", "lmi"))
 Training = _choices("Training", ("rich", "stance"))
 Acceleration = _choices("Acceleration", ("simulator", "logged", "savgol", "savgol_imu", "none"))
 TauLog = _choices("TauLog", ("sample", "mean"))
-TimeUnit = _choices("TimeUnit", ("s", "ms", "us", "ns"))
+TimeUnit = _choices("TimeUnit", ("s", "ms", "us", "ns", "tick"))
 FrictionState = _choices("FrictionState", ("auto", "on", "off"))
+TIME_UNIT_HELP = ("unit of the logs' time column when it is not seconds: ms, us, ns, or tick (a controller's tick "
+                  "counter, with --rate HZ); epoch stamps in ms/us/ns are recognised without it, a tick column is "
+                  "refused without it (docs/logs.md)")
+RATE_HELP = ("sample rate [Hz] for logs without a time column; with --time-unit tick, the controller's tick rate "
+             "(ticks per second)")
 
 _CONFIG_ERROR = "sensorless_config_error"
 

@@ -357,7 +357,7 @@ The trim window and decimation belong to one log and are recorded but not reused
 
 def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
     """OptionError for preprocessing options no log can use (zero, negative, NaN, absurd)."""
-    from .readers import MAX_RATE, MIN_RATE
+    from .timebase import MAX_RATE, MIN_RATE
 
     if rate is not None and not (math.isfinite(rate) and MIN_RATE <= rate <= MAX_RATE):
         raise OptionError(f"--rate must be a sample rate in [{MIN_RATE:g}, {MAX_RATE:g}] Hz, got {rate!r}")

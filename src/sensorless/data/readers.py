@@ -1,21 +1,30 @@
-"""Read logs (CSV/TXT, NPZ, Parquet, HDF5; ROS bags and MCAP via :mod:`.rosbag`) into a validated :class:`Trajectory`.
+"""Read logs (CSV and whitespace text, NPZ, Parquet, HDF5, MATLAB .mat, a folder of per-signal
+text files; ROS bags and MCAP via :mod:`.rosbag`) into a validated :class:`Trajectory`.
 
 Fields are ``t, q, v, a, tau`` (plus ``current``, ``command`` → ``extras`` and
-``base_q, base_v, base_a``). ``columns`` maps a field to where it is stored:
+``base_q, base_v, base_a``). Without ``columns`` each field is found under one of the names of
+:data:`~sensorless.data.names.FIELD_NAMES` (one table for every format: ``dq``/``qd``/``v`` are
+velocities, ``ddq``/``qdd``/``a`` accelerations, ``effort``/``torque``/``tau`` torques, ...);
+every array, column or file no field uses is named in one warning. ``columns`` maps a field to
+where it is stored:
 
-* NPZ / HDF5: an array key (HDF5: dataset name or path). Defaults: :data:`ALIASES`.
-* CSV / Parquet: a list of column names (or 0-based indices), a pattern with
+* NPZ / HDF5 / MAT: an array key (HDF5: dataset path, MAT: variable or struct field path
+  ``data/q``; a unique last component suffices). Array files may store channels × samples
+  (:mod:`.orientation`); MATLAB files: :mod:`.matlab`.
+* CSV / text / Parquet: a list of column names (or 0-based indices), a pattern with
   ``"{joint}"`` (``"pos_{joint}"``) expanded over the joint names, or an index range
-  ``"0:7"`` (the only option for a header-less CSV). With a header and no ``columns``
-  the defaults are a time column ``t|time|times|timestamp`` and the header's naming
+  ``"0:7"`` (the only option for a header-less file). With a header and no ``columns``
+  the defaults are a time column (``t``, ``time``, ``tick``, ...) and the header's naming
   convention (:func:`.tabular.detect_patterns`: ``q_{joint}``, ``pos_{joint}``,
-  ``{joint}_position``, ``{joint}.velocity`` ...); the joint names come from the position
-  columns.
+  ``{joint}_position``, ``{joint}.velocity`` ...); the joint names come from the position columns.
+* A folder of per-signal files (``q.dat``, ``tau.dat``, ...): a file name per field
+  (:mod:`.textlog`).
 
-Joint names: ``joint_names``, else names stored in the file (NPZ/HDF5 ``joint_names``
-or the ``{joint}`` pattern), else ``robot.joint_names`` if the column count matches,
-else ``joint_0..joint_{n-1}``. Time is kept as read (converted to seconds when
-``time_unit`` is given); without a time field, ``t = arange(N) / rate``.
+Joint names: ``joint_names``, else names stored in the file (``joint_names`` array, the
+``{joint}`` pattern or a shared header), else ``robot.joint_names`` if the column count
+matches, else ``joint_0..joint_{n-1}``. Time is converted to seconds (:mod:`.timebase`:
+``time_unit`` s, ms, us, ns, or tick with ``rate`` ticks per second; a tick column read
+without a unit is refused); without a time field, ``t = arange(N) / rate``.
 
 Currents: ``gains`` (or a ``':gain=...'`` suffix on the ``tau``/``current`` entry of
 ``columns``, e.g. ``{"tau": "i_{joint}:gain=10,10.7,9.6"}``; ``i_*`` = ``i_{joint}``)
@@ -24,57 +33,44 @@ turn logged motor currents into torques τ = K·i, see :mod:`sensorless.data.gai
 
 from __future__ import annotations
 
-import tokenize
-import zipfile
-import zlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from ..errors import DataError, InputError, ShapeMismatchError, UnitsError
+from ..errors import DataError, ShapeMismatchError
 from ..io import check_input_file
-from .containers import check_hdf5, check_npz
+from .arrays import EXTRA_KEYS, as_float, read_hdf5, read_npz
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
 from .limits import prescan_text, read_options
-from .tabular import Columns, _fields_from_frame, _read_csv, _read_parquet, _short
+from .names import FIELD_NAMES, RawLog, warn_unused
+from .orientation import orient_samples
+from .tabular import Columns, fields_from_frame, read_parquet_table, read_text_table
+from .timebase import check_rate, check_time_unit, to_seconds
 from .trajectory import Trajectory, as_float_array
 from .validation import JOINT_EXTRAS, validate_trajectory
 
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["read_trajectory", "write_npz", "SUPPORTED_EXTENSIONS", "ALIASES", "FIELDS"]
+__all__ = ["read_trajectory", "write_npz", "SUPPORTED_EXTENSIONS", "FIELDS"]
 
 SUPPORTED_EXTENSIONS = {
-    ".csv": "csv",
-    ".txt": "csv",
+    ".csv": "text",
+    ".txt": "text",
     ".npz": "npz",
     ".parquet": "parquet",
     ".pq": "parquet",
     ".h5": "hdf5",
     ".hdf5": "hdf5",
+    ".mat": "mat",
+    ".dat": "text",
+    ".log": "text",
 }
-FIELDS = ("t", "q", "v", "a", "tau", "current", "command", "base_q", "base_v", "base_a")
-#: Default NPZ/HDF5 keys per field, first match wins.
-ALIASES: dict[str, tuple[str, ...]] = {
-    "t": ("times", "time", "t", "timestamp"),
-    "q": ("positions", "q", "position", "joint_positions"),
-    "v": ("velocities", "v", "qd", "velocity"),
-    "a": ("accelerations", "a", "qdd", "acceleration"),
-    "tau": ("torques", "tau", "effort", "efforts", "torque"),
-    "current": ("current", "currents"),
-    "command": ("command", "commands"),
-    "base_q": ("base_q",),
-    "base_v": ("base_v",),
-    "base_a": ("base_a",),
-}
-_TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-#: a log sampled this slowly [s] is not a dynamics log: its stamps are in another unit
-_MAX_PLAUSIBLE_STEP = 1.0
-#: Accepted sample rates [Hz] for logs without a time column (1 sample per 1000 s .. 10 MHz).
-MIN_RATE, MAX_RATE = 1e-3, 1e7
+FIELDS = tuple(FIELD_NAMES)
+#: what array files hold (the readers' word for their items): they may store channels × samples
+ARRAY_ITEMS = ("arrays", "datasets", "variables")
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
 
 
@@ -125,13 +121,6 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
             raise DataError("gains, rate and time_unit do not apply to a ROS bag (its stamps are in seconds)", src)
         return read_rosbag(path, joint_names=joint_names, robot=robot, allow_duplicate_times=allow_duplicate_times,
                            outliers=outliers, **rosbag_options(columns, src))
-    if not path.is_file():
-        raise DataError("not a regular file", src)
-    kind = SUPPORTED_EXTENSIONS.get(path.suffix.lower())
-    if kind is None:
-        raise DataError(
-            f"unsupported file type '{path.suffix}'; supported: {', '.join(SUPPORTED_EXTENSIONS)}", src
-        )
     columns, column_gains, gain_field = split_gain_modifiers(columns, src)
     if column_gains is not None:
         if gains is not None:
@@ -141,34 +130,50 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         unknown = [k for k in columns if k not in FIELDS]
         if unknown:
             raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {list(FIELDS)}", src)
-    if time_unit is not None and time_unit not in _TIME_SCALE:
-        raise DataError(f"time_unit must be one of {list(_TIME_SCALE)}, got {time_unit!r}", src)
-
-    if kind == "npz":
-        raw, file_names = _read_npz(path, columns)
-    elif kind == "hdf5":
-        raw, file_names = _read_hdf5(path, columns)
-    else:
-        if kind == "csv":
-            prescan_text(path, src)  # line length, field count and size bounded before pandas
-        df, header = _read_csv(path) if kind == "csv" else (_read_parquet(path), True)
-        raw, file_names = _fields_from_frame(df, src, columns, joint_names, header)
-    traj = _assemble(raw, file_names, src, joint_names, rate, robot, time_unit)
+    check_time_unit(time_unit, rate, src)
+    raw, what = _read_raw(path, src, columns, joint_names)
+    warn_unused(src, raw.unused, what)
+    n_hint = (len(joint_names) if joint_names is not None else len(raw.names) if raw.names is not None
+              else len(robot.joint_names) if robot is not None else None)
+    flipped = orient_samples(raw, n_hint, src) if what in ARRAY_ITEMS else []  # tables are sample-major
+    traj = _assemble(raw, src, joint_names, rate, robot, time_unit)
+    if flipped:
+        traj.units["layout"] = f"stored channels × samples, transposed: {', '.join(flipped)}"
     if gains is not None:
         traj = currents_to_torques(traj, gains, gain_field)
-    if kind in ("npz", "hdf5"):
-        extras = _sample_extras(path, kind, len(traj))
-        if extras:
-            traj = traj.with_(extras={**traj.extras, **extras})
+    if raw.extras:
+        traj = traj.with_(extras={**traj.extras, **_sample_extras(raw.extras, src, len(traj))})
     return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers)
 
 
-#: Per-sample contact data of legged-robot logs (NPZ/HDF5 keys): flags (N, n_feet) and
-#: measured contact forces (N, n_feet, 3 or 6), both in the order of the contact frames.
-CONTACT_KEYS = ("contact", "contact_forces")
-#: Base IMU accelerometer reading, specific force in the base frame (N, 3) [m/s²].
-IMU_KEYS = (IMU_KEY,)
-_EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3 or 6", "imu_acc": "3"}
+def _read_raw(path: Path, src: str, columns, joint_names) -> tuple[RawLog, str]:
+    """What the reader of ``path``'s format found (a folder: per-signal files; a MATLAB v7.3 file
+    whatever its name), and what its unused items are (files, arrays, columns)."""
+    if path.is_dir():
+        from .textlog import read_signal_folder
+
+        return read_signal_folder(path, columns), "files"
+    if not path.is_file():
+        raise DataError("not a regular file", src)
+    kind = SUPPORTED_EXTENSIONS.get(path.suffix.lower())
+    if kind is None:
+        raise DataError(f"unsupported file type '{path.suffix}'; supported: {', '.join(SUPPORTED_EXTENSIONS)} "
+                        "or a folder of per-signal text files", src)
+    from .matlab import is_mat73, read_mat
+
+    if kind == "mat" or (kind == "hdf5" and is_mat73(path)):
+        return read_mat(path, columns), "variables"
+    if kind == "npz":
+        return read_npz(path, columns), "arrays"
+    if kind == "hdf5":
+        return read_hdf5(path, columns), "datasets"
+    if kind == "text":
+        prescan_text(path, src)  # line length, field count and size bounded before pandas
+    df, header = read_text_table(path) if kind == "text" else (read_parquet_table(path), True)
+    return fields_from_frame(df, src, columns, joint_names, header), "columns"
+
+
+_EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3 or 6", IMU_KEY: "3"}
 
 
 def _contact_forces(val: Any, src: str, n: int) -> np.ndarray:
@@ -181,26 +186,14 @@ def _contact_forces(val: Any, src: str, n: int) -> np.ndarray:
     return arr
 
 
-def _sample_extras(path: Path, kind: str, n: int) -> dict[str, np.ndarray]:
-    """Read :data:`CONTACT_KEYS` and :data:`IMU_KEYS` if present, checked (finite, N rows,
+def _sample_extras(found: dict[str, Any], src: str, n: int) -> dict[str, np.ndarray]:
+    """The :data:`~sensorless.data.arrays.EXTRA_KEYS` arrays a reader found, checked (finite, N rows,
     flags 0/1, three accelerometer columns)."""
-    src = str(path)
     out: dict[str, np.ndarray] = {}
-    try:
-        if kind == "npz":
-            with np.load(path, allow_pickle=False) as z:
-                found = {k: z[k] for k in CONTACT_KEYS + IMU_KEYS if k in z.files}
-        else:
-            import h5py
-
-            with h5py.File(path, "r") as f:
-                found = {k: f[k][()] for k in CONTACT_KEYS + IMU_KEYS if k in f}
-    except _READ_ERRORS as exc:
-        raise DataError(f"cannot read contact/IMU arrays ({_one_line(exc)})", src) from None
     for key, val in found.items():
         arr = (_contact_forces(val, src, n) if key == "contact_forces"
-               else _as_float(val, src, key, allow_bool=key == "contact"))
-        if arr.ndim < 2 or arr.shape[0] != n or (key in IMU_KEYS and arr.shape != (n, 3)):
+               else as_float(val, src, key, allow_bool=key == "contact"))
+        if arr.ndim < 2 or arr.shape[0] != n or (key == IMU_KEY and arr.shape != (n, 3)):
             raise DataError(f"'{key}' has shape {arr.shape}; expected ({n}, {_EXPECTED[key]}) — one row per sample", src)
         bad = np.argwhere(~np.isfinite(arr.reshape(n, -1)))
         if bad.size:
@@ -226,7 +219,7 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
     for field in ("base_q", "base_v", "base_a"):
         if getattr(traj, field) is not None:
             data[field] = getattr(traj, field)
-    for key in JOINT_EXTRAS + CONTACT_KEYS + IMU_KEYS:
+    for key in JOINT_EXTRAS + EXTRA_KEYS:
         if key in traj.extras:
             data[key] = np.asarray(traj.extras[key], dtype=float)
     from ..io import write_npz_atomic  # hidden sibling + rename: a failed write leaves no partial file
@@ -234,176 +227,14 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
     return write_npz_atomic(path, **data)
 
 
-# ---- NPZ / HDF5 ------------------------------------------------------------------
-def _pick_key(field: str, keys: list[str], columns: Columns | None, src: str, base=lambda k: k) -> str | None:
-    """The stored key for ``field``: the ``columns`` override, else the first alias present."""
-    if columns is not None and field in columns:
-        key = columns[field]
-        if not isinstance(key, str):
-            raise DataError(f"columns['{field}'] must be an array key (str) for this format, got {key!r}", src)
-        key = key.lstrip("/")
-        if key in keys:
-            return key
-        hits = [k for k in keys if base(k) == key]
-        if len(hits) == 1:
-            return hits[0]
-        raise DataError(f"no array '{key}' (for '{field}'); available: {_short(keys)}", src)
-    for alias in ALIASES[field]:
-        for match in (lambda k: k == alias, lambda k: k.lower() == alias):
-            hits = [k for k in keys if match(base(k))]
-            if hits:
-                depth = min(h.count("/") for h in hits)
-                top = [h for h in hits if h.count("/") == depth]
-                if len(top) > 1:
-                    raise DataError(
-                        f"ambiguous '{field}': several arrays named '{alias}' ({top}); "
-                        f"pass columns={{'{field}': <path>}}",
-                        src,
-                    )
-                return top[0]
-    return None
-
-
-#: What a corrupt NPZ/HDF5 member can raise on read (zlib, zip, h5py/HDF5 and numpy errors).
-#: numpy parses a corrupt .npy header with tokenize/ast (TokenError, SyntaxError) and may try to
-#: allocate what a corrupt header declares (MemoryError).
-_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, RuntimeError, TypeError, IndexError, AttributeError,
-                OverflowError, MemoryError, SyntaxError, tokenize.TokenError, zipfile.BadZipFile, zlib.error)
-
-
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text[:300]}" if text else type(exc).__name__
-
-
-def _as_float(arr: Any, src: str, key: str, allow_bool: bool = False, max_dim: int = 2) -> np.ndarray:
-    out = as_float_array(arr, key, src, allow_bool=allow_bool)
-    if out.ndim > max_dim:
-        raise ShapeMismatchError(f"array '{key}' has shape {out.shape}; expected 1-D or 2-D", src)
-    return out
-
-
-def _names(raw: Any, src: str) -> list[str]:
-    """Joint names stored in a file: a 1-D array of strings (bytes are decoded)."""
-    arr = np.atleast_1d(np.asarray(raw))
-    if arr.ndim != 1 or arr.dtype.kind not in "USO":
-        raise DataError(f"'joint_names' must be a 1-D array of strings, got dtype {arr.dtype} shape {arr.shape}", src)
-    try:
-        return [n.decode() if isinstance(n, bytes) else str(n) for n in arr]
-    except UnicodeDecodeError:
-        raise DataError("'joint_names' are not valid UTF-8", src) from None
-
-
-def _missing_q(keys: list[str], src: str) -> DataError:
-    return DataError(
-        f"no joint positions found (looked for {list(ALIASES['q'])}); available: {_short(keys)}; "
-        "pass columns={'q': <key>}",
-        src,
-    )
-
-
-def _read_npz(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray], list[str] | None]:
-    src = str(path)
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except _READ_ERRORS as exc:
-        raise DataError(f"not a readable NPZ archive ({_one_line(exc)})", src) from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise DataError("holds a single array (.npy), not an NPZ archive of named arrays", src)
-    with archive as z:
-        keys = list(z.files)
-        raw: dict[str, np.ndarray] = {}
-        picked = {f: k for f in FIELDS if (k := _pick_key(f, keys, columns, src)) is not None}
-        check_npz(path, src, [*picked.values(), *(k for k in CONTACT_KEYS + IMU_KEYS if k in keys)])
-        try:
-            for field, key in picked.items():
-                raw[field] = _as_float(z[key], src, key)
-            names = _names(z["joint_names"], src) if "joint_names" in keys else None
-        except (DataError, InputError):
-            raise
-        except _READ_ERRORS as exc:  # pickled/object or corrupt member (zlib.error, BadZipFile...)
-            raise DataError(f"cannot read an array from the NPZ archive ({_one_line(exc)})", src) from None
-    if "q" not in raw:
-        raise _missing_q(keys, src)
-    return raw, names
-
-
-def _read_hdf5(path: Path, columns: Columns | None) -> tuple[dict[str, np.ndarray], list[str] | None]:
-    import h5py
-
-    src = str(path)
-    try:
-        f = h5py.File(path, "r")
-    except _READ_ERRORS as exc:
-        raise DataError(f"not a readable HDF5 file ({_one_line(exc)})", src) from None
-    try:
-        return _hdf5_fields(f, src, columns)
-    except (DataError, InputError):
-        raise
-    except _READ_ERRORS as exc:  # corrupt dataset, bad link, undecodable names...
-        raise DataError(f"cannot read a dataset from the HDF5 file ({_one_line(exc)})", src) from None
-    finally:
-        f.close()
-
-
-def _hdf5_fields(f, src: str, columns: Columns | None) -> tuple[dict[str, np.ndarray], list[str] | None]:
-    import h5py
-
-    keys: list[str] = []
-    f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
-    base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
-    raw: dict[str, np.ndarray] = {}
-    picked = {fd: k for fd in FIELDS if (k := _pick_key(fd, keys, columns, src, base)) is not None}
-    check_hdf5(f, [*picked.values(), *(k for k in CONTACT_KEYS + IMU_KEYS + ("joint_names",) if k in keys)], src)
-    for field, key in picked.items():
-        raw[field] = _as_float(f[key][()], src, key)
-    names = None
-    if "joint_names" in keys:
-        names = f["joint_names"][()]
-    elif "joint_names" in f.attrs:
-        names = f.attrs["joint_names"]
-    if names is not None:
-        names = _names(names, src)
-    if "q" not in raw:
-        raise _missing_q(keys, src)
-    return raw, names
-
-
 # ---- assembly ----------------------------------------------------------------------
-def _epoch_unit(t: np.ndarray, src: str) -> str:
-    """The unit of a time column given without one: Unix-epoch stamps in ms, µs or ns (ROS's
-    ``%time``) are told apart by magnitude (seconds since 1970 stay below 1e11 until the year
-    5138) and converted; relative stamps whose median step is over a second raise UnitsError."""
-    finite = t[np.isfinite(t)]
-    if finite.size < 2:
-        return "s"
-    start = float(np.abs(finite[0]))
-    for unit, low in (("ns", 1e17), ("us", 1e14), ("ms", 1e11)):
-        if start >= low:
-            return unit
-    step = float(np.median(np.diff(finite)))
-    if finite.size >= 20 and step > _MAX_PLAUSIBLE_STEP:
-        guess = next((u for u in ("ms", "us", "ns") if step * _TIME_SCALE[u] <= _MAX_PLAUSIBLE_STEP), "ns")
-        raise UnitsError(
-            f"the time column steps by {step:.6g} (median): a {1 / step:.3g} Hz log, too slow for dynamics; the stamps "
-            f"look like {guess} (then {1 / (step * _TIME_SCALE[guess]):.4g} Hz). Store seconds, or pass "
-            f"time_unit='{guess}' to read_trajectory (command line: --time-unit {guess})", src)
-    return "s"
-
-
-def _assemble(
-    raw: dict[str, np.ndarray],
-    file_names: list[str] | None,
-    src: str,
-    joint_names: Sequence[str] | None,
-    rate: float | None,
-    robot: "Robot | None",
-    time_unit: str | None,
-) -> Trajectory:
-    for field, arr in raw.items():
+def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: float | None, robot: "Robot | None",
+              time_unit: str | None) -> Trajectory:
+    arrays = raw.arrays
+    for field, arr in arrays.items():
         if arr.ndim == 0:
             raise ShapeMismatchError(f"'{field}' is a single number (0-D), not one value per sample", src)
-    q = raw["q"]
+    q = arrays["q"]
     if q.ndim == 1:
         q = q[:, None]
     n = q.shape[1]
@@ -411,12 +242,12 @@ def _assemble(
         names = list(joint_names)
         if len(names) != n:
             raise ShapeMismatchError(f"joint_names has {len(names)} names but 'q' has {n} columns", src)
-    elif file_names is not None:
-        if len(file_names) != n:
+    elif raw.names is not None:
+        if len(raw.names) != n:
             raise ShapeMismatchError(
-                f"the file's joint_names has {len(file_names)} names but 'q' has {n} columns; "
+                f"the file's joint_names has {len(raw.names)} names but 'q' has {n} columns; "
                 "pass joint_names=[...] in column order", src)
-        names = list(file_names)
+        names = list(raw.names)
     elif robot is not None:
         if len(robot.joint_names) != n:
             raise ShapeMismatchError(
@@ -429,37 +260,33 @@ def _assemble(
         names = [f"joint_{i}" for i in range(n)]
 
     units: dict[str, str] = {}
-    if "t" in raw:
-        t = raw["t"]
+    if "t" in arrays:
+        t = arrays["t"]
         if t.ndim == 2 and t.shape[1] == 1:
             t = t[:, 0]
         if t.ndim != 1:
             raise ShapeMismatchError(f"time must be 1-D, got shape {t.shape}", src)
-        if time_unit is None:
-            time_unit = _epoch_unit(t, src)
-            if time_unit != "s":
-                units["t"] = f"s (converted from {time_unit}: epoch stamps of that magnitude)"
-        if time_unit is not None:
-            t = t * _TIME_SCALE[time_unit]
-        units.setdefault("t", "s" if time_unit in (None, "s") else f"s (converted from {time_unit})")
+        t, units["t"] = to_seconds(t, time_unit, rate, raw.origin.get("t", "t"), src)
     else:
+        if time_unit == "tick":
+            raise DataError("--time-unit tick: the log has no time/tick column (name it t, time or tick, or map it "
+                            "with --columns t=NAME)", src)
         if rate is None:
-            raise DataError(f"no time column in {src}; pass rate=... (Hz)", src)
-        if not isinstance(rate, (int, float, np.integer, np.floating)) or not MIN_RATE <= rate <= MAX_RATE:
-            raise DataError(f"rate must be a number of Hz in [{MIN_RATE:g}, {MAX_RATE:g}], got {rate!r}", src)
-        t = np.arange(q.shape[0]) / float(rate)
+            raise DataError(f"no time column in {src}; pass rate=... (Hz) (command line: --rate HZ)", src)
+        rate = check_rate(rate, src)
+        t = np.arange(q.shape[0]) / rate
         units["t"] = f"s (built from rate={rate:g} Hz)"
-    extras = {k: raw[k] for k in JOINT_EXTRAS if k in raw}
+    extras = {k: arrays[k] for k in JOINT_EXTRAS if k in arrays}
     return Trajectory(
         t=t,
         q=q,
         joint_names=tuple(names),
-        v=raw.get("v"),
-        a=raw.get("a"),
-        tau=raw.get("tau"),
-        base_q=raw.get("base_q"),
-        base_v=raw.get("base_v"),
-        base_a=raw.get("base_a"),
+        v=arrays.get("v"),
+        a=arrays.get("a"),
+        tau=arrays.get("tau"),
+        base_q=arrays.get("base_q"),
+        base_v=arrays.get("base_v"),
+        base_a=arrays.get("base_a"),
         extras=extras,
         units=units,
         source=src,

@@ -1,5 +1,7 @@
-"""Column-oriented logs: CSV (with or without a header row) and Parquet, and the mapping of
-their columns onto Trajectory fields (names, ``{joint}`` patterns, integer indices or ranges)."""
+"""Column-oriented logs: CSV and whitespace text (``.dat``, ``.txt``, ``.log``; with or without a
+header row) and Parquet, and the mapping of their columns onto Trajectory fields (names,
+``{joint}`` patterns, integer indices or ranges). The words a header may use are the names of
+:data:`~sensorless.data.names.FIELD_NAMES`."""
 
 from __future__ import annotations
 
@@ -11,23 +13,19 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import DataError
+from .names import FIELD_NAMES, TICK_NAMES, RawLog, normalise, short_list
 
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__: list[str] = []
+__all__ = ["read_text_table", "read_parquet_table", "fields_from_frame", "numeric_columns", "detect_patterns",
+           "TIME_COLUMNS"]
 
-#: time column names (case-insensitive); %time: `rostopic echo -p` (ns), __time: PlotJuggler's CSV export
-_TIME_COLUMNS = ("t", "time", "times", "timestamp", "stamp", "%time", "__time")
+#: time column names (case-insensitive); %time: `rostopic echo -p` (ns), __time: PlotJuggler's CSV export;
+#: tick counters are time columns too (read with --time-unit tick)
+TIME_COLUMNS = FIELD_NAMES["t"] + TICK_NAMES
 #: words a header may use for each field, the first being the default (``q_{joint}``, ...)
-FIELD_WORDS = {
-    "q": ("q", "pos", "position", "angle"),
-    "v": ("v", "vel", "velocity", "dq", "qd"),
-    "a": ("a", "acc", "acceleration", "ddq", "qdd"),
-    "tau": ("tau", "eff", "effort", "torque", "trq"),
-    "current": ("current", "cur", "i"),
-    "command": ("command", "cmd", "q_cmd"),
-}
+FIELD_WORDS = {f: FIELD_NAMES[f] for f in ("q", "v", "a", "tau", "current", "command")}
 _SEPARATORS = ("_", ".", "/", ":")
 _RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
 
@@ -42,8 +40,9 @@ def _is_number(tok: str) -> bool:
         return False
 
 
-def _read_csv(path: Path) -> tuple["pd.DataFrame", bool]:
-    """The table and whether it has a header (no header if the first row is all numbers)."""
+def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
+    """The table of a CSV or whitespace-separated text file and whether it has a header (no
+    header if the first row is all numbers); ``#`` starts a comment."""
     import pandas as pd
 
     src = str(path)
@@ -72,7 +71,7 @@ def _read_csv(path: Path) -> tuple["pd.DataFrame", bool]:
     return df, header
 
 
-def _read_parquet(path: Path) -> "pd.DataFrame":
+def read_parquet_table(path: Path) -> "pd.DataFrame":
     import pandas as pd
 
     try:
@@ -91,11 +90,6 @@ def _read_parquet(path: Path) -> "pd.DataFrame":
         raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(path)) from None
     df.columns = [str(c) for c in df.columns]
     return df.reset_index() if df.index.name is not None else df.reset_index(drop=True)
-
-
-def _short(items: Sequence[Any], limit: int = 40) -> str:
-    items = list(items)
-    return str(items if len(items) <= limit else items[:limit] + [f"... ({len(items) - limit} more)"])
 
 
 def _names_from_pattern(pattern: str, avail: list) -> list[str]:
@@ -167,7 +161,7 @@ def _rostopic_joint_state(df: "pd.DataFrame", src: str) -> tuple[dict[str, list[
             continue
         values = df[col].astype(str).unique()
         if len(values) > 1:
-            raise DataError(f"column '{col}' changes within the log ({_short(values, 4)}): the JointState messages "
+            raise DataError(f"column '{col}' changes within the log ({short_list(values, 4)}): the JointState messages "
                             "list their joints in different orders; export one order per file", src)
         names.append(str(values[0]))
     spec = {"q": [f"field.position{i}" for i in range(k)]}
@@ -223,12 +217,12 @@ def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header:
     missing = [c for c in labels if c not in avail]
     if missing:
         listed = any("," in str(c) and all(p.strip() in avail for p in str(c).split(",")) for c in missing)
-        raise DataError(f"no column(s) {missing} (for '{field}'); available columns: {_short(avail)}"
+        raise DataError(f"no column(s) {missing} (for '{field}'); available columns: {short_list(avail)}"
                         + ("; a list of columns is separated by '|' (q=a|b|c)" if listed else ""), src)
     return labels
 
 
-def _numeric(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarray:
+def numeric_columns(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarray:
     import pandas as pd
 
     cols = []
@@ -261,13 +255,14 @@ def _numeric(df: "pd.DataFrame", labels: list, field: str, src: str) -> np.ndarr
     return np.column_stack(cols) if cols else np.empty((len(df), 0))
 
 
-def _fields_from_frame(
+def fields_from_frame(
     df: "pd.DataFrame",
     src: str,
     columns: Columns | None,
     joint_names: Sequence[str] | None,
     header: bool,
-) -> tuple[dict[str, np.ndarray], list[str] | None]:
+) -> RawLog:
+    """The fields of a table (module docstring); the columns no field uses are listed as unused."""
     avail = list(df.columns)
     if columns is None and not header:
         raise DataError(
@@ -290,8 +285,8 @@ def _fields_from_frame(
         if "q" not in spec:
             raise DataError("columns has no 'q' entry (joint positions)", src)
     if header and "t" not in spec:
-        lower = {str(c).lower(): c for c in avail}
-        tcol = next((lower[n] for n in _TIME_COLUMNS if n in lower), None)
+        lower = {normalise(c): c for c in avail}
+        tcol = next((lower[normalise(n)] for n in TIME_COLUMNS if normalise(n) in lower), None)
         if tcol is not None:
             spec["t"] = tcol
 
@@ -306,12 +301,14 @@ def _fields_from_frame(
                     f"e.g. q_J, pos_J, J_position, J.pos; words {dict(FIELD_WORDS)})")
                 raise DataError(
                     f"no column matches {spec[patterns[0]]!r} (for '{patterns[0]}'){tried}; available columns: "
-                    f"{_short(avail)}; say which columns hold what: columns={{'q': 'pos_{{joint}}', 'v': ..., "
+                    f"{short_list(avail)}; say which columns hold what: columns={{'q': 'pos_{{joint}}', 'v': ..., "
                     f"'tau': ...}} (command line: --columns 'q=pos_{{joint}};v=vel_{{joint}};tau=eff_{{joint}}')",
                     src,
                 )
 
     raw: dict[str, np.ndarray] = {}
+    origin: dict[str, str] = {}
+    used = {f"field.name{i}" for i in range(len(names or []))} if ros is not None else set()
     for field, entry in spec.items():
         if field in optional:
             present = [entry.replace("{joint}", j) in avail for j in names or []]
@@ -319,10 +316,15 @@ def _fields_from_frame(
                 continue
             if not all(present):
                 absent = [entry.replace("{joint}", j) for j, p in zip(names, present) if not p]
-                raise DataError(f"'{field}' columns incomplete: no column(s) {absent}; available columns: {_short(avail)}", src)
+                raise DataError(f"'{field}' columns incomplete: no column(s) {absent}; available columns: {short_list(avail)}", src)
         labels = _labels(field, entry, avail, names, header, src)
         if field == "t" and len(labels) != 1:
             raise DataError(f"'t' must be one column, got {labels}", src)
-        values = _numeric(df, labels, field, src)
+        values = numeric_columns(df, labels, field, src)
         raw[field] = values[:, 0] if field == "t" else values
-    return raw, names
+        shown = [str(c) if header else f"column {c}" for c in labels]
+        origin[field] = shown[0] if len(shown) == 1 else (entry if isinstance(entry, str) else "|".join(shown))
+        used.update(labels)
+    unused = [str(c) for c in avail if c not in used] if header else [f"column {i}" for i, c in enumerate(avail)
+                                                                       if c not in used]
+    return RawLog(raw, names, origin, {}, unused)

@@ -1,0 +1,170 @@
+"""A folder of per-signal text files, joined on their time column, read into a
+:class:`~sensorless.data.names.RawLog`.
+
+Controllers often write one whitespace text file per signal: ``run/q.dat``, ``run/dq.dat``,
+``run/tau.dat`` (``.dat``, ``.txt``, ``.log`` or ``.csv``), each a time or tick column and
+one column per joint. ``--data run/`` reads the folder as one log:
+
+* each file stands for the field its name is recognised as
+  (:data:`~sensorless.data.names.FIELD_NAMES`: ``q``, ``dq``/``v``, ``ddq``, ``tau``/
+  ``effort``, ``current``/``i``, ...); ``--columns 'q=pos;tau=trq'`` names the files instead
+  (by stem or file name). Files no field uses are named in one warning;
+* the time column of each file is the one a header names (``t``, ``time``, ``tick``, ...,
+  or ``--columns t=NAME``); without a header it is the first column. Every other column is
+  a joint, in the same order in every file (a header shared by every file gives the joint names);
+* the files are joined on the stamps they all have (an inner join on exact values: ticks
+  are integers); rows only some files have are dropped with a warning, and files that share
+  fewer than half of their stamps are refused.
+
+The stamps' unit is then read as any time column's (:mod:`.timebase`: ticks need
+``--time-unit tick --rate HZ``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from ..errors import DataError, DataWarning, ShapeMismatchError, TimestampError
+from .limits import prescan_text
+from .names import FIELD_NAMES, RawLog, field_of, normalise, pick_key, short_list
+from .tabular import TIME_COLUMNS, numeric_columns, read_text_table
+
+__all__ = ["read_signal_folder", "SIGNAL_SUFFIXES"]
+
+SIGNAL_SUFFIXES = (".dat", ".txt", ".log", ".csv")
+#: a join that keeps less than this share of some file's rows means the files do not share stamps
+MIN_JOINED_SHARE = 0.5
+
+
+def _files(path: Path, src: str) -> dict[str, Path]:
+    files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in SIGNAL_SUFFIXES
+                   and not p.name.startswith("."))
+    if not files:
+        raise DataError(f"a folder log holds one text file per signal ({', '.join(SIGNAL_SUFFIXES)}: q.dat, "
+                        f"tau.dat, ...); this folder has none", src)
+    by_stem: dict[str, Path] = {}
+    for f in files:
+        if f.stem in by_stem:
+            raise DataError(f"two files for one signal: {by_stem[f.stem].name} and {f.name}; keep one", src)
+        by_stem[f.stem] = f
+    return by_stem
+
+
+def _choose(files: dict[str, Path], columns: Mapping | None, src: str) -> dict[str, Path]:
+    """field -> file: the ``columns`` entries (a stem or file name), else the recognised names."""
+    chosen: dict[str, Path] = {}
+    stems = list(files)
+    for fld in FIELD_NAMES:
+        if fld == "t":
+            continue
+        if columns is not None and fld in columns:
+            spec = columns[fld]
+            if not isinstance(spec, str):
+                raise DataError(f"--columns {fld}=... must name one file of the folder, got {spec!r}", src)
+            hit = next((f for f in files.values() if spec.strip() in (f.name, f.stem)), None)
+            if hit is None:
+                raise DataError(f"no file '{spec}' (for '{fld}') in the folder; files: {short_list(stems)}", src)
+            chosen[fld] = hit
+        elif (stem := pick_key(fld, stems, None, src)) is not None:
+            chosen[fld] = files[stem]
+    if "q" not in chosen:
+        raise DataError(f"no file of joint positions (looked for {[n + '.dat' for n in FIELD_NAMES['q'][:4]]}...); "
+                        f"files: {short_list(stems)}; name it with --columns 'q=FILE'", src)
+    return chosen
+
+
+def _time_label(df, header: bool, columns: Mapping | None, name: str):
+    if columns is not None and "t" in columns:
+        want = str(columns["t"]).strip()
+        for c in df.columns:
+            if str(c) == want or (not header and want.isdigit() and c == int(want)):
+                return c
+        raise DataError(f"no time column '{want}' (--columns t=...); columns: {short_list(list(df.columns))}", name)
+    if not header:
+        return df.columns[0]
+    lower = {normalise(c): c for c in df.columns}
+    return next((lower[normalise(n)] for n in TIME_COLUMNS if normalise(n) in lower), None)
+
+
+def _read_one(path: Path, fld: str, columns: Mapping | None):
+    """(time or None, values (N, n), the time column's label, joint header or None) of one file."""
+    name = str(path)
+    prescan_text(path, name)
+    df, header = read_text_table(path)
+    tcol = _time_label(df, header, columns, name)
+    joints = [c for c in df.columns if c != tcol]
+    if not joints:
+        raise DataError(f"no joint columns besides the time column '{tcol}'", name)
+    t = None if tcol is None else numeric_columns(df, [tcol], "t", name)[:, 0]
+    values = numeric_columns(df, joints, fld, name)
+    label = None if tcol is None else (str(tcol) if header else f"column {tcol}")
+    return t, values, label, [str(c) for c in joints] if header else None
+
+
+def _join(parts: dict[str, tuple], src: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Rows at the stamps every file has (module docstring)."""
+    for fld, (path, t, _) in parts.items():
+        bad = np.flatnonzero(~np.isfinite(t))
+        if bad.size:
+            raise TimestampError(f"time column of {path.name} has a non-finite value at row {bad[0]}", src)
+        rep = np.flatnonzero(np.diff(t) <= 0)
+        if rep.size:
+            raise TimestampError(f"time column of {path.name} does not increase at row {rep[0] + 1} "
+                                 f"({t[rep[0]]:.10g} then {t[rep[0] + 1]:.10g})", src)
+    common = None
+    for _, t, _ in parts.values():
+        common = t if common is None else np.intersect1d(common, t, assume_unique=True)
+    dropped = []
+    out: dict[str, np.ndarray] = {}
+    for fld, (path, t, values) in parts.items():
+        keep = np.isin(t, common, assume_unique=True)
+        if keep.sum() < max(2, MIN_JOINED_SHARE * len(t)):
+            spans = "; ".join(f"{p.name}: {len(tt)} rows, {tt[0]:.10g}..{tt[-1]:.10g}" for p, tt, _ in parts.values())
+            raise TimestampError(f"the signal files do not share their time stamps (joined on exact values, "
+                                 f"{len(common)} in common) — {spans}", src)
+        if not keep.all():
+            dropped.append(f"{int((~keep).sum())} of {path.name}")
+        out[fld] = values[keep]
+    if dropped:
+        warnings.warn(f"{src}: joined the signal files on their time column: dropped the rows not in every file "
+                      f"({', '.join(dropped)}); {len(common)} samples remain", DataWarning, stacklevel=4)
+    return common, out
+
+
+def read_signal_folder(path: Path, columns: Mapping | None) -> RawLog:
+    src = str(path)
+    files = _files(path, src)
+    chosen = _choose(files, columns, src)
+    read = {fld: (f, *_read_one(f, fld, columns)) for fld, f in chosen.items()}
+    timed = [fld for fld, r in read.items() if r[1] is not None]
+    if timed and len(timed) != len(read):
+        untimed = [read[f][0].name for f in read if f not in timed]
+        raise DataError(f"{', '.join(untimed)} ha(s) no time column while {read[timed[0]][0].name} has one; "
+                        "every signal file needs the same time/tick column", src)
+    n = read["q"][2].shape[1]
+    wrong = [f"{r[0].name} ({r[2].shape[1]})" for fld, r in read.items() if fld != "q" and r[2].shape[1] != n
+             and fld in ("v", "a", "tau", "current", "command")]
+    if wrong:
+        raise ShapeMismatchError(f"{read['q'][0].name} has {n} joint columns but {', '.join(wrong)}", src)
+    if timed:
+        t, arrays = _join({fld: (r[0], r[1], r[2]) for fld, r in read.items()}, src)
+        arrays["t"] = t
+    else:
+        lengths = {r[0].name: len(r[2]) for r in read.values()}
+        if len(set(lengths.values())) > 1:
+            raise ShapeMismatchError(f"the signal files have no time column and different lengths {lengths}", src)
+        arrays = {fld: r[2] for fld, r in read.items()}
+    headers = [r[4] for r in read.values()]
+    names = headers[0] if headers[0] is not None and all(h == headers[0] for h in headers) else None
+    origin = {fld: r[0].name for fld, r in read.items()}
+    if timed:
+        origin["t"] = read["q"][3]
+    used = {f.stem for f in chosen.values()}
+    unused = [f.name for stem, f in files.items() if stem not in used]
+    if names is not None and any(field_of(n) is not None for n in names):
+        names = None  # a header of field words (q1?) is not joint names
+    return RawLog(arrays, names, origin, {}, unused)
