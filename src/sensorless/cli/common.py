@@ -203,7 +203,19 @@ def gains_option():
 
 def trim_option():
     return typer.Option(None, help="time window START:END in seconds after the first sample (negative: before the last); "
-                                   "open ends ':49.6', '1.9:'; 'abs:T0:T1' uses the log's own stamps")
+                                   "open ends ':49.6', '1.9:'; 'abs:T0:T1' uses the log's own stamps; FILE=START:END "
+                                   "for one log (its path or file name; repeatable, wins over a window for all); cut "
+                                   "before the time axis is checked")
+
+
+def log_trims(trim, *paths) -> "LogTrims":
+    """The ``--trim`` values parsed (:class:`~sensorless.data.LogTrims`), every FILE= name checked
+    against the command's logs ``paths`` (lists of paths)."""
+    from ..data.trims import LogTrims
+
+    trims = LogTrims.parse(trim)
+    trims.check([p for group in paths for p in (group if isinstance(group, (list, tuple)) else [group])])
+    return trims
 
 
 def resample_option(default: Optional[str] = "auto"):
@@ -226,9 +238,10 @@ def max_gap_option(default: Optional[float] = None):
 
 
 def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
-                           decimate, max_gap, rest="auto", time_unit=None) -> dict:
+                           decimate, max_gap, rest="auto", time_unit=None, paths=(), log_paths=None) -> dict:
     """settings.preprocessing for result.json: the options (gains resolved per joint name,
-    column map parsed, gain suffix moved to ``gains``) and each log's provenance."""
+    column map parsed, gain suffix moved to ``gains``), the trim windows and dropped corrupt rows
+    of each log (:func:`log_settings`)."""
     from ..data.gains import split_gain_modifiers
 
     cols = parse_columns(columns) if isinstance(columns, str) else columns
@@ -236,7 +249,23 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
     resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
     return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
             "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
-            "trim": trim, "decimate": decimate, "rest": rest, "time_unit": time_unit}
+            "decimate": decimate, "rest": rest, "time_unit": time_unit,
+            **log_settings(trim, paths, logs, log_paths)}
+
+
+def log_settings(trim, paths, logs, log_paths=None) -> dict:
+    """Per-log settings of a run on the logs at ``paths``: ``trim`` (the window for every log),
+    ``trims`` ({log: its window}), ``skip_bad_rows`` and ``rows_dropped`` ({log: the corrupt rows
+    dropped}, :mod:`sensorless.data.bad_rows`) of the trajectories ``logs`` read from ``log_paths``
+    (default ``paths``)."""
+    from ..data.limits import current_options
+    from ..data.trims import LogTrims
+
+    paths = [str(p) for p in paths]
+    read = paths if log_paths is None else [str(p) for p in log_paths]
+    return {**LogTrims.parse(trim).settings(paths), "skip_bad_rows": bool(current_options().get("skip_bad_rows")),
+            "rows_dropped": {p: t.provenance["rows_dropped"] for p, t in zip(read, logs)
+                             if "rows_dropped" in t.provenance}}
 
 
 def model_preprocessing(model, **given) -> dict:
@@ -319,9 +348,14 @@ PACKAGE_PATH_HELP = ("folder the robot description may read meshes/includes from
                      "looks here; repeatable; ROS_PACKAGE_PATH counts too)")
 
 
-def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **options):
-    """Read, validate and preprocess logs given on the command line (:func:`load_log` each)."""
-    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, **options) for p in paths]
+def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, trim=None, **options):
+    """Read, validate and preprocess logs given on the command line (:func:`load_log` each); ``trim``:
+    the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window)."""
+    from ..data.trims import LogTrims
+
+    trims = LogTrims.parse(trim)
+    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, trim=trims.window_for(p), **options)
+            for p in paths]
 
 
 
@@ -341,7 +375,7 @@ _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
     "savgol_window": (Optional[int], lambda: typer.Option(None, help="Savitzky-Golay window [samples] for v̇"
                                                                      + _MODEL_DEFAULT)),
     "gains": (Optional[str], lambda: gains_option()),
-    "trim": (Optional[str], lambda: trim_option()),
+    "trim": (Optional[List[str]], lambda: trim_option()),
     "resample": (Optional[str], lambda: resample_option(None)),
     "velocity": (Optional[str], lambda: velocity_option(None)),
     "max_gap": (Optional[float], lambda: max_gap_option()),
@@ -386,26 +420,31 @@ _READING_OPTIONS = {
         False, help="read HDF5 datasets stored in other files (external raw storage, virtual datasets)")),
     "accept_implausible_gains": (bool, lambda: typer.Option(
         False, help="accept --gains whose torques are over 100× off the robot model's torque scale")),
+    "skip_bad_rows": (bool, lambda: typer.Option(
+        False, help="drop corrupt rows at the start or end of a log (non-finite or absurd values, time running "
+                    "backwards or repeating, a last row cut short; at most 5 % of the rows or 20) with a warning "
+                    "naming them; corruption in the middle stays an error")),
 }
 
 
 def log_reading_options(skip_bad: bool = True):
-    """Decorator: ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains`` (and
-    ``--skip-bad`` unless the command has its own), applied to every log the command reads
+    """Decorator: ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
+    ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
     from ..data.limits import read_options
 
     options = dict(_READING_OPTIONS)
     if skip_bad:
         options["skip_bad"] = (bool, lambda: typer.Option(
-            False, help="read the rest of a ROS bag / MCAP file with corrupt chunks (a warning counts what was lost)"))
+            False, help="read the rest of a ROS bag / MCAP file with corrupt chunks (a warning counts what was lost; "
+                        "corrupt rows at a log's start or end: --skip-bad-rows)"))
 
     def deco(fn):
         @functools.wraps(fn)
         def run(*args, reading: dict, **kwargs):
             with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
                               accept_implausible_gains=reading["accept_implausible_gains"],
-                              skip_bad=reading.get("skip_bad")):
+                              skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"]):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)
@@ -478,14 +517,29 @@ def experiment_options(out: str, quick: str, seed: str):
 
 def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
     """Logs to apply a model (a ModelArtifact, or a path) to, preprocessed as its training logs were:
-    each option in ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`).
+    each option in ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`);
+    ``prep["trim"]``: the ``--trim`` values (FILE= names checked against ``paths``).
     Returns (trajectories, the resolved options)."""
     opts = model_preprocessing(model, **{k: v for k, v in prep.items() if k != "trim"})
     trajs = load_logs(paths, robot, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
-                      gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
+                      gains=opts["gains"], trim=log_trims(prep.get("trim"), paths), resample=opts["resample"],
                       velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"),
                       time_unit=opts.get("time_unit"))
     return trajs, opts
+
+
+def print_pairing(pairing: dict) -> None:
+    """The console line of a paired run (:class:`sensorless.data.Pairing` ``to_dict()``): the lag and how."""
+    lag = pairing.get("lag_s")
+    if lag is None:
+        line = f"{pairing['log']}: paired with {pairing['reference']} row by row ({pairing['samples']} samples)"
+    else:
+        how = "by time" if pairing["align"] == "time" else "row by row (one time grid)"
+        ahead = "behind" if lag <= 0 else "ahead of"
+        line = (f"{pairing['log']}: lag {lag:+.3f} s ({abs(lag):.3f} s {ahead} {pairing['reference']}, "
+                f"r = {pairing['correlation']:.3f}, overlap {pairing['overlap_s']:.2f} s); paired {how}, "
+                f"{pairing['samples']} samples")
+    console.print(line, highlight=False, soft_wrap=True)
 
 
 def write_result(res: dict, out: Path) -> None:

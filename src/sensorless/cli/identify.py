@@ -8,11 +8,13 @@ from typing import List, Optional
 
 import typer
 
+from ..data.limits import current_options
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .frames import frame_options
 from .common import (
     robot_source_options,
     log_reading_options,
+    log_trims,
     MultiValueCommand,
     app,
     atomic_outdir,
@@ -86,7 +88,7 @@ def identify(
                                                        "(v and v̇ from q when v is not logged)"),
     decimate: int = typer.Option(1, help="keep every n-th sample (after anti-alias filtering)"),
     gains: Optional[str] = gains_option(),
-    trim: Optional[str] = trim_option(),
+    trim: Optional[List[str]] = trim_option(),
     resample: str = resample_option(),
     velocity: Velocity = velocity_option(),
     max_gap: Optional[float] = max_gap_option(),
@@ -157,8 +159,9 @@ def identify(
     from ..regressor.distributed import LogReader, expand_paths
 
     data = [Path(p) for p in expand_paths(data)]
+    trims = log_trims(trim, data, validate)
     prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
-                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
+                gains=gains, trim=trims, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
                 rest=rest, time_unit=time_unit)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
         skipped: list = []
@@ -188,7 +191,8 @@ def identify(
                 first = _first_training_log(data, r, prep)
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
-            result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep, imu_frame=imu_frame),
+            reader = LogReader(**prep, imu_frame=imu_frame, skip_bad_rows=current_options().get("skip_bad_rows"))
+            result, fleet = identify_on_dask(structure, data, scheduler, workers, reader,
                                              method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
                                              friction_fit.stribeck_grid if friction_fit is not None else None)
@@ -230,10 +234,11 @@ def identify(
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate,
                                 "preprocessing": preprocessing_settings(
-                                    train + val, columns=columns, gains=gains, rate=rate, trim=trim,
+                                    train + val, columns=columns, gains=gains, rate=rate, trim=trims,
                                     resample=resample, lowpass=lowpass, savgol_window=savgol_window,
                                     velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest,
-                                    time_unit=time_unit),
+                                    time_unit=time_unit, paths=[*data, *validate],
+                                    log_paths=[*data[:len(train)], *validate]),
                                 "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
                                 if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
         result.settings["config"] = {"file": None if config is None else str(config), "options": resolved_options()}

@@ -19,7 +19,7 @@ import typer
 from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "ContactMode", "ContactRows",
-           "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align",
+           "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align", "ALIGN_HELP",
            "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "config_option", "check_config",
            "resolved_options"]
 
@@ -41,7 +41,11 @@ Criterion = _choices("Criterion", ("cond", "dopt"))
 ForceReference = _choices("ForceReference", ("local", "world", "local_world_aligned"))
 ForceComponents = _choices("ForceComponents", ("linear", "angular", "wrench"))
 PayloadMode = _choices("PayloadMode", ("auto", "full", "com", "mass"))
-Align = _choices("Align", ("time", "rows"))
+Align = _choices("Align", ("auto", "time", "rows"))
+ALIGN_HELP = ("pairing of the two runs: auto (measure the lag between them from the positions; by time, or row by row "
+              "when both share one time grid and the lag is under half a sample) | time (the reference run "
+              "interpolated at the other's times shifted by the lag; for runs started at different instants) | rows "
+              "(row by row, same length)")
 LinearMethod = _choices("LinearMethod", ("ols", "wls"))
 PsmModel = _choices("PsmModel", ("ols", "wls", "lmi"))
 Training = _choices("Training", ("rich", "stance"))

@@ -37,7 +37,7 @@ from ..io import check_input_file
 from .containers import check_hdf5, check_npz
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
-from .limits import prescan_text, read_options
+from .limits import current_options, prescan_text, read_options
 from .tabular import Columns, _fields_from_frame, _read_csv, _read_parquet, _short
 from .trajectory import Trajectory, as_float_array
 from .validation import JOINT_EXTRAS, validate_trajectory
@@ -92,6 +92,8 @@ def read_trajectory(
     max_memory: "str | int | None" = None,
     allow_external: bool | None = None,
     skip_bad: bool | None = None,
+    trim=None,
+    skip_bad_rows: bool | None = None,
 ) -> Trajectory:
     """Read a log and return it validated (and reordered to ``robot.joint_names``).
 
@@ -104,15 +106,20 @@ def read_trajectory(
     OutlierError ("error", default), are dropped with a warning ("drop") or kept ("keep").
     Every problem raises a :class:`~sensorless.errors.DataError` subclass naming the file,
     column and row. ``max_memory`` (bytes or '8GiB'), ``allow_external`` (HDF5 external/virtual
-    datasets) and ``skip_bad`` (corrupt bag/MCAP chunks) are :mod:`sensorless.data.limits` options.
+    datasets), ``skip_bad`` (corrupt bag/MCAP chunks) and ``skip_bad_rows`` (default False) are
+    :mod:`sensorless.data.limits` options. ``skip_bad_rows`` drops a corrupt prefix/suffix of rows
+    and ``trim`` (a :class:`~sensorless.data.TrimWindow`) cuts a time window, both before the checks
+    (:func:`~sensorless.data.validate_trajectory`).
     """
-    with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad):
+    with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
+                      skip_bad_rows=skip_bad_rows):
         return _read_trajectory(Path(path), joint_names, columns, rate, robot, time_unit, gains,
-                                allow_duplicate_times, outliers)
+                                allow_duplicate_times, outliers, trim)
 
 
 def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, gains, allow_duplicate_times,
-                     outliers) -> Trajectory:
+                     outliers, trim=None) -> Trajectory:
+    rows = {"trim": trim, "skip_bad_rows": bool(current_options().get("skip_bad_rows"))}
     src = str(path)
     if not path.exists():
         raise DataError("no such file", src)
@@ -124,7 +131,7 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         if gains is not None or rate is not None or time_unit is not None:
             raise DataError("gains, rate and time_unit do not apply to a ROS bag (its stamps are in seconds)", src)
         return read_rosbag(path, joint_names=joint_names, robot=robot, allow_duplicate_times=allow_duplicate_times,
-                           outliers=outliers, **rosbag_options(columns, src))
+                           outliers=outliers, **rows, **rosbag_options(columns, src))
     if not path.is_file():
         raise DataError("not a regular file", src)
     kind = SUPPORTED_EXTENSIONS.get(path.suffix.lower())
@@ -160,7 +167,7 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         extras = _sample_extras(path, kind, len(traj))
         if extras:
             traj = traj.with_(extras={**traj.extras, **extras})
-    return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers)
+    return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers, **rows)
 
 
 #: Per-sample contact data of legged-robot logs (NPZ/HDF5 keys): flags (N, n_feet) and

@@ -71,7 +71,7 @@ class LogReader:
     savgol_window: int | None = None
     decimate: int = 1
     gains: Any = None
-    trim: str | None = None
+    trim: "str | LogTrims | None" = None  # a window for every log, or each log's own (data.trims.LogTrims)
     resample: str = "auto"
     velocity: str = "logged"
     max_gap: float | None = None
@@ -79,13 +79,15 @@ class LogReader:
     rest: str = "auto"
     time_unit: str | None = None
     imu_frame: str | None = None  # base_a from the accelerometer in this model frame (data.prepare.with_imu_frame)
+    skip_bad_rows: bool | None = None  # drop a corrupt prefix/suffix of rows (data.bad_rows)
 
     def __call__(self, path: str | Path, robot) -> Trajectory:
         from ..data.prepare import load_log, with_imu_frame
 
         traj = load_log(path, robot, self.columns, self.rate, self.lowpass, self.savgol_window, self.decimate,
                         gains=self.gains, trim=self.trim, resample=self.resample, velocity=self.velocity,
-                        max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit)
+                        max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit,
+                        skip_bad_rows=self.skip_bad_rows)
         return with_imu_frame(traj, robot, self.imu_frame, self.savgol_window) if self.imu_frame else traj
 
     def settings(self) -> dict:
