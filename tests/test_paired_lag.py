@@ -1,5 +1,6 @@
 """Paired runs recorded at different times: the lag is found from the positions, applied and
-reported, and a pair that is not one trajectory is refused (drive-gains and payload --align time)."""
+reported, and a pair that is not one trajectory is refused (drive-gains and payload, --align auto
+by default); corrupt rows at a file's ends dropped with --skip-bad-rows; per-log --trim."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from sensorless.data import Trajectory
 from sensorless.data.align import estimate_lag
 from sensorless.errors import DataError
 from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
+from sensorless.simulation.log_faults import write_faulty_csv
 
 COLS = "q=pos_{joint};v=vel_{joint};tau=i_{joint}"
 LAG = 1.2
@@ -21,15 +23,99 @@ LAG = 1.2
 
 @pytest.fixture(scope="module")
 def shifted_pair(tmp_path_factory):
-    """An unloaded and a loaded run of one trajectory; the loaded run starts its excitation 1.2 s later."""
+    """An unloaded and a loaded run of one trajectory; the loaded run starts its excitation 1.2 s later.
+    ``l_bad.csv``: the loaded run as the reported file, with 9 corrupt leading rows (values up to 1e154,
+    time running backwards) and its last row cut after 11 of 19 fields."""
     d = tmp_path_factory.mktemp("pair")
     robot, truth = truth_model("ur10", 0, stribeck=True, friction_scale=4.0)
     K = drive_gains_for(robot)
     kw = dict(motion=10.0, idle_end=1.0, ramp=1.0, motion_seed=30)
     simulate(robot, truth, K, seed=3, idle_start=1.5, **kw).to_csv(d / "u.csv", index=False)
-    simulate(robot, with_payload(truth, "tool0", 4.0), K, seed=4, idle_start=1.5 + LAG, **kw).to_csv(
-        d / "l.csv", index=False)
+    loaded = simulate(robot, with_payload(truth, "tool0", 4.0), K, seed=4, idle_start=1.5 + LAG, **kw)
+    loaded.to_csv(d / "l.csv", index=False)
+    write_faulty_csv(loaded, d / "l_bad.csv", leading=9, cut_after=11, seed=1)
     return d, robot, K
+
+
+def _flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_corrupt_shifted_pair_gains_and_payload_with_the_cli_alone(shifted_pair, tmp_path):
+    """Acceptance (issue #27): the loaded run lags by 1.2 s and its file starts with 9 corrupt rows and
+    ends with a row cut short. With --skip-bad-rows and the defaults (pairing by time, the lag measured):
+    drive gains within 2 %, then a model of the unloaded run and the payload within 3 %, the lag reported."""
+    d, robot, K = shifted_pair
+    runner = CliRunner()
+    k_json = tmp_path / "k.json"
+    r = runner.invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
+                            str(d / "l_bad.csv"), "--columns", COLS, "--payload-mass", "4", "--frame", "tool0",
+                            "--com", "0.06,0.02,0.05", "--skip-bad-rows", "--out", str(k_json)])
+    out = _flat(r.output)
+    assert r.exit_code == 0, out
+    assert "dropped 9 row(s) at the start (samples 0..8" in out and "1 row(s) at the end (sample 1378" in out
+    doc = json.loads(k_json.read_text())
+    gains = np.array([doc["estimated_gains"][j] for j in robot.actuated_joints])
+    assert np.all(np.abs(gains / K - 1) < 0.02), gains / K
+    lag = doc["diagnostics"]["alignment"]
+    assert lag["lag_s"] == pytest.approx(-LAG, abs=0.02) and lag["align"] == "time", lag
+    assert f"lag {lag['lag_s']:+.3f} s" in out and "behind" in out
+    dropped = doc["settings"]["rows_dropped"][str(d / "l_bad.csv")]["dropped"]
+    assert [(x["first_sample"], x["last_sample"]) for x in dropped] == [(0, 8), (1378, 1378)]
+
+    r = runner.invoke(app, ["identify", "--robot", "ur10", "--data", str(d / "u.csv"), "--columns", COLS,
+                            "--gains", str(k_json), "--method", "ols", "--no-plot", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["payload", "--robot", "ur10", "--model", str(tmp_path / "m"), "--data",
+                            str(d / "l_bad.csv"), "--no-load", str(d / "u.csv"), "--frame", "tool0", "--com",
+                            "0.06,0.02,0.05", "--skip-bad-rows", "--n-boot", "50", "--out", str(tmp_path / "p.json")])
+    out = _flat(r.output)
+    assert r.exit_code == 0, out
+    doc = json.loads((tmp_path / "p.json").read_text())
+    assert doc["mass"] == pytest.approx(4.0, rel=0.03), doc["mass"]
+    assert doc["alignment"][0]["lag_s"] == pytest.approx(-LAG, abs=0.02) and "lag -1.2" in out
+    assert doc["settings"]["preprocessing"]["skip_bad_rows"] is True
+
+
+def test_without_skip_bad_rows_the_error_names_the_rows_and_both_remedies(shifted_pair, tmp_path):
+    d, _, _ = shifted_pair
+    r = CliRunner().invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
+                                 str(d / "l_bad.csv"), "--columns", COLS, "--payload-mass", "4", "--frame", "tool0",
+                                 "--out", str(tmp_path / "k.json")])
+    out = _flat(r.output)
+    assert r.exit_code == 2 and "l_bad.csv" in out and "samples 0..8" in out, out
+    assert "--skip-bad-rows" in out and "--trim l_bad.csv=abs:" in out
+
+
+def test_per_log_trims_in_drive_gains_are_applied_and_recorded(shifted_pair, tmp_path):
+    """Each run cut at its own excitation start: the lag left between them is about 0."""
+    d, robot, K = shifted_pair
+    out = tmp_path / "k.json"
+    r = CliRunner().invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
+                                 str(d / "l.csv"), "--columns", COLS, "--payload-mass", "4", "--frame", "tool0",
+                                 "--com", "0.06,0.02,0.05", "--n-boot", "100", "--trim", "u.csv=1.4:-1",
+                                 "--trim", f"{d / 'l.csv'}=2.6:-1", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(out.read_text())
+    assert doc["diagnostics"]["alignment"]["lag_s"] == pytest.approx(0.0, abs=0.03)
+    assert doc["settings"]["trims"] == {str(d / "u.csv"): "1.4:-1", str(d / "l.csv"): "2.6:-1"}
+    gains = np.array([doc["estimated_gains"][j] for j in robot.actuated_joints])
+    assert np.all(np.abs(gains / K - 1) < 0.02), gains / K
+    r = CliRunner().invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
+                                 str(d / "l.csv"), "--columns", COLS, "--payload-mass", "4", "--frame", "tool0",
+                                 "--trim", "x.csv=1:2", "--out", str(out), "--force"])
+    assert r.exit_code == 2 and "'x.csv' matches none of the logs" in _flat(r.output)
+
+
+def test_paired_runs_of_different_trajectories_are_refused_naming_both(shifted_pair, tmp_path):
+    d, robot, K = shifted_pair
+    _, truth = truth_model("ur10", 0)
+    simulate(robot, truth, K, seed=5, motion=8.0, motion_seed=31).to_csv(tmp_path / "other.csv", index=False)
+    r = CliRunner().invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
+                                 str(tmp_path / "other.csv"), "--columns", COLS, "--payload-mass", "4", "--frame",
+                                 "tool0", "--out", str(tmp_path / "k.json")])
+    out = _flat(r.output)
+    assert r.exit_code == 2 and "other.csv" in out and "u.csv" in out and "same trajectory" in out, out
 
 
 def test_coarse_lag_of_a_shifted_pair_within_a_sample():
@@ -79,7 +165,7 @@ def test_payload_from_a_pair_shifted_by_1_2_s_within_3_percent(shifted_pair, tmp
                                  "--com", "0.06,0.02,0.05", "--n-boot", "50", "--out", str(tmp_path / "p.json")])
     assert r.exit_code == 0, r.output
     doc = json.loads((tmp_path / "p.json").read_text())
-    assert doc["alignment"][0]["lag_s"] == pytest.approx(-LAG, abs=0.02) and "lag of -1.2" in " ".join(r.output.split())
+    assert doc["alignment"][0]["lag_s"] == pytest.approx(-LAG, abs=0.02) and "lag -1.2" in " ".join(r.output.split())
     assert doc["mass"] == pytest.approx(4.0, rel=0.03), doc["mass"]
 
 

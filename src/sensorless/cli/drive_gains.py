@@ -11,9 +11,6 @@ import typer
 from ..errors import DataError, OptionError
 from .common import (
     log_reading_options,
-    log_settings,
-    log_trims,
-    print_pairing,
     robot_source_options,
     MultiValueCommand,
     app,
@@ -26,11 +23,11 @@ from .common import (
     path_inputs,
     resample_option,
     time_unit_option,
-    trim_option,
     force_option,
     lock_option,
     robot_option,
 )
+from .logs import log_settings, log_trims, print_pairing, trim_option
 from .options import ALIGN_HELP, Align, TimeUnit
 
 __all__ = ["drive_gains"]

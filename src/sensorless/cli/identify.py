@@ -11,10 +11,10 @@ import typer
 from ..data.limits import current_options
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .frames import frame_options
+from .logs import log_trims, preprocessing_settings, trim_option
 from .common import (
     robot_source_options,
     log_reading_options,
-    log_trims,
     MultiValueCommand,
     app,
     atomic_outdir,
@@ -27,11 +27,9 @@ from .common import (
     load_robot_arg,
     max_gap_option,
     path_inputs,
-    preprocessing_settings,
     progress_bar,
     resample_option,
     time_unit_option,
-    trim_option,
     velocity_option,
     force_option,
     lock_option,

@@ -13,9 +13,7 @@ from .frames import frame_options
 from .common import (
     robot_source_options,
     log_reading_options,
-    log_settings,
     model_logs,
-    print_pairing,
     model_preprocessing_options,
     MultiValueCommand,
     app,
@@ -28,6 +26,7 @@ from .common import (
     output_file,
     path_inputs,
 )
+from .logs import log_settings, print_pairing
 from .options import ALIGN_HELP, Align, PayloadMode
 
 __all__ = ["payload"]

@@ -68,13 +68,17 @@ class Edge:
 @dataclass(frozen=True)
 class RowScan:
     """Where the clean rows of an ``n``-row log are (``start:stop``), the corrupt ``edges`` that
-    may be dropped, and the corruption they do not cover (``middle``: its first sample and why)."""
+    may be dropped, the corruption they do not cover (``middle``: its first sample and why), and
+    the time window on the log's stamps that leaves the edges out (``window``, None if none does;
+    ``window_loses`` clean rows outside it)."""
 
     n: int
     start: int
     stop: int
     edges: tuple[Edge, ...]
     middle: str | None
+    window: tuple[float, float] | None = None
+    window_loses: int = 0
 
     def describe(self) -> str:
         return " and ".join(e.describe() for e in self.edges)
@@ -168,5 +172,21 @@ def scan_rows(t: np.ndarray, columns: list, allow_duplicate_times: bool = False)
         elif middle is None:
             k, detail = why(border, where == "start") if 0 <= border < n else (0, "")
             middle = f"sample {border}" + (f" ({_KINDS[k]}: {detail})" if k else "")
-    return RowScan(n, start if edges and edges[0].where == "start" else 0,
-                   stop if edges and edges[-1].where == "end" else n, tuple(edges), middle)
+    lo_row = start if edges and edges[0].where == "start" else 0
+    hi_row = stop if edges and edges[-1].where == "end" else n
+    window, loses = _window(t, kind, lo_row, hi_row, start, stop) if edges else (None, 0)
+    return RowScan(n, lo_row, hi_row, tuple(edges), middle, window, loses)
+
+
+def _window(t: np.ndarray, kind: np.ndarray, lo_row: int, hi_row: int, start: int, stop: int):
+    """The stamps [lo, hi] of the kept rows ``start:stop`` that no dropped row's plausible stamp
+    falls in (a prefix running backwards has stamps after the first kept one), and how many kept rows
+    that window loses."""
+    core = t[start:stop]
+    plausible = np.isfinite(t) & (np.abs(t) <= ABSURD_VALUE)
+    head, tail = t[:lo_row][plausible[:lo_row]], t[hi_row:][plausible[hi_row:]]
+    lo = core[core > head.max()].min(initial=np.inf) if head.size else core[0]
+    hi = core[core < tail.min()].max(initial=-np.inf) if tail.size else core[-1]
+    if not lo < hi:
+        return None, 0
+    return (float(lo), float(hi)), int(np.sum((core < lo) | (core > hi)))

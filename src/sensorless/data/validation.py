@@ -9,6 +9,7 @@ the first bad sample.
 
 from __future__ import annotations
 
+import os
 import warnings
 from typing import TYPE_CHECKING
 
@@ -198,8 +199,12 @@ def _with_hint(exc: DataError, scan, rescan) -> DataError:
         scan = rescan()
         if not scan.edges:
             return exc
-        hint = (f"; the log has {scan.describe()}: rerun with --skip-bad-rows (skip_bad_rows=True) to drop them, "
-                "or cut them away with --trim")
+        hint = f"; the log has {scan.describe()}: rerun with --skip-bad-rows (skip_bad_rows=True) to drop them"
+        if scan.window is not None:
+            lo, hi = scan.window
+            name = os.path.basename(str(exc.source)) if exc.source else "FILE"
+            lost = f", which also leaves out {scan.window_loses} clean row(s)" if scan.window_loses else ""
+            hint += f", or cut them away with --trim {name}=abs:{lo:.6f}:{hi:.6f}{lost}"
         if scan.middle:
             hint += f"; it is corrupt in the middle too, at {scan.middle}, which --skip-bad-rows does not drop"
     else:
