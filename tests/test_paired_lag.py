@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from sensorless.cli import app
 from sensorless.data import Trajectory
-from sensorless.data.align import estimate_lag
+from sensorless.data.align import estimate_lag, pair_logs
 from sensorless.errors import DataError
 from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
 from sensorless.simulation.log_faults import write_faulty_csv
@@ -41,40 +41,21 @@ def _flat(text: str) -> str:
     return " ".join(text.split())
 
 
-def test_corrupt_shifted_pair_gains_and_payload_with_the_cli_alone(shifted_pair, tmp_path):
-    """Acceptance (issue #27): the loaded run lags by 1.2 s and its file starts with 9 corrupt rows and
-    ends with a row cut short. With --skip-bad-rows and the defaults (pairing by time, the lag measured):
-    drive gains within 2 %, then a model of the unloaded run and the payload within 3 %, the lag reported."""
-    d, robot, K = shifted_pair
-    runner = CliRunner()
-    k_json = tmp_path / "k.json"
-    r = runner.invoke(app, ["drive-gains", "--robot", "ur10", "--unloaded", str(d / "u.csv"), "--loaded",
-                            str(d / "l_bad.csv"), "--columns", COLS, "--payload-mass", "4", "--frame", "tool0",
-                            "--com", "0.06,0.02,0.05", "--skip-bad-rows", "--out", str(k_json)])
-    out = _flat(r.output)
-    assert r.exit_code == 0, out
-    assert "dropped 9 row(s) at the start (samples 0..8" in out and "1 row(s) at the end (sample 1378" in out
-    doc = json.loads(k_json.read_text())
-    gains = np.array([doc["estimated_gains"][j] for j in robot.actuated_joints])
-    assert np.all(np.abs(gains / K - 1) < 0.02), gains / K
-    lag = doc["diagnostics"]["alignment"]
-    assert lag["lag_s"] == pytest.approx(-LAG, abs=0.02) and lag["align"] == "time", lag
-    assert f"lag {lag['lag_s']:+.3f} s" in out and "behind" in out
-    dropped = doc["settings"]["rows_dropped"][str(d / "l_bad.csv")]["dropped"]
-    assert [(x["first_sample"], x["last_sample"]) for x in dropped] == [(0, 8), (1378, 1378)]
+def test_corrupt_shifted_pairs_gains_and_payload_with_the_cli_alone(tmp_path):
+    """Acceptance (issue #27): in a calibration pair and a payload pair the loaded run lags by 1.2 s and
+    its file starts with 9 corrupt rows and ends with a row cut short. Through the CLI alone
+    (drive-gains, identify, payload; --skip-bad-rows, the defaults otherwise: pairing by time, the lag
+    measured): gains within 2 %, payload mass within 3 %, the lag reported on the console and in the JSON.
+    The same seed of ``python -m sensorless.benchmarks.paired_logs``."""
+    from sensorless.benchmarks.paired_logs import LAG as BENCH_LAG, one_seed
 
-    r = runner.invoke(app, ["identify", "--robot", "ur10", "--data", str(d / "u.csv"), "--columns", COLS,
-                            "--gains", str(k_json), "--method", "ols", "--no-plot", "--out", str(tmp_path / "m")])
-    assert r.exit_code == 0, r.output
-    r = runner.invoke(app, ["payload", "--robot", "ur10", "--model", str(tmp_path / "m"), "--data",
-                            str(d / "l_bad.csv"), "--no-load", str(d / "u.csv"), "--frame", "tool0", "--com",
-                            "0.06,0.02,0.05", "--skip-bad-rows", "--n-boot", "50", "--out", str(tmp_path / "p.json")])
-    out = _flat(r.output)
-    assert r.exit_code == 0, out
-    doc = json.loads((tmp_path / "p.json").read_text())
-    assert doc["mass"] == pytest.approx(4.0, rel=0.03), doc["mass"]
-    assert doc["alignment"][0]["lag_s"] == pytest.approx(-LAG, abs=0.02) and "lag -1.2" in out
-    assert doc["settings"]["preprocessing"]["skip_bad_rows"] is True
+    r = one_seed(tmp_path, 0)
+    assert np.all(np.abs(r["gains_relative_error"]) < 0.02), r["gains_relative_error"]
+    assert abs(r["payload"]["relative_error"]) < 0.03, r["payload"]
+    assert r["lag_gains"] == pytest.approx(-BENCH_LAG, abs=0.02) and r["lag_payload"] == pytest.approx(-BENCH_LAG, abs=0.02)
+    assert r["lag_on_console"] and r["rows_dropped"] == [[("start", 9), ("end", 1)]] * 2
+    doc = json.loads((tmp_path / "k.json").read_text())
+    assert doc["settings"]["skip_bad_rows"] is True and doc["diagnostics"]["alignment"]["align"] == "time"
 
 
 def test_without_skip_bad_rows_the_error_names_the_rows_and_both_remedies(shifted_pair, tmp_path):
@@ -125,6 +106,22 @@ def test_coarse_lag_of_a_shifted_pair_within_a_sample():
     load = Trajectory(t=t + 100.0, q=f(t - 1.234), joint_names=("a", "b"))  # starts 1.234 s later
     lag = estimate_lag(load, ref)
     assert lag.seconds == pytest.approx(-1.234, abs=0.01) and lag.correlation > 0.99
+
+
+def test_pair_logs_auto_pairs_by_time_unless_the_runs_share_one_grid_without_lag():
+    t = np.arange(3000) / 100.0
+    f = lambda s: np.column_stack([np.sin(0.7 * s) * (s > 2), 0.5 * np.cos(1.3 * s) * (s > 2)])  # noqa: E731
+    df = lambda s: np.column_stack([0.7 * np.cos(0.7 * s) * (s > 2), -0.65 * np.sin(1.3 * s) * (s > 2)])  # noqa: E731
+    ref = Trajectory(t=t, q=f(t), v=df(t), joint_names=("a", "b"), source="u.csv")
+    same = Trajectory(t=t + 50.0, q=f(t), v=df(t), joint_names=("a", "b"), source="l.csv")
+    a, b, p = pair_logs(same, ref)
+    assert p.mode == "rows" and a is same and b is ref and abs(p.lag.seconds) < 1e-9
+    late = Trajectory(t=t, q=f(t - 1.234), v=df(t - 1.234), joint_names=("a", "b"), source="l.csv")
+    a, b, p = pair_logs(late, ref)
+    assert p.mode == "time" and p.lag.seconds == pytest.approx(-1.234, abs=1e-3) and len(a) == len(b) == p.samples
+    assert np.percentile(np.abs(a.q - b.q), 99) < 1e-4 and p.to_dict()["reference"] == "u.csv"  # (q has a kink at 2 s)
+    with pytest.raises(DataError, match=r"l.csv: has 2500 samples but u.csv has 3000.*--align auto"):
+        pair_logs(late.take(slice(0, 2500)), ref, "rows")
 
 
 def test_two_different_trajectories_are_refused():

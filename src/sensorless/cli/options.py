@@ -43,7 +43,7 @@ ForceComponents = _choices("ForceComponents", ("linear", "angular", "wrench"))
 PayloadMode = _choices("PayloadMode", ("auto", "full", "com", "mass"))
 Align = _choices("Align", ("auto", "time", "rows"))
 ALIGN_HELP = ("pairing of the two runs: auto (measure the lag between them from the positions; by time, or row by row "
-              "when both share one time grid and the lag is under half a sample) | time (the reference run "
+              "when both share one time grid and the lag is under 5 % of a sample) | time (the reference run "
               "interpolated at the other's times shifted by the lag; for runs started at different instants) | rows "
               "(row by row, same length)")
 LinearMethod = _choices("LinearMethod", ("ols", "wls"))

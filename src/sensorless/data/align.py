@@ -17,7 +17,7 @@ log is refused: the two logs are not one trajectory, and no lag makes them one.
 ``"time"`` interpolates the reference at the load log's times shifted by the lag, both cut
 to their overlap; ``"rows"`` pairs samples by index (same row count); ``"auto"`` (default)
 measures the lag and pairs by time, by rows only when both logs share one time grid and the
-lag is under half a sample.
+lag is under :data:`ROWS_LAG` (5 %) of a sample.
 """
 
 from __future__ import annotations
@@ -37,6 +37,8 @@ ALIGNMENTS = ("auto", "time", "rows")
 
 MIN_CORRELATION = 0.9
 MIN_OVERLAP = 0.5
+#: ``align="auto"`` pairs logs on one time grid row by row when the lag is under this many samples
+ROWS_LAG = 0.05
 
 
 @dataclass(frozen=True)
@@ -190,7 +192,7 @@ def pair_logs(load: Trajectory, ref: Trajectory, align: str = "auto") -> tuple[T
         return load, ref, Pairing(load.source, ref.source, "rows", None, len(load))
     lag = pair_lag(load, ref)
     dt = float(np.median(np.diff(load.t)))
-    if align == "auto" and _same_grid(load, ref) and abs(lag.seconds) < 0.5 * dt:
+    if align == "auto" and _same_grid(load, ref) and abs(lag.seconds) < ROWS_LAG * dt:
         return load, ref, Pairing(load.source, ref.source, "rows", lag, len(load))
     a, b = align_pair(load, ref, lag)
     return a, b, Pairing(load.source, ref.source, "time", lag, len(a))
