@@ -52,3 +52,39 @@ def test_each_log_is_cut_to_its_own_window_while_reading(tmp_path, ur5):
     assert u.t[0] == pytest.approx(1.0) and u.t[-1] == pytest.approx(3.99)
     assert lo.t[0] == pytest.approx(2.5) and lo.t[-1] == pytest.approx(3.5)
     assert lo.provenance["trim"]["window"] == "2.5:3.5" and u.provenance["trim"]["window"] == "1:-1"
+
+
+def test_identify_and_predict_take_per_log_windows_and_record_them(tmp_path):
+    """identify: one window for every log, another for the held-out log, in result.json; predict
+    names its own log; a window naming no log is refused."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+    from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model
+
+    robot, truth = truth_model("ur5", 0)
+    K = drive_gains_for(robot)
+    train, val = tmp_path / "train.csv", tmp_path / "val.csv"
+    for path, seed in ((train, 1), (val, 2)):
+        simulate(robot, truth, K, seed=seed, motion=6.0, idle_start=1.0, idle_end=1.0, ramp=1.0).to_csv(path, index=False)
+    common = ["--robot", "ur5", "--columns", "q=pos_{joint};v=vel_{joint};tau=i_{joint}"]
+    gains = ["--gains", ",".join(map(str, K))]
+    r = CliRunner().invoke(app, ["identify", *common, *gains, "--data", str(train), "--validate", str(val),
+                                 "--method", "ols", "--joint-terms", "fv,fc,offset", "--no-plot", "--trim", "1:-1",
+                                 "--trim", "val.csv=2:6", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "m" / "result.json").read_text())
+    pre = doc["settings"]["preprocessing"]
+    assert pre["trim"] == "1:-1" and pre["trims"] == {str(train): "1:-1", str(val): "2:6"}
+    sig = doc["settings"]["signals"]
+    assert sig[str(val)]["trim"]["window"] == "2:6" and sig[str(train)]["trim"]["window"] == "1:-1"
+    r = CliRunner().invoke(app, ["predict", *common[:2], "--model", str(tmp_path / "m"), "--data", str(val),
+                                 "--trim", "val.csv=3:5", "--out", str(tmp_path / "p.npz")])
+    assert r.exit_code == 0, r.output
+    t = np.load(tmp_path / "p.npz")["t"]
+    assert t[-1] - t[0] == pytest.approx(2.0, abs=0.03)
+    r = CliRunner().invoke(app, ["predict", *common[:2], "--model", str(tmp_path / "m"), "--data", str(val),
+                                 "--trim", "train.csv=3:5", "--out", str(tmp_path / "q.npz")])
+    assert r.exit_code == 2 and "'train.csv' matches none of the logs" in " ".join(r.output.split())

@@ -123,7 +123,8 @@ def identify(
                    "tcp://HOST:PORT; workers read the --data files themselves (see docs/fleet.md)"),
     workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
                                                      "an address: wait until this many workers are connected"),
-    skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
+    skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing "
+                                  "(corrupt rows at a log's start or end: --skip-bad-rows)"),
     accept_implausible: bool = typer.Option(False, help="keep going when a torque channel looks constant, dead, swapped, sign-flipped or > 100× "
                                             "off the prior model's scale, or the identified model is implausible (a "
                                             "non-finite value, a body heavier than the whole prior robot, a CoM "
