@@ -88,3 +88,25 @@ def test_identify_and_predict_take_per_log_windows_and_record_them(tmp_path):
     r = CliRunner().invoke(app, ["predict", *common[:2], "--model", str(tmp_path / "m"), "--data", str(val),
                                  "--trim", "train.csv=3:5", "--out", str(tmp_path / "q.npz")])
     assert r.exit_code == 2 and "'train.csv' matches none of the logs" in " ".join(r.output.split())
+
+
+def test_a_config_file_gives_one_window_as_a_string(tmp_path):
+    """run.toml ``trim = "1:-1"`` (one window, not a list) is the window for every log."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+    from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model
+
+    robot, truth = truth_model("ur5", 0)
+    K = drive_gains_for(robot)
+    simulate(robot, truth, K, seed=1, motion=6.0, idle_start=1.0, idle_end=1.0, ramp=1.0).to_csv(
+        tmp_path / "train.csv", index=False)
+    (tmp_path / "run.toml").write_text('trim = "1:-1"\nmethod = "ols"\njoint_terms = "fv,fc,offset"\nplot = false\n')
+    r = CliRunner().invoke(app, ["identify", "--config", str(tmp_path / "run.toml"), "--robot", "ur5", "--columns",
+                                 "q=pos_{joint};v=vel_{joint};tau=i_{joint}", "--gains", ",".join(map(str, K)),
+                                 "--data", str(tmp_path / "train.csv"), "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    pre = json.loads((tmp_path / "m" / "result.json").read_text())["settings"]["preprocessing"]
+    assert pre["trim"] == "1:-1" and pre["trims"] == {str(tmp_path / "train.csv"): "1:-1"}

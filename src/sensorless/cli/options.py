@@ -74,7 +74,9 @@ def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
         ctx.meta[_CONFIG_ERROR] = f"--config {value}: not a readable TOML file ({exc})"
         return value
     names = {p.name for p in ctx.command.params if p.name != "config"}
+    multiple = {p.name for p in ctx.command.params if getattr(p, "multiple", False)}
     table = {str(k).replace("-", "_"): v for k, v in doc.items()}
+    table = {k: [v] if k in multiple and isinstance(v, str) else v for k, v in table.items()}  # trim = "2:-3"
     unknown = sorted(k for k in table if k not in names)
     if unknown:
         ctx.meta[_CONFIG_ERROR] = (f"--config {value}: unknown key(s) {', '.join(unknown)}; keys are the command's "
