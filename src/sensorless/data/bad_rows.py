@@ -22,6 +22,7 @@ corruption is in the middle of the log: it is not dropped, and the checks of
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -87,13 +88,14 @@ class RowScan:
         return {"rows_read": self.n, "kept": [self.start, self.stop - 1], "dropped": [e.to_dict() for e in self.edges]}
 
 
-def _row_faults(t: np.ndarray, columns: list) -> tuple[np.ndarray, list]:
-    """Per row: 0 clean, 1 non-finite, 2 absurd; and per corrupt row its first bad cell (field, label, value)."""
+def _row_faults(t: np.ndarray, columns: list) -> tuple[np.ndarray, Callable[[int], str]]:
+    """Per row: 0 clean, 1 non-finite, 2 absurd; and a function giving a corrupt row's first bad cell."""
     n = len(t)
+    fields = [("t", np.asarray(t, dtype=float)[:, None], ["t"])] + [
+        (f, np.asarray(a, dtype=float).reshape(n, -1), labels) for f, a, labels in columns]
     kind = np.zeros(n, dtype=np.int8)
-    first: dict[int, tuple] = {}
-    for field, arr, labels in [("t", t[:, None], ["t"]), *columns]:
-        arr = np.asarray(arr, dtype=float).reshape(n, -1)
+    where = np.zeros((n, 2), dtype=np.int64)  # (field, column) of a corrupt row's first bad cell
+    for k, (_, arr, _) in enumerate(fields):
         finite = np.isfinite(arr)
         absurd = finite & (np.abs(arr) > ABSURD_VALUE)
         for c in range(arr.shape[1]):
@@ -104,16 +106,15 @@ def _row_faults(t: np.ndarray, columns: list) -> tuple[np.ndarray, list]:
         for code, bad in ((1, ~finite), (2, absurd)):
             rows = np.flatnonzero(bad.any(axis=1) & (kind == 0))
             kind[rows] = code
-            cols = np.argmax(bad[rows], axis=1)
-            for i, c in zip(rows.tolist(), cols.tolist()):
-                first[i] = (field, labels[c], arr[i, c])
-    return kind, first
+            where[rows, 0], where[rows, 1] = k, np.argmax(bad[rows], axis=1)
 
+    def cell(i: int) -> str:
+        field, arr, labels = fields[where[i, 0]]
+        c = where[i, 1]
+        name = "'t'" if field == "t" else f"'{field}' column '{labels[c]}'"
+        return f"{name} = {arr[i, c]:.3g}"
 
-def _cell(cell: tuple) -> str:
-    field, label, value = cell
-    where = "'t'" if field == "t" else f"'{field}' column '{label}'"
-    return f"{where} = {value:.3g}"
+    return kind, cell
 
 
 def scan_rows(t: np.ndarray, columns: list, allow_duplicate_times: bool = False) -> RowScan:
@@ -121,7 +122,7 @@ def scan_rows(t: np.ndarray, columns: list, allow_duplicate_times: bool = False)
     for corrupt rows (module docstring)."""
     t = np.asarray(t, dtype=float)
     n = len(t)
-    kind, cells = _row_faults(t, columns)
+    kind, cell = _row_faults(t, columns)
     good = kind == 0
     with np.errstate(invalid="ignore"):
         dt = np.diff(t)
@@ -144,7 +145,7 @@ def scan_rows(t: np.ndarray, columns: list, allow_duplicate_times: bool = False)
     def why(i: int, forward: bool) -> tuple[int, str]:
         """Kind and detail of row i; a clean row whose step toward the kept rows is broken is a time fault."""
         if kind[i]:
-            return int(kind[i]), _cell(cells[i])
+            return int(kind[i]), cell(i)
         j = i + 1 if forward else i - 1
         if 0 <= j < n:
             a, b = min(i, j), max(i, j)

@@ -158,7 +158,7 @@ def validate_trajectory(
         if check_units:
             _check_magnitude(out, rows if len(out) == len(rows) else None)
     except (NonFiniteError, TimestampError, UnitsError, OutlierError) as exc:
-        raise _with_hint(exc, scan, lambda: scan_rows(t0, _columns(raw, names), allow_duplicate_times)) from None
+        raise _with_hint(exc, scan, lambda: scan_rows(t0, _columns(raw, names), allow_duplicate_times), rows) from None
     if robot is None:
         return out
     perm = robot.joint_order(names, src)  # JointNameError for unknown / missing / duplicates
@@ -192,12 +192,14 @@ def _columns(traj: Trajectory, names: list[str]) -> list:
     return cols
 
 
-def _with_hint(exc: DataError, scan, rescan) -> DataError:
+def _with_hint(exc: DataError, scan, rescan, checked: np.ndarray) -> DataError:
     """``exc`` with what --skip-bad-rows does about it: drops a corrupt prefix/suffix the log has
-    (``scan`` None: not asked for; ``rescan()`` finds them), or cannot drop this (middle)."""
+    (``scan`` None: not asked for; ``rescan()`` finds them, unless a trim left them out of the
+    ``checked`` rows), or cannot drop this (middle)."""
     if scan is None:
         scan = rescan()
-        if not scan.edges:
+        inside = any(np.any((checked >= e.first) & (checked <= e.last)) for e in scan.edges)
+        if not inside:
             return exc
         hint = f"; the log has {scan.describe()}: rerun with --skip-bad-rows (skip_bad_rows=True) to drop them"
         if scan.window is not None:
