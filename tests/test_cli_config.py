@@ -92,7 +92,7 @@ def test_study_and_estimator_choices_mirror_the_library():
     from sensorless.excitation.criteria import CRITERIA
     from sensorless.experiments.contact_id import ACCELERATIONS, TRAININGS
     from sensorless.identification import METHODS
-    from sensorless.identification.drive_gains import ALIGNMENTS
+    from sensorless.data.align import ALIGNMENTS
     from sensorless.identification.payload import MODES
     from sensorless.simulation.quadruped import TAU_LOGS
 

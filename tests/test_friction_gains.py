@@ -236,7 +236,7 @@ def test_clock_offset_between_two_runs_is_found_from_the_positions():
     """Two runs of one trajectory, each stamped from its own first sample, are off by that
     sample's jitter; a 3 ms offset biased shoulder gains by ~1 % before the runs were aligned."""
     from sensorless.data import Trajectory
-    from sensorless.identification.drive_gains import clock_offset
+    from sensorless.data.align import clock_offset
 
     t = np.arange(2000) / 100.0
     f = lambda s: np.column_stack([np.sin(0.7 * s), 0.5 * np.cos(1.3 * s)])  # noqa: E731

@@ -19,6 +19,7 @@ from rich.text import Text
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
+from .logs import log_trims, trim_option
 from .options import RATE_HELP, TIME_UNIT_HELP, BaseVelocity, TimeUnit
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
@@ -199,11 +200,6 @@ def gains_option():
                                    "'off' ignores a model's gains")
 
 
-def trim_option():
-    return typer.Option(None, help="time window START:END in seconds after the first sample (negative: before the last); "
-                                   "open ends ':49.6', '1.9:'; 'abs:T0:T1' uses the log's own stamps")
-
-
 def resample_option(default: Optional[str] = "auto"):
     return typer.Option(default, help="auto (only if a time stamp repeats or a step is > 5 % off the median period) | off | "
                                       "RATE_HZ: interpolate onto a uniform grid" + ("" if default else "; default: the model's, else auto"))
@@ -220,22 +216,6 @@ def time_unit_option():
 
 def max_gap_option(default: Optional[float] = None):
     return typer.Option(default, help="resampling refuses a time step over this many median periods (default 4)")
-
-
-def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
-                           decimate, max_gap, rest="auto", time_unit=None, base_velocity="auto", pose_max_gap=None,
-                           wrench_frames=None) -> dict:
-    """settings.preprocessing for result.json: the options (gains resolved per joint name,
-    column map parsed, gain suffix moved to ``gains``) and each log's provenance."""
-    from ..data.gains import split_gain_modifiers
-
-    cols = parse_columns(columns) if isinstance(columns, str) else columns
-    cols, _, _ = split_gain_modifiers(cols, "--columns")
-    resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
-    return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
-            "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
-            "trim": trim, "decimate": decimate, "rest": rest, "time_unit": time_unit,
-            "base_velocity": base_velocity, "pose_max_gap": pose_max_gap, "wrench_frames": wrench_frames}
 
 
 def model_preprocessing(model, **given) -> dict:
@@ -318,9 +298,14 @@ PACKAGE_PATH_HELP = ("folder the robot description may read meshes/includes from
                      "looks here; repeatable; ROS_PACKAGE_PATH counts too)")
 
 
-def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **options):
-    """Read, validate and preprocess logs given on the command line (:func:`load_log` each)."""
-    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, **options) for p in paths]
+def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, trim=None, **options):
+    """Read, validate and preprocess logs given on the command line (:func:`load_log` each); ``trim``:
+    the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window)."""
+    from ..data.trims import LogTrims
+
+    trims = LogTrims.parse(trim)
+    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, trim=trims.window_for(p), **options)
+            for p in paths]
 
 
 ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
@@ -336,7 +321,7 @@ _PREPROCESSING_OPTIONS = {  # name -> (annotation, option factory)
     "savgol_window": (Optional[int], lambda: typer.Option(None, help="Savitzky-Golay window [samples] for v̇"
                                                                      + _MODEL_DEFAULT)),
     "gains": (Optional[str], lambda: gains_option()),
-    "trim": (Optional[str], lambda: trim_option()),
+    "trim": (Optional[List[str]], lambda: trim_option()),
     "resample": (Optional[str], lambda: resample_option(None)),
     "velocity": (Optional[str], lambda: velocity_option(None)),
     "max_gap": (Optional[float], lambda: max_gap_option()),
@@ -383,26 +368,31 @@ _READING_OPTIONS = {
         False, help="read HDF5 datasets stored in other files (external raw storage, virtual datasets)")),
     "accept_implausible_gains": (bool, lambda: typer.Option(
         False, help="accept --gains whose torques are over 100× off the robot model's torque scale")),
+    "skip_bad_rows": (bool, lambda: typer.Option(
+        False, help="drop corrupt rows at the start or end of a log (non-finite or absurd values, time running "
+                    "backwards or repeating, a last row cut short; at most 5 % of the rows or 20) with a warning "
+                    "naming them; corruption in the middle stays an error")),
 }
 
 
 def log_reading_options(skip_bad: bool = True):
-    """Decorator: ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains`` (and
-    ``--skip-bad`` unless the command has its own), applied to every log the command reads
+    """Decorator: ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
+    ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
     from ..data.limits import read_options
 
     options = dict(_READING_OPTIONS)
     if skip_bad:
         options["skip_bad"] = (bool, lambda: typer.Option(
-            False, help="read the rest of a ROS bag / MCAP file with corrupt chunks (a warning counts what was lost)"))
+            False, help="read the rest of a ROS bag / MCAP file with corrupt chunks (a warning counts what was lost; "
+                        "corrupt rows at a log's start or end: --skip-bad-rows)"))
 
     def deco(fn):
         @functools.wraps(fn)
         def run(*args, reading: dict, **kwargs):
             with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
                               accept_implausible_gains=reading["accept_implausible_gains"],
-                              skip_bad=reading.get("skip_bad")):
+                              skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"]):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)
@@ -477,11 +467,12 @@ def experiment_options(out: str, quick: str, seed: str):
 
 def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
     """Logs to apply a model (a ModelArtifact, or a path) to, preprocessed as its training logs were:
-    each option in ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`).
+    each option in ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`);
+    ``prep["trim"]``: the ``--trim`` values (FILE= names checked against ``paths``).
     Returns (trajectories, the resolved options)."""
     opts = model_preprocessing(model, **{k: v for k, v in prep.items() if k != "trim"})
     trajs = load_logs(paths, robot, opts["columns"], opts["rate"], opts["lowpass"], opts["savgol_window"], 1,
-                      gains=opts["gains"], trim=prep.get("trim"), resample=opts["resample"],
+                      gains=opts["gains"], trim=log_trims(prep.get("trim"), paths), resample=opts["resample"],
                       velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"),
                       time_unit=opts.get("time_unit"), base_velocity=opts.get("base_velocity"),
                       pose_max_gap=opts.get("pose_max_gap"), wrench_frames=opts.get("wrench_frames"))

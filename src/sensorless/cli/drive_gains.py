@@ -23,12 +23,12 @@ from .common import (
     path_inputs,
     resample_option,
     time_unit_option,
-    trim_option,
     force_option,
     lock_option,
     robot_option,
 )
-from .options import RATE_HELP, Align, TimeUnit
+from .logs import log_settings, log_trims, print_pairing, trim_option
+from .options import ALIGN_HELP, RATE_HELP, Align, TimeUnit
 
 __all__ = ["drive_gains"]
 
@@ -54,11 +54,10 @@ def drive_gains(
     time_unit: Optional[TimeUnit] = time_unit_option(),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz]"),
     savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window for v̇ (from the logged v)"),
-    trim: Optional[str] = trim_option(),
+    trim: Optional[List[str]] = trim_option(),
     resample: str = resample_option(),
     offset: bool = typer.Option(True, help="fit a current offset per joint (drift between the two runs)"),
-    align: Align = typer.Option(Align.time, help="time (interpolate the unloaded run at the loaded run's times, both from "
-                                           "their first sample) | rows"),
+    align: Align = typer.Option(Align.auto, help=ALIGN_HELP),
     block_seconds: Optional[float] = typer.Option(None, help="block length [s] of the bootstrap / HAC (default: from "
                                                              "the residual autocorrelation, >= 1 s)"),
     n_boot: int = typer.Option(1000, help="moving-block bootstrap resamples"),
@@ -84,10 +83,12 @@ def drive_gains(
     output_file(out, path_inputs(robot, unloaded, loaded), force)
     r = load_robot_arg(robot, lock, False)
     c = _vector(com, "--com")
-    u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trim, resample=resample,
+    trims = log_trims(trim, [unloaded, loaded])
+    u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trims, resample=resample,
                       time_unit=time_unit)
     res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c, offset=offset,
                                align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed)
+    print_pairing(res.diagnostics["alignment"])
     doc = res.to_dict()
     written = dict(doc["gains"])
     nominal = resolve_gains(nominal_gains, r.actuated_joints, "--nominal-gains") if nominal_gains else None
@@ -104,8 +105,8 @@ def drive_gains(
     doc["estimated_gains"] = dict(zip(res.joints, map(float, res.gains)))
     doc["from_nominal"] = missing if nominal is not None else []
     doc.update({"robot": r.name, "unloaded": str(unloaded), "loaded": str(loaded)})
-    doc["settings"].update({"columns": columns, "trim": trim, "resample": resample, "savgol_window": savgol_window,
-                            "lowpass": lowpass})
+    doc["settings"].update({"columns": columns, "resample": resample, "savgol_window": savgol_window,
+                            "lowpass": lowpass, **log_settings(trims, [unloaded, loaded], [u, lo])})
     write_json_atomic(doc, out)
     _print(res, missing, nominal is not None)
     console.print(f"wrote {out}")
@@ -115,7 +116,8 @@ def _print(res, missing: list, nominal: bool) -> None:
     from rich.table import Table
 
     al = res.diagnostics.get("alignment")
-    lag = f", loaded run aligned by a lag of {al['lag_s']:+.3f} s (r = {al['correlation']:.3f})" if al else ""
+    lag = (f", loaded run aligned by a lag of {al['lag_s']:+.3f} s (r = {al['correlation']:.3f})"
+           if al and al.get("lag_s") is not None else ", paired row by row")
     t = Table(title=f"drive gains K [N·m/A] (block {res.diagnostics['block_seconds']:.2f} s, "
                     f"{res.diagnostics['n_samples']} samples{lag})")
     for col in ("joint", "K", "± σ", "95 % interval", "offset [A]", "status"):

@@ -8,9 +8,11 @@ from typing import List, Optional
 
 import typer
 
+from ..data.limits import current_options
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option, wrench_frame_option
 from .frames import frame_options
+from .logs import log_trims, preprocessing_settings, trim_option
 from .common import (
     robot_source_options,
     log_reading_options,
@@ -26,11 +28,9 @@ from .common import (
     load_robot_arg,
     max_gap_option,
     path_inputs,
-    preprocessing_settings,
     progress_bar,
     resample_option,
     time_unit_option,
-    trim_option,
     velocity_option,
     force_option,
     lock_option,
@@ -90,7 +90,7 @@ def identify(
                                                        "(v and v̇ from q when v is not logged)"),
     decimate: int = typer.Option(1, help="keep every n-th sample (after anti-alias filtering)"),
     gains: Optional[str] = gains_option(),
-    trim: Optional[str] = trim_option(),
+    trim: Optional[List[str]] = trim_option(),
     resample: str = resample_option(),
     velocity: Velocity = velocity_option(),
     max_gap: Optional[float] = max_gap_option(),
@@ -130,7 +130,8 @@ def identify(
                    "tcp://HOST:PORT; workers read the --data files themselves (see docs/fleet.md)"),
     workers: Optional[int] = typer.Option(None, help="--scheduler local: worker processes (default: one per core); "
                                                      "an address: wait until this many workers are connected"),
-    skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing"),
+    skip_bad: bool = typer.Option(False, help="skip unreadable/invalid --data files (listed in result.json) instead of failing "
+                                  "(corrupt rows at a log's start or end: --skip-bad-rows)"),
     accept_implausible: bool = typer.Option(False, help="keep going when a torque channel looks constant, dead, swapped, sign-flipped or > 100× "
                                             "off the prior model's scale, or the identified model is implausible (a "
                                             "non-finite value, a body heavier than the whole prior robot, a CoM "
@@ -168,8 +169,9 @@ def identify(
         raise OptionError("--wrench-frame needs --contact-mode wrench (measured contact wrenches)")
     wrench_frames = wrench_frame_map(wrench_frame, [f.strip() for f in (contact_frames or "").split(",") if f.strip()], r)
     data = [Path(p) for p in expand_paths(data)]
+    trims = log_trims(trim, data, validate)
     prep = dict(columns=columns, rate=rate, lowpass=lowpass, savgol_window=savgol_window, decimate=decimate,
-                gains=gains, trim=trim, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
+                gains=gains, trim=trims, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
                 rest=rest, time_unit=time_unit, base_velocity=base_velocity, pose_max_gap=pose_max_gap,
                 wrench_frames=wrench_frames)
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
@@ -200,7 +202,8 @@ def identify(
                 first = _first_training_log(data, r, prep)
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
-            result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep, imu_frame=imu_frame),
+            reader = LogReader(**prep, imu_frame=imu_frame, skip_bad_rows=current_options().get("skip_bad_rows"))
+            result, fleet = identify_on_dask(structure, data, scheduler, workers, reader,
                                              method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
                                              friction_fit.stribeck_grid if friction_fit is not None else None)
@@ -242,11 +245,12 @@ def identify(
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate,
                                 "preprocessing": preprocessing_settings(
-                                    train + val, columns=columns, gains=gains, rate=rate, trim=trim,
+                                    train + val, columns=columns, gains=gains, rate=rate, trim=trims,
                                     resample=resample, lowpass=lowpass, savgol_window=savgol_window,
                                     velocity=velocity, decimate=decimate, max_gap=max_gap, rest=rest,
                                     time_unit=time_unit, base_velocity=base_velocity, pose_max_gap=pose_max_gap,
-                                    wrench_frames=wrench_frames),
+                                    wrench_frames=wrench_frames, paths=[*data, *validate],
+                                    log_paths=[*data[:len(train)], *validate]),
                                 "signals": {str(p): t.provenance for p, t in zip([*data, *validate], [*train, *val])}
                                 if scheduler is None else {str(p): t.provenance for p, t in zip(validate, val)}})
         result.settings["config"] = {"file": None if config is None else str(config), "options": resolved_options()}

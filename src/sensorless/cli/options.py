@@ -19,7 +19,7 @@ import typer
 from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
-           "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align",
+           "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align", "ALIGN_HELP",
            "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "FrictionState", "config_option", "check_config",
            "resolved_options"]
 
@@ -42,7 +42,11 @@ Criterion = _choices("Criterion", ("cond", "dopt"))
 ForceReference = _choices("ForceReference", ("local", "world", "local_world_aligned"))
 ForceComponents = _choices("ForceComponents", ("linear", "angular", "wrench"))
 PayloadMode = _choices("PayloadMode", ("auto", "full", "com", "mass"))
-Align = _choices("Align", ("time", "rows"))
+Align = _choices("Align", ("auto", "time", "rows"))
+ALIGN_HELP = ("pairing of the two runs: auto (measure the lag between them from the positions; by time, or row by row "
+              "when both share one time grid and the lag is under 5 % of a sample) | time (the reference run "
+              "interpolated at the other's times shifted by the lag; for runs started at different instants) | rows "
+              "(row by row, same length)")
 LinearMethod = _choices("LinearMethod", ("ols", "wls"))
 PsmModel = _choices("PsmModel", ("ols", "wls", "lmi"))
 Training = _choices("Training", ("rich", "stance"))
@@ -77,7 +81,9 @@ def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
         ctx.meta[_CONFIG_ERROR] = f"--config {value}: not a readable TOML file ({exc})"
         return value
     names = {p.name for p in ctx.command.params if p.name != "config"}
+    multiple = {p.name for p in ctx.command.params if getattr(p, "multiple", False)}
     table = {str(k).replace("-", "_"): v for k, v in doc.items()}
+    table = {k: [v] if k in multiple and isinstance(v, str) else v for k, v in table.items()}  # trim = "2:-3"
     unknown = sorted(k for k in table if k not in names)
     if unknown:
         ctx.meta[_CONFIG_ERROR] = (f"--config {value}: unknown key(s) {', '.join(unknown)}; keys are the command's "

@@ -26,7 +26,8 @@ from .common import (
     output_file,
     path_inputs,
 )
-from .options import Align, PayloadMode
+from .logs import log_settings, print_pairing
+from .options import ALIGN_HELP, Align, PayloadMode
 
 __all__ = ["payload"]
 
@@ -56,11 +57,9 @@ def payload(
     data: List[Path] = typer.Option(..., help="log(s) recorded with the payload attached"),
     frame: str = typer.Option(..., help="link (joint frame) or frame carrying the payload, e.g. tool_tip"),
     out: Path = typer.Option(..., help="output JSON (written atomically)"),
-    no_load: List[Path] = typer.Option([], help="paired log(s) without the payload: same trajectory, row-aligned, "
-                                               "one per --data; cancels what the model misses"),
-    align: Align = typer.Option(Align.rows, help="pairing of --no-load with --data: rows (row by row, same length) | time "
-                                           "(no-load log interpolated at the payload log's times from the first "
-                                           "sample; for two separately started recordings)"),
+    no_load: List[Path] = typer.Option([], help="paired log(s) without the payload: the same trajectory, one per "
+                                               "--data; cancels what the model misses"),
+    align: Align = typer.Option(Align.auto, help=ALIGN_HELP.replace("the two runs", "--no-load with --data")),
     offsets: str = typer.Option("auto", help="constant torque offset per joint (session drift, recalibration): auto "
                                              "(where distinguishable from the payload) | all | none | JOINT,JOINT"),
     mode: PayloadMode = typer.Option(PayloadMode.auto, help="auto | full (10 inertial parameters) | com (point mass: m, CoM) | mass (CoM given)"),
@@ -92,17 +91,17 @@ def payload(
     r = load_robot_arg(robot, lock, False)
     art = load_model_folder(model, r)
     path, structure, params = art.path, art.structure, art.parameters
-    logs, opts = model_logs(art, data, r, prep)
-    refs = model_logs(art, no_load, r, prep)[0] if no_load else None
-    lags = []
-    if refs is not None and align == Align.time:
-        from ..identification.drive_gains import align_pair, pair_lag
+    every, opts = model_logs(art, [*data, *no_load], r, prep)
+    logs, refs = every[:len(data)], (every[len(data):] or None)
+    read = list(every)
+    pairings = []
+    if refs is not None:
+        from ..data.align import pair_logs
 
-        lags = [pair_lag(a, b) for a, b in zip(logs, refs)]
-        for p, lag in zip(data, lags):
-            console.print(f"{p}: aligned on its --no-load log by a lag of {lag.seconds:+.3f} s "
-                          f"(r = {lag.correlation:.3f})", highlight=False)
-        logs, refs = map(list, zip(*(align_pair(a, b, lag) for a, b, lag in zip(logs, refs, lags))))
+        pairs = [pair_logs(a, b, str(align)) for a, b in zip(logs, refs)]
+        logs, refs, pairings = (list(x) for x in zip(*pairs))
+        for p in pairings:
+            print_pairing(p.to_dict())
     off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
     est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
@@ -115,7 +114,7 @@ def payload(
             "at this frame, or the model or frame is wrong; rerun with --accept-bound to write it labelled 'at bound'")
     _check_payload_mass(est, r, frame, accept_implausible)
     doc = {"robot": r.name, "model": str(path), "data": [str(p) for p in data], "no_load": [str(p) for p in no_load],
-           "alignment": [lag.to_dict() for lag in lags], **est.to_dict()}
+           "alignment": [p.to_dict() for p in pairings], **est.to_dict()}
     gain_std = _gain_std(opts["gains"], r)
     if gain_std is not None:  # identified gains (sensorless drive-gains): their uncertainty enters the mass
         dm = []
@@ -132,7 +131,8 @@ def payload(
                     "mass_std": float(np.hypot(est.mass_std, std_g)),
                     "mass_sensitivity_to_gains": dict(zip(r.actuated_joints, map(float, dm)))})
         est.mass_std = doc["mass_std"]
-    doc.setdefault("settings", {})["preprocessing"] = {**opts, "trim": prep["trim"]}
+    doc.setdefault("settings", {})["preprocessing"] = {**opts, **log_settings(prep["trim"], [*data, *no_load], read)}
+    doc["settings"]["align"] = str(align)
     write_json_atomic(doc, out)
     _print(est)
     console.print(f"wrote {out}")

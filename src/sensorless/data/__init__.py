@@ -6,9 +6,11 @@ from typing import TYPE_CHECKING
 
 from .._lazy import lazy_exports
 
+from .align import Pairing, clock_offset, estimate_lag, pair_logs
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, lowpass_channels, resample_uniform, savgol_derivatives, trim
 from .gains import currents_to_torques, load_gains, resolve_gains
-from .prepare import TrimWindow, default_savgol_window, prepare, trim_window
+from .prepare import default_savgol_window, prepare
+from .trims import LogTrims, TrimWindow, trim_window
 from .rest import rest_mask, zero_at_rest
 from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers
 from .readers import read_trajectory, write_npz
@@ -33,6 +35,10 @@ if TYPE_CHECKING:
     from .integral_filter import LowpassChain, observer_filter
 
 __all__ = [
+    "Pairing",
+    "clock_offset",
+    "estimate_lag",
+    "pair_logs",
     "default_savgol_window",
     "rest_mask",
     "zero_at_rest",
@@ -55,6 +61,7 @@ __all__ = [
     "imu_base_acceleration",
     "prepare",
     "TrimWindow",
+    "LogTrims",
     "trim_window",
     "resample",
     "timing",

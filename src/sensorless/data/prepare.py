@@ -7,7 +7,9 @@
    uses the log's own time stamps; either end may be left open, ``":49.6"``); with the base
    twist taken from the logged base pose (``base_velocity``), the samples before the first
    and after the last valid pose are clipped, with a warning counting them
-   (:func:`~sensorless.data.base_pose.clip_to_pose`);
+   (:func:`~sensorless.data.base_pose.clip_to_pose`). :func:`load_log`
+   cuts the window while reading instead, before the time axis is checked, after dropping a corrupt
+   prefix/suffix (``skip_bad_rows``, :mod:`sensorless.data.bad_rows`);
 2. **resample** (``"auto"``: only when the stamps are not uniform — duplicates, or a
    step more than ``jitter_tolerance`` off the median period; ``"off"``; or a rate in Hz)
    with :func:`sensorless.data.resample.resample` (gaps over ``max_gap`` periods are errors);
@@ -39,8 +41,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -57,9 +57,10 @@ from .imu import IMU_KEY
 from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
-from .validation import TooFewSamplesError, validate_trajectory
+from .trims import LogTrims, TrimWindow, trim_window
+from .validation import validate_trajectory
 
-__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "TrimWindow", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
+__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
            "BASE_VELOCITY_SOURCES", "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
 
 VELOCITY_SOURCES = ("logged", "from-q")
@@ -69,85 +70,6 @@ BASE_VELOCITY_SOURCES = ("auto", "from-pose", "logged")
 #: ``resample="auto"`` refuses a log in which more than this share of the time steps are duplicates
 MAX_DUPLICATE_SHARE = 0.1
 _POLYORDER = 3
-
-
-@dataclass(frozen=True)
-class TrimWindow:
-    """A time window ``[start, end]`` [s]; ``None`` is an open end.
-
-    Relative (default): seconds after the first sample, a negative value counts back
-    from the last sample (``-2`` = 2 s before the end). ``absolute``: the log's stamps.
-    """
-
-    start: float | None = None
-    end: float | None = None
-    absolute: bool = False
-
-    @classmethod
-    def parse(cls, spec: "str | tuple | TrimWindow") -> "TrimWindow":
-        """``"1.9:49.6"``, ``":49.6"``, ``"1.9:"``, ``"2:-1.5"``, ``"abs:1712.3:1760"``, or ``(start, end)``."""
-        if isinstance(spec, TrimWindow):
-            return spec
-        if isinstance(spec, (tuple, list)):
-            if len(spec) != 2:
-                raise DataError(f"trim window must be (start, end), got {spec!r}")
-            return cls(*(None if v is None else _seconds(v, spec) for v in spec))
-        if not isinstance(spec, str):
-            raise DataError(f"trim window must be 'START:END' or (start, end), got {spec!r}")
-        text = spec.strip()
-        absolute = text.lower().startswith("abs:")
-        body = text[4:] if absolute else text
-        parts = body.split(":")
-        if len(parts) != 2:
-            raise DataError(f"trim window '{spec}' is not START:END seconds (e.g. '1.9:49.6', ':49.6', 'abs:100:160')")
-        start, end = (None if not p.strip() else _seconds(p, spec) for p in parts)
-        return cls(start, end, absolute)
-
-    def bounds(self, t: np.ndarray) -> tuple[float, float]:
-        """Absolute ``(lo, hi)`` on the time axis ``t``."""
-        t0, t1 = float(t[0]), float(t[-1])
-
-        def at(v: float | None, open_end: float) -> float:
-            if v is None:
-                return open_end
-            if self.absolute:
-                return v
-            return t0 + v if v >= 0 else t1 + v
-
-        return at(self.start, -np.inf), at(self.end, np.inf)
-
-    def __str__(self) -> str:
-        fmt = lambda v: "" if v is None else f"{v:g}"  # noqa: E731
-        return ("abs:" if self.absolute else "") + f"{fmt(self.start)}:{fmt(self.end)}"
-
-
-def _seconds(text: Any, spec: Any) -> float:
-    try:
-        val = float(text)
-    except (TypeError, ValueError):
-        raise DataError(f"trim window {spec!r}: {text!r} is not a number of seconds") from None
-    if not np.isfinite(val):
-        raise DataError(f"trim window {spec!r}: {text!r} is not a finite number of seconds")
-    return val
-
-
-def trim_window(traj: Trajectory, window: "str | tuple | TrimWindow") -> Trajectory:
-    """Samples of ``traj`` inside ``window`` (typed errors if it is empty or outside the log)."""
-    src = traj.source
-    win = _with_source(TrimWindow.parse, src, window)
-    t = traj.t
-    lo, hi = win.bounds(t)
-    span = f"the log spans {t[0]:.6g}..{t[-1]:.6g} s ({t[-1] - t[0]:.3f} s)"
-    if lo >= hi:
-        raise DataError(f"trim window '{win}' is empty: start {lo:.6g} s is not before end {hi:.6g} s; {span}", src)
-    if lo > t[-1] or hi < t[0]:
-        raise DataError(f"trim window '{win}' = [{lo:.6g}, {hi:.6g}] s lies outside the log: {span}", src)
-    n = int(np.sum((t >= lo) & (t <= hi)))
-    if n < 2:
-        raise TooFewSamplesError(f"trim window '{win}' = [{lo:.6g}, {hi:.6g}] s holds {n} sample(s); {span}", src)
-    out = _trim(traj, None if not np.isfinite(lo) else lo, None if not np.isfinite(hi) else hi)
-    return out.with_(provenance={**out.provenance, "trim": {"window": str(win), "t_start": float(out.t[0]),
-                                                             "t_end": float(out.t[-1]), "samples": len(out)}})
 
 
 def parse_resample(spec: "str | float | None") -> "str | float":
@@ -382,17 +304,24 @@ def with_imu_frame(traj: Trajectory, robot, frame: str, savgol_window: int | Non
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
              resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None, time_unit=None,
              base_velocity=None, pose_max_gap=None, wrench_frames=None,
-             max_memory=None, allow_external=None, skip_bad=None, accept_implausible_gains=None):
+             max_memory=None, allow_external=None, skip_bad=None, accept_implausible_gains=None, skip_bad_rows=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
+
+    ``trim`` (a window, or a :class:`~sensorless.data.LogTrims` holding this log's) is cut and
+    ``skip_bad_rows`` drops a corrupt prefix/suffix while reading, before the time axis is checked
+    (:func:`~sensorless.data.validate_trajectory`).
 
     The one preprocessing function of both the local path (``sensorless.cli.common.load_logs``) and the Dask
     workers (:class:`sensorless.regressor.distributed.LogReader`), so both see the same samples.
     ``outliers`` ("error" | "drop" | "keep") is applied to the raw log; a log that lost samples
     that way is resampled onto its uniform grid even with ``resample="off"``. ``max_memory``,
-    ``allow_external``, ``skip_bad`` and ``accept_implausible_gains``: :func:`sensorless.data.limits.read_options`.
+    ``allow_external``, ``skip_bad``, ``accept_implausible_gains`` and ``skip_bad_rows``:
+    :func:`sensorless.data.limits.read_options`.
     """
+    if isinstance(trim, LogTrims):
+        trim = trim.window_for(path)
     with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
-                      accept_implausible_gains=accept_implausible_gains):
+                      accept_implausible_gains=accept_implausible_gains, skip_bad_rows=skip_bad_rows):
         return _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample,
                          velocity, max_gap, outliers, rest, time_unit, base_velocity, pose_max_gap, wrench_frames)
 
@@ -412,9 +341,9 @@ def _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gain
     if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):
         gains = None
     traj = read_trajectory(path, columns=cols, rate=rate, robot=robot, gains=gains, time_unit=time_unit,
-                           allow_duplicate_times=mode != "off", outliers=outliers)
+                           allow_duplicate_times=mode != "off", outliers=outliers, trim=trim)
     dropped = "outlier" in traj.units.get("processing", "")
-    out = prepare(traj, trim=trim, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
+    out = prepare(traj, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
                   savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,
                   max_gap=DEFAULT_MAX_GAP if max_gap is None else max_gap, rest=rest or "auto",
                   base_velocity=base_velocity or "auto", pose_max_gap=pose_max_gap, robot=robot,

@@ -43,7 +43,7 @@ from ..io import check_input_file
 from .arrays import EXTRA_KEYS, as_float, read_hdf5, read_npz
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
-from .limits import prescan_text, read_options
+from .limits import current_options, prescan_text, read_options
 from .names import FIELD_NAMES, RawLog, warn_unused
 from .orientation import orient_samples
 from .tabular import Columns, fields_from_frame, read_parquet_table, read_text_table
@@ -88,6 +88,8 @@ def read_trajectory(
     max_memory: "str | int | None" = None,
     allow_external: bool | None = None,
     skip_bad: bool | None = None,
+    trim=None,
+    skip_bad_rows: bool | None = None,
 ) -> Trajectory:
     """Read a log and return it validated (and reordered to ``robot.joint_names``).
 
@@ -100,15 +102,20 @@ def read_trajectory(
     OutlierError ("error", default), are dropped with a warning ("drop") or kept ("keep").
     Every problem raises a :class:`~sensorless.errors.DataError` subclass naming the file,
     column and row. ``max_memory`` (bytes or '8GiB'), ``allow_external`` (HDF5 external/virtual
-    datasets) and ``skip_bad`` (corrupt bag/MCAP chunks) are :mod:`sensorless.data.limits` options.
+    datasets), ``skip_bad`` (corrupt bag/MCAP chunks) and ``skip_bad_rows`` (default False) are
+    :mod:`sensorless.data.limits` options. ``skip_bad_rows`` drops a corrupt prefix/suffix of rows
+    and ``trim`` (a :class:`~sensorless.data.TrimWindow`) cuts a time window, both before the checks
+    (:func:`~sensorless.data.validate_trajectory`).
     """
-    with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad):
+    with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
+                      skip_bad_rows=skip_bad_rows):
         return _read_trajectory(Path(path), joint_names, columns, rate, robot, time_unit, gains,
-                                allow_duplicate_times, outliers)
+                                allow_duplicate_times, outliers, trim)
 
 
 def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, gains, allow_duplicate_times,
-                     outliers) -> Trajectory:
+                     outliers, trim=None) -> Trajectory:
+    rows = {"trim": trim, "skip_bad_rows": bool(current_options().get("skip_bad_rows"))}
     src = str(path)
     if not path.exists():
         raise DataError("no such file", src)
@@ -120,7 +127,7 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         if gains is not None or rate is not None or time_unit is not None:
             raise DataError("gains, rate and time_unit do not apply to a ROS bag (its stamps are in seconds)", src)
         return read_rosbag(path, joint_names=joint_names, robot=robot, allow_duplicate_times=allow_duplicate_times,
-                           outliers=outliers, **rosbag_options(columns, src))
+                           outliers=outliers, **rows, **rosbag_options(columns, src))
     columns, column_gains, gain_field = split_gain_modifiers(columns, src)
     if column_gains is not None:
         if gains is not None:
@@ -143,7 +150,7 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         traj = currents_to_torques(traj, gains, gain_field)
     if raw.extras:
         traj = traj.with_(extras={**traj.extras, **_sample_extras(raw.extras, src, len(traj))})
-    return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers)
+    return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers, **rows)
 
 
 def _read_raw(path: Path, src: str, columns, joint_names) -> tuple[RawLog, str]:

@@ -105,8 +105,11 @@ def read_rosbag(
     max_gap: float = 4.0,
     allow_duplicate_times: bool = False,
     outliers: str = "error",
+    trim=None,
+    skip_bad_rows: bool = False,
 ) -> Trajectory:
     """Read a ROS bag / MCAP file into a validated Trajectory (see the module docstring).
+    ``trim`` and ``skip_bad_rows``: :func:`~sensorless.data.validate_trajectory`.
 
     ``joint_states_topic`` defaults to the bag's only JointState topic; ``imu_topic`` to its
     only Imu topic (none if there are zero or several); ``wrench_topics`` to none (give the
@@ -171,7 +174,8 @@ def read_rosbag(
     traj = Trajectory(t=t - t0, q=q, joint_names=tuple(wanted), v=v, tau=tau, extras=extras,
                       units={"t": "s (from the JointState header stamps, relative to provenance t0_unix)"},
                       source=src, provenance=prov)
-    return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers)
+    return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers, trim=trim,
+                               skip_bad_rows=skip_bad_rows)
 
 
 # ---- reading --------------------------------------------------------------------------

@@ -14,6 +14,8 @@ import numpy as np
 
 from ..errors import DataError
 from .names import FIELD_NAMES, TICK_NAMES, RawLog, normalise, short_list
+from .bad_rows import max_edge_rows
+from .limits import current_options
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -245,12 +247,18 @@ def numeric_columns(df: "pd.DataFrame", labels: list, field: str, src: str) -> n
         text = s.astype(str).str.strip()
         bad = (num.isna() & s.notna() & (text != "")).to_numpy()
         if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise DataError(
-                f"non-numeric value {s.iloc[i]!r} in column '{c}' (for '{field}') at row {i} "
-                f"(0-based data row; {int(bad.sum())} bad cell(s) in this column)",
-                src,
-            )
+            rows = np.flatnonzero(bad)
+            edge = max_edge_rows(len(bad))
+            at_edges = bool(np.all((rows < edge) | (rows >= len(bad) - edge)))
+            if not (at_edges and current_options().get("skip_bad_rows")):  # else NaN: bad_rows drops the row
+                i = int(rows[0])
+                hint = ("; it is near the start or end of the log: rerun with --skip-bad-rows to drop corrupt rows there"
+                        if at_edges else "")
+                raise DataError(
+                    f"non-numeric value {s.iloc[i]!r} in column '{c}' (for '{field}') at row {i} "
+                    f"(0-based data row; {int(bad.sum())} bad cell(s) in this column){hint}",
+                    src,
+                )
         cols.append(num.to_numpy(dtype=float, na_value=np.nan))
     return np.column_stack(cols) if cols else np.empty((len(df), 0))
 

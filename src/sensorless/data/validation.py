@@ -9,20 +9,26 @@ the first bad sample.
 
 from __future__ import annotations
 
+import os
+import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import (
     DataError,
+    DataWarning,
     JointNameError,
     NonFiniteError,
+    OutlierError,
     ShapeMismatchError,
     TimestampError,
     TooFewSamplesError,
     UnitsError,
 )
+from .bad_rows import max_edge_rows, scan_rows
 from .trajectory import Trajectory, as_float_array
+from .trims import TrimWindow, trim_window
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -50,11 +56,20 @@ def validate_trajectory(
     min_samples: int = 2,
     allow_duplicate_times: bool = False,
     outliers: str = "keep",
+    trim: "str | tuple | TrimWindow | None" = None,
+    skip_bad_rows: bool = False,
 ) -> Trajectory:
     """Check ``traj`` and return it (reordered to ``robot.joint_names`` if a robot is given).
 
     ``allow_duplicate_times`` accepts repeated time stamps (time must still never go
     backwards); :func:`sensorless.data.resample` merges them.
+
+    Before the checks, ``skip_bad_rows`` drops a corrupt prefix and suffix
+    (:mod:`~sensorless.data.bad_rows`, with a DataWarning saying which samples and why;
+    ``provenance["rows_dropped"]``), then ``trim`` cuts a time window
+    (:func:`~sensorless.data.trim_window`, relative to the first row kept). Errors name the
+    sample as a row of the log as given; an error at a corrupt prefix or suffix says how to
+    drop it.
 
     Raises ShapeMismatchError, NonFiniteError, TimestampError, JointNameError,
     UnitsError or TooFewSamplesError. ``outliers`` ("error" | "drop" | "keep") handles gross
@@ -108,20 +123,42 @@ def validate_trajectory(
             arr = as_float_array(arr, key, src)
             if arr.ndim != 2:
                 raise ShapeMismatchError(f"extras['{key}'] has shape {arr.shape}; expected (samples, columns)", src)
-            labels = names if arr.shape[1] == len(names) else [f"{key}[{k}]" for k in range(arr.shape[1])]
-            _check_finite(key, arr, labels, t, src)
 
-    _check_finite("t", t[:, None], ["t"], t, src)
-    for name, arr in arrays.items():
-        labels = names if name in _JOINT_FIELDS else [f"{name}[{k}]" for k in range(arr.shape[1])]
-        _check_finite(name, arr, labels, t, src)
-    _check_time(t, src, allow_duplicate_times)
-
-    out = handle_outliers(traj.with_(t=t, **arrays), outliers)
-    if len(out) < min_samples:
-        raise TooFewSamplesError(f"only {len(out)} sample(s) left after dropping outliers; at least {min_samples} are needed", src)
-    if check_units:
-        _check_magnitude(out)
+    raw, t0 = traj.with_(t=t, **arrays), t
+    traj, scan = raw, None
+    rows = np.arange(n)  # the log's own row of each sample, for the messages
+    if skip_bad_rows:
+        scan = scan_rows(t, _columns(traj, names), allow_duplicate_times)
+        if scan.edges:
+            rows = rows[scan.start:scan.stop]
+            traj = traj.take(slice(scan.start, scan.stop))
+            traj = traj.with_(provenance={**traj.provenance, "rows_dropped": scan.to_dict()})
+            warnings.warn(f"{src}: --skip-bad-rows dropped {scan.describe()}", DataWarning, stacklevel=2)
+    if trim is not None:
+        keep = trim_window(traj.with_(extras={**traj.extras, _ROWS: rows}), trim)
+        rows = keep.extras.pop(_ROWS)
+        traj = keep
+    t = traj.t
+    arrays = {k: getattr(traj, k) for k in arrays}
+    try:
+        _check_finite("t", t[:, None], ["t"], t, src, rows)
+        for name, arr in arrays.items():
+            labels = names if name in _JOINT_FIELDS else [f"{name}[{k}]" for k in range(arr.shape[1])]
+            _check_finite(name, arr, labels, t, src, rows)
+        for key in JOINT_EXTRAS:
+            if key in traj.extras:
+                arr = as_float_array(traj.extras[key], key, src)
+                labels = names if arr.shape[1] == len(names) else [f"{key}[{k}]" for k in range(arr.shape[1])]
+                _check_finite(key, arr, labels, t, src, rows)
+        _check_time(t, src, allow_duplicate_times, rows)
+        out = handle_outliers(traj, outliers)
+        if len(out) < min_samples:
+            raise TooFewSamplesError(f"only {len(out)} sample(s) left after dropping outliers; at least {min_samples} "
+                                     "are needed", src)
+        if check_units:
+            _check_magnitude(out, rows if len(out) == len(rows) else None)
+    except (NonFiniteError, TimestampError, UnitsError, OutlierError) as exc:
+        raise _with_hint(exc, scan, lambda: scan_rows(t0, _columns(raw, names), allow_duplicate_times), rows) from None
     if robot is None:
         return out
     perm = robot.joint_order(names, src)  # JointNameError for unknown / missing / duplicates
@@ -136,21 +173,68 @@ def validate_trajectory(
     return out
 
 
-def _check_finite(name: str, arr: np.ndarray, labels: list[str], t: np.ndarray, src: str) -> None:
+_ROWS = "__rows__"  # extras key carrying each sample's row through a trim
+
+
+def _columns(traj: Trajectory, names: list[str]) -> list:
+    """(field, (N, k) array, labels) of every per-sample signal the checks look at."""
+    cols = []
+    for name in _JOINT_FIELDS + tuple(_BASE_COLS):
+        arr = getattr(traj, name)
+        if arr is not None:
+            arr = np.asarray(arr, dtype=float).reshape(len(traj), -1)
+            cols.append((name, arr, names if name in _JOINT_FIELDS else [f"{name}[{k}]" for k in range(arr.shape[1])]))
+    for key in JOINT_EXTRAS:
+        arr = traj.extras.get(key)
+        if arr is not None:
+            arr = np.asarray(arr, dtype=float).reshape(len(traj), -1)
+            cols.append((key, arr, names if arr.shape[1] == len(names) else [f"{key}[{k}]" for k in range(arr.shape[1])]))
+    return cols
+
+
+def _with_hint(exc: DataError, scan, rescan, checked: np.ndarray) -> DataError:
+    """``exc`` with what --skip-bad-rows does about it: drops a corrupt prefix/suffix the log has
+    (``scan`` None: not asked for; ``rescan()`` finds them, unless a trim left them out of the
+    ``checked`` rows), or cannot drop this (middle)."""
+    if scan is None:
+        scan = rescan()
+        inside = any(np.any((checked >= e.first) & (checked <= e.last)) for e in scan.edges)
+        if not inside:
+            return exc
+        hint = f"; the log has {scan.describe()}: rerun with --skip-bad-rows (skip_bad_rows=True) to drop them"
+        if scan.window is not None:
+            lo, hi = scan.window
+            name = os.path.basename(str(exc.source)) if exc.source else "FILE"
+            lost = f", which also leaves out {scan.window_loses} clean row(s)" if scan.window_loses else ""
+            hint += f", or cut them away with --trim {name}=abs:{lo:.6f}:{hi:.6f}{lost}"
+        if scan.middle:
+            hint += f"; it is corrupt in the middle too, at {scan.middle}, which --skip-bad-rows does not drop"
+    else:
+        dropped = f" (it dropped {scan.describe()})" if scan.edges else ""
+        hint = (f"; --skip-bad-rows drops only a corrupt prefix or suffix of at most {max_edge_rows(scan.n)} rows"
+                f"{dropped}, and this is in the middle of the log: cut the log there with --trim (or split it)")
+    msg = str(exc)
+    if exc.source and msg.startswith(f"{exc.source}: "):
+        msg = msg[len(exc.source) + 2:]
+    return type(exc)(msg + hint, exc.source)
+
+
+def _check_finite(name: str, arr: np.ndarray, labels: list[str], t: np.ndarray, src: str,
+                  row: "np.ndarray | None" = None) -> None:
     bad = ~np.isfinite(arr)
     if not bad.any():
         return
     i = int(np.argmax(bad.any(axis=1)))  # earliest bad sample, then its first bad column
     col = int(np.argmax(bad[i]))
     rows = np.flatnonzero(bad[:, col])
-    where = f"sample {i}" + (f" (t={t[i]:.3f} s)" if np.isfinite(t[i]) and name != "t" else "")
+    where = f"sample {i if row is None else int(row[i])}" + (f" (t={t[i]:.3f} s)" if np.isfinite(t[i]) and name != "t" else "")
     what = f"'{name}'" if name == "t" else f"'{name}' column '{labels[col]}'"
     others = int(bad.any(axis=0).sum()) - 1
     more = f"; {others} other column(s) too" if others else ""
     raise NonFiniteError(f"{what} has {rows.size} non-finite values (NaN/inf), first at {where}{more}", src)
 
 
-def _check_magnitude(traj: Trajectory) -> None:
+def _check_magnitude(traj: Trajectory, row: "np.ndarray | None" = None) -> None:
     fields = [(f, getattr(traj, f)) for f in _JOINT_FIELDS + tuple(_BASE_COLS)] + [
         (k, traj.extras.get(k)) for k in JOINT_EXTRAS]
     for name, arr in fields:
@@ -162,22 +246,25 @@ def _check_magnitude(traj: Trajectory) -> None:
             i, c = (int(x) for x in np.argwhere(big)[0])
             col = traj.joint_names[c] if arr.shape[1] == traj.n_joints and name not in _BASE_COLS else f"{name}[{c}]"
             raise UnitsError(
-                f"'{name}' column '{col}' reaches {arr[i, c]:.3g} at sample {i} (|value| > {MAX_ABS_VALUE:.0e}): "
+                f"'{name}' column '{col}' reaches {arr[i, c]:.3g} at sample {i if row is None else int(row[i])} "
+                f"(|value| > {MAX_ABS_VALUE:.0e}): "
                 "no robot signal is that large in SI units; wrong unit or corrupt data", traj.source)
 
 
-def _check_time(t: np.ndarray, src: str, allow_duplicates: bool = False) -> None:
+def _check_time(t: np.ndarray, src: str, allow_duplicates: bool = False, row: "np.ndarray | None" = None) -> None:
     dt = np.diff(t)
     bad = np.flatnonzero(dt < 0 if allow_duplicates else dt <= 0)
     if bad.size == 0:
         return
     i = int(bad[0]) + 1
+    k = i if row is None else int(row[i])
+    p = i - 1 if row is None else int(row[i - 1])
     kind = "duplicate timestamp" if dt[i - 1] == 0 else "time goes backwards"
     hint = ("; resampling merges duplicate stamps: --resample auto on the command line, or "
             "read_trajectory(..., allow_duplicate_times=True) then sensorless.data.prepare(traj, resample='auto')"
             if kind == "duplicate timestamp" else "")
     raise TimestampError(
-        f"{kind} at sample {i}: t[{i}]={t[i]:.6f} s after t[{i - 1}]={t[i - 1]:.6f} s "
+        f"{kind} at sample {k}: t[{k}]={t[i]:.6f} s after t[{p}]={t[i - 1]:.6f} s "
         f"({bad.size} non-increasing step(s) in total); time must be strictly increasing{hint}",
         src,
     )

@@ -23,7 +23,7 @@ from .payload import JointConsistency, PayloadEstimate, identify_payload, payloa
 from .result import IdentificationResult
 from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
-from .drive_gains import DriveGains, clock_offset, identify_drive_gains, payload_torque
+from .drive_gains import DriveGains, identify_drive_gains, payload_torque
 from .friction import (
     FrictionFit,
     coulomb_smoothing_from_noise,
@@ -62,7 +62,6 @@ if TYPE_CHECKING:
 
 
 __all__ = [
-    "clock_offset",
     "DriveGains",
     "FrictionFit",
     "coulomb_smoothing_from_noise",

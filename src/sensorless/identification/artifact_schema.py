@@ -195,7 +195,7 @@ def _resample(c: Checker, key: str, value: Any):
 def _trim(c: Checker, key: str, value: Any):
     if value is None:
         return None
-    from ..data.prepare import TrimWindow
+    from ..data.trims import TrimWindow
 
     if not isinstance(value, (str, list)):
         raise c.fail(key, f"expected a time window 'START:END', got {summary(value)}")
@@ -239,6 +239,8 @@ def check_preprocessing_settings(c: Checker, pre: Any, key: str = "settings.prep
                                                                for f, s in c.mapping(kk, v).items()})
     out["decimate"] = opt("decimate", lambda kk, v: c.number(kk, v, 1, MAX_DECIMATE, integer=True))
     out["trim"] = _trim(c, k("trim"), pre.get("trim"))
+    if pre.get("trims") is not None:  # each log's own window (sensorless.data.trims.LogTrims.settings)
+        out["trims"] = {log: _trim(c, f"{k('trims')}.{log}", w) for log, w in c.mapping(k("trims"), pre["trims"]).items()}
     return out
 
 

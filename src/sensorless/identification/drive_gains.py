@@ -10,9 +10,10 @@ The noise is in the currents, not in the known payload torque y_j = [Y_p φ_p]_j
 per joint d_j = c_j y_j + b_j + ε_j with c_j = 1/K_j (and an offset b_j for a current
 offset that changed between the runs) is an ordinary least-squares line with the errors
 where they belong (regressing y on d would be biased low by the current noise);
-K_j = 1/c_j. The unloaded run is interpolated at the loaded run's times (both measured
-from their first sample and then aligned on the positions, :func:`clock_offset`;
-``align="rows"`` pairs samples by index instead).
+K_j = 1/c_j. The unloaded run is interpolated at the loaded run's times, shifted by the lag
+between the two runs measured on the positions (:func:`~sensorless.data.align.pair_logs`:
+cross-correlation, then :func:`~sensorless.data.align.clock_offset`; ``align="rows"`` pairs
+samples by index instead).
 
 Velocity reversals. Friction jumps by about 2 fs where a joint's velocity changes sign;
 the two runs' clocks never line up to the sample (jitter, resampling), so around each
@@ -33,17 +34,17 @@ the same bandwidth; the 95 % interval is K ± 1.96 · max(both) (delta method 1/
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..data.align import Lag, estimate_lag
+from ..data.align import ALIGNMENTS, pair_logs
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
 from .payload import payload_regressor, point_mass_parameters
 
-__all__ = ["ALIGNMENTS", "DriveGains", "align_pair", "clock_offset", "identify_drive_gains", "pair_lag", "payload_torque"]
+__all__ = ["DriveGains", "identify_drive_gains", "payload_torque"]
 
 #: samples within this time [s] of a velocity reversal are left out of a joint's fit (module docstring)
 REVERSAL_SECONDS = 0.1
@@ -100,87 +101,6 @@ def _currents(robot: Robot, traj: Trajectory) -> np.ndarray:
     if missing:
         raise JointNameError(f"the log has no column for joint(s) {missing}", traj.source)
     return np.asarray(cur, dtype=float)[:, [names.index(j) for j in robot.actuated_joints]]
-
-
-#: how the unloaded run is paired with the loaded one (module docstring)
-ALIGNMENTS = ("time", "rows")
-
-
-def _align(unloaded: Trajectory, loaded: Trajectory, i_u: np.ndarray, align: str,
-           lag: Lag | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Unloaded currents at the loaded samples, and the mask of loaded samples covered."""
-    if align == "rows":
-        n = min(len(unloaded), len(loaded))
-        mask = np.zeros(len(loaded), bool)
-        mask[:n] = True
-        out = np.full((len(loaded), i_u.shape[1]), np.nan)
-        out[:n] = i_u[:n]
-        return out, mask
-    if align not in ALIGNMENTS:
-        raise DataError(f"align must be one of {ALIGNMENTS}, got {align!r}")
-    tu, tl = unloaded.t - unloaded.t[0], loaded.t - loaded.t[0]
-    tl = tl + (lag if lag is not None else pair_lag(loaded, unloaded)).seconds
-    mask = (tl >= tu[0]) & (tl <= tu[-1])
-    out = np.column_stack([np.interp(tl, tu, i_u[:, k]) for k in range(i_u.shape[1])])
-    return out, mask
-
-
-def pair_lag(load: Trajectory, ref: Trajectory) -> Lag:
-    """The lag of ``load`` behind ``ref``: coarse by cross-correlation of the positions
-    (:func:`~sensorless.data.align.estimate_lag`, seconds apart; refuses a pair that is not one
-    trajectory), then to the sub-sample by :func:`clock_offset` started there."""
-    coarse = estimate_lag(load, ref)
-    return replace(coarse, seconds=clock_offset(load, ref, start=coarse.seconds))
-
-
-def clock_offset(load: Trajectory, ref: Trajectory, iterations: int = 4, start: float = 0.0) -> float:
-    """δ [s] such that ``ref`` at (t − t₀_ref) = (t − t₀_load) + δ is where ``load`` is: two
-    runs of one trajectory started from their first samples are off by that sample's jitter
-    (a few ms), and d/dt of the robot's own torque × a few ms biases a gain by ~1 %. Gauss–
-    Newton on the positions, q_load(t) ≈ q_ref(t + δ): δ += Σ (q_load − q_ref(t + δ)) q̇_ref / Σ q̇_ref²
-    over the samples that move, from ``start`` (``start`` when the runs do not move or have no positions)."""
-    if load.q is None or ref.q is None or ref.v is None or load.q.shape[1] != ref.q.shape[1]:
-        return start
-    tl, tr = load.t - load.t[0], ref.t - ref.t[0]
-    dt = float(np.median(np.diff(tr)))
-    delta = start
-    for _ in range(iterations):
-        t = tl + delta
-        ok = (t >= tr[0]) & (t <= tr[-1])
-        if ok.sum() < 10:
-            return start
-        qr = np.column_stack([np.interp(t[ok], tr, ref.q[:, k]) for k in range(ref.q.shape[1])])
-        vr = np.column_stack([np.interp(t[ok], tr, ref.v[:, k]) for k in range(ref.v.shape[1])])
-        den = float(np.sum(vr**2))
-        if den <= 0:
-            return start
-        step = float(np.sum((load.q[ok] - qr) * vr) / den)
-        delta += float(np.clip(step, -5 * dt, 5 * dt))
-        if abs(step) < 1e-7:
-            break
-    return delta if abs(delta - start) <= 10 * dt else start
-
-
-def align_pair(load: Trajectory, ref: Trajectory, lag: Lag | None = None) -> tuple[Trajectory, Trajectory]:
-    """Two runs of one trajectory as row-aligned logs: ``ref`` linearly interpolated at the
-    times of ``load`` shifted by the lag (default :func:`pair_lag`), both cut to the overlap."""
-    tl, tr = load.t - load.t[0] + (lag or pair_lag(load, ref)).seconds, ref.t - ref.t[0]
-    keep = (tl >= tr[0]) & (tl <= tr[-1])
-    if keep.sum() < 2:
-        raise DataError("the two logs do not overlap in time (from their first samples)", ref.source)
-    load = load.take(np.flatnonzero(keep))
-    tl = tl[keep]
-
-    def at(x):
-        if x is None or not hasattr(x, "shape") or x.shape[:1] != (len(tr),):
-            return x
-        flat = np.asarray(x, dtype=float).reshape(len(tr), -1)
-        out = np.column_stack([np.interp(tl, tr, flat[:, k]) for k in range(flat.shape[1])])
-        return out.reshape((len(tl),) + x.shape[1:])
-
-    fields = {k: at(getattr(ref, k)) for k in ("q", "v", "a", "tau", "base_q", "base_v", "base_a")}
-    extras = {k: at(v) for k, v in (ref.extras or {}).items()}
-    return load, ref.with_(t=load.t.copy(), extras=extras, **fields)
 
 
 def _near_reversal(v: np.ndarray, width: int) -> np.ndarray:
@@ -242,21 +162,24 @@ def identify_drive_gains(
     payload_frame: str,
     payload_com=None,
     offset: bool = True,
-    align: str = "time",
+    align: str = "auto",
     block_seconds: float | None = None,
     n_boot: int = 1000,
     seed: int = 0,
     reversal_seconds: float | None = None,
 ) -> DriveGains:
-    """Drive gains from an unloaded/loaded pair of logs holding currents (module docstring)."""
+    """Drive gains from an unloaded/loaded pair of logs holding currents (module docstring);
+    ``align`` pairs them (:func:`~sensorless.data.align.pair_logs`, one of ``ALIGNMENTS``)."""
     if not (np.isfinite(payload_mass) and payload_mass > 0):
         raise DataError(f"payload mass must be a positive number of kg, got {payload_mass!r}")
+    if align not in ALIGNMENTS:
+        raise DataError(f"align must be one of {ALIGNMENTS}, got {align!r}")
     robot.frame_id(payload_frame)
+    _currents(robot, unloaded)
+    loaded, unloaded, pairing = pair_logs(loaded, unloaded, align)
     i_u, i_l = _currents(robot, unloaded), _currents(robot, loaded)
-    alignment = pair_lag(loaded, unloaded) if align == "time" else None
-    i_u_at, mask = _align(unloaded, loaded, i_u, align, alignment)
-    y_all = payload_torque(robot, loaded, payload_frame, payload_mass, payload_com)
-    y, d = y_all[mask], (i_l - i_u_at)[mask]
+    y = payload_torque(robot, loaded, payload_frame, payload_mass, payload_com)
+    d = i_l - i_u
     n = len(y)
     if n < 50:
         raise ExcitationError(f"only {n} samples of the loaded log overlap the unloaded one; need >= 50")
@@ -265,12 +188,9 @@ def identify_drive_gains(
     nj = len(joints)
     width = max(1, int(round((REVERSAL_SECONDS if reversal_seconds is None else reversal_seconds) / dt)))
     use = np.ones((n, nj), dtype=bool)  # per joint: away from velocity reversals (module docstring)
-    v_l, v_u = _act_v(robot, loaded), _act_v(robot, unloaded)
-    if v_l is not None:
-        use &= ~_near_reversal(v_l, width)[mask]
-    if v_u is not None:
-        v_u_at, _ = _align(unloaded, loaded, v_u, align, alignment)
-        use &= ~_near_reversal(np.nan_to_num(v_u_at), width)[mask]
+    for v in (_act_v(robot, loaded), _act_v(robot, unloaded)):
+        if v is not None:
+            use &= ~_near_reversal(v, width)
     y, d = np.where(use, y, 0.0), np.where(use, d, 0.0)  # a left-out sample weighs 0 in every sum below
     c, b, res = np.zeros(nj), np.zeros(nj), np.zeros((n, nj))
     yrms0 = np.sqrt(np.mean(y**2, axis=0))
@@ -321,7 +241,7 @@ def identify_drive_gains(
     return DriveGains(
         joints=joints, gains=K, std=std_K, interval=np.column_stack([lo, hi]), identified=ident, offset=b,
         diagnostics={"n_samples": n, "block_samples": L, "block_seconds": L * dt,
-                     "alignment": None if alignment is None else alignment.to_dict(),
+                     "alignment": pairing.to_dict(),
                      "samples_used": dict(zip(joints, map(int, use.sum(0)))),
                      "reversal_samples": width,
                      "payload_torque_rms": dict(zip(joints, map(float, yrms))),

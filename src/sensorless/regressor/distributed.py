@@ -71,7 +71,7 @@ class LogReader:
     savgol_window: int | None = None
     decimate: int = 1
     gains: Any = None
-    trim: str | None = None
+    trim: "str | LogTrims | None" = None  # a window for every log, or each log's own (data.trims.LogTrims)
     resample: str = "auto"
     velocity: str = "logged"
     max_gap: float | None = None
@@ -82,6 +82,7 @@ class LogReader:
     pose_max_gap: float | None = None
     wrench_frames: dict | None = None  # {contact frame: frame its wrench is logged in} (data.wrench_frames)
     imu_frame: str | None = None  # base_a from the accelerometer in this model frame (data.prepare.with_imu_frame)
+    skip_bad_rows: bool | None = None  # drop a corrupt prefix/suffix of rows (data.bad_rows)
 
     def __call__(self, path: str | Path, robot) -> Trajectory:
         from ..data.prepare import load_log, with_imu_frame
@@ -90,7 +91,8 @@ class LogReader:
                         gains=self.gains, trim=self.trim, resample=self.resample, velocity=self.velocity,
                         max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit,
                         base_velocity=self.base_velocity, pose_max_gap=self.pose_max_gap,
-                        wrench_frames=self.wrench_frames)
+                        wrench_frames=self.wrench_frames,
+                        skip_bad_rows=self.skip_bad_rows)
         return with_imu_frame(traj, robot, self.imu_frame, self.savgol_window) if self.imu_frame else traj
 
     def settings(self) -> dict:
