@@ -42,7 +42,7 @@ def test_threshold_input_errors():
     t = np.arange(100) * 0.01
     r = np.zeros((100, 2))
     with pytest.raises(DataError, match="quiet segment 5:6"):
-        quiet_mask(t, 5.0, 6.0, "log.csv")
+        quiet_mask(t, "5:6", "log.csv")
     with pytest.raises(DataError, match="exactly one"):
         quiet_thresholds(r, t < 0.5, ["a", "b"])
     with pytest.raises(DataError, match="20 samples|need ≥ 20"):

@@ -108,10 +108,9 @@ def monitor(
     intervals, peak external torque per joint, Cartesian force at --frame (docs/monitoring.md)."""
     from ..data.prepare import TrimWindow
     from ..errors import DataError
-    from ..estimation.collision import observer_warmup, quiet_mask
-    from ..estimation.momentum import MomentumDynamics, MomentumObserver, _uniform_dt
-    from ..estimation.static_band import (STATUS, StaticFriction, classify_at_rest, model_static_friction,
-                                          rest_aware_thresholds, rest_intervals, rest_speeds)
+    from ..estimation.momentum import MomentumDynamics
+    from ..estimation.monitoring import MonitorSettings, monitor_log
+    from ..estimation.static_band import STATUS
     from ..identification.artifact import load_model_folder
 
     r = load_robot_arg(robot, lock, floating_base)
@@ -131,72 +130,48 @@ def monitor(
                               f"'abs:T0:T1' for the log's stamps), got '{quiet}'") from None
     names = dyn.actuated_names
     fs_spec = _parse_static_friction(static_friction, names)
+    speed: object = "auto"
     if rest_speed.strip().lower() != "auto":
         try:
-            delta = float(rest_speed)
+            speed = float(rest_speed)
         except ValueError:
             raise SensorlessError(f"--rest-speed must be 'auto' or a speed in rad/s, got '{rest_speed}'") from None
-        if not (np.isfinite(delta) and delta >= 0):
+        if not (np.isfinite(speed) and speed >= 0):
             raise SensorlessError(f"--rest-speed must be ≥ 0 rad/s, got '{rest_speed}'")
+    settings = MonitorSettings(quiet=str(window), k=k, false_alarm_rate=false_alarm_rate, gain=gain, order=order,
+                               static_friction=fs_spec if isinstance(fs_spec, str) else tuple(map(float, fs_spec)),
+                               static_margin=static_margin, rest_speed=speed, warmup=warmup,
+                               min_duration=min_duration, merge_gap=merge_gap)
     with atomic_outdir(out, force, inputs=path_inputs(robot, model, data)) as tmp:
         (traj,), opts = model_logs(art, [data], r, prep)
-        dt = _uniform_dt(traj)
-        res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
-        # one convention with estimate-force (docs/monitoring.md): τ_ext = τ_measured − τ_model = Jᵀ F, F the
-        # force the robot exerts on its environment at --frame; the observer's r is the torque acting on the robot
-        raw = -res.tau_ext
-        t = traj.t
-        settle = observer_warmup(gain, order, dt)
-        warm = settle if warmup is None else float(warmup)
-        if rest_speed.strip().lower() == "auto":
-            speeds, speed_src = rest_speeds(traj, names, opts.get("savgol_window"))
-        else:
-            speeds, speed_src = np.full(len(names), delta), "--rest-speed"
-        V = traj.select_joints(names).v if list(traj.joint_names) != names else traj.v
-        rest = np.abs(V) <= speeds[None, :]
-        if isinstance(fs_spec, str):
-            static = (model_static_friction(art.structure, art.parameters, names) if fs_spec == "model" else
-                      StaticFriction(names, np.zeros(len(names)), ["off"] * len(names)))
-            if fs_spec == "off":
-                rest[:] = False  # one threshold everywhere, as in motion
-        else:
-            static = StaticFriction(names, fs_spec, ["--static-friction"] * len(names))
-        mask = quiet_mask(t, window, str(data), exclude=t < t[0] + warm)
-        th = rest_aware_thresholds(raw, rest, mask, static, k=k,
-                                   false_alarm_rate=None if k is not None else false_alarm_rate, dt=dt,
-                                   margin=static_margin)
-        trace = classify_at_rest(raw, t, rest, th, quiet=mask, warmup=warm, settle=settle)
-        flag, intervals, band_ivs = rest_intervals(trace, t, raw, th, min_duration=min_duration, merge_gap=merge_gap)
-        tau_ext = trace.tau_ext
-        lo, hi = window.bounds(t)
-        arrays = {"t": t, "tau_ext": tau_ext, "r_raw": raw, "holding": trace.holding, "status": trace.status,
+        mon = monitor_log(dyn, traj, settings, savgol_window=opts.get("savgol_window"))
+        t, th, trace, tau_ext = mon.t, mon.thresholds, mon.trace, mon.tau_ext
+        flag, intervals, band_ivs = mon.contact, mon.contacts, mon.static_band
+        arrays = {"t": t, "tau_ext": tau_ext, "r_raw": mon.raw, "holding": trace.holding, "status": trace.status,
                   "status_names": np.array(STATUS), "rest": trace.rest, "contact": flag, "joints": np.array(names),
-                  "r": res.r, "coordinates": np.array(res.names)}
+                  "r": mon.observer.r, "coordinates": np.array(mon.observer.names)}
         doc = {
             "data": str(data), "model": str(path), "robot": r.name,
-            "observer": res.settings,
-            "settings": {
-                "quiet": str(window), "quiet_window_s": [float(max(lo, t[0]) - t[0]), float(min(hi, t[-1]) - t[0])],
-                "quiet_window_stamps": [float(max(lo, t[0])), float(min(hi, t[-1]))],
-                "warmup_s": warm, "warmup_source": "observer convergence (step response within 1e-3)" if warmup is None
-                else "--warmup", "settle_s": settle, "k": th.k, "false_alarm_rate_per_min": None if k is not None
-                else false_alarm_rate, "static_friction": static_friction, "static_margin": static_margin, "rest_speed": dict(zip(names, speeds.tolist())),
-                "rest_speed_source": speed_src, "min_duration_s": min_duration, "merge_gap_s": merge_gap,
-                "gain": gain, "order": order, "frame": frame, "reference": str(reference) if frame else None,
-                "preprocessing": {kk: vv for kk, vv in opts.items() if kk != "gains"}},
+            "observer": mon.observer.settings,
+            "settings": {**mon.settings, "static_friction": static_friction, "frame": frame,
+                         "reference": str(reference) if frame else None,
+                         "preprocessing": {kk: vv for kk, vv in opts.items() if kk != "gains"}},
             "thresholds": th.to_dict(),
             "noise": {"torque_sigma_rest": dict(zip(names, th.sigma_rest.tolist())),
                       "torque_sigma_moving": dict(zip(names, th.sigma_move.tolist()))},
             "contacts": [_interval_doc(iv, names, t[0], "contact") for iv in intervals],
             "static_band": [_interval_doc(iv, names, t[0], "static_band") for iv in band_ivs],
-            "peak_external_torque": {n: float(tau_ext[:, j][np.argmax(np.abs(np.nan_to_num(tau_ext[:, j])))])
-                                     for j, n in enumerate(names)},
+            "peak_external_torque": {n: float(tau_ext[:, j][np.nanargmax(np.abs(tau_ext[:, j]))]) for j, n in enumerate(names)},
             "contact_fraction": float(flag.mean()),
             "rest_fraction": dict(zip(names, trace.rest.mean(axis=0).tolist())),
             "static_band_fraction": float(((trace.status == STATUS.index("static_band")).any(axis=1) & ~flag).mean()),
         }
+        mask = mon.quiet
+        warm = mon.settings["warmup_s"]
         if frame:
-            fe = _cartesian_force(dyn, traj, tau_ext, frame, reference)
+            warm_rows = np.isnan(tau_ext).any(axis=1)  # the observer's warm-up: no estimate
+            fe = _cartesian_force(dyn, traj, np.where(warm_rows[:, None], 0.0, tau_ext), frame, reference)
+            fe.F[warm_rows] = np.nan
             arrays.update({"force": fe.F, "force_labels": np.array(fe.labels), "sigma_min": fe.sigma_min,
                            "force_unobservable": fe.arrays()["unobservable"]})
             doc["frame"] = {"name": frame, "reference": reference, "labels": fe.labels}

@@ -188,7 +188,7 @@ def rest_aware_thresholds(r: np.ndarray, rest: np.ndarray, quiet: np.ndarray, st
 
 @dataclass
 class MonitorTrace:
-    """Per-sample decisions: reported τ_ext (N, n), holding level h (NaN when not at rest), status
+    """Per-sample decisions: reported τ_ext (N, n; NaN in the warm-up), holding level h (NaN when not at rest), status
     codes (N, n) into :data:`STATUS`, the settled-rest mask and the contact flag (N,)."""
 
     tau_ext: np.ndarray
@@ -229,7 +229,9 @@ def classify_at_rest(r: np.ndarray, t: np.ndarray, rest: np.ndarray, th: RestAwa
     status[rest & changed] = STATIC_BAND
     status[rest & out_band] = CONTACT
     status[~rest & moving_over] = CONTACT
-    status[t < t[0] + warmup] = WARMUP
+    warm = t < t[0] + warmup
+    status[warm] = WARMUP
+    tau[warm] = np.nan  # the observer has not converged: no estimate
     return MonitorTrace(tau, h, status, rest, (status == CONTACT).any(axis=1))
 
 
