@@ -1,6 +1,7 @@
 """Collision monitoring of one log, as a library call (``sensorless monitor`` parses its options into it).
 
-    observer r ≈ L(s)[τ_ext]  →  warm-up blanked  →  quiet-window statistics per joint and state
+    rest mask |v| ≤ δ (v := 0 there)  →  observer r ≈ L(s)[τ_ext]  →  warm-up blanked
+    →  quiet-window statistics per joint and state
     →  per sample: at rest (|v| ≤ δ), the static-friction dead zone and the holding level
        (:mod:`.static_band`); in motion, k σ around the quiet bias  →  contact intervals.
 
@@ -18,12 +19,24 @@ import numpy as np
 from ..data.prepare import TrimWindow
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from .collision import ContactInterval, observer_warmup, quiet_mask
+from .collision import ContactInterval, observer_warmup, quiet_mask, runs
 from .momentum import MomentumDynamics, MomentumObserver, ObserverResult
 from .static_band import (STATUS, MonitorTrace, RestAwareThresholds, StaticFriction, classify_at_rest,
                           model_static_friction, rest_aware_thresholds, rest_intervals, rest_speeds)
 
-__all__ = ["MonitorResult", "MonitorSettings", "monitor_log"]
+__all__ = ["MonitorResult", "MonitorSettings", "monitor_log", "still_mask"]
+
+
+def still_mask(t: np.ndarray, v: np.ndarray, speeds: np.ndarray, blip: float) -> np.ndarray:
+    """(N, n) bool: |v_j| ≤ δ_j, with runs above δ_j shorter than ``blip`` s between two still
+    samples counted as still (a noise spike of v is not a motion)."""
+    t = np.asarray(t, float)
+    still = np.abs(np.asarray(v, float)) <= np.asarray(speeds, float)[None, :]
+    for j in range(still.shape[1]):
+        for a, b in runs(~still[:, j]):
+            if a > 0 and b < len(t) - 1 and t[b + 1] - t[a - 1] <= blip + 1e-12 * abs(t[a]):
+                still[a : b + 1, j] = True
+    return still
 
 
 @dataclass(frozen=True)
@@ -98,23 +111,26 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
     names = list(dyn.actuated_names)
     s.check(len(names))
     window = TrimWindow.parse(s.quiet)
-    res = MomentumObserver(dyn, gain=s.gain, order=s.order).run(traj)
+    if isinstance(s.rest_speed, str):
+        speeds, speed_src = rest_speeds(traj, names, savgol_window)
+    else:
+        speeds, speed_src = np.full(len(names), float(s.rest_speed)), "given"
+    cols = [list(traj.joint_names).index(n) for n in names]
+    rest = still_mask(traj.t, traj.v[:, cols], speeds, s.min_duration)
+    if s.static_friction == "off":
+        rest[:] = False  # one threshold everywhere, as in motion
+    v = traj.v.copy()
+    v[:, cols] = np.where(rest, 0.0, v[:, cols])  # at rest the friction is the band, not the sliding law
+    res = MomentumObserver(dyn, gain=s.gain, order=s.order).run(traj.with_(v=v))
     dt = float(res.settings["dt"])
     raw = -res.tau_ext
     t = np.asarray(traj.t, float)
     settle = observer_warmup(s.gain, s.order, dt)
     warm = settle if s.warmup is None else float(s.warmup)
-    if isinstance(s.rest_speed, str):
-        speeds, speed_src = rest_speeds(traj, names, savgol_window)
-    else:
-        speeds, speed_src = np.full(len(names), float(s.rest_speed)), "given"
-    V = traj.select_joints(names).v if list(traj.joint_names) != names else traj.v
-    rest = np.abs(V) <= speeds[None, :]
     if s.static_friction == "model":
         static = static or model_static_friction(dyn.structure, dyn.params, names)
     elif s.static_friction == "off":
         static = StaticFriction(names, np.zeros(len(names)), ["off"] * len(names))
-        rest[:] = False  # one threshold everywhere, as in motion
     else:
         static = StaticFriction(names, np.asarray(s.static_friction, float), ["given"] * len(names))
     mask = quiet_mask(t, window, traj.source, exclude=t < t[0] + warm)

@@ -4,8 +4,9 @@ At rest (v = v̇ = 0) the equation of joint j reduces to
 
     0 = τ + τ_ext − g(q) − o − f,     f ∈ [−f_s, f_s]   (static friction holds whatever is needed),
 
-and the momentum observer, whose model has no friction at rest, returns
-r = τ_ext − f + e, with e the model error at the pose. So at rest
+and the momentum observer, run with v = 0 where |v| ≤ δ (the sliding law does not apply
+at rest, and tanh(noise/ε) would chatter by up to f_c), returns r = τ_ext − f + e, with e
+the model error at the pose. So at rest
 
     r ∈ τ_ext + [e − f_s, e + f_s]:
 

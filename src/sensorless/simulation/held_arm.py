@@ -40,7 +40,7 @@ from ..robot import Robot
 from .arm_push import Push, PushTruth
 from .synthetic import NoiseSpec, TruthModel, add_white_noise
 
-__all__ = ["Stiction", "karnopp_step", "simulate_held_arm"]
+__all__ = ["HeldArmScenario", "Stiction", "held_arm_scenario", "karnopp_step", "noise_implied_force", "simulate_held_arm"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,11 @@ def karnopp_step(M: np.ndarray, u: np.ndarray, v: np.ndarray, dt: float, st: Sti
     n = len(v)
     fs = np.asarray(st.fs, float)
     stuck = np.abs(v) < v_stick
+    if stuck.all():  # the held arm's common case: does static friction hold every joint?
+        a = -v / dt
+        f = u - M @ a
+        if np.all(np.abs(f) <= fs):
+            return a, f
     f = st.sliding(v)
     a = np.linalg.solve(M, u - f)
     stuck |= (v * (v + dt * a) < 0) & (fs > 0)  # a sliding joint would reverse within the step: let it stop
@@ -96,7 +101,7 @@ def simulate_held_arm(
     *,
     hold: np.ndarray | None = None,
     duration: float = 60.0,
-    sim_rate: float = 1000.0,
+    sim_rate: float = 500.0,
     log_rate: float = 500.0,
     settle: float = 1.0,
     t0: float = 0.0,
@@ -133,6 +138,7 @@ def simulate_held_arm(
         Qr = np.tile(np.asarray(hold, float), (len(t_all), 1))
         Vr = np.zeros_like(Qr)
     q, v = Qr[0].copy(), np.zeros(r.nv)
+    lower = np.tril_indices(r.nv, -1)
     logs = {k: [] for k in ("t", "q", "v", "tau", "ext", "F", "on")}
     for k, t in enumerate(t_all):
         tau = pin.computeGeneralizedGravity(nom_model, nom_data, q) + kp * (Qr[k] - q) + kd * (Vr[k] - v)
@@ -149,8 +155,8 @@ def simulate_held_arm(
                 logs[key].append(np.copy(val))
         if k == len(t_all) - 1:
             break
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = pin.crba(model, data, q).copy()
+        M[lower] = M.T[lower]
         u = tau + ext - pin.nonLinearEffects(model, data, q, v) - truth.fv * v - truth.offset
         a, _ = karnopp_step(M, u, v, dt, stiction)
         v = v + dt * a
@@ -164,3 +170,78 @@ def simulate_held_arm(
         source=f"<held {r.name} seed={seed}>", units={"t": "s", "q": "rad", "v": "rad/s", "tau": "N·m"},
     )
     return traj, PushTruth(arr["t"], arr["ext"], arr["F"], arr["on"].astype(bool), tuple(pushes), 0.0)
+
+
+@dataclass
+class HeldArmScenario:
+    """One simulated held-still arm: a training log (tracking a Fourier reference), the held log
+    pushed by hand, the truth, and the figures the monitor is scored against."""
+
+    robot: str
+    train: Trajectory
+    log: Trajectory
+    truth: PushTruth
+    still: np.ndarray  # (N,) every joint stuck for ≥ 0.5 s and no push on
+    hold: np.ndarray
+    stiction: Stiction
+    noise: NoiseSpec
+    noise_force: float  # noise-implied force at the hold pose [N] (:func:`noise_implied_force`)
+
+
+def noise_implied_force(robot: Robot, q: np.ndarray, frame: str, sigma_tau: float | np.ndarray) -> float:
+    """RMS norm of the force that white torque noise σ_τ implies at ``frame``: F = (Jᵀ)⁺ τ, so
+    E|F|² = tr((Jᵀ)⁺ diag(σ²) (Jᵀ)⁺ᵀ), J the linear Jacobian (LOCAL_WORLD_ALIGNED) at q."""
+    model = robot.model
+    data = model.createData()
+    J = pin.computeFrameJacobian(model, data, np.asarray(q, float), robot.frame_id(frame), pin.LOCAL_WORLD_ALIGNED)[:3]
+    P = np.linalg.pinv(J.T)
+    sig = np.broadcast_to(np.asarray(sigma_tau, float), (J.shape[1],))
+    return float(np.sqrt(np.trace(P @ np.diag(sig**2) @ P.T)))
+
+
+def held_arm_scenario(seed: int = 0, *, robot: str = "ur5", frame: str = "tool0", duration: float = 60.0,
+                      n_pushes: int = 5, train_duration: float = 30.0, log_rate: float = 500.0,
+                      noise: NoiseSpec | None = None, t0: float = 1_712_345_678.0) -> HeldArmScenario:
+    """A seeded held-still arm with stiction pushed ``n_pushes`` times (module docstring).
+
+    Coulomb levels U(0.5, 1) × (2.5, 3, 2, 0.8, 0.6, 0.5) N·m (first six joints), static
+    friction 1.3–1.7 × Coulomb; a pose near a bent-elbow one; pushes of 30–50 N for 0.6–1.2 s
+    at ``frame``, one every duration/(n + 1) s, each in a random direction that loads some joint
+    beyond twice its static friction (a push that breaks no stiction changes nothing logged);
+    stamps from ``t0`` (Unix time, like a real logger). The training log tracks a Fourier
+    reference at 250 Hz."""
+    from ..robot import load_robot
+    from .synthetic import perturbed_truth
+
+    rng = np.random.default_rng(seed)
+    nom = load_robot(robot)
+    truth = perturbed_truth(nom, rng=seed)
+    n = nom.nv
+    fc = rng.uniform(0.5, 1.0, n) * np.resize([2.5, 3.0, 2.0, 0.8, 0.6, 0.5], n)
+    st = Stiction(fc, fc * rng.uniform(1.3, 1.7, n), 0.05)
+    base = np.resize([0.3, -1.2, 1.4, -1.6, -1.5, 0.2], n)
+    hold = base + rng.uniform(-0.3, 0.3, n)
+    noise = NoiseSpec(q=1e-5, v=2e-3, tau=0.05) if noise is None else noise
+    model, data = nom.model, nom.model.createData()
+    J = pin.computeFrameJacobian(model, data, hold, nom.frame_id(frame), pin.LOCAL_WORLD_ALIGNED)[:3]
+    pushes, gap = [], duration / (n_pushes + 1)
+    for i in range(n_pushes):
+        while True:
+            d = rng.normal(size=3)
+            F = d / np.linalg.norm(d) * rng.uniform(30.0, 50.0)
+            if np.max(np.abs(J.T @ F) / st.fs) >= 2.0:
+                break
+        start = gap * (i + 1) + rng.uniform(-0.2, 0.2) * gap
+        pushes.append(Push(float(start), float(start + rng.uniform(0.6, 1.2)), tuple(map(float, F)), frame))
+    train, _ = simulate_held_arm(truth, nom, st, [], duration=train_duration, log_rate=250.0, noise=noise,
+                                 seed=seed + 1000, base_freq=0.05)
+    clean, gt = simulate_held_arm(truth, nom, st, pushes, hold=hold, duration=duration, log_rate=log_rate, seed=seed)
+    r2 = np.random.default_rng(seed + 1)
+    log = clean.with_(t=t0 + clean.t, q=add_white_noise(clean.q, noise.q, r2), v=add_white_noise(clean.v, noise.v, r2),
+                      tau=add_white_noise(clean.tau, noise.tau, r2))
+    moving = np.any(clean.v != 0.0, axis=1) | gt.active
+    last = np.maximum.accumulate(np.where(moving, np.arange(len(moving)), -(10**9)))
+    still = (gt.t - gt.t[np.maximum(last, 0)] >= 0.5) & (last >= 0) | (last < 0) & (gt.t >= 0.5)
+    still &= ~gt.active
+    return HeldArmScenario(robot, train, log, gt, still, hold, st, noise,
+                           noise_implied_force(nom, hold, frame, noise.tau))
