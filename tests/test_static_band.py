@@ -165,6 +165,11 @@ def test_still_mask_ignores_velocity_spikes():
     v[60:80] = 0.5  # a 40 ms motion
     m = still_mask(t, v, np.array([0.1]), blip=0.02)
     assert m[30, 0] and not m[60:80, 0].any() and m[81:, 0].all()
+    v[85:87] = 0.5  # a reversal-like still run of 6 samples between motions is not a rest with hold = 0.02 s
+    v[87:90] = 0.0
+    v[90:] = 0.5
+    m = still_mask(t, v, np.array([0.1]), blip=0.02, hold=0.02)
+    assert m[:60, 0].all() and not m[60:, 0].any()
 
 
 def test_noise_implied_force_is_the_pseudo_inverse_map():

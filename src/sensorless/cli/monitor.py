@@ -1,5 +1,6 @@
 """Commands: ``sensorless monitor`` (collision detection with the momentum observer) and
-``sensorless benchmark observer`` (per-sample cost of the streaming observer)."""
+``sensorless benchmark observer`` (per-sample cost of the streaming observer), ``sensorless benchmark
+held-monitor`` (a held-still arm with stiction pushed by hand, over seeds)."""
 
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ from .common import (
 )
 from .options import ForceReference
 
-__all__ = ["monitor", "bench_observer"]
+__all__ = ["monitor", "bench_observer", "bench_held_monitor"]
 
 
 def _parse_static_friction(spec: str, names: list[str]):
@@ -138,7 +139,7 @@ def monitor(
             raise SensorlessError(f"--rest-speed must be 'auto' or a speed in rad/s, got '{rest_speed}'") from None
         if not (np.isfinite(speed) and speed >= 0):
             raise SensorlessError(f"--rest-speed must be ≥ 0 rad/s, got '{rest_speed}'")
-    settings = MonitorSettings(quiet=str(window), k=k, false_alarm_rate=false_alarm_rate, gain=gain, order=order,
+    settings = MonitorSettings(quiet=quiet.strip(), k=k, false_alarm_rate=false_alarm_rate, gain=gain, order=order,
                                static_friction=fs_spec if isinstance(fs_spec, str) else tuple(map(float, fs_spec)),
                                static_margin=static_margin, rest_speed=speed, warmup=warmup,
                                min_duration=min_duration, merge_gap=merge_gap)
@@ -188,7 +189,7 @@ def monitor(
         (tmp / "monitor.json").write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
         np.savez(tmp / "monitor.npz", **arrays)
     console.print(f"observer order {order}, K = {gain:g} 1/s, warm-up {warm:.3f} s; k = {th.k:.2f} σ from "
-                  f"{int(mask.sum())} quiet samples ({window})")
+                  f"{int(mask.sum())} quiet samples (--quiet {quiet.strip()})")
     for n, fsj, src in zip(names, th.band, th.band_source):
         console.print(f"  {n}: static band ±{fsj:.3g} N·m ({src}); σ rest {th.sigma_rest[names.index(n)]:.3g} N·m")
     for iv, d in zip(intervals, doc["contacts"]):
@@ -255,4 +256,22 @@ def bench_observer(
     res = benchmark_observer(samples)
     for name, v in res["robots"].items():
         console.print(f"{name} (n = {v['n']}): step {v['step_us']:.1f} µs/sample, run {v['run_us']:.1f} µs/sample")
+    return res
+
+
+@bench_command("held-monitor", "held_monitor")
+def bench_held_monitor(
+    seeds: int = typer.Option(10, help="simulated held-still arms (seeds first_seed, first_seed + 1, …)"),
+    first_seed: int = typer.Option(0, help="first seed"),
+) -> dict:
+    """A UR5 with stiction held still and pushed 5 times per seed: pushes found, false alarms per
+    minute, force at rest vs the noise-implied force, for --order 1, 2 and without the dead zone."""
+    from ..benchmarks.held_monitor import run
+
+    res = run(seeds, first_seed)
+    for name in ("order1", "order2", "no_dead_zone"):
+        s = res[name]
+        console.print(f"{name}: all pushes found {s['all_pushes_found']}, max false alarms {s['max_false_alarms_per_minute']:.2f}"
+                      f"/min, max rest force / noise-implied {s['max_rest_force_ratio']:.2f}, "
+                      f"mean contact fraction {s['mean_contact_fraction']:.3f}")
     return res

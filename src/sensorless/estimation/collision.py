@@ -84,9 +84,10 @@ def quiet_mask(t: np.ndarray, window: "str | tuple | TrimWindow", source: str = 
     inside = (t >= lo) & (t <= hi)
     mask = inside & (True if exclude is None else ~np.asarray(exclude, bool))
     if mask.sum() < 20:
-        rel = f" = {lo - t[0]:g}..{hi - t[0]:g} s after the first sample" if win.absolute else ""
+        rel = f" = {lo - t[0]:.6g}..{hi - t[0]:.6g} s after the first sample" if win.absolute else ""
         left = f", {int(mask.sum())} after the observer warm-up" if exclude is not None and inside.sum() >= 20 else ""
-        raise DataError(f"quiet segment {win}{rel} holds {int(inside.sum())} samples{left} (need ≥ 20; the log spans "
+        spec = window.strip() if isinstance(window, str) else str(win)  # str(win) rounds stamps
+        raise DataError(f"quiet segment {spec}{rel} holds {int(inside.sum())} samples{left} (need ≥ 20; the log spans "
                         f"{t[-1] - t[0]:.3f} s, stamps {t[0]:.6f} to {t[-1]:.6f})", source)
     return mask
 

@@ -1,6 +1,7 @@
 """Collision monitoring of one log, as a library call (``sensorless monitor`` parses its options into it).
 
-    rest mask |v| ≤ δ (v := 0 there)  →  observer r ≈ L(s)[τ_ext]  →  warm-up blanked
+    rest mask: |v| ≤ δ and q within its noise, for ≥ the observer's settling time (v := 0 there)  →  observer r ≈ L(s)[τ_ext]
+    →  warm-up blanked
     →  quiet-window statistics per joint and state
     →  per sample: at rest (|v| ≤ δ), the static-friction dead zone and the holding level
        (:mod:`.static_band`); in motion, k σ around the quiet bias  →  contact intervals.
@@ -27,15 +28,31 @@ from .static_band import (STATUS, MonitorTrace, RestAwareThresholds, StaticFrict
 __all__ = ["MonitorResult", "MonitorSettings", "monitor_log", "still_mask"]
 
 
-def still_mask(t: np.ndarray, v: np.ndarray, speeds: np.ndarray, blip: float) -> np.ndarray:
-    """(N, n) bool: |v_j| ≤ δ_j, with runs above δ_j shorter than ``blip`` s between two still
-    samples counted as still (a noise spike of v is not a motion)."""
+def still_mask(t: np.ndarray, v: np.ndarray, speeds: np.ndarray, blip: float, hold: float = 0.0,
+               q: np.ndarray | None = None, q_range: np.ndarray | None = None) -> np.ndarray:
+    """(N, n) bool: the joint is still. |v_j| ≤ δ_j, with runs above δ_j shorter than ``blip`` s
+    between two still samples counted as still (a noise spike of v is not a motion); with ``q``,
+    q_j (a moving average over a tenth of the window) must also stay within ``q_range`` over the
+    centred ``hold`` window (a joint creeping below the velocity noise moves); still runs shorter than ``hold`` s are dropped (a velocity
+    reversal is not a rest)."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
+
     t = np.asarray(t, float)
     still = np.abs(np.asarray(v, float)) <= np.asarray(speeds, float)[None, :]
+    eps = 1e-12 * max(abs(t[0]), abs(t[-1]), 1.0)
     for j in range(still.shape[1]):
         for a, b in runs(~still[:, j]):
-            if a > 0 and b < len(t) - 1 and t[b + 1] - t[a - 1] <= blip + 1e-12 * abs(t[a]):
+            if a > 0 and b < len(t) - 1 and t[b + 1] - t[a - 1] <= blip + eps:
                 still[a : b + 1, j] = True
+    if q is not None and q_range is not None and len(t) > 1:
+        w = max(int(round(hold / float(np.median(np.diff(t))))) + 1, 1)
+        q = uniform_filter1d(np.asarray(q, float), max(w // 10, 1), axis=0, mode="nearest")  # ≥ 3× less noise
+        span = maximum_filter1d(q, w, axis=0, mode="nearest") - minimum_filter1d(q, w, axis=0, mode="nearest")
+        still &= span <= np.asarray(q_range, float)[None, :]
+    for j in range(still.shape[1]):
+        for a, b in runs(still[:, j]):
+            if t[b] - t[a] < hold - eps:
+                still[a : b + 1, j] = False
     return still
 
 
@@ -111,22 +128,23 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
     names = list(dyn.actuated_names)
     s.check(len(names))
     window = TrimWindow.parse(s.quiet)
+    auto_speeds, q_range, speed_src = rest_speeds(traj, names, savgol_window)
     if isinstance(s.rest_speed, str):
-        speeds, speed_src = rest_speeds(traj, names, savgol_window)
+        speeds = auto_speeds
     else:
         speeds, speed_src = np.full(len(names), float(s.rest_speed)), "given"
+    dt = float(np.median(np.diff(traj.t)))
+    settle = observer_warmup(s.gain, s.order, dt)
+    warm = settle if s.warmup is None else float(s.warmup)
     cols = [list(traj.joint_names).index(n) for n in names]
-    rest = still_mask(traj.t, traj.v[:, cols], speeds, s.min_duration)
+    rest = still_mask(traj.t, traj.v[:, cols], speeds, s.min_duration, settle, traj.q[:, cols], q_range)
     if s.static_friction == "off":
         rest[:] = False  # one threshold everywhere, as in motion
     v = traj.v.copy()
     v[:, cols] = np.where(rest, 0.0, v[:, cols])  # at rest the friction is the band, not the sliding law
     res = MomentumObserver(dyn, gain=s.gain, order=s.order).run(traj.with_(v=v))
-    dt = float(res.settings["dt"])
     raw = -res.tau_ext
     t = np.asarray(traj.t, float)
-    settle = observer_warmup(s.gain, s.order, dt)
-    warm = settle if s.warmup is None else float(s.warmup)
     if s.static_friction == "model":
         static = static or model_static_friction(dyn.structure, dyn.params, names)
     elif s.static_friction == "off":
@@ -146,6 +164,7 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
         "quiet_window_stamps": [float(max(lo, t[0])), float(min(hi, t[-1]))], "quiet_samples": int(mask.sum()),
         "warmup_s": warm, "warmup_source": "observer convergence (step response within 1e-3)" if s.warmup is None
         else "given", "settle_s": settle, "k_used": th.k, "rest_speed_per_joint": dict(zip(names, speeds.tolist())),
+        "rest_position_range": dict(zip(names, q_range.tolist())),
         "rest_speed_source": speed_src, "status_codes": list(STATUS),
     })
     return MonitorResult(t, names, raw, res, trace, th, contacts, band, flag, mask, speeds, used)

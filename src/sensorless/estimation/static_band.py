@@ -4,8 +4,9 @@ At rest (v = v̇ = 0) the equation of joint j reduces to
 
     0 = τ + τ_ext − g(q) − o − f,     f ∈ [−f_s, f_s]   (static friction holds whatever is needed),
 
-and the momentum observer, run with v = 0 where |v| ≤ δ (the sliding law does not apply
-at rest, and tanh(noise/ε) would chatter by up to f_c), returns r = τ_ext − f + e, with e
+and the momentum observer, run with v = 0 where |v| ≤ δ for at least its settling time (the
+sliding law does not apply at rest, and tanh(noise/ε) would chatter by up to f_c; a brief
+|v| ≤ δ is a velocity reversal, not a rest), returns r = τ_ext − f + e, with e
 the model error at the pose. So at rest
 
     r ∈ τ_ext + [e − f_s, e + f_s]:
@@ -22,9 +23,10 @@ b_m. A joint at rest throughout the quiet window only shows its level b = e − 
 e ∈ [b − f_s, b + f_s]; the estimate nearest the model is ê = clip(0, b − f_s, b + f_s). Either
 way c = clip(b_m or 0, b − f_s, b + f_s) keeps the quiet level inside B.
 
-**Holding level.** Per rest segment of joint j (a run of |v_j| ≤ δ_j), the joint counts as at
+**Holding level.** Per rest segment of joint j (a run of |v_j| ≤ δ_j with q_j within its noise;
+:func:`~sensorless.estimation.monitoring.still_mask`), the joint counts as at
 rest once it has been still for ``settle`` (the observer's convergence time: until then r still
-carries the motion through L(s), and the joint is judged as moving). The level h is then the
+carries the motion through L(s): the reported torque is r − b_m as in motion). The level h is then the
 mean of r over the settled samples so far (in the segment that holds the quiet window, or
 starts the log: the quiet-window mean), restarted when r has stayed more than kσ_r away
 from it for ``settle`` (a joint creeping below δ moves its stick torque too), and clipped to
@@ -33,8 +35,13 @@ once a push has ended, whatever new stick torque it left), never the stick torqu
 
 **Per sample and joint** (``STATUS``):
 
-* at rest: ``contact`` if |r − c| > f_s + kσ_r; else ``static_band`` if |r − h| > kσ_r (a
-  change, inside the band, that friction explains); else ``quiet``;
+* at rest, and for ``settle`` after leaving it (breakaway: the friction passes from the
+  stick value to the sliding law, and r still carries the rest): ``contact`` if
+  |r − c| > f_s + kσ_r; else ``static_band`` if the reported torque (r − h at a settled rest,
+  r − the last h while breaking away, r − b_m after a stop) exceeds kσ: a change, inside the
+  band, that friction explains; else ``quiet``. The first
+  ``settle`` of a rest, where r still carries the motion, lies between the sliding residual
+  and the new stick level, both inside the band, so the same test holds there;
 * moving: ``contact`` if |r − b_m| > kσ_m (the identified friction applies); else ``quiet``;
 * ``warmup`` before the observer has converged (never a contact).
 
@@ -210,10 +217,15 @@ def classify_at_rest(r: np.ndarray, t: np.ndarray, rest: np.ndarray, th: RestAwa
     N, n = r.shape
     h = np.full((N, n), np.nan)
     settled = np.zeros((N, n), bool)
+    near = rest.copy()  # at rest, or leaving it for less than ``settle``: friction in the band
+    ref = np.broadcast_to(th.bias_move, (N, n)).copy()
     for j in range(n):
         lo, hi = th.centre[j] - th.band[j], th.centre[j] + th.band[j]
         thr = th.k * th.sigma_rest[j]
+        leaving = []
         for s, e in runs(rest[:, j]):
+            leaving.append((e + 1, int(np.searchsorted(t, t[e] + settle, side="right"))))
+            near[e : leaving[-1][1], j] = True
             if np.isfinite(th.bias_rest[j]) and (s == 0 or quiet[s : e + 1].any()):
                 k0, h0 = s, th.bias_rest[j]  # the quiet window's rest: its bias is the holding level
             else:
@@ -221,15 +233,18 @@ def classify_at_rest(r: np.ndarray, t: np.ndarray, rest: np.ndarray, th: RestAwa
             if k0 <= e:
                 settled[k0 : e + 1, j] = True
                 h[k0 : e + 1, j] = np.clip(_holding_level(r[k0 : e + 1, j], t[k0 : e + 1], h0, thr, settle), lo, hi)
-    rest = settled
-    tau = np.where(rest, r - h, r - th.bias_move)
+        for a, b in leaving:  # breaking away, r still holds the rest: report against the last holding level
+            if a < b and np.isfinite(h[a - 1, j]):
+                ref[a:b, j] = h[a - 1, j]
+    tau = np.where(settled, r - h, r - ref)
     out_band = np.abs(r - th.centre) - th.band > th.k * th.sigma_rest
-    changed = np.abs(r - h) > th.k * th.sigma_rest
     moving_over = np.abs(r - th.bias_move) > th.k * th.sigma_move
+    changed = np.where(settled, np.abs(r - h) > th.k * th.sigma_rest, np.abs(r - ref) > th.k * th.sigma_move)
     status = np.full((N, n), QUIET, dtype=np.int8)
-    status[rest & changed] = STATIC_BAND
-    status[rest & out_band] = CONTACT
-    status[~rest & moving_over] = CONTACT
+    status[near & changed] = STATIC_BAND
+    status[near & out_band] = CONTACT
+    status[~near & moving_over] = CONTACT
+    rest = settled
     warm = t < t[0] + warmup
     status[warm] = WARMUP
     tau[warm] = np.nan  # the observer has not converged: no estimate
@@ -286,28 +301,36 @@ def rest_intervals(trace: MonitorTrace, t: np.ndarray, r: np.ndarray, th: RestAw
     return flag, contacts, inside
 
 
-def rest_speeds(traj, names, window: int | None = None) -> tuple[np.ndarray, str]:
-    """Rest velocity δ per joint of ``names`` [rad/s] (|v| ≤ δ: at rest) and its source:
-    the log's own rest detection when preprocessing ran it (5 σ_v), else ``REST_SIGMAS`` times
-    the velocity noise: of the logged v, or of a Savitzky–Golay v (``window`` samples) from q."""
+def rest_speeds(traj, names, window: int | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """(δ, q range, source) per joint of ``names``: at rest |v| ≤ δ [rad/s] and q stays within the
+    range [rad]. δ is the log's own rest detection when preprocessing ran it (5 σ_v), else
+    ``REST_SIGMAS`` times the velocity noise (of the logged v, or of a Savitzky–Golay v of
+    ``window`` samples from q); the range is ``RANGE_SIGMAS`` σ_q, at least two encoder steps
+    (the smallest non-zero change of q)."""
     from scipy.signal import savgol_coeffs
 
-    from ..data.rest import REST_SIGMAS, signal_noise
+    from ..data.rest import RANGE_SIGMAS, REST_SIGMAS, signal_noise
 
     joints = list(traj.joint_names)
     missing = [n for n in names if n not in joints]
     if missing:
         raise DataError(f"the log has no joint(s) {missing}; it has {joints}", traj.source)
     idx = [joints.index(n) for n in names]
+    q = np.asarray(traj.q, float)[:, idx]
     rest = traj.provenance.get("rest") or {}
+    dq = np.abs(np.diff(q, axis=0))
+    step = np.array([np.min(c[c > 0]) if np.any(c > 0) else 0.0 for c in dq.T])
+    sigma_q = (np.array([rest["position_noise"][n] for n in names], float) if rest.get("position_noise")
+               else signal_noise(q))
+    q_range = np.maximum(RANGE_SIGMAS * sigma_q, 2.0 * step)
     if rest.get("rest_velocity"):
-        return np.array([rest["rest_velocity"][n] for n in names], float), \
-            f"the log's rest detection ({REST_SIGMAS:g} σ of the logged velocity noise)"
+        return (np.array([rest["rest_velocity"][n] for n in names], float), q_range,
+                f"the log's rest detection ({REST_SIGMAS:g} σ of the logged velocity noise)")
     if str(traj.provenance.get("v", "logged")).startswith("derived"):
         dt = float(np.median(np.diff(traj.t)))
         w = int(window) if window else 11
         w += 1 - w % 2
         gain = np.linalg.norm(savgol_coeffs(w, 3, deriv=1, delta=dt))
-        return REST_SIGMAS * signal_noise(traj.q[:, idx]) * gain, \
-            f"{REST_SIGMAS:g} σ of the Savitzky–Golay velocity (window {w}) from the position noise"
-    return REST_SIGMAS * signal_noise(traj.v[:, idx]), f"{REST_SIGMAS:g} σ of the logged velocity noise"
+        return (REST_SIGMAS * signal_noise(q) * gain, q_range,
+                f"{REST_SIGMAS:g} σ of the Savitzky–Golay velocity (window {w}) from the position noise")
+    return REST_SIGMAS * signal_noise(traj.v[:, idx]), q_range, f"{REST_SIGMAS:g} σ of the logged velocity noise"
