@@ -100,6 +100,7 @@ def simulate_held_arm(
     pushes: Sequence[Push] = (),
     *,
     hold: np.ndarray | None = None,
+    reference=None,
     duration: float = 60.0,
     sim_rate: float = 500.0,
     log_rate: float = 500.0,
@@ -112,8 +113,9 @@ def simulate_held_arm(
     base_freq: float = 0.1,
     max_velocity: float = 1.0,
 ) -> tuple[Trajectory, PushTruth]:
-    """Simulate; return (log, truth). ``hold``: the held joint positions (None: track a random
-    Fourier reference of ``base_freq``, ``max_velocity``). The arm first settles for ``settle``
+    """Simulate; return (log, truth). ``hold``: the held joint positions; ``reference``: an object
+    whose ``evaluate(t)`` gives (q, v, v̇) references; neither: a random Fourier reference of
+    ``base_freq``, ``max_velocity``. The arm first settles for ``settle``
     s (not logged); push times are seconds after the first logged sample."""
     ratio = sim_rate / log_rate
     if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
@@ -130,7 +132,10 @@ def simulate_held_arm(
     dt = 1.0 / sim_rate
     n_settle, n_steps, decim = int(round(settle * sim_rate)), int(round(duration * sim_rate)), int(round(ratio))
     t_all = (np.arange(n_settle + n_steps + 1) - n_settle) * dt
-    if hold is None:
+    if reference is not None:
+        Qr, Vr, _ = reference.evaluate(np.maximum(t_all, 0.0))
+        Vr[t_all < 0] = 0.0
+    elif hold is None:
         ref = random_fourier(r, rng=seed, base_freq=base_freq, max_velocity=max_velocity, max_acceleration=3.0)
         Qr, Vr, _ = ref.evaluate(np.maximum(t_all, 0.0))
         Vr[t_all < 0] = 0.0
