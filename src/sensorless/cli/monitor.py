@@ -197,7 +197,9 @@ def monitor(
              if frame and d.get("peak_force_norm") is not None else ", |F| unobservable at this frame" if frame else "")
         rest_j = [f"{j} at rest, ≥ {iv.band_excess[j]:.3g} N·m beyond the static band" for j in iv.joints
                   if iv.state.get(j) == "rest"]
-        console.print(f"contact {iv.start - t[0]:8.3f} – {iv.end - t[0]:8.3f} s  joints {','.join(iv.joints)}{f}"
+        jp = int(np.argmax(np.abs(iv.peak)))
+        console.print(f"contact {iv.start - t[0]:8.3f} – {iv.end - t[0]:8.3f} s  joints {','.join(iv.joints)}, "
+                      f"peak τ_ext {iv.peak[jp]:.3g} N·m ({names[jp]}){f}"
                       + (f" ({'; '.join(rest_j)})" if rest_j else ""))
     if band_ivs:
         console.print(f"{len(band_ivs)} interval(s) at rest where the external torque is indistinguishable from static "
