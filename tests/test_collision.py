@@ -42,7 +42,7 @@ def test_threshold_input_errors():
     t = np.arange(100) * 0.01
     r = np.zeros((100, 2))
     with pytest.raises(DataError, match="quiet segment 5:6"):
-        quiet_mask(t, 5.0, 6.0, "log.csv")
+        quiet_mask(t, "5:6", "log.csv")
     with pytest.raises(DataError, match="exactly one"):
         quiet_thresholds(r, t < 0.5, ["a", "b"])
     with pytest.raises(DataError, match="20 samples|need ≥ 20"):
@@ -97,9 +97,16 @@ def test_monitor_cli_finds_the_pushes(arm_logs):
 def test_monitor_cli_bad_quiet_leaves_no_output(arm_logs):
     d, _ = arm_logs
     runner = CliRunner()
-    for quiet, msg in (("3", "START:END"), ("50:60", "holds 0 samples")):
+    cases = [(["--quiet", "3"], "START:END"), (["--quiet", "50:60"], "holds 0 samples"),
+             (["--quiet", "abs:100:101"], "abs:100:101 = 100..101 s after the first sample holds 0 samples"),
+             (["--static-friction", "1,2"], "6 values in joint order"),
+             (["--static-friction", "elbow_joint=1"], "give every joint or a default '*=VALUE'"),
+             (["--static-friction", "nope=1,*=2"], "not monitored"), (["--static-friction", "-1"], "≥ 0 N·m"),
+             (["--rest-speed", "fast"], "--rest-speed must be 'auto'"), (["--static-margin", "-0.1"], "--static-margin"),
+             (["--warmup", "-1"], "--warmup")]
+    for extra, msg in cases:
         res = runner.invoke(app, ["monitor", "--robot", "ur5", "--model", str(d / "id"), "--data", str(d / "pushed.npz"),
-                                  "--quiet", quiet, "--out", str(d / "bad")])
+                                  *extra, "--out", str(d / "bad")])
         assert res.exit_code == 2 and msg in res.output.replace("\n", " "), res.output
         assert not (d / "bad").exists()
 

@@ -1,5 +1,6 @@
 """Commands: ``sensorless monitor`` (collision detection with the momentum observer) and
-``sensorless benchmark observer`` (per-sample cost of the streaming observer)."""
+``sensorless benchmark observer`` (per-sample cost of the streaming observer), ``sensorless benchmark
+held-monitor`` (a held-still arm with stiction pushed by hand, over seeds)."""
 
 from __future__ import annotations
 
@@ -31,17 +32,40 @@ from .common import (
 )
 from .options import ForceReference
 
-__all__ = ["monitor", "bench_observer"]
+__all__ = ["monitor", "bench_observer", "bench_held_monitor"]
 
 
-def _parse_quiet(spec: str) -> tuple[float, float]:
-    try:
-        a, b = (float(x) for x in spec.split(":"))
-    except ValueError:
-        raise SensorlessError(f"--quiet must be START:END in seconds (e.g. 0:2), got '{spec}'") from None
-    if not b > a:
-        raise SensorlessError(f"--quiet END must be after START, got '{spec}'")
-    return a, b
+def _parse_static_friction(spec: str, names: list[str]):
+    """'model' | 'off' | one value for every joint | 'V1,V2,…' in joint order | 'joint=V,…' [N·m]."""
+    text = spec.strip()
+    if text.lower() in ("model", "off"):
+        return text.lower()
+    parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
+
+    def num(v: str, what: str) -> float:
+        try:
+            x = float(v)
+        except ValueError:
+            raise SensorlessError(f"--static-friction {what}: '{v}' is not a number of N·m") from None
+        if not (np.isfinite(x) and x >= 0):
+            raise SensorlessError(f"--static-friction {what}: must be finite and ≥ 0 N·m, got '{v}'")
+        return x
+
+    if parts and all("=" in p for p in parts):
+        given = {k.strip(): num(v, k.strip()) for k, v in (p.split("=", 1) for p in parts)}
+        unknown = [k for k in given if k not in names and k != "*"]
+        if unknown:
+            raise SensorlessError(f"--static-friction names joint(s) {unknown} that are not monitored ({names})")
+        if "*" not in given and set(names) - set(given):
+            raise SensorlessError(f"--static-friction has no value for {sorted(set(names) - set(given))}; "
+                                  "give every joint or a default '*=VALUE'")
+        return np.array([given.get(n, given.get("*")) for n in names], float)
+    if len(parts) == 1:
+        return np.full(len(names), num(parts[0], "value"))
+    if len(parts) == len(names) and not any("=" in p for p in parts):
+        return np.array([num(p, n) for p, n in zip(parts, names)])
+    raise SensorlessError(f"--static-friction must be 'model', 'off', one value, {len(names)} values in joint order "
+                          f"{names} or 'joint=VALUE,…', got '{spec}'")
 
 
 @app.command()
@@ -59,11 +83,21 @@ def monitor(
     out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json + monitor.npz (written atomically)"),
     frame: Optional[str] = typer.Option(None, help="frame at which to estimate the Cartesian force (damped J⁻ᵀ)"),
     reference: ForceReference = typer.Option(ForceReference.local_world_aligned, help="frame of the force"),
-    quiet: str = typer.Option("0:1", help="START:END [s] of a contact-free segment for the thresholds"),
+    quiet: str = typer.Option("0:1", help="contact-free window for the thresholds, like --trim: START:END in seconds "
+                                          "after the first sample (negative: before the last), 'abs:T0:T1' the log's stamps"),
     k: Optional[float] = typer.Option(None, help="threshold = k σ per joint (default: from --false-alarm-rate)"),
     false_alarm_rate: float = typer.Option(1.0, help="target false alarms per minute (Gaussian model) when --k is not given"),
     gain: float = typer.Option(50.0, help="observer bandwidth K [1/s]"),
     order: int = typer.Option(1, help="observer order: 1 (first-order) or 2 (second-order, filtered)"),
+    static_friction: str = typer.Option("model", help="half-width f_s [N·m] of the dead zone at rest: 'model' (its "
+                                        "Coulomb + Stribeck terms; the quiet window where it has none), 'off', one "
+                                        "value, one per joint in order, or 'joint=VALUE,…' ('*=' for the rest)"),
+    static_margin: float = typer.Option(0.25, help="the dead zone is ±f_s·(1 + this): breakaway friction varies "
+                                        "with dwell time, temperature and pose, and f_s was identified in motion"),
+    rest_speed: str = typer.Option("auto", help="a joint is at rest while |v| ≤ this [rad/s]; auto: 5 σ of the "
+                                   "log's velocity noise"),
+    warmup: Optional[float] = typer.Option(None, help="seconds at the start never flagged (default: until the "
+                                           "observer has converged)"),
     min_duration: float = typer.Option(0.02, help="shortest reported contact [s]"),
     merge_gap: float = typer.Option(0.05, help="merge contacts separated by less than this [s]"),
     lock: Optional[List[str]] = lock_option(),
@@ -72,12 +106,14 @@ def monitor(
     prep: dict = None,
 ) -> None:
     """Detect contacts/collisions in a log: momentum observer → per-joint thresholds from a
-    quiet segment → contact intervals, peak external torque per joint, Cartesian force at --frame."""
-    from ..estimation.collision import detect_contacts, quiet_mask, quiet_thresholds
-    from ..estimation.momentum import MomentumDynamics, MomentumObserver, _uniform_dt
-    from ..identification.artifact import load_model_folder
-
-    from ..identification.artifact import is_friction_model
+    quiet window, with the static-friction band as a dead zone on joints at rest → contact
+    intervals, peak external torque per joint, Cartesian force at --frame (docs/monitoring.md)."""
+    from ..data.trims import TrimWindow
+    from ..errors import DataError
+    from ..estimation.momentum import MomentumDynamics
+    from ..estimation.monitoring import MonitorSettings, monitor_log
+    from ..estimation.static_band import STATUS
+    from ..identification.artifact import is_friction_model, load_model_folder
 
     bench = is_friction_model(model)  # a friction-only model: its joints and friction state, no robot
     if bench and frame:
@@ -96,53 +132,116 @@ def monitor(
         path, dyn = art.path, MomentumDynamics(art.structure, art.parameters)
     if k is not None and k <= 0:
         raise SensorlessError(f"--k must be > 0, got {k}")
-    q0, q1 = _parse_quiet(quiet)
+    if not (np.isfinite(static_margin) and static_margin >= 0):
+        raise SensorlessError(f"--static-margin must be ≥ 0, got {static_margin}")
+    if warmup is not None and not (np.isfinite(warmup) and warmup >= 0):
+        raise SensorlessError(f"--warmup must be ≥ 0 seconds, got {warmup}")
+    try:
+        window = TrimWindow.parse(quiet)
+    except DataError:
+        raise SensorlessError(f"--quiet must be START:END in seconds after the first sample (e.g. 0:2, ':2', "
+                              f"'abs:T0:T1' for the log's stamps), got '{quiet}'") from None
+    names = dyn.actuated_names
+    fs_spec = _parse_static_friction(static_friction, names)
+    speed: object = "auto"
+    if rest_speed.strip().lower() != "auto":
+        try:
+            speed = float(rest_speed)
+        except ValueError:
+            raise SensorlessError(f"--rest-speed must be 'auto' or a speed in rad/s, got '{rest_speed}'") from None
+        if not (np.isfinite(speed) and speed >= 0):
+            raise SensorlessError(f"--rest-speed must be ≥ 0 rad/s, got '{rest_speed}'")
+    settings = MonitorSettings(quiet=quiet.strip(), k=k, false_alarm_rate=false_alarm_rate, gain=gain, order=order,
+                               static_friction=fs_spec if isinstance(fs_spec, str) else tuple(map(float, fs_spec)),
+                               static_margin=static_margin, rest_speed=speed, warmup=warmup,
+                               min_duration=min_duration, merge_gap=merge_gap)
     with atomic_outdir(out, force, inputs=path_inputs(robot, model, data)) as tmp:
-        (traj,) = (bench_log,) if bench else model_logs(art, [data], r, prep)[0]
-        dt = _uniform_dt(traj)
-        res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
-        # one convention with estimate-force (docs/monitoring.md): τ_ext = τ_measured − τ_model = Jᵀ F, F the
-        # force the robot exerts on its environment at --frame; the observer's r is the torque acting on the robot
-        tau_ext = -res.tau_ext
-        names = dyn.actuated_names
-        mask = quiet_mask(traj.t, q0, q1, str(data))
-        th = quiet_thresholds(tau_ext, mask, names, k=k, false_alarm_rate=None if k is not None else false_alarm_rate, dt=dt)
-        flag, intervals = detect_contacts(tau_ext, traj.t, th, min_duration=min_duration, merge_gap=merge_gap)
-        arrays = {"t": traj.t, "tau_ext": tau_ext, "contact": flag, "joints": np.array(names), "r": res.r,
-                  "coordinates": np.array(res.names)}
+        (traj,), opts = ((bench_log,), {}) if bench else model_logs(art, [data], r, prep)
+        mon = monitor_log(dyn, traj, settings, static=_bench_static_friction(dyn) if bench else None,
+                          savgol_window=opts.get("savgol_window"))
+        t, th, trace, tau_ext = mon.t, mon.thresholds, mon.trace, mon.tau_ext
+        flag, intervals, band_ivs = mon.contact, mon.contacts, mon.static_band
+        arrays = {"t": t, "tau_ext": tau_ext, "r_raw": mon.raw, "holding": trace.holding, "status": trace.status,
+                  "status_names": np.array(STATUS), "rest": trace.rest, "contact": flag, "joints": np.array(names),
+                  "r": mon.observer.r, "coordinates": np.array(mon.observer.names)}
         doc = {
             "data": str(data), "model": str(path), "robot": None if bench else r.name,
-            "observer": res.settings, "thresholds": th.to_dict(),
-            "quiet_segment_s": [q0, q1],
-            "contacts": [iv.to_dict() for iv in intervals],
-            "peak_external_torque": {n: float(tau_ext[:, j][np.argmax(np.abs(tau_ext[:, j]))]) for j, n in enumerate(names)},
+            "observer": mon.observer.settings,
+            "settings": {**mon.settings, "static_friction": static_friction, "frame": frame,
+                         "reference": str(reference) if frame else None,
+                         "preprocessing": {kk: vv for kk, vv in opts.items() if kk != "gains"}},
+            "thresholds": th.to_dict(),
+            "noise": {"torque_sigma_rest": dict(zip(names, th.sigma_rest.tolist())),
+                      "torque_sigma_moving": dict(zip(names, th.sigma_move.tolist()))},
+            "contacts": [_interval_doc(iv, names, t[0], "contact") for iv in intervals],
+            "static_band": [_interval_doc(iv, names, t[0], "static_band") for iv in band_ivs],
+            "peak_external_torque": {n: float(tau_ext[:, j][np.nanargmax(np.abs(tau_ext[:, j]))]) for j, n in enumerate(names)},
             "contact_fraction": float(flag.mean()),
+            "rest_fraction": dict(zip(names, trace.rest.mean(axis=0).tolist())),
+            "static_band_fraction": float(((trace.status == STATUS.index("static_band")).any(axis=1) & ~flag).mean()),
         }
+        mask = mon.quiet
+        warm = mon.settings["warmup_s"]
         if frame:
-            fe = _cartesian_force(dyn, traj, tau_ext, frame, reference)
+            warm_rows = np.isnan(tau_ext).any(axis=1)  # the observer's warm-up: no estimate
+            fe = _cartesian_force(dyn, traj, np.where(warm_rows[:, None], 0.0, tau_ext), frame, reference)
+            fe.F[warm_rows] = np.nan
             arrays.update({"force": fe.F, "force_labels": np.array(fe.labels), "sigma_min": fe.sigma_min,
                            "force_unobservable": fe.arrays()["unobservable"]})
             doc["frame"] = {"name": frame, "reference": reference, "labels": fe.labels}
-            for iv, d in zip(intervals, doc["contacts"]):
-                seg = fe.F[iv.start_index : iv.end_index + 1]
-                norm = np.linalg.norm(seg, axis=1)  # NaN on samples with an unobservable component
-                if not np.any(np.isfinite(norm)):
-                    d.update(peak_force=None, peak_force_norm=None, peak_force_time=None)
-                    continue
-                i = int(np.nanargmax(norm))
-                d["peak_force"] = seg[i].tolist()
-                d["peak_force_norm"] = float(norm[i])
-                d["peak_force_time"] = float(traj.t[iv.start_index + i])
+            Fq = fe.F[mask]
+            nq = np.linalg.norm(Fq, axis=1)
+            doc["noise"]["force_rms_quiet"] = float(np.sqrt(np.nanmean(nq**2))) if np.isfinite(nq).any() else None
+            doc["noise"]["force_sigma_quiet"] = [float(x) if np.isfinite(x) else None for x in np.nanstd(Fq, axis=0)] \
+                if np.isfinite(Fq).any() else None
+            for ivs, docs in ((intervals, doc["contacts"]), (band_ivs, doc["static_band"])):
+                for iv, d in zip(ivs, docs):
+                    d.update(_peak_force(fe.F, t, iv))
         from ..io import jsonable
 
         (tmp / "monitor.json").write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
         np.savez(tmp / "monitor.npz", **arrays)
-    console.print(f"observer order {order}, K = {gain:g} 1/s; thresholds k = {th.k:.2f} σ from {th.samples} quiet samples")
+    console.print(f"observer order {order}, K = {gain:g} 1/s, warm-up {warm:.3f} s; k = {th.k:.2f} σ from "
+                  f"{int(mask.sum())} quiet samples (--quiet {quiet.strip()})")
+    for n, fsj, src in zip(names, th.band, th.band_source):
+        console.print(f"  {n}: static band ±{fsj:.3g} N·m ({src}); σ rest {th.sigma_rest[names.index(n)]:.3g} N·m")
     for iv, d in zip(intervals, doc["contacts"]):
-        f = (f", |F| peak {d['peak_force_norm']:.1f} N at {d['peak_force_time']:.2f} s"
+        f = (f", |F| peak {d['peak_force_norm']:.1f} N at {d['peak_force_time'] - t[0]:.2f} s"
              if frame and d.get("peak_force_norm") is not None else ", |F| unobservable at this frame" if frame else "")
-        console.print(f"contact {iv.start:8.3f} – {iv.end:8.3f} s  joints {','.join(iv.joints)}{f}")
-    console.print(f"{len(intervals)} contact interval(s); wrote {out}/")
+        rest_j = [f"{j} at rest, ≥ {iv.band_excess[j]:.3g} N·m beyond the static band" for j in iv.joints
+                  if iv.state.get(j) == "rest"]
+        jp = int(np.argmax(np.abs(iv.peak)))
+        console.print(f"contact {iv.start - t[0]:8.3f} – {iv.end - t[0]:8.3f} s  joints {','.join(iv.joints)}, "
+                      f"peak τ_ext {iv.peak[jp]:.3g} N·m ({names[jp]}){f}"
+                      + (f" ({'; '.join(rest_j)})" if rest_j else ""))
+    if band_ivs:
+        console.print(f"{len(band_ivs)} interval(s) at rest where the external torque is indistinguishable from static "
+                      "friction (not contacts; 'static_band' in monitor.json)")
+    console.print(f"{len(intervals)} contact interval(s); times in s after the first sample; wrote {out}/")
+
+
+def _interval_doc(iv, names: list[str], t0: float, dead_zone: str) -> dict:
+    """An interval for monitor.json: stamps and seconds after the first sample, peak τ_ext per joint, and at rest
+    the dead-zone status."""
+    d = iv.to_dict()
+    d.update(start_s=iv.start - t0, end_s=iv.end - t0, peak_external_torque=dict(zip(names, iv.peak)))
+    if dead_zone == "contact":
+        d["dead_zone"] = {j: ("moving: identified friction, no dead zone" if iv.state.get(j) == "moving" else
+                              f"at rest: outside the static-friction band by {iv.band_excess.get(j, float('nan')):.4g} N·m")
+                          for j in iv.joints}
+    else:
+        d["dead_zone"] = {j: "at rest: inside the static-friction band, indistinguishable from static friction"
+                          for j in iv.joints}
+    return d
+
+
+def _peak_force(F: np.ndarray, t: np.ndarray, iv) -> dict:
+    seg = F[iv.start_index : iv.end_index + 1]
+    norm = np.linalg.norm(seg, axis=1)  # NaN on samples with an unobservable component
+    if not np.any(np.isfinite(norm)):
+        return {"peak_force": None, "peak_force_norm": None, "peak_force_time": None}
+    i = int(np.nanargmax(norm))
+    return {"peak_force": seg[i].tolist(), "peak_force_norm": float(norm[i]), "peak_force_time": float(t[iv.start_index + i])}
 
 
 def _cartesian_force(dyn, traj, tau_ext, frame: str, reference: str):
@@ -173,3 +272,31 @@ def bench_observer(
     for name, v in res["robots"].items():
         console.print(f"{name} (n = {v['n']}): step {v['step_us']:.1f} µs/sample, run {v['run_us']:.1f} µs/sample")
     return res
+
+
+@bench_command("held-monitor", "held_monitor")
+def bench_held_monitor(
+    seeds: int = typer.Option(10, help="simulated held-still arms (seeds first_seed, first_seed + 1, …)"),
+    first_seed: int = typer.Option(0, help="first seed"),
+) -> dict:
+    """A UR5 with stiction held still and pushed 5 times per seed: pushes found, false alarms per
+    minute, force at rest vs the noise-implied force, for --order 1, 2 and without the dead zone."""
+    from ..benchmarks.held_monitor import run
+
+    res = run(seeds, first_seed)
+    for name in ("order1", "order2", "no_dead_zone"):
+        s = res[name]
+        console.print(f"{name}: all pushes found {s['all_pushes_found']}, max false alarms {s['max_false_alarms_per_minute']:.2f}"
+                      f"/min, max rest force / noise-implied {s['max_rest_force_ratio']:.2f}, "
+                      f"mean contact fraction {s['mean_contact_fraction']:.3f}")
+    return res
+
+
+def _bench_static_friction(dyn):
+    """f_s = max(fc, fc + (fs − fc)) per joint of a friction-only model's laws (as for an identified model)."""
+    from ..estimation.static_band import StaticFriction
+
+    names = list(dyn.actuated_names)
+    coefs = [dyn.model.laws_[n].coef for n in names]
+    vals = np.array([max(c.get("fc", np.nan), c.get("fc", np.nan) + c.get("stribeck", 0.0)) for c in coefs])
+    return StaticFriction(names, vals, ["model: friction law fc + Stribeck"] * len(names))

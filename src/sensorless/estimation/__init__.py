@@ -1,7 +1,15 @@
 """Estimation from sensors and identified models: joint torque from F/T + IMU + encoders,
 external joint torque and Cartesian force."""
 
-from .collision import ContactInterval, Thresholds, detect_contacts, quiet_mask, quiet_thresholds, score_detection
+from .collision import (
+    ContactInterval,
+    Thresholds,
+    detect_contacts,
+    observer_warmup,
+    quiet_mask,
+    quiet_thresholds,
+    score_detection,
+)
 from .contact_forces import ContactForceEstimate, estimate_contact_forces, solve_contact_forces
 from .force import (
     REFERENCES,
@@ -12,6 +20,8 @@ from .force import (
     frame_jacobians,
 )
 from .joint_torque import FTSensor, ImuSpec, JointTorqueEstimate, JointTorqueEstimator
+from .monitoring import MonitorResult, MonitorSettings, monitor_log
+from .static_band import StaticFriction, model_static_friction
 from .momentum import (
     MomentumDynamics,
     MomentumObserver,
@@ -33,8 +43,11 @@ __all__ = [
     "JointTorqueEstimate",
     "JointTorqueEstimator",
     "MomentumDynamics",
+    "MonitorResult",
+    "MonitorSettings",
     "MomentumObserver",
     "ObserverResult",
+    "StaticFriction",
     "Thresholds",
     "damped_least_squares",
     "depth_first_model",
@@ -42,7 +55,10 @@ __all__ = [
     "estimate_contact_forces",
     "external_torque",
     "frame_jacobians",
+    "model_static_friction",
+    "monitor_log",
     "observer_filter",
+    "observer_warmup",
     "quiet_mask",
     "quiet_thresholds",
     "score_detection",

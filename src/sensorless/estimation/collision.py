@@ -10,18 +10,29 @@ p = λ·dt / (60 n), so k = Φ⁻¹(1 − p/2). (The observer output is low-pass
 come in bursts and the realised rate of *intervals* is below λ; measure it with
 :func:`score_detection`.) Contact intervals are the runs of the flag, merged across gaps
 shorter than ``merge_gap`` and kept when at least ``min_duration`` long.
+
+The quiet segment is a time window with the syntax of ``--trim``
+(:class:`~sensorless.data.prepare.TrimWindow`: seconds after the first sample, ``abs:``
+for the log's own stamps). The observer's filters start from zero state, so its output
+is a start-up transient until L(s) has converged: :func:`observer_warmup` is the time its
+step response needs to stay within ``tol`` of 1 (order 1: ln(1/tol)/K ≈ 6.9/K; order 2,
+ζ = 1: ≈ 9.2/K for tol = 10⁻³); those samples are never flagged and never quiet.
+A robot held still needs more than one threshold per joint: see :mod:`.static_band`.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from scipy import stats
 
+from ..data.integral_filter import observer_filter
+from ..data.prepare import TrimWindow
 from ..errors import DataError
 
-__all__ = ["ContactInterval", "Thresholds", "detect_contacts", "quiet_mask", "quiet_thresholds", "score_detection"]
+__all__ = ["ContactInterval", "Thresholds", "contact_intervals", "detect_contacts", "observer_warmup", "quiet_mask",
+           "quiet_thresholds", "runs", "score_detection"]
 
 
 @dataclass
@@ -50,18 +61,47 @@ class ContactInterval:
     peak: list[float]  # signed peak of r − b per joint over the interval
     peak_time: list[float]
     joints: list[str]  # joints whose threshold was crossed
+    #: per crossed joint, "moving" or "rest" (the state at its peak); empty from :func:`detect_contacts`
+    state: dict = field(default_factory=dict)
+    #: per crossed joint at rest: how far r left the static-friction band, a lower bound of |τ_ext| [N·m]
+    band_excess: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
-def quiet_mask(t: np.ndarray, start: float, end: float, source: str = "<log>") -> np.ndarray:
-    """Samples with start ≤ t ≤ end; DataError if fewer than 20."""
-    mask = (t >= start) & (t <= end)
+def quiet_mask(t: np.ndarray, window: "str | tuple | TrimWindow", source: str = "<log>",
+               exclude: "np.ndarray | None" = None) -> np.ndarray:
+    """Samples inside ``window`` (``--trim`` syntax: seconds after the first sample, negative
+    from the end, ``abs:`` stamps), minus ``exclude`` (e.g. the observer warm-up); DataError
+    if fewer than 20 remain."""
+    t = np.asarray(t, float)
+    try:
+        win = TrimWindow.parse(window)
+    except DataError as e:
+        raise DataError(f"--quiet: {e.args[0]}", source) from None
+    lo, hi = win.bounds(t)
+    inside = (t >= lo) & (t <= hi)
+    mask = inside & (True if exclude is None else ~np.asarray(exclude, bool))
     if mask.sum() < 20:
-        raise DataError(f"quiet segment {start:g}:{end:g} s holds {int(mask.sum())} samples (need ≥ 20; the log spans "
-                        f"{t[0]:g} to {t[-1]:g} s)", source)
+        rel = f" = {lo - t[0]:.6g}..{hi - t[0]:.6g} s after the first sample" if win.absolute else ""
+        left = f", {int(mask.sum())} after the observer warm-up" if exclude is not None and inside.sum() >= 20 else ""
+        spec = window.strip() if isinstance(window, str) else str(win)  # str(win) rounds stamps
+        raise DataError(f"quiet segment {spec}{rel} holds {int(inside.sum())} samples{left} (need ≥ 20; the log spans "
+                        f"{t[-1] - t[0]:.3f} s, stamps {t[0]:.6f} to {t[-1]:.6f})", source)
     return mask
+
+
+def observer_warmup(gain: float, order: int, dt: float, damping: float = 1.0, tol: float = 1e-3) -> float:
+    """Seconds until the observer's L(s) (Tustin, zero initial state) has converged: the last
+    time its step response is more than ``tol`` away from 1."""
+    _, b, a = observer_filter(gain, order, dt, damping)
+    n = int(np.ceil(50.0 / (gain * dt))) + 10  # ≫ the slowest time constant
+    from scipy import signal
+
+    step = signal.lfilter(b, a, np.ones(n))
+    off = np.flatnonzero(np.abs(step - 1.0) > tol)
+    return float((off[-1] + 1) * dt) if off.size else 0.0
 
 
 def quiet_thresholds(r: np.ndarray, quiet: np.ndarray, names, *, k: float | None = None,
@@ -91,10 +131,17 @@ def detect_contacts(r: np.ndarray, t: np.ndarray, th: Thresholds, *, min_duratio
     r, t = np.asarray(r, float), np.asarray(t, float)
     dev = r - th.bias
     over = np.abs(dev) > th.threshold
+    return contact_intervals(over, t, dev, th.names, min_duration=min_duration, merge_gap=merge_gap)
+
+
+def contact_intervals(over: np.ndarray, t: np.ndarray, dev: np.ndarray, names, *, min_duration: float = 0.0,
+                      merge_gap: float = 0.0) -> tuple[np.ndarray, list[ContactInterval]]:
+    """(flag (N,), intervals) from per-joint crossings ``over`` (N, n): runs of any crossing,
+    merged across gaps ≤ ``merge_gap``, kept when ≥ ``min_duration``; peaks of ``dev`` (N, n)."""
+    over = np.asarray(over, bool)
     flag = over.any(axis=1)
-    runs = _runs(flag)
     merged: list[list[int]] = []
-    for s, e in runs:
+    for s, e in runs(flag):
         if merged and t[s] - t[merged[-1][1]] <= merge_gap:
             merged[-1][1] = e
         else:
@@ -104,16 +151,16 @@ def detect_contacts(r: np.ndarray, t: np.ndarray, th: Thresholds, *, min_duratio
         if t[e] - t[s] < min_duration:
             continue
         seg = dev[s : e + 1]
-        i = np.argmax(np.abs(seg), axis=0)
+        i = np.argmax(np.abs(np.nan_to_num(seg)), axis=0)
         out.append(ContactInterval(
             float(t[s]), float(t[e]), int(s), int(e), seg[i, np.arange(seg.shape[1])].tolist(),
-            t[s + i].tolist(), [n for n, o in zip(th.names, over[s : e + 1].any(axis=0)) if o],
+            t[s + i].tolist(), [n for n, o in zip(names, over[s : e + 1].any(axis=0)) if o],
         ))
         flag[s : e + 1] = True
     return flag, out
 
 
-def _runs(flag: np.ndarray) -> list[tuple[int, int]]:
+def runs(flag: np.ndarray) -> list[tuple[int, int]]:
     """(start, end inclusive) of the runs of True."""
     d = np.diff(np.concatenate([[0], flag.astype(np.int8), [0]]))
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1))
@@ -126,7 +173,7 @@ def score_detection(intervals: list[ContactInterval], t: np.ndarray, truth: np.n
     contact (± 0.2 s) is a false alarm; rates are per minute of contact-free time.
     """
     t, truth = np.asarray(t, float), np.asarray(truth, bool)
-    onsets = [(t[s], t[e]) for s, e in _runs(truth)]
+    onsets = [(t[s], t[e]) for s, e in runs(truth)]
     delays, missed = [], 0
     for a, b in onsets:
         hits = [iv.start for iv in intervals if iv.end >= a and iv.start <= b]
