@@ -28,7 +28,7 @@ import numpy as np
 from scipy import stats
 
 from ..data.integral_filter import observer_filter
-from ..data.prepare import TrimWindow
+from ..data.trims import TrimWindow
 from ..errors import DataError
 
 __all__ = ["ContactInterval", "Thresholds", "contact_intervals", "detect_contacts", "observer_warmup", "quiet_mask",

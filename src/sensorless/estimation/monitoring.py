@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..data.prepare import TrimWindow
+from ..data.trims import TrimWindow
 from ..data.trajectory import Trajectory
 from ..errors import DataError
 from .collision import ContactInterval, observer_warmup, quiet_mask, runs
