@@ -67,6 +67,7 @@ def validate_trajectory(
     if not isinstance(traj, Trajectory):
         raise DataError(f"expected a Trajectory, got {type(traj).__name__}")
     src = traj.source
+    traj = _passive_torques(traj, robot)
     t = as_float_array(traj.t, "t", src)
     if t.ndim != 1:
         raise ShapeMismatchError(f"'t' must be 1-D, got shape {t.shape}", src)
@@ -134,6 +135,30 @@ def validate_trajectory(
     if check_units:
         _check_units(out, robot)
     return out
+
+
+def _passive_torques(traj: Trajectory, robot: "Robot | None") -> Trajectory:
+    """A passive joint (``robot.passive_joints``) has no torque channel: ``tau`` may omit its columns
+    (one column per other joint, in the log's order) or hold anything there (NaN included); either
+    way its torque becomes 0, the generalized force of a joint without actuator."""
+    passive = tuple(getattr(robot, "passive_joints", ()) or ()) if robot is not None else ()
+    if not passive or traj.tau is None:
+        return traj
+    names = list(traj.joint_names)
+    idx = [k for k, j in enumerate(names) if j in passive]
+    if not idx:
+        return traj
+    tau = np.asarray(traj.tau, dtype=float)
+    tau = tau[:, None] if tau.ndim == 1 else tau
+    if tau.ndim == 2 and tau.shape[1] == len(names) - len(idx):
+        full = np.zeros((tau.shape[0], len(names)))
+        full[:, [k for k in range(len(names)) if k not in idx]] = tau
+        return traj.with_(tau=full)
+    if tau.ndim == 2 and tau.shape[1] == len(names):
+        tau = tau.copy()
+        tau[:, idx] = 0.0
+        return traj.with_(tau=tau)
+    return traj  # the shape check below names the mismatch
 
 
 def _check_finite(name: str, arr: np.ndarray, labels: list[str], t: np.ndarray, src: str) -> None:

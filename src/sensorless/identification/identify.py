@@ -149,7 +149,7 @@ def identify(
     sample_count_check(ne, base)
     slow: dict[str, float] = {}
     if motion is not None:
-        slow = check_joint_motion(motion, structure.robot, {j: structure.terms_of(j) for j in structure.robot.actuated_joints}
+        slow = check_joint_motion(motion, structure.robot, {j: structure.terms_of(j) for j in structure.robot.term_joints}
                                   if getattr(structure, "per_joint_terms", None) else structure.joint_terms)
     report = None
     if method in ("svd", "lmi"):

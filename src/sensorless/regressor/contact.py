@@ -15,6 +15,12 @@ active contacts' rows only; rank-deficient stances (e.g. dependent foot rows) ar
 without a per-sample pinv. A sample with no contact (flight) has P = I: the full
 floating-base equations.
 
+Every unactuated coordinate keeps its row with the known generalized force 0: the 6 rows of a
+floating base, and the rows of passive joints (no actuator, ``Robot.passive_joints``; e.g. a leg
+on a vertical rail, a fixed-base model whose rail is the unactuated "base"). The projected
+equations use all nv rows, with Sᵀτ zero on those rows; a passive joint's own friction terms
+are columns on its row like an actuated joint's.
+
 Compression folds the projected equations through an orthonormal null-space basis B
 (nv × k, k = nv − rank Jc: 6 for four point feet on Solo12, 12 for two), since P = B Bᵀ gives
 Σ Wᵀ P W = Σ (BᵀW)ᵀ(BᵀW): k rows per sample instead of nv (see :func:`null_space_basis`,
@@ -101,7 +107,8 @@ def choose_contact_rows(trajectories: Trajectory | Iterable[Trajectory]) -> tupl
 
 @dataclass
 class ContactStructure(ModelStructure):
-    """A floating-base :class:`ModelStructure` whose rows are mapped by the contacts.
+    """A :class:`ModelStructure` on all nv rows (a floating base, or a fixed base with passive
+    joints, module docstring) whose rows are mapped by the contacts.
 
     ``mode="projected"``: rows P W, target P Sᵀ τ (no force sensing).
     ``mode="wrench"``: rows W, target Sᵀ τ + Jcᵀ f (measured wrenches in
@@ -133,11 +140,9 @@ class ContactStructure(ModelStructure):
     _fids: list[int] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
-        if not self.robot.floating_base:
+        if not self.robot.floating_base and self.contact_rows == "base":
             raise RobotModelError(
-                f"{self.robot.name}: contact structures need a floating-base robot, but it was loaded fixed-base; "
-                "load it with floating_base=True (CLI: --floating-base)"
-            )
+                f"{self.robot.name}: contact_rows='base' fits the 6 floating-base rows, but the robot has a fixed base")
         self.rows = "all"
         super().__post_init__()
         if not self.contact_frames:
