@@ -255,20 +255,20 @@ def model_preprocessing(model, **given) -> dict:
     return out
 
 
-def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool]):
+def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool], passive: Optional[List[str]] = None):
     """A URDF/MJCF/xacro/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
     motor coordinates, a transmission's coordinate robot). ``--trust-xacro`` and ``--package-path``
-    come from :func:`robot_source_options`."""
+    come from :func:`robot_source_options`; ``passive``: joints without actuator (``--passive``)."""
     from ..robots.names import PSM_NAMES
 
     if str(robot).lower() in PSM_NAMES:
         from ..robots.dvrk_psm import psm_robot
 
-        if lock or floating:
-            raise SensorlessError(f"--robot {robot}: --lock and --floating-base do not apply to the PSM model")
+        if lock or floating or passive:
+            raise SensorlessError(f"--robot {robot}: --lock, --passive and --floating-base do not apply to the PSM model")
         r = psm_robot()
     else:
-        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating)
+        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
     from ..robot import add_frame
 
     for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
@@ -322,9 +322,6 @@ PACKAGE_PATH_HELP = ("folder the robot description may read meshes/includes from
 def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, **options):
     """Read, validate and preprocess logs given on the command line (:func:`load_log` each)."""
     return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, **options) for p in paths]
-
-
-
 
 
 ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
@@ -437,10 +434,11 @@ def floating_base_option():
     return typer.Option(None, "--floating-base/--fixed-base")
 
 
-def model_options(model: str = "result.json (or its directory) from `sensorless identify`"):
-    """Decorator: ``--robot`` and ``--model`` (an identified model, help ``model``) as the first
-    options; one definition for the commands that apply a model."""
-    return add_options({"robot": (str, robot_option), "model": (Path, lambda: typer.Option(..., help=model))},
+def model_options(model: str = "result.json (or its directory) from `sensorless identify`", required: bool = True):
+    """Decorator: ``--robot`` and ``--model`` (an identified model, help ``model``; optional unless ``required``)
+    as the first options; one definition for the commands that apply a model."""
+    ann, default = (Path, ...) if required else (Optional[Path], None)
+    return add_options({"robot": (str, robot_option), "model": (ann, lambda: typer.Option(default, help=model))},
                        first=True)
 
 

@@ -92,6 +92,11 @@ def identify(
     max_gap: Optional[float] = max_gap_option(),
     time_unit: Optional[TimeUnit] = time_unit_option(),
     lock: Optional[List[str]] = lock_option(),
+    passive: Optional[List[str]] = typer.Option(
+        None, help="joint without an actuator (repeatable; e.g. a leg's vertical rail): no torque is logged for it "
+                   "(a 'tau' column may be absent or anything), its generalized force is 0 apart from its own friction "
+                   "(fv, fc, stribeck terms only); its equation is fitted, and with --contact-frames it is projected "
+                   "like a floating base's; kept in the model (settings.robot.passive)"),
     floating_base: Optional[bool] = floating_base_option(),
     contact_frames: Optional[str] = typer.Option(
         None, help="legged robots: comma-separated contact frames (feet); projects out the unknown contact "
@@ -151,9 +156,9 @@ def identify(
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
         raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
-    if floating_base is None and contact_frames:
-        floating_base = True  # contact structures need a floating base; a URDF would load fixed
-    r = load_robot_arg(robot, lock, floating_base)
+    if floating_base is None and contact_frames and not passive:
+        floating_base = True  # a legged robot's base floats; with --passive a passive joint is the unactuated "base"
+    r = load_robot_arg(robot, lock, floating_base, passive)
     from ..regressor.distributed import LogReader, expand_paths
 
     data = [Path(p) for p in expand_paths(data)]

@@ -22,13 +22,13 @@ from .common import (
     bench_command,
     console,
     guarded,
-    load_robot_arg,
     path_inputs,
     force_option,
     lock_option,
     floating_base_option,
     model_options,
 )
+from .applied_model import MODEL_HELP, passive_option, robot_and_model
 from .options import ForceReference
 
 __all__ = ["monitor", "bench_observer"]
@@ -49,11 +49,11 @@ def _parse_quiet(spec: str) -> tuple[float, float]:
 @robot_source_options
 @frame_options
 @model_preprocessing_options()
-@model_options()
+@model_options(MODEL_HELP, required=False)
 @log_reading_options()
 def monitor(
     robot: str,
-    model: Path,
+    model: Optional[Path],
     data: Path = typer.Option(..., help="log to monitor (.csv .npz .parquet .h5)"),
     out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json + monitor.npz (written atomically)"),
     frame: Optional[str] = typer.Option(None, help="frame at which to estimate the Cartesian force (damped J⁻ᵀ)"),
@@ -65,19 +65,23 @@ def monitor(
     order: int = typer.Option(1, help="observer order: 1 (first-order) or 2 (second-order, filtered)"),
     min_duration: float = typer.Option(0.02, help="shortest reported contact [s]"),
     merge_gap: float = typer.Option(0.05, help="merge contacts separated by less than this [s]"),
-    lock: Optional[List[str]] = lock_option(),
+    lock: Optional[List[str]] = lock_option("joints to lock (default: the model's, settings.robot)"),
+    passive: Optional[List[str]] = passive_option(),
     floating_base: Optional[bool] = floating_base_option(),
     force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Detect contacts/collisions in a log: momentum observer → per-joint thresholds from a
-    quiet segment → contact intervals, peak external torque per joint, Cartesian force at --frame."""
+    quiet segment → contact intervals, peak external torque per joint, Cartesian force at --frame.
+    The external torque is reported on the actuated and passive joints; for a model identified with
+    contacts, it is the part the contacts cannot explain, P(q) r on every row (docs/monitoring.md).
+    The robot is loaded as the model was identified; without --model the description's own
+    parameters are the model (the prior)."""
     from ..estimation.collision import detect_contacts, quiet_mask, quiet_thresholds
     from ..estimation.momentum import MomentumDynamics, MomentumObserver, _uniform_dt
-    from ..identification.artifact import load_model_folder
+    from ..estimation.monitored import cartesian_force, monitored_torque
 
-    r = load_robot_arg(robot, lock, floating_base)
-    art = load_model_folder(model, r)
+    r, art = robot_and_model(robot, model, lock=lock, passive=passive, floating=floating_base)
     path = art.path
     dyn = MomentumDynamics(art.structure, art.parameters)
     if k is not None and k <= 0:
@@ -89,15 +93,16 @@ def monitor(
         res = MomentumObserver(dyn, gain=gain, order=order).run(traj)
         # one convention with estimate-force (docs/monitoring.md): τ_ext = τ_measured − τ_model = Jᵀ F, F the
         # force the robot exerts on its environment at --frame; the observer's r is the torque acting on the robot
-        tau_ext = -res.tau_ext
-        names = dyn.actuated_names
+        mon = monitored_torque(dyn, res.r, traj)
+        tau_ext, names = mon.tau_ext, mon.names
         mask = quiet_mask(traj.t, q0, q1, str(data))
         th = quiet_thresholds(tau_ext, mask, names, k=k, false_alarm_rate=None if k is not None else false_alarm_rate, dt=dt)
         flag, intervals = detect_contacts(tau_ext, traj.t, th, min_duration=min_duration, merge_gap=merge_gap)
         arrays = {"t": traj.t, "tau_ext": tau_ext, "contact": flag, "joints": np.array(names), "r": res.r,
                   "coordinates": np.array(res.names)}
         doc = {
-            "data": str(data), "model": str(path), "robot": r.name,
+            "data": str(data), "model": str(path), "model_origin": art.origin, "model_label": art.label, "robot": r.name,
+            "rows": names, "projected": mon.projector is not None,
             "observer": res.settings, "thresholds": th.to_dict(),
             "quiet_segment_s": [q0, q1],
             "contacts": [iv.to_dict() for iv in intervals],
@@ -105,7 +110,7 @@ def monitor(
             "contact_fraction": float(flag.mean()),
         }
         if frame:
-            fe = _cartesian_force(dyn, traj, tau_ext, frame, reference)
+            fe = cartesian_force(dyn, traj, mon, frame, reference)
             arrays.update({"force": fe.F, "force_labels": np.array(fe.labels), "sigma_min": fe.sigma_min,
                            "force_unobservable": fe.arrays()["unobservable"]})
             doc["frame"] = {"name": frame, "reference": reference, "labels": fe.labels}
@@ -123,29 +128,14 @@ def monitor(
 
         (tmp / "monitor.json").write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
         np.savez(tmp / "monitor.npz", **arrays)
+    console.print(f"model: {art.label}" + ("; external torque projected by the contacts, P(q) r" if doc["projected"]
+                                           else ""), highlight=False, soft_wrap=True)
     console.print(f"observer order {order}, K = {gain:g} 1/s; thresholds k = {th.k:.2f} σ from {th.samples} quiet samples")
     for iv, d in zip(intervals, doc["contacts"]):
         f = (f", |F| peak {d['peak_force_norm']:.1f} N at {d['peak_force_time']:.2f} s"
              if frame and d.get("peak_force_norm") is not None else ", |F| unobservable at this frame" if frame else "")
         console.print(f"contact {iv.start:8.3f} – {iv.end:8.3f} s  joints {','.join(iv.joints)}{f}")
     console.print(f"{len(intervals)} contact interval(s); wrote {out}/")
-
-
-def _cartesian_force(dyn, traj, tau_ext, frame: str, reference: str):
-    """F at ``frame`` by the damped least squares of :mod:`sensorless.estimation.force`."""
-    from ..estimation.force import CartesianForceEstimator, ForceEstimate, damped_least_squares, frame_jacobians
-
-    if not dyn.transmission:
-        est = CartesianForceEstimator(dyn.structure.robot, frame, reference)
-        Q = dyn.arrays(traj)[0]
-        return est.from_external_torque(Q, tau_ext, traj.t)
-    # transmission: τ_θ = Gᵀ Jᵀ F, so the Jacobian in coordinates is J G
-    st = dyn.structure
-    Qt = st.tree.full_configuration(st.joint_values(dyn.arrays(traj)[0]))
-    J = frame_jacobians(st.tree, Qt, frame, reference)[:, :3] @ st.G
-    sol = damped_least_squares(J, tau_ext)
-    return ForceEstimate(traj.t, sol.F, ["fx", "fy", "fz"], frame, reference, tau_ext, sol.sigma_min, sol.damping,
-                         unobservable=sol.unobservable)
 
 
 @bench_command("observer")

@@ -19,7 +19,7 @@ import typer
 from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "ContactMode", "ContactRows",
-           "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align",
+           "WrenchOffset", "Rest", "Criterion", "ForceReference", "PayloadMode", "Align",
            "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "config_option", "check_config",
            "resolved_options"]
 
@@ -39,7 +39,6 @@ WrenchOffset = _choices("WrenchOffset", ("none", "net", "foot", "sole"))
 Rest = _choices("Rest", ("auto", "off"))
 Criterion = _choices("Criterion", ("cond", "dopt"))
 ForceReference = _choices("ForceReference", ("local", "world", "local_world_aligned"))
-ForceComponents = _choices("ForceComponents", ("linear", "angular", "wrench"))
 PayloadMode = _choices("PayloadMode", ("auto", "full", "com", "mass"))
 Align = _choices("Align", ("time", "rows"))
 LinearMethod = _choices("LinearMethod", ("ols", "wls"))

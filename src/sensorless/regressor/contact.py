@@ -142,7 +142,8 @@ class ContactStructure(ModelStructure):
     def __post_init__(self) -> None:
         if not self.robot.floating_base and self.contact_rows == "base":
             raise RobotModelError(
-                f"{self.robot.name}: contact_rows='base' fits the 6 floating-base rows, but the robot has a fixed base")
+                f"{self.robot.name}: contact_rows='base' fits the 6 floating-base rows, but the robot has a fixed base; "
+                "load it with floating_base=True (CLI: --floating-base)")
         self.rows = "all"
         super().__post_init__()
         if not self.contact_frames:

@@ -414,6 +414,17 @@ class ModelStructure:
             W[:, row, c : c + nt] = F[:, k]
         return W
 
+    def equations_of_motion(self) -> "ModelStructure":
+        """The unmapped per-joint structure on the rows of known generalized force (a floating base's 6
+        and all joints, or the term joints of a fixed base: actuated, then passive), with this structure's
+        joint terms: its parameters are the first ``n_params`` of this one's (a contact structure's
+        wrench biases come after). The equations of motion without a row map, e.g. to estimate the
+        external (contact) forces a contact projection removes."""
+        return ModelStructure(self.robot, joint_terms=self.joint_terms, coulomb_smoothing=self.coulomb_smoothing,
+                              rows="all" if self.robot.floating_base else "actuated",
+                              per_joint_terms=self.per_joint_terms, stribeck_velocity=self.stribeck_velocity,
+                              rest_velocity=self.rest_velocity)
+
     def fold(self, ne, traj: Trajectory) -> None:
         """Add one chunk's assembled equations (W, y) to normal equations ``ne``; used by
         :func:`~.compress.compress` for row maps that change per sample (``row_map.per_sample``)."""
