@@ -99,7 +99,9 @@ def validate_trajectory(
             raise ShapeMismatchError(f"row count of '{name}' is {arr.shape[0]} but 't' has {n} samples", src)
         if arr.shape[1] != cols:
             what = f"there are {cols} joint names" if name in _JOINT_FIELDS else f"'{name}' needs {cols}"
-            raise ShapeMismatchError(f"column count of '{name}' is {arr.shape[1]} but {what}", src)
+            hint = ("; a joint without an actuator has no torque column: declare it passive (--passive JOINT)"
+                    if name == "tau" and arr.shape[1] < cols else "")
+            raise ShapeMismatchError(f"column count of '{name}' is {arr.shape[1]} but {what}{hint}", src)
         arrays[name] = arr
     for key, val in traj.extras.items():
         arr = np.asarray(val)

@@ -83,6 +83,11 @@ class TorqueChannels:
         self._cols = np.asarray(act if act is not None else np.arange(len(names)), dtype=int) if plain \
             else np.zeros(0, dtype=int)
         self.rows = tuple(names[i] for i in self._cols)
+        # a contact projection: the logged torques themselves are checked for a constant or zero channel
+        # (a joint without actuator logged as zero gets actuator terms: its offset would absorb m·g)
+        self._raw = getattr(s, "mode", None) == "projected" and getattr(s.robot, "transmission_matrix", None) is None
+        if self._raw:
+            self.rows = tuple(s.robot.actuated_joints)
         n = len(self.rows)
         self.lo, self.hi = np.full(n, np.inf), np.full(n, -np.inf)
         self.ss_meas, self.ss_prior = np.zeros(n), np.zeros(n)
@@ -94,10 +99,15 @@ class TorqueChannels:
             self.raw_energy += float(np.sum(np.square(traj.tau)))
         if not self.rows or traj.tau is None or not len(traj):
             return traj
-        y = self.structure.target(traj)[:, self._cols]
+        if self._raw:
+            y = traj.tau[:, [traj.joint_names.index(j) for j in self.rows]]
+        else:
+            y = self.structure.target(traj)[:, self._cols]
         self.lo = np.minimum(self.lo, y.min(axis=0))
         self.hi = np.maximum(self.hi, y.max(axis=0))
         self._dead_runs(traj, y)
+        if self._raw:
+            return traj
         sub = traj.take(np.unique(np.linspace(0, len(traj) - 1, min(len(traj), SUBSAMPLE)).astype(int)))
         if self._prior is None:
             self._prior = self.structure.prior()
