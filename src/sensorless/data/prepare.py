@@ -278,20 +278,23 @@ def prepare(
 
 
 #: the default derivative window of a log with contact flags spans at most this share of its median contact phase
-CONTACT_PHASE_SHARE = 0.25
+CONTACT_PHASE_SHARE = 0.15
 
 
 def _contact_phase_window(flags: np.ndarray) -> int:
     """The longest derivative window [samples, odd, ≥ 11] that resolves the contact phases of a log:
     :data:`CONTACT_PHASE_SHARE` of its median phase (a run of one contact pattern, the first and last
-    runs left out as cut). A hopping leg's 0.2 s stance and flight would be smeared by the arm default
-    of 0.2 s (the stance force reaching far into the flight); a log with one phase keeps any window."""
+    runs left out as cut; the median over samples, so that a few milliseconds of bouncing at a
+    touchdown do not count as phases). A hopping leg's 0.2 s stance and flight would be smeared by
+    the arm default of 0.2 s (the stance force reaching far into the flight); a log with one phase
+    keeps any window."""
     f = np.asarray(flags, dtype=bool).reshape(len(flags), -1)
     change = np.flatnonzero(np.any(f[1:] != f[:-1], axis=1)) + 1
-    runs = np.diff(change)
+    runs = np.sort(np.diff(change))
     if runs.size < 2:
         return 10**9
-    w = int(max(11, CONTACT_PHASE_SHARE * float(np.median(runs))))
+    median = float(runs[np.searchsorted(np.cumsum(runs), 0.5 * runs.sum())])  # the phase of the median sample
+    w = int(max(11, CONTACT_PHASE_SHARE * median))
     return w if w % 2 else w + 1
 
 

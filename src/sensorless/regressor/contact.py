@@ -124,7 +124,10 @@ class ContactStructure(ModelStructure):
     :func:`detect_contacts` (projected mode). ``contact_offset`` is the radius of spherical feet: point
     contacts are taken that far below the foot frame (world z), where the ground touches.
     ``fold_basis`` (projected mode): ``"nullspace"`` folds k = nv − rank Jc pooled rows per sample
-    (module docstring), ``"projector"`` the nv projected rows kept apart.
+    (module docstring), ``"projector"`` the nv projected rows kept apart (each row weighted by its own
+    residual σ); ``"auto"``: the projector when the robot has passive joints (their rows hold no torque
+    noise and may be in other units, N on a rail: pooled with the torque rows, one weight misweights
+    them and the acceleration noise in the regressor shrinks the masses), else the null-space basis.
     """
 
     contact_frames: tuple[str, ...] = ()
@@ -136,7 +139,7 @@ class ContactStructure(ModelStructure):
     contact_rows: Literal["auto", "base", "all"] = "auto"
     wrench_offset: Literal["none", "net", "foot", "sole"] = "none"
     offset_axes: str = "xy"
-    fold_basis: Literal["nullspace", "projector"] = "nullspace"
+    fold_basis: Literal["auto", "nullspace", "projector"] = "auto"
     _fids: list[int] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
@@ -156,8 +159,10 @@ class ContactStructure(ModelStructure):
             raise RobotModelError(f"unknown contact mode '{self.mode}'; use 'projected' or 'wrench'")
         if self.contact_rows not in ("auto", "base", "all"):
             raise RobotModelError(f"unknown contact_rows '{self.contact_rows}'; use 'auto', 'base' or 'all'")
-        if self.fold_basis not in ("nullspace", "projector"):
-            raise RobotModelError(f"unknown fold_basis '{self.fold_basis}'; use 'nullspace' or 'projector'")
+        if self.fold_basis not in ("auto", "nullspace", "projector"):
+            raise RobotModelError(f"unknown fold_basis '{self.fold_basis}'; use 'auto', 'nullspace' or 'projector'")
+        if self.fold_basis == "auto":  # passive rows: no torque noise, their own unit (N on a rail): own weights
+            self.fold_basis = "projector" if self.robot.passive_joints else "nullspace"
         if self.wrench_offset not in WRENCH_OFFSETS:
             raise RobotModelError(f"unknown wrench_offset '{self.wrench_offset}'; choose from {WRENCH_OFFSETS}")
         if self.mode == "projected" and (self.contact_rows == "base" or self.wrench_offset != "none"):

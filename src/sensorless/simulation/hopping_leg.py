@@ -31,6 +31,7 @@ FOOT = "foot"
 FOOT_RADIUS = 0.02
 RAIL, HIP, KNEE = "rail", "hip", "knee"
 LINK = 0.2  # thigh and shank length [m]
+ACTUATOR_LAG = 0.01  # time constant [s] of the drives' torque response to a command
 SOLREF = 0.02  # contact time constant [s] (a rubber foot pad on the plate)
 
 
@@ -154,7 +155,8 @@ def simulate_hops(bodies: LegBodies = TRUTH, *, seed: int = 0, duration: float =
         flags, forces = scene.foot_contacts(d)
         q = np.array([d.qpos[rail], d.qpos[hip], d.qpos[knee]])
         v = np.array([d.qvel[dv[0]], d.qvel[dv[1]], d.qvel[dv[2]]])
-        d.ctrl[:] = ctrl(i * dt, q, v, bool(flags[0]))
+        cmd = ctrl(i * dt, q, v, bool(flags[0]))
+        d.ctrl[:] = d.ctrl + (dt / (dt + ACTUATOR_LAG)) * (cmd - d.ctrl)  # the drive's current loop: a first-order lag
         out["q"][i], out["v"][i] = q, v
         mujoco.mj_step2(m, d)
         out["tau"][i] = d.actuator_force
