@@ -78,7 +78,8 @@ def identify(
     out: Path = typer.Option(..., help="output directory (written atomically)"),
     joint_terms: str = typer.Option("fv,fc,stribeck,offset,armature", help="joint terms fv,fc,stribeck,offset,armature for every "
                                     "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
-                                    "listed, else none) (dvrk_psm: drive set 'authors' (default) or 'motors')"),
+                                    "listed, else none); a --passive joint keeps its friction terms only "
+                                    "(dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
     rate: Optional[float] = typer.Option(None, help="sample rate [Hz] for logs without a time column"),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),

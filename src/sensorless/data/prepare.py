@@ -247,8 +247,14 @@ def prepare(
 
     w = int(savgol_window) if savgol_window is not None else default_savgol_window(
         1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 and np.median(np.diff(traj.t)) > 0 else float("nan"))
-    if savgol_window is None and derive_a and traj.extras.get("contact") is not None:
-        w = min(w, _contact_phase_window(traj.extras["contact"]))
+    if derive_a and traj.extras.get("contact") is not None:
+        fit = _contact_phase_window(traj.extras["contact"])
+        if savgol_window is None:
+            w = min(w, fit)
+        elif w > 2 * fit:
+            warnings.warn(f"{src}: the derivative window ({w} samples) spans more than half of the log's median "
+                          f"contact phase: the accelerations mix stance and flight (the default here would be {fit} "
+                          "samples; leave --savgol-window out)", DataWarning, stacklevel=2)
     if derive_v:
         traj = savgol_derivatives(traj, window=w, polyorder=_POLYORDER)
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
