@@ -131,10 +131,16 @@ def test_the_users_workarounds_fail_with_the_fix_named(leg, tmp_path):
     assert code == 2 and "joint 'rail'" in out and "--passive rail" in out and not (tmp_path / "a").exists()
     code, out = _run(base + ["--data", leg["dir"] / "train.npz", "--out", tmp_path / "b"])
     assert code == 2 and "column count of 'tau'" in out and "--passive" in out
-    # OLS/WLS take the passive joint too
-    code, out = _run(base + ["--passive", "rail", "--joint-terms", "fv,fc", "--data", leg["dir"] / "train.npz",
-                             "--out", tmp_path / "c"])
+    # OLS/WLS take the passive joint too, and per-joint terms work with contact frames
+    code, out = _run(base + ["--passive", "rail", "--joint-terms", "hip=fv,fc,armature;knee=fv,fc;rail=fv",
+                             "--data", leg["dir"] / "train.npz", "--out", tmp_path / "c"])
     assert code == 0, out
+    doc = json.loads((tmp_path / "c" / "result.json").read_text())
+    assert doc["settings"]["joint_terms_by_joint"] == {"hip": ["fv", "fc", "armature"], "knee": ["fv", "fc"],
+                                                       "rail": ["fv"]}
+    code, out = _run(base + ["--passive", "rail", "--joint-terms", "*=fv;rail=fv,offset", "--data",
+                             leg["dir"] / "train.npz", "--out", tmp_path / "d"])
+    assert code == 2 and "passive joint 'rail' cannot have the term(s) ['offset']" in out
 
 
 def test_predict_uses_the_locks_of_the_identification(tmp_path, panda_train_npz):

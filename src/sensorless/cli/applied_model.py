@@ -16,7 +16,7 @@ from typing import List, Optional
 
 import typer
 
-from ..errors import OptionError
+from ..errors import OptionError, SensorlessError
 from .common import load_robot_arg
 
 __all__ = ["MODEL_HELP", "passive_option", "robot_and_model"]
@@ -37,9 +37,13 @@ def robot_and_model(robot: str, model: Optional[Path], *, lock: Optional[List[st
 
     if model is None or is_robot_description(model):
         r = load_robot_arg(robot, lock, floating, passive)
-        desc = None if model is None else load_robot_arg(str(model), lock, r.floating_base, passive)
+        desc = None if model is None else load_robot_arg(str(model), lock, getattr(r, "floating_base", None), passive)
         return r, prior_model(r, desc, source=model if model is not None else robot)
-    stored = read_robot_settings(model)
+    try:
+        stored = read_robot_settings(model)
+    except SensorlessError:
+        load_robot_arg(robot, lock, floating, passive)  # a robot that cannot load (an untrusted xacro) is said first
+        raise
     lock = _agree("--lock", lock, stored.get("lock"), model)
     passive = _agree("--passive", passive, stored.get("passive"), model)
     if floating is not None and "floating_base" in stored and floating != stored["floating_base"]:
