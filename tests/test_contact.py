@@ -117,8 +117,9 @@ def test_wrench_mode_with_measured_forces(solo12, rigid):
 
 def test_clear_errors(solo12, panda, rigid):
     _, log = rigid
-    with pytest.raises(RobotModelError, match="floating-base"):
-        ContactStructure(panda, contact_frames=("panda_link7",))
+    ContactStructure(panda, contact_frames=("panda_link7",))  # a fixed base in contact: its joint rows are projected
+    with pytest.raises(RobotModelError, match="fixed base"):
+        ContactStructure(panda, contact_frames=("panda_link7",), mode="wrench", contact_rows="base")
     with pytest.raises(RobotModelError, match="unknown frame"):
         ContactStructure(solo12, contact_frames=("LEFT_FOOT",))
     s = ContactStructure(solo12, contact_frames=FEET)

@@ -156,8 +156,8 @@ def test_contact_forces_n_feet_6_round_trip(tmp_path, log):
 def test_errors_name_the_fix(legs, log):
     urdf = legs.urdf_path
     fixed = load_robot(urdf)
-    with pytest.raises(RobotModelError, match="--floating-base"):
-        ContactStructure(fixed, contact_frames=FEET)
+    with pytest.raises(RobotModelError, match="fixed base"):  # a fixed base with contacts is fine, its 6 rows are not
+        ContactStructure(fixed, contact_frames=FEET, mode="wrench", contact_rows="base")
     with pytest.raises(RobotModelError, match="mode='wrench'"):
         ContactStructure(legs, contact_frames=FEET, contact_rows="base")
     with pytest.raises(RobotModelError, match="offset_axes"):

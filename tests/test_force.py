@@ -128,7 +128,7 @@ def test_external_torque_and_bad_inputs(panda):
         CartesianForceEstimator(panda, "no_such_frame")
     with pytest.raises(RobotModelError, match="reference"):
         CartesianForceEstimator(panda, FRAME, "body")
-    with pytest.raises(RobotModelError, match="not actuated"):
+    with pytest.raises(RobotModelError, match="neither actuated nor passive"):
         CartesianForceEstimator(panda, FRAME, joints=["nope"])
     est = CartesianForceEstimator(panda, FRAME)
     with pytest.raises(ShapeMismatchError, match="tau_ext"):

@@ -35,17 +35,32 @@ class Actuation:
     """What every robot view shares: the actuated joints' velocity indices, the selection
     matrix S and the transmission. Subclasses give ``actuated_joints``, ``nv`` and ``v_index``.
 
+    ``passive_joints`` have no actuator: their generalized force is known to be zero (apart
+    from their own friction), like the unactuated floating base. The *term joints* carry
+    per-joint terms (friction, ...): the actuated joints, then the passive ones.
+
     ``transmission_matrix`` is G of joints q = Gθ + q₀ driven by coordinates θ
     (:class:`~sensorless.regressor.transmission.CoordinateRobot`), None for a plain tree.
     ``coupled``: True for such a coordinate view (its structures come from ``make_structure``)."""
 
     transmission_matrix: "np.ndarray | None" = None
     coupled: bool = False
+    passive_joints: tuple[str, ...] = ()
 
     @property
     def actuated_v_indices(self) -> np.ndarray:
         """Velocity indices of the actuated joints, in ``actuated_joints`` order."""
         return np.array([self.v_index(j) for j in self.actuated_joints], dtype=int)
+
+    @property
+    def term_joints(self) -> tuple[str, ...]:
+        """Joints with per-joint terms: ``actuated_joints`` then ``passive_joints``."""
+        return tuple(self.actuated_joints) + tuple(self.passive_joints)
+
+    @property
+    def term_v_indices(self) -> np.ndarray:
+        """Velocity indices of :attr:`term_joints`."""
+        return np.array([self.v_index(j) for j in self.term_joints], dtype=int)
 
     @property
     def selection(self) -> np.ndarray:
@@ -63,6 +78,7 @@ class Robot(Actuation):
     name: str = "robot"
     source: str = ""
     actuated_joints: tuple[str, ...] = ()
+    passive_joints: tuple[str, ...] = ()
     data: pin.Data = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -79,14 +95,22 @@ class Robot(Actuation):
                 )
             names.append(m.names[j])
         self.joint_names: tuple[str, ...] = tuple(names)
+        self.passive_joints = tuple(self.passive_joints)
+        unknown = [j for j in self.passive_joints if j not in self.joint_names]
+        if unknown:
+            raise JointNameError(
+                f"unknown passive joint(s) {unknown}; the model has {list(self.joint_names)}", self.source or self.name)
         if not self.actuated_joints:
-            self.actuated_joints = self.joint_names
+            self.actuated_joints = tuple(j for j in self.joint_names if j not in self.passive_joints)
         unknown = [j for j in self.actuated_joints if j not in self.joint_names]
         if unknown:
             raise JointNameError(
                 f"unknown actuated joint(s) {unknown}; the model has {list(self.joint_names)}",
                 self.source or self.name,
             )
+        both = [j for j in self.passive_joints if j in self.actuated_joints]
+        if both:
+            raise JointNameError(f"joint(s) {both} are declared both actuated and passive", self.source or self.name)
         self.actuated_joints = tuple(self.actuated_joints)
         self._jid = {m.names[j]: j for j in range(1, m.njoints)}
 
@@ -156,7 +180,12 @@ class Robot(Actuation):
         model = self.model.copy()
         for k in range(self.n_bodies):
             model.inertias[k + 1] = pin_inertia(pi[10 * k : 10 * k + 10])
-        return Robot(model, name=name or self.name, source=self.source, actuated_joints=self.actuated_joints)
+        out = Robot(model, name=name or self.name, source=self.source, actuated_joints=self.actuated_joints,
+                    passive_joints=self.passive_joints)
+        for key in ("urdf_path", "package_paths", "description_dir", "locked_joints", "added_frames"):
+            if hasattr(self, key):
+                setattr(out, key, getattr(self, key))
+        return out
 
     # ---- state assembly -----------------------------------------------------
     def joint_order(self, names: Sequence[str], source: str = "<trajectory>") -> np.ndarray:
@@ -249,6 +278,7 @@ class Robot(Actuation):
             "nv": self.nv,
             "bodies": list(self.body_names),
             "actuated_joints": list(self.actuated_joints),
+            **({"passive_joints": list(self.passive_joints)} if self.passive_joints else {}),
             "total_mass": float(sum(self.model.inertias[j].mass for j in range(1, self.model.njoints))),
         }
 
@@ -315,6 +345,7 @@ def load_robot(
     floating_base: bool | None = None,
     lock_joints: Sequence[str] = (),
     actuated_joints: Sequence[str] | None = None,
+    passive_joints: Sequence[str] = (),
     armature: dict[str, float] | None = None,
     trust_xacro: bool = False,
     package_paths: Sequence[str | Path] = (),
@@ -323,7 +354,9 @@ def load_robot(
     an MJCF path or an example-robot-data name.
 
     ``lock_joints`` are fixed at their neutral position (e.g. a gripper's fingers).
-    ``actuated_joints`` defaults to every 1-DoF joint. ``armature`` sets rotor inertia
+    ``passive_joints`` have no actuator (a rail, a free pivot): no torque is measured there, their
+    generalized force is zero apart from their own friction. ``actuated_joints`` defaults to every
+    other 1-DoF joint. ``armature`` sets rotor inertia
     per joint name when the model file has none.
 
     A xacro file can run code when expanded: it is refused (UntrustedModelError) unless
@@ -344,7 +377,13 @@ def load_robot(
             raise RobotModelError(f"{source}: cannot lock unknown joint(s) {bad}; known: {names[1:]}")
         ids = [names.index(j) for j in lock_joints]
         model = pin.buildReducedModel(model, ids, pin.neutral(model))
-    robot = Robot(model, name=name, source=source, actuated_joints=tuple(actuated_joints or ()))
+    locked = [j for j in passive_joints if j in lock_joints]
+    if locked:
+        raise RobotModelError(f"{source}: joint(s) {locked} cannot be both locked and passive")
+    robot = Robot(model, name=name, source=source, actuated_joints=tuple(actuated_joints or ()),
+                  passive_joints=tuple(passive_joints))
+    robot.locked_joints = tuple(lock_joints)
+    robot.added_frames = []
     robot.urdf_path = urdf
     robot.package_paths = packages
     robot.description_dir = None if source.startswith("example-robot-data:") else str(Path(source).parent)
@@ -408,6 +447,9 @@ def add_frame(robot, name: str, parent: str, xyz: Sequence[float], rpy: Sequence
     placement = pf.placement * pin.SE3(pin.rpy.rpyToMatrix(*rpy), xyz)
     fid = model.addFrame(pin.Frame(name, pf.parentJoint, pid, placement, pin.FrameType.OP_FRAME))
     base.data = model.createData()
+    added = getattr(robot, "added_frames", None)
+    if isinstance(added, list):  # recorded in a model folder (settings.robot.frames)
+        added.append([name, parent, xyz.tolist(), rpy.tolist()])
     return int(fid)
 
 

@@ -234,20 +234,20 @@ def model_preprocessing(model, **given) -> dict:
     return out
 
 
-def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool]):
+def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool], passive: Optional[List[str]] = None):
     """A URDF/MJCF/xacro/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
     motor coordinates, a transmission's coordinate robot). ``--trust-xacro`` and ``--package-path``
-    come from :func:`robot_source_options`."""
+    come from :func:`robot_source_options`; ``passive``: joints without actuator (``--passive``)."""
     from ..robots.names import PSM_NAMES
 
     if str(robot).lower() in PSM_NAMES:
         from ..robots.dvrk_psm import psm_robot
 
-        if lock or floating:
-            raise SensorlessError(f"--robot {robot}: --lock and --floating-base do not apply to the PSM model")
+        if lock or floating or passive:
+            raise SensorlessError(f"--robot {robot}: --lock, --passive and --floating-base do not apply to the PSM model")
         r = psm_robot()
     else:
-        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating)
+        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
     from ..robot import add_frame
 
     for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
@@ -424,13 +424,15 @@ def floating_base_option():
     return typer.Option(None, "--floating-base/--fixed-base")
 
 
-def model_options(model: str = "result.json (or its directory) from `sensorless identify`", robot_required: bool = True):
-    """Decorator: ``--robot`` and ``--model`` (an identified model, help ``model``) as the first
-    options; one definition for the commands that apply a model. Without ``robot_required``,
+def model_options(model: str = "result.json (or its directory) from `sensorless identify`", required: bool = True,
+                  robot_required: bool = True):
+    """Decorator: ``--robot`` and ``--model`` (an identified model, help ``model``; optional unless ``required``)
+    as the first options; one definition for the commands that apply a model. Without ``robot_required``,
     ``--robot`` may be left out (a friction-only model from `sensorless friction` has no robot)."""
     robot = (str, robot_option) if robot_required else (Optional[str], lambda: typer.Option(
         None, help=ROBOT_HELP + "; not needed for a friction-only model (sensorless friction)"))
-    return add_options({"robot": robot, "model": (Path, lambda: typer.Option(..., help=model))}, first=True)
+    ann, default = (Path, ...) if required else (Optional[Path], None)
+    return add_options({"robot": robot, "model": (ann, lambda: typer.Option(default, help=model))}, first=True)
 
 
 def bench_out_option(name: str):

@@ -20,15 +20,16 @@ from .common import (
     console,
     experiment_app,
     guarded,
-    load_robot_arg,
     output_file,
     path_inputs,
     lock_option,
+    floating_base_option,
     model_options,
     experiment_options,
     force_option,
 )
-from .options import ForceComponents, ForceReference
+from .applied_model import MODEL_HELP, passive_option, robot_and_model
+from .options import ForceReference
 
 __all__ = ["estimate_force", "experiment_hybrid_force"]
 
@@ -52,33 +53,39 @@ def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> N
 @robot_source_options
 @frame_options
 @model_preprocessing_options()
-@model_options()
+@model_options(MODEL_HELP, required=False)
 @log_reading_options()
 def estimate_force(
     robot: str,
-    model: Path,
+    model: Path | None,
     data: Path = typer.Option(..., help="log with q and measured torque"),
     frame: str = typer.Option(..., help="frame where the force acts (e.g. the tool tip)"),
     reference: ForceReference = typer.Option(ForceReference.local_world_aligned, help="frame of the force"),
-    out: Path = typer.Option(..., help="output .npz (t, force, labels, tau_ext, sigma_min, damping)"),
+    out: Path = typer.Option(..., help="output .npz (t, force, labels, tau_ext, rows, sigma_min, damping, model)"),
     residual: Path | None = typer.Option(None, help="directory of a learned residual (HybridModel.save)"),
-    components: ForceComponents = typer.Option(ForceComponents.linear, help="linear (3 forces) | angular | wrench (6)"),
-    joints: str | None = typer.Option(None, help="comma-separated joints whose torques are used (default all)"),
+    components: str = typer.Option("linear", help="linear (3 forces) | angular | wrench (6) | labels, e.g. fz or "
+                                   "fx,fz (a planar leg, whose fy no joint measures)"),
+    joints: str | None = typer.Option(None, help="comma-separated joints whose equations are used (default all "
+                                      "actuated and passive joints; a floating base's rows always)"),
     sigma_threshold: float = typer.Option(0.01, help="damping starts below this smallest singular value"),
     lambda_max: float = typer.Option(0.02, help="damping at a singularity"),
-    lock: list[str] | None = lock_option(),
+    lock: list[str] | None = lock_option("joints to lock (default: the model's, settings.robot)"),
+    passive: list[str] | None = passive_option(),
+    floating_base: bool | None = floating_base_option(),
     force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:
-    F = (Jᵀ)⁺ (τ_measured − τ_model − τ_residual), damped near singularities."""
+    F = (Jᵀ)⁺ (τ_measured − τ_model − τ_residual), damped near singularities, on every equation of known
+    generalized force: the actuated joints, and 0 on passive joints and a floating base (a contact model
+    is evaluated without its projection). The robot is loaded as the model was identified; without
+    --model (or with --model ROBOT.urdf) the description's own parameters are the model (the prior)."""
     from ..estimation.force import CartesianForceEstimator
     from ..estimators import PhysicalModel
-    from ..identification.artifact import load_model_folder
 
     output_file(out, path_inputs(robot, model, data, residual), force)
-    r = load_robot_arg(robot, lock, False)
-    art = load_model_folder(model, r)
+    r, art = robot_and_model(robot, model, lock=lock, passive=passive, floating=floating_base)
+    console.print(f"model: {art.label}", highlight=False, soft_wrap=True)
     phys = PhysicalModel.from_parameters(art.structure, art.parameters)
     (traj,), _ = model_logs(art, [data], r, prep)
     if traj.tau is None:
@@ -95,7 +102,8 @@ def estimate_force(
     )
     res = est.estimate(traj, phys, residual=hybrid)
     _check_observable(res, frame)
-    write_npz_atomic(out, **res.arrays())
+    write_npz_atomic(out, **res.arrays(), rows=np.array(est.row_names),
+                     model=np.array(art.origin), model_label=np.array(art.label))
     damped = float(np.mean(res.damping > 0))
     with np.errstate(invalid="ignore"):
         rms = np.sqrt(np.nanmean(res.F**2, axis=0))

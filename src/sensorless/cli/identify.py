@@ -82,7 +82,8 @@ def identify(
     out: Path = typer.Option(..., help="output directory (written atomically)"),
     joint_terms: str = typer.Option("fv,fc,stribeck,offset,armature", help="joint terms fv,fc,stribeck,offset,armature for every "
                                     "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
-                                    "listed, else none) (dvrk_psm: drive set 'authors' (default) or 'motors')"),
+                                    "listed, else none); a --passive joint keeps its friction terms only "
+                                    "(dvrk_psm: drive set 'authors' (default) or 'motors')"),
     columns: Optional[str] = typer.Option(None, help="column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'"),
     rate: Optional[float] = typer.Option(None, help=RATE_HELP),
     lowpass: Optional[float] = typer.Option(None, help="zero-phase low-pass cut-off [Hz] before identification"),
@@ -98,6 +99,11 @@ def identify(
     base_velocity: BaseVelocity = base_velocity_option(),
     pose_max_gap: Optional[float] = pose_max_gap_option(),
     lock: Optional[List[str]] = lock_option(),
+    passive: Optional[List[str]] = typer.Option(
+        None, help="joint without an actuator (repeatable; e.g. a leg's vertical rail): no torque is logged for it "
+                   "(a 'tau' column may be absent or anything), its generalized force is 0 apart from its own friction "
+                   "(fv, fc, stribeck terms only); its equation is fitted, and with --contact-frames it is projected "
+                   "like a floating base's; kept in the model (settings.robot.passive)"),
     floating_base: Optional[bool] = floating_base_option(),
     contact_frames: Optional[str] = typer.Option(
         None, help="legged robots: comma-separated contact frames (feet); projects out the unknown contact "
@@ -159,9 +165,9 @@ def identify(
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
         raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
-    if floating_base is None and contact_frames:
-        floating_base = True  # contact structures need a floating base; a URDF would load fixed
-    r = load_robot_arg(robot, lock, floating_base)
+    if floating_base is None and contact_frames and not passive:
+        floating_base = True  # a legged robot's base floats; with --passive a passive joint is the unactuated "base"
+    r = load_robot_arg(robot, lock, floating_base, passive)
     from ..data.wrench_frames import wrench_frame_map
     from ..regressor.distributed import LogReader, expand_paths
 

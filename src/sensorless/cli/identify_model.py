@@ -89,8 +89,6 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
             return ModelStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing)
         except RobotModelError as exc:
             raise OptionError(f"--joint-terms '{joint_terms}': {exc}") from None
-    if isinstance(terms, str):
-        raise OptionError("--joint-terms per joint ('JOINT=...') is not supported with --contact-frames")
     from ..regressor.contact import ContactStructure
 
     frames = tuple(f.strip() for f in contact_frames.split(",") if f.strip())
@@ -103,9 +101,14 @@ def _structure(robot, joint_terms: str, coulomb_smoothing: float, contact_frames
 
         contact_rows, why = choose_contact_rows(train)
         console.print(f"contact rows: {contact_rows} — {why}")
-    return ContactStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing, contact_frames=frames,
-                            contact_dims=dims, contact_offset=contact_offset, mode=contact_mode,
-                            contact_rows=contact_rows, wrench_offset=wrench_offset, offset_axes=offset_axes)
+    try:
+        return ContactStructure(robot, joint_terms=terms, coulomb_smoothing=coulomb_smoothing, contact_frames=frames,
+                                contact_dims=dims, contact_offset=contact_offset, mode=contact_mode,
+                                contact_rows=contact_rows, wrench_offset=wrench_offset, offset_axes=offset_axes)
+    except RobotModelError as exc:
+        if "term" in str(exc):
+            raise OptionError(f"--joint-terms '{joint_terms}': {exc}") from None
+        raise
 
 
 def _lmi_kwargs(robot, structure, method, prior, regularization, gamma, ellipsoids, contain_prior) -> dict:

@@ -54,6 +54,11 @@ def _print_bodies(result) -> None:
         t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}" if mv == "data" else "—",
                   f"{std:.2g}" if mv == "data" and std is not None else "", f"{pi0[k, 0]:.3f}", mv,
                   ", ".join(f"{n} {rest.count(n)}" for n in ("data", "prior", "undetermined") if rest.count(n)))
+    tot = (result.diagnostics.get("verdicts") or {}).get("robot", {}).get("total_mass")
+    if tot is not None and tot["verdict"] == "data":  # e.g. a floating base, or a passive rail carrying it all
+        std = tot["std_data"]
+        t.add_row("total", "", f"{tot['value']:.3f}", f"{std:.2g}" if std is not None else "", f"{tot['prior']:.3f}",
+                  "data", "")
     console.print(t)
 
 

@@ -23,13 +23,13 @@ from .common import (
     bench_command,
     console,
     guarded,
-    load_robot_arg,
     path_inputs,
     force_option,
     lock_option,
     floating_base_option,
     model_options,
 )
+from .applied_model import MODEL_HELP, passive_option, robot_and_model
 from .options import ForceReference
 
 __all__ = ["monitor", "bench_observer", "bench_held_monitor"]
@@ -73,12 +73,11 @@ def _parse_static_friction(spec: str, names: list[str]):
 @robot_source_options
 @frame_options
 @model_preprocessing_options()
-@model_options("result.json (or its directory) from `sensorless identify` or `sensorless friction`",
-               robot_required=False)
+@model_options(MODEL_HELP + " or `sensorless friction`", required=False, robot_required=False)
 @log_reading_options()
 def monitor(
     robot: Optional[str],
-    model: Path,
+    model: Optional[Path],
     data: Path = typer.Option(..., help="log to monitor (.csv .npz .parquet .h5)"),
     out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json + monitor.npz (written atomically)"),
     frame: Optional[str] = typer.Option(None, help="frame at which to estimate the Cartesian force (damped J⁻ᵀ)"),
@@ -100,35 +99,41 @@ def monitor(
                                            "observer has converged)"),
     min_duration: float = typer.Option(0.02, help="shortest reported contact [s]"),
     merge_gap: float = typer.Option(0.05, help="merge contacts separated by less than this [s]"),
-    lock: Optional[List[str]] = lock_option(),
+    lock: Optional[List[str]] = lock_option("joints to lock (default: the model's, settings.robot)"),
+    passive: Optional[List[str]] = passive_option(),
     floating_base: Optional[bool] = floating_base_option(),
     force: bool = force_option(),
     prep: dict = None,
 ) -> None:
     """Detect contacts/collisions in a log: momentum observer → per-joint thresholds from a
     quiet window, with the static-friction band as a dead zone on joints at rest → contact
-    intervals, peak external torque per joint, Cartesian force at --frame (docs/monitoring.md)."""
+    intervals, peak external torque per joint, Cartesian force at --frame (docs/monitoring.md).
+    The external torque is reported on the actuated and passive joints; for a model identified with
+    contacts, it is the part the contacts cannot explain, P(q) r on every row. The robot is loaded
+    as the model was identified; without --model the description's own parameters are the model
+    (the prior)."""
     from ..data.trims import TrimWindow
     from ..errors import DataError
     from ..estimation.momentum import MomentumDynamics
+    from ..estimation.monitored import MonitoredTorque, cartesian_force, monitored_rows
     from ..estimation.monitoring import MonitorSettings, monitor_log
     from ..estimation.static_band import STATUS
-    from ..identification.artifact import is_friction_model, load_model_folder
+    from ..identification.artifact import is_friction_model
 
-    bench = is_friction_model(model)  # a friction-only model: its joints and friction state, no robot
+    bench = model is not None and is_friction_model(model)  # a friction-only model: its joints and state, no robot
     if bench and frame:
         raise SensorlessError("--frame needs a robot model; a friction-only model (sensorless friction) has none")
     if not bench and robot is None:
-        raise SensorlessError("--robot is required for a model from `sensorless identify`")
-    r = None if bench else load_robot_arg(robot, lock, floating_base)
-    art = None if bench else load_model_folder(model, r)
+        raise SensorlessError("--robot is required unless --model is a friction-only model from `sensorless friction`")
     if bench:
         from ..estimation.friction_dynamics import FrictionDynamics
         from .friction import friction_model_log
 
+        r = art = None
         bench_art, bench_log, _ = friction_model_log(model, data, prep, need_acceleration=False)
         path, dyn = bench_art.path, FrictionDynamics(bench_art.model)
     else:
+        r, art = robot_and_model(robot, model, lock=lock, passive=passive, floating=floating_base)
         path, dyn = art.path, MomentumDynamics(art.structure, art.parameters)
     if k is not None and k <= 0:
         raise SensorlessError(f"--k must be > 0, got {k}")
@@ -141,7 +146,7 @@ def monitor(
     except DataError:
         raise SensorlessError(f"--quiet must be START:END in seconds after the first sample (e.g. 0:2, ':2', "
                               f"'abs:T0:T1' for the log's stamps), got '{quiet}'") from None
-    names = dyn.actuated_names
+    names = monitored_rows(dyn)[0]
     fs_spec = _parse_static_friction(static_friction, names)
     speed: object = "auto"
     if rest_speed.strip().lower() != "auto":
@@ -165,7 +170,9 @@ def monitor(
                   "status_names": np.array(STATUS), "rest": trace.rest, "contact": flag, "joints": np.array(names),
                   "r": mon.observer.r, "coordinates": np.array(mon.observer.names)}
         doc = {
-            "data": str(data), "model": str(path), "robot": None if bench else r.name,
+            "data": str(data), "model": str(path), "model_origin": None if bench else art.origin,
+            "model_label": "friction-only model" if bench else art.label, "robot": None if bench else r.name,
+            "rows": names, "projected": mon.monitored is not None and mon.monitored.projector is not None,
             "observer": mon.observer.settings,
             "settings": {**mon.settings, "static_friction": static_friction, "frame": frame,
                          "reference": str(reference) if frame else None,
@@ -184,7 +191,9 @@ def monitor(
         warm = mon.settings["warmup_s"]
         if frame:
             warm_rows = np.isnan(tau_ext).any(axis=1)  # the observer's warm-up: no estimate
-            fe = _cartesian_force(dyn, traj, np.where(warm_rows[:, None], 0.0, tau_ext), frame, reference)
+            mt = MonitoredTorque(np.where(warm_rows[:, None], 0.0, tau_ext), names, mon.monitored.rows,
+                                 mon.monitored.projector)
+            fe = cartesian_force(dyn, traj, mt, frame, reference)
             fe.F[warm_rows] = np.nan
             arrays.update({"force": fe.F, "force_labels": np.array(fe.labels), "sigma_min": fe.sigma_min,
                            "force_unobservable": fe.arrays()["unobservable"]})
@@ -201,6 +210,8 @@ def monitor(
 
         (tmp / "monitor.json").write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
         np.savez(tmp / "monitor.npz", **arrays)
+    console.print(f"model: {doc['model_label']}" + ("; external torque projected by the contacts, P(q) r"
+                                                     if doc["projected"] else ""), highlight=False, soft_wrap=True)
     console.print(f"observer order {order}, K = {gain:g} 1/s, warm-up {warm:.3f} s; k = {th.k:.2f} σ from "
                   f"{int(mask.sum())} quiet samples (--quiet {quiet.strip()})")
     for n, fsj, src in zip(names, th.band, th.band_source):
@@ -242,23 +253,6 @@ def _peak_force(F: np.ndarray, t: np.ndarray, iv) -> dict:
         return {"peak_force": None, "peak_force_norm": None, "peak_force_time": None}
     i = int(np.nanargmax(norm))
     return {"peak_force": seg[i].tolist(), "peak_force_norm": float(norm[i]), "peak_force_time": float(t[iv.start_index + i])}
-
-
-def _cartesian_force(dyn, traj, tau_ext, frame: str, reference: str):
-    """F at ``frame`` by the damped least squares of :mod:`sensorless.estimation.force`."""
-    from ..estimation.force import CartesianForceEstimator, ForceEstimate, damped_least_squares, frame_jacobians
-
-    if not dyn.transmission:
-        est = CartesianForceEstimator(dyn.structure.robot, frame, reference)
-        Q = dyn.arrays(traj)[0]
-        return est.from_external_torque(Q, tau_ext, traj.t)
-    # transmission: τ_θ = Gᵀ Jᵀ F, so the Jacobian in coordinates is J G
-    st = dyn.structure
-    Qt = st.tree.full_configuration(st.joint_values(dyn.arrays(traj)[0]))
-    J = frame_jacobians(st.tree, Qt, frame, reference)[:, :3] @ st.G
-    sol = damped_least_squares(J, tau_ext)
-    return ForceEstimate(traj.t, sol.F, ["fx", "fy", "fz"], frame, reference, tau_ext, sol.sigma_min, sol.damping,
-                         unobservable=sol.unobservable)
 
 
 @bench_command("observer")

@@ -19,7 +19,7 @@ import typer
 from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
-           "WrenchOffset", "Rest", "Criterion", "ForceReference", "ForceComponents", "PayloadMode", "Align", "ALIGN_HELP",
+           "WrenchOffset", "Rest", "Criterion", "ForceReference", "PayloadMode", "Align", "ALIGN_HELP",
            "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "FrictionState", "config_option", "check_config",
            "resolved_options"]
 
@@ -40,7 +40,6 @@ WrenchOffset = _choices("WrenchOffset", ("none", "net", "foot", "sole"))
 Rest = _choices("Rest", ("auto", "off"))
 Criterion = _choices("Criterion", ("cond", "dopt"))
 ForceReference = _choices("ForceReference", ("local", "world", "local_world_aligned"))
-ForceComponents = _choices("ForceComponents", ("linear", "angular", "wrench"))
 PayloadMode = _choices("PayloadMode", ("auto", "full", "com", "mass"))
 Align = _choices("Align", ("auto", "time", "rows"))
 ALIGN_HELP = ("pairing of the two runs: auto (measure the lag between them from the positions; by time, or row by row "

@@ -19,7 +19,6 @@ from .common import (
     app,
     console,
     guarded,
-    load_robot_arg,
     force_option,
     lock_option,
     model_options,
@@ -81,15 +80,14 @@ def payload(
     """Identify a payload at FRAME from the torque the robot's model does not explain:
     τ − Wπ̂ = Gᵀ J_fᵀ Φ_f φ (+ per-joint offsets), paired with a no-load log when given.
     Reports mass (and m·g), CoM, uncertainty (HAC / block bootstrap) and per-joint consistency."""
-    from ..identification.artifact import load_model_folder
     from ..identification.payload import identify_payload
+    from .applied_model import robot_and_model
     from ..identification.result import write_json_atomic
 
     output_file(out, path_inputs(robot, model, data, no_load), force)
     if no_load and len(no_load) != len(data):
         raise SensorlessError(f"{len(data)} --data log(s) but {len(no_load)} --no-load log(s); pair them one to one")
-    r = load_robot_arg(robot, lock, False)
-    art = load_model_folder(model, r)
+    r, art = robot_and_model(robot, model, lock=lock)  # the robot as identified (settings.robot)
     path, structure, params = art.path, art.structure, art.parameters
     every, opts = model_logs(art, [*data, *no_load], r, prep)
     logs, refs = every[:len(data)], (every[len(data):] or None)

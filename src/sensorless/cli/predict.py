@@ -22,7 +22,6 @@ from .common import (
     check_preprocessing,
     console,
     guarded,
-    load_robot_arg,
     output_file,
     path_inputs,
     lock_option,
@@ -30,57 +29,62 @@ from .common import (
     force_option,
     model_options,
 )
+from .applied_model import MODEL_HELP, passive_option, robot_and_model
 
 
 @app.command()
 @guarded
 @robot_source_options
 @model_preprocessing_options()
-@model_options("result.json (or its directory) from `sensorless identify` or `sensorless friction`",
-               robot_required=False)
+@model_options(MODEL_HELP + " or `sensorless friction`", required=False, robot_required=False)
 @log_reading_options()
 def predict(
     robot: Optional[str],
-    model: Path,
+    model: Optional[Path],
     data: Path = typer.Option(..., help="log to predict"),
-    out: Path = typer.Option(..., help="output .npz with t, tau_pred (and tau_measured, metrics if available)"),
-    lock: Optional[List[str]] = lock_option(),
+    out: Path = typer.Option(..., help="output .npz with t, tau_pred, joints, model (and tau_measured, metrics if "
+                                       "available)"),
+    lock: Optional[List[str]] = lock_option("joints to lock (default: the model's, settings.robot)"),
+    passive: Optional[List[str]] = passive_option(),
     floating_base: Optional[bool] = floating_base_option(),
     outliers: Outliers = typer.Option(Outliers.error, help="gross outliers in the log"),
     force: bool = force_option(),
     prep: dict = None,
 ) -> None:
-    """Predict joint torques of a log with an identified model. The log is preprocessed as the
+    """Predict joint torques of a log with an identified model, loaded on the robot as it was identified
+    (locks, passive joints, floating base, contact frames: from the model). The log is preprocessed as the
     model's training logs were (result.json settings.preprocessing) unless an option says otherwise.
-    A friction-only model (`sensorless friction`) needs no --robot; its friction states are
-    integrated along the log from zero."""
-    from ..identification.artifact import is_friction_model, load_model_folder
+    Without --model (or with --model ROBOT.urdf) the robot description's own parameters are the model
+    (the prior, labelled so). A friction-only model (`sensorless friction`) needs no --robot; its
+    friction states are integrated along the log from zero."""
+    from ..identification.artifact import is_friction_model
     from ..identification.metrics import torque_metrics
     from ..report import metrics_table
 
     check_preprocessing(prep["rate"], prep["lowpass"], prep["savgol_window"], 1)
     output_file(out, path_inputs(robot, model, data), force)
-    if is_friction_model(model):
+    if model is not None and is_friction_model(model):
         from .friction import predict_friction
 
         return predict_friction(model, data, out, prep)
     if robot is None:
-        raise OptionError("--robot is required for a model from `sensorless identify` (only a friction-only "
-                              "model from `sensorless friction` has none)")
-    r = load_robot_arg(robot, lock, floating_base)
-    art = load_model_folder(model, r)
+        raise OptionError("--robot is required unless --model is a friction-only model from `sensorless friction`")
+    r, art = robot_and_model(robot, model, lock=lock, passive=passive, floating=floating_base)
     path, structure, params = art.path, art.structure, art.parameters
+    console.print(f"model: {art.label}", highlight=False, soft_wrap=True)
     (traj,), opts = model_logs(art, [data], r, prep, outliers=outliers)
     trim = prep["trim"]
     pred = structure.torques(params, traj)
     if not np.all(np.isfinite(pred)):
         raise SensorlessError(f"{path}: the model predicts non-finite torques on {data}")
     arrays = {"t": traj.t, "tau_pred": pred, "joints": np.array(structure.row_names),
+              "model": np.array(art.origin), "model_label": np.array(art.label),
               "preprocessing": np.array(json.dumps({**opts, "trim": trim, "signals": traj.provenance}))}
     if traj.tau is not None:
         meas = structure.target(traj)
         arrays["tau_measured"] = meas
-        console.print(metrics_table(Path(data).name, {"model": torque_metrics(meas, pred, structure.row_names)}))
+        name = "prior" if art.origin == "prior" else "model"
+        console.print(metrics_table(Path(data).name, {name: torque_metrics(meas, pred, structure.row_names)}))
     write_npz_atomic(out, **arrays)
     console.print(f"wrote {out}")
 

@@ -25,7 +25,9 @@
 5. **derivatives**, keeping what was logged: a logged v is kept and differentiated once,
    v̇ = d/dt v (Savitzky–Golay); only without a logged v are v and v̇ taken from q
    (d/dt q, d²/dt² q). ``velocity="from-q"`` forces the latter. A logged v̇ is kept
-   unless ``savgol_window`` is given;
+   unless ``savgol_window`` is given. A log with contact flags gets a default window of at most
+   a quarter of its median contact phase, and each stance is widened by half the window (the
+   smoothed accelerations near a touchdown carry the impact);
 6. **rest** (``rest="auto"``, with a logged v): a joint whose |v| stays within 5 noise stds
    of zero and whose q moves less than 8 noise stds over the derivative window is at rest,
    v = v̇ = 0 there
@@ -209,6 +211,14 @@ def prepare(
         sigma_q = signal_noise(traj.q)
     w = int(savgol_window) if savgol_window is not None else default_savgol_window(
         1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 and np.median(np.diff(traj.t)) > 0 else float("nan"))
+    if derive_a and traj.extras.get("contact") is not None:
+        fit = _contact_phase_window(traj.extras["contact"])
+        if savgol_window is None:
+            w = min(w, fit)
+        elif w > 2 * fit:
+            warnings.warn(f"{src}: the derivative window ({w} samples) spans more than half of the log's median "
+                          f"contact phase: the accelerations mix stance and flight (the default here would be {fit} "
+                          "samples; leave --savgol-window out)", DataWarning, stacklevel=2)
     if from_pose:  # from the pose samples as logged, low-passed at the same cut-off, the same derivative window
         traj = base_motion_from_pose(traj.with_(base_a=None) if imu else traj, *pose_samples, cutoff_hz=lowpass,
                                      window=w, keep_base_a=imu,
@@ -237,6 +247,8 @@ def prepare(
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
         traj = traj.with_(a=a, units=_note(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
                           provenance={**traj.provenance, "a": f"derived: d/dt of logged v, {how}"})
+    if derive_a and traj.extras.get("contact") is not None:
+        traj = _widen_contacts(traj, w // 2)
     if sigma_v is not None:
         traj = zero_at_rest(traj, sigma_v, w, sigma_q)
     if base_a:
@@ -249,6 +261,43 @@ def prepare(
         traj = _decimate(traj, decimate)
         traj = traj.with_(provenance={**traj.provenance, "decimate": int(decimate)})
     return traj
+
+
+#: the default derivative window of a log with contact flags spans at most this share of its median contact phase
+CONTACT_PHASE_SHARE = 0.15
+
+
+def _contact_phase_window(flags: np.ndarray) -> int:
+    """The longest derivative window [samples, odd, ≥ 11] that resolves the contact phases of a log:
+    :data:`CONTACT_PHASE_SHARE` of its median phase (a run of one contact pattern, the first and last
+    runs left out as cut; the median over samples, so that a few milliseconds of bouncing at a
+    touchdown do not count as phases). A hopping leg's 0.2 s stance and flight would be smeared by
+    the arm default of 0.2 s (the stance force reaching far into the flight); a log with one phase
+    keeps any window."""
+    f = np.asarray(flags, dtype=bool).reshape(len(flags), -1)
+    change = np.flatnonzero(np.any(f[1:] != f[:-1], axis=1)) + 1
+    runs = np.sort(np.diff(change))
+    if runs.size < 2:
+        return 10**9
+    median = float(runs[np.searchsorted(np.cumsum(runs), 0.5 * runs.sum())])  # the phase of the median sample
+    w = int(max(11, CONTACT_PHASE_SHARE * median))
+    return w if w % 2 else w + 1
+
+
+def _widen_contacts(traj: Trajectory, half: int) -> Trajectory:
+    """Logged contact flags widened by ``half`` samples on each side of every stance: a smoothed
+    acceleration within half a derivative window of a touchdown or lift-off carries part of the
+    contact force's effect (the impact), so such samples are treated as in contact (a contact
+    projection then removes that part, P Jcᵀ = 0)."""
+    flags = np.asarray(traj.extras["contact"], dtype=bool)
+    if half < 1 or flags.ndim != 2 or not flags.any():
+        return traj
+    from scipy.ndimage import binary_dilation
+
+    wide = binary_dilation(flags, structure=np.ones((2 * half + 1, 1), dtype=bool))
+    return traj.with_(extras={**traj.extras, "contact": wide},
+                      provenance={**traj.provenance, "contact": f"logged, each stance widened by {half} samples "
+                                  "(half the derivative window: the smoothed accelerations reach into it)"})
 
 
 def parse_columns(spec: "str | None") -> "dict | None":

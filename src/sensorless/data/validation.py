@@ -82,6 +82,7 @@ def validate_trajectory(
     if not isinstance(traj, Trajectory):
         raise DataError(f"expected a Trajectory, got {type(traj).__name__}")
     src = traj.source
+    traj = _passive_torques(traj, robot)
     t = as_float_array(traj.t, "t", src)
     if t.ndim != 1:
         raise ShapeMismatchError(f"'t' must be 1-D, got shape {t.shape}", src)
@@ -113,7 +114,9 @@ def validate_trajectory(
             raise ShapeMismatchError(f"row count of '{name}' is {arr.shape[0]} but 't' has {n} samples", src)
         if arr.shape[1] != cols:
             what = f"there are {cols} joint names" if name in _JOINT_FIELDS else f"'{name}' needs {cols}"
-            raise ShapeMismatchError(f"column count of '{name}' is {arr.shape[1]} but {what}", src)
+            hint = ("; a joint without an actuator has no torque column: declare it passive (--passive JOINT)"
+                    if name == "tau" and arr.shape[1] < cols else "")
+            raise ShapeMismatchError(f"column count of '{name}' is {arr.shape[1]} but {what}{hint}", src)
         arrays[name] = arr
     for key, val in traj.extras.items():
         arr = np.asarray(val)
@@ -217,6 +220,30 @@ def _with_hint(exc: DataError, scan, rescan, checked: np.ndarray) -> DataError:
     if exc.source and msg.startswith(f"{exc.source}: "):
         msg = msg[len(exc.source) + 2:]
     return type(exc)(msg + hint, exc.source)
+
+
+def _passive_torques(traj: Trajectory, robot: "Robot | None") -> Trajectory:
+    """A passive joint (``robot.passive_joints``) has no torque channel: ``tau`` may omit its columns
+    (one column per other joint, in the log's order) or hold anything there (NaN included); either
+    way its torque becomes 0, the generalized force of a joint without actuator."""
+    passive = tuple(getattr(robot, "passive_joints", ()) or ()) if robot is not None else ()
+    if not passive or traj.tau is None:
+        return traj
+    names = list(traj.joint_names)
+    idx = [k for k, j in enumerate(names) if j in passive]
+    if not idx:
+        return traj
+    tau = np.asarray(traj.tau, dtype=float)
+    tau = tau[:, None] if tau.ndim == 1 else tau
+    if tau.ndim == 2 and tau.shape[1] == len(names) - len(idx):
+        full = np.zeros((tau.shape[0], len(names)))
+        full[:, [k for k in range(len(names)) if k not in idx]] = tau
+        return traj.with_(tau=full)
+    if tau.ndim == 2 and tau.shape[1] == len(names):
+        tau = tau.copy()
+        tau[:, idx] = 0.0
+        return traj.with_(tau=tau)
+    return traj  # the shape check below names the mismatch
 
 
 def _check_finite(name: str, arr: np.ndarray, labels: list[str], t: np.ndarray, src: str,

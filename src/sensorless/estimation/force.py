@@ -2,7 +2,13 @@
 
 External torque: what the dynamic model (and an optional learned residual) does not explain,
 
-    τ_ext = τ_measured − τ_model(q, q̇, q̈) − τ_residual.
+    τ_ext = τ_measured − τ_model(q, q̇, q̈) − τ_residual,
+
+on every row whose generalized force is known: the actuated joints (measured), and the
+unactuated coordinates, whose generalized force is 0 — passive joints (a leg's rail) and a
+floating base's 6 rows. There τ_ext = −τ_model: on a hopping leg on a vertical rail, the rail
+row alone gives the vertical foot force from the identified mass and accelerations. The model's
+equations are the unmapped ones (no contact projection: the contact force is what is estimated).
 
 A wrench F applied at a frame produces τ_ext = Jᵀ F, with J the frame Jacobian (rows:
 linear then angular, in the chosen reference: ``local``, ``world`` or
@@ -55,8 +61,21 @@ REFERENCES: dict[str, pin.ReferenceFrame] = {
     "local_world_aligned": pin.LOCAL_WORLD_ALIGNED,
 }
 _COMPONENTS = {"linear": slice(0, 3), "angular": slice(3, 6), "wrench": slice(0, 6)}
+#: named component sets; any comma-separated subset of the labels works too ("fx,fz" for a planar leg)
 COMPONENTS = tuple(_COMPONENTS)
 _LABELS = ("fx", "fy", "fz", "mx", "my", "mz")
+
+
+def _component_index(components: str) -> np.ndarray:
+    """Rows of the 6-D wrench for ``components``: a named set or labels such as "fz" or "fx,fz"."""
+    if components in _COMPONENTS:
+        return np.arange(6)[_COMPONENTS[components]]
+    labels = [c.strip() for c in str(components).split(",") if c.strip()]
+    bad = [c for c in labels if c not in _LABELS]
+    if not labels or bad or len(set(labels)) != len(labels):
+        raise RobotModelError(f"unknown components '{components}'; choose {', '.join(COMPONENTS)} or "
+                              f"comma-separated labels from {', '.join(_LABELS)} (e.g. fx,fz)")
+    return np.array(sorted(_LABELS.index(c) for c in labels), dtype=int)
 
 
 def _reference(name: str) -> pin.ReferenceFrame:
@@ -189,8 +208,10 @@ class CartesianForceEstimator:
     """F = (Jᵀ)⁺ τ_ext at ``frame``, expressed in ``reference``.
 
     ``components``: "linear" (3 forces: a pure force at the frame origin — the usual choice
-    for a tool tip), "angular" (3 moments) or "wrench" (6). ``joints``: which actuated
-    joints' torques to use (default all; e.g. drop wrist joints whose torques are noisy).
+    for a tool tip), "angular" (3 moments), "wrench" (6), or labels such as "fz" or "fx,fz".
+    The equations are the rows of known generalized force (module docstring): a floating base's 6,
+    then the term joints (actuated, then passive). ``joints``: which of these joints to use (default
+    all; e.g. drop wrist joints whose torques are noisy); a floating base's rows are always used.
     ``sigma_threshold`` ε and ``lambda_max`` set the damping (units of the Jacobian rows).
     """
 
@@ -205,43 +226,62 @@ class CartesianForceEstimator:
         sigma_threshold: float = 0.01,
         lambda_max: float = 0.02,
     ) -> None:
-        if robot.floating_base:
-            raise RobotModelError(f"{robot.name}: Cartesian force estimation supports fixed-base arms only")
         robot.frame_id(frame)
         _reference(reference)
-        if components not in _COMPONENTS:
-            raise RobotModelError(f"unknown components '{components}'; choose from {sorted(_COMPONENTS)}")
+        self._comp = _component_index(components)
         self.robot, self.frame, self.reference, self.components = robot, frame, reference.lower(), components
-        self.joints = tuple(joints) if joints is not None else tuple(robot.actuated_joints)
-        bad = [j for j in self.joints if j not in robot.actuated_joints]
+        term = tuple(robot.term_joints)
+        self.joints = tuple(joints) if joints is not None else term
+        bad = [j for j in self.joints if j not in term]
         if bad:
-            raise RobotModelError(f"joints {bad} are not actuated joints of '{robot.name}' ({list(robot.actuated_joints)})")
-        self._cols = np.array([robot.actuated_joints.index(j) for j in self.joints], dtype=int)
-        self._v = robot.actuated_v_indices[self._cols]
+            raise RobotModelError(f"joints {bad} are neither actuated nor passive joints of '{robot.name}' ({list(term)})")
+        nb = 6 if robot.floating_base else 0
+        #: velocity indices of the rows of known generalized force (module docstring) and their names
+        self.known = np.concatenate([np.arange(nb), robot.term_v_indices]).astype(int)
+        self.known_names = [f"base_{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")][:nb] + list(term)
+        self._sel = np.array(list(range(nb)) + [nb + term.index(j) for j in self.joints], dtype=int)
+        self._act = nb + np.arange(robot.n_actuated)  # the actuated rows among the known ones
+        self._v = self.known[self._sel]
         self.sigma_threshold, self.lambda_max = float(sigma_threshold), float(lambda_max)
 
     @property
     def labels(self) -> list[str]:
-        return list(_LABELS[_COMPONENTS[self.components]])
+        return [_LABELS[i] for i in self._comp]
 
-    def jacobians(self, Q: np.ndarray) -> np.ndarray:
-        """Rows of the chosen components, columns of the chosen joints: (N, m, n_joints)."""
+    @property
+    def row_names(self) -> list[str]:
+        """The equations used (a floating base's rows, then the chosen joints)."""
+        return [self.known_names[k] for k in self._sel]
+
+    def jacobians(self, Q: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Rows of the chosen components, columns of the chosen equations (velocity indices ``rows``,
+        default the chosen known rows): (N, m, n_rows)."""
         J = frame_jacobians(self.robot, Q, self.frame, self.reference)
-        return J[:, _COMPONENTS[self.components]][:, :, self._v]
+        return J[:, self._comp][:, :, self._v if rows is None else rows]
 
     def from_external_torque(self, Q: np.ndarray, tau_ext: np.ndarray, t: np.ndarray | None = None) -> ForceEstimate:
-        """Force from Pinocchio configurations Q (N, nq) and τ_ext (N, n_actuated)."""
+        """Force from Pinocchio configurations Q (N, nq) and τ_ext (N, n_known) on the rows of known
+        generalized force (:attr:`known_names`), or (N, n_actuated) on the actuated joints only."""
         tau_ext = np.atleast_2d(np.asarray(tau_ext, dtype=float))
         Q = np.atleast_2d(Q)
-        if tau_ext.shape != (Q.shape[0], self.robot.n_actuated):
+        n_known, n_act = len(self.known), self.robot.n_actuated
+        if tau_ext.shape == (Q.shape[0], n_known):
+            sel = self._sel
+        elif tau_ext.shape == (Q.shape[0], n_act):  # actuated rows only (e.g. a black-box torque model)
+            sel = np.array([k for k in self._sel if k in set(self._act.tolist())], dtype=int)
+            full = np.zeros((Q.shape[0], n_known))
+            full[:, self._act] = tau_ext
+            tau_ext = full
+        else:
             raise ShapeMismatchError(
-                f"tau_ext has shape {tau_ext.shape}; expected ({Q.shape[0]}, {self.robot.n_actuated}) "
-                f"(actuated joints {list(self.robot.actuated_joints)})"
+                f"tau_ext has shape {tau_ext.shape}; expected ({Q.shape[0]}, {n_known}) (rows {self.known_names}) "
+                f"or ({Q.shape[0]}, {n_act}) (actuated joints {list(self.robot.actuated_joints)})"
             )
+        tau_ext = tau_ext[:, sel]
         if not np.all(np.isfinite(tau_ext)):
             bad = int(np.argwhere(~np.isfinite(tau_ext))[0, 0])
             raise DataError(f"tau_ext is not finite at sample {bad}")
-        sol = damped_least_squares(self.jacobians(Q), tau_ext[:, self._cols],
+        sol = damped_least_squares(self.jacobians(Q, self.known[sel]), tau_ext,
                                    sigma_threshold=self.sigma_threshold, lambda_max=self.lambda_max)
         return ForceEstimate(
             t=np.arange(Q.shape[0], dtype=float) if t is None else np.asarray(t, float),
@@ -252,16 +292,26 @@ class CartesianForceEstimator:
     def estimate(self, traj: Trajectory, model, residual=None) -> ForceEstimate:
         """τ_ext = τ_measured − model.predict(traj) (− residual.predict_residual(traj)) → F.
 
-        ``model`` is any fitted torque model with ``predict`` (rows = actuated joints), e.g.
-        :class:`~sensorless.estimators.PhysicalModel`, a hybrid or a learned model; ``residual``
-        an optional object with ``predict_residual(traj)`` (a learned correction).
+        ``model`` is a fitted torque model: a physical one (``structure_`` and ``parameters_``, e.g.
+        :class:`~sensorless.estimators.PhysicalModel`, identified with or without contacts) is evaluated
+        on the rows of known generalized force without its row map (module docstring); any other
+        model's ``predict`` gives the actuated rows (a hybrid or a learned model). ``residual``: an
+        optional object with ``predict_residual(traj)`` (a learned correction, actuated rows).
         """
         from ..regressor.terms import ModelStructure
 
         structure = getattr(model, "structure_", None) or ModelStructure(self.robot, joint_terms=())
-        measured = structure.target(traj)
-        tau_ext = external_torque(measured, model.predict(traj),
-                                  None if residual is None else residual.predict_residual(traj))
+        params = getattr(model, "parameters_", None)
+        res = None if residual is None else residual.predict_residual(traj)
+        if params is not None and structure.robot.transmission_matrix is None:
+            eom = structure.equations_of_motion()  # unmapped, on the known rows; parameters: the first n_params
+            pred = eom.torques(np.asarray(params)[: eom.n_params], traj)
+            if res is not None:
+                pred[:, eom.actuated_rows] += res
+            tau_ext = external_torque(eom.target(traj), pred)
+            structure = eom
+        else:
+            tau_ext = external_torque(structure.target(traj), model.predict(traj), res)
         Q = structure.state(traj)[0] if traj.v is not None and traj.a is not None else self.robot.full_configuration(
             traj.select_joints(list(self.robot.joint_names)).q)
         return self.from_external_torque(Q, tau_ext, traj.t)

@@ -136,17 +136,19 @@ class MomentumDynamics:
             if nb:
                 robot = robot.with_inertial_parameters(params[:nb])
             model = robot.model.copy()
-            act = structure.robot.actuated_v_indices
-            model.armature[act] = 0.0
+            r = structure.robot
+            act, terms = r.actuated_v_indices, r.term_v_indices  # term joints: actuated, then passive
+            model.armature[terms] = 0.0
             if "armature" in structure.joint_terms:
-                model.armature[act] = [params[structure.joint_term_index(j, "armature")] for j in structure.robot.actuated_joints]
+                model.armature[terms] = [params[structure.joint_term_index(j, "armature")]
+                                         if "armature" in structure.terms_of(j) else 0.0 for j in r.term_joints]
             self.tree = structure.robot
             self.floating_base = structure.robot.floating_base
             base = [f"base_{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")] if self.floating_base else []
             self.names = tuple(base + list(structure.robot.joint_names))
-            self._act = act
-            nt = len(structure.joint_terms)
-            self._phi = params[nb:].reshape(structure.robot.n_actuated, nt) if nt else np.zeros((structure.robot.n_actuated, 0))
+            self._act, self._terms = act, terms
+            nt, n = len(structure.joint_terms), len(r.term_joints)
+            self._phi = params[nb:nb + n * nt].reshape(n, nt) if nt else np.zeros((n, 0))
             if depth_first_model(model)[0] is not model:
                 raise RobotModelError(f"{structure.robot.name}: joints are not numbered depth-first; "
                                       "Pinocchio's crba/computeCoriolisMatrix need it")
@@ -224,8 +226,8 @@ class MomentumDynamics:
                 vals = {k: val for k, val in self._drive_values[d.name].items() if k != "inertia"}
                 out += d.force(vals, q2, v2, np.zeros_like(v2), s.coulomb_smoothing)[:, None] * d.g[None, :]
         elif self._phi.shape[1]:
-            F = s.joint_features(v2, np.zeros_like(v2))  # (N, n_act, n_terms); armature column is 0
-            out[:, self._act] = np.einsum("nkt,kt->nk", F, self._phi)
+            F = s.joint_features(v2, np.zeros_like(v2))  # (N, n_term_joints, n_terms); armature column is 0
+            out[:, self._terms] = np.einsum("nkt,kt->nk", F, self._phi)
         return out if np.ndim(v) == 2 else out[0]
 
     def _tree_q(self, theta: np.ndarray) -> np.ndarray:

@@ -22,6 +22,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError
 from .collision import ContactInterval, observer_warmup, quiet_mask, runs
 from .momentum import MomentumDynamics, MomentumObserver, ObserverResult
+from .monitored import MonitoredTorque, monitored_rows, monitored_torque
 from .static_band import (STATUS, MonitorTrace, RestAwareThresholds, StaticFriction, classify_at_rest,
                           model_static_friction, rest_aware_thresholds, rest_intervals, rest_speeds)
 
@@ -112,6 +113,7 @@ class MonitorResult:
     quiet: np.ndarray  # (N,) samples the statistics came from
     rest_speed: np.ndarray
     settings: dict = field(default_factory=dict)
+    monitored: MonitoredTorque | None = None  # rows and contact projector (None: a friction-only model)
 
     @property
     def tau_ext(self) -> np.ndarray:
@@ -125,10 +127,14 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
     joint when ``settings.static_friction == "model"`` (default: :func:`model_static_friction`
     of ``dyn``); ``savgol_window``: the derivative window the log's v came from, if derived."""
     s = settings
-    names = list(dyn.actuated_names)
+    names = monitored_rows(dyn)[0]  # actuated and passive joints; with contacts every row, projected
     s.check(len(names))
     window = TrimWindow.parse(s.quiet)
-    auto_speeds, q_range, speed_src = rest_speeds(traj, names, savgol_window)
+    logged = list(traj.joint_names)
+    jr = [k for k, n in enumerate(names) if n in logged]  # rows that are logged joints (not a floating base's)
+    cols = [logged.index(names[k]) for k in jr]
+    auto_speeds, q_range = np.full(len(names), np.nan), np.full(len(names), np.nan)
+    auto_speeds[jr], q_range[jr], speed_src = rest_speeds(traj, [names[k] for k in jr], savgol_window)
     if isinstance(s.rest_speed, str):
         speeds = auto_speeds
     else:
@@ -136,14 +142,15 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
     dt = float(np.median(np.diff(traj.t)))
     settle = observer_warmup(s.gain, s.order, dt)
     warm = settle if s.warmup is None else float(s.warmup)
-    cols = [list(traj.joint_names).index(n) for n in names]
-    rest = still_mask(traj.t, traj.v[:, cols], speeds, s.min_duration, settle, traj.q[:, cols], q_range)
+    rest = np.zeros((len(traj.t), len(names)), bool)  # a base row is never "at rest" (no static friction there)
+    rest[:, jr] = still_mask(traj.t, traj.v[:, cols], speeds[jr], s.min_duration, settle, traj.q[:, cols], q_range[jr])
     if s.static_friction == "off":
         rest[:] = False  # one threshold everywhere, as in motion
     v = traj.v.copy()
-    v[:, cols] = np.where(rest, 0.0, v[:, cols])  # at rest the friction is the band, not the sliding law
+    v[:, cols] = np.where(rest[:, jr], 0.0, v[:, cols])  # at rest the friction is the band, not the sliding law
     res = MomentumObserver(dyn, gain=s.gain, order=s.order).run(traj.with_(v=v))
-    raw = -res.tau_ext
+    monitored = monitored_torque(dyn, res.r, traj) if hasattr(dyn, "structure") else None
+    raw = -res.tau_ext if monitored is None else monitored.tau_ext
     t = np.asarray(traj.t, float)
     if s.static_friction == "model":
         static = static or model_static_friction(dyn.structure, dyn.params, names)
@@ -167,4 +174,4 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
         "rest_position_range": dict(zip(names, q_range.tolist())),
         "rest_speed_source": speed_src, "status_codes": list(STATUS),
     })
-    return MonitorResult(t, names, raw, res, trace, th, contacts, band, flag, mask, speeds, used)
+    return MonitorResult(t, names, raw, res, trace, th, contacts, band, flag, mask, speeds, used, monitored)

@@ -16,6 +16,12 @@ robot's total mass, at least 100 kg), first and second moments of bounded size, 
 (``lmi``) models the pseudo-inertia and the signs of friction and armature. Paths stored in a
 model (e.g. a gains file) are resolved inside the model folder only. Every problem is one
 :class:`~sensorless.errors.ParameterError` line naming the file and the key path.
+
+``settings.robot`` records how the robot description was loaded for the fit (floating base,
+locked joints, passive joints, frames added to it), written by :func:`robot_settings`;
+:func:`load_model_robot` loads the same robot again, so that a command applying the model
+needs nothing repeated. :func:`prior_model` is the robot description itself used as a model
+(its inertials and armature, no friction), labelled as the prior wherever it is used.
 """
 
 from __future__ import annotations
@@ -28,10 +34,12 @@ import numpy as np
 
 from ..errors import ParameterError, SensorlessError
 from ..io import check_input_file, read_json
-from .artifact_schema import Checker, check_preprocessing_settings, check_structure_settings, check_verdicts, summary
+from .artifact_schema import (Checker, check_preprocessing_settings, check_robot_settings, check_structure_settings,
+                              check_verdicts, summary)
 
 __all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "FrictionArtifact", "ModelArtifact", "is_friction_model",
-           "load_friction_model", "load_model_folder", "read_result", "read_preprocessing", "result_path",
+           "is_robot_description", "load_friction_model", "load_model_folder", "load_model_robot", "prior_model",
+           "read_result", "read_preprocessing", "read_robot_settings", "result_path", "robot_settings",
            "save_friction_model", "save_model_folder", "stamp", "write_result"]
 
 #: version of the ``result.json`` schema written by every writer (0: files written before it existed)
@@ -86,20 +94,71 @@ def read_preprocessing(model: str | Path) -> dict:
     return check_preprocessing_settings(c, settings.get("preprocessing"))
 
 
+def read_robot_settings(model: str | Path) -> dict:
+    """The validated ``settings.robot`` of a model (module docstring; empty for older models)."""
+    path = result_path(model)
+    doc = read_result(path)
+    c = Checker(path, path.parent)
+    settings = c.mapping("settings", doc.get("settings"))
+    out = check_robot_settings(c, settings.get("robot"))
+    if "floating_base" not in out and settings.get("contact_frames"):
+        out["floating_base"] = True  # written before settings.robot: contact models had a floating base
+    return out
+
+
+def robot_settings(robot) -> dict:
+    """``settings.robot`` of a model identified on ``robot`` (module docstring)."""
+    return {"floating_base": bool(getattr(robot, "floating_base", False)),
+            "lock": list(getattr(robot, "locked_joints", ()) or ()),
+            "passive": list(getattr(robot, "passive_joints", ()) or ()),
+            "frames": [list(f) for f in getattr(robot, "added_frames", None) or ()]}
+
+
+def load_model_robot(spec, model: str | Path, **load_kwargs):
+    """The robot ``spec`` (:func:`~sensorless.robot.load_robot`) loaded as it was for the fit of ``model``:
+    its floating base, locked and passive joints and added frames (``settings.robot``)."""
+    from ..robot import add_frame, load_robot
+
+    stored = read_robot_settings(model)
+    robot = load_robot(spec, floating_base=stored.get("floating_base"), lock_joints=stored.get("lock", ()),
+                       passive_joints=stored.get("passive", ()), **load_kwargs)
+    for name, parent, xyz, rpy in stored.get("frames", ()):
+        add_frame(robot, name, parent, xyz, rpy)
+    return robot
+
+
+#: file suffixes of a robot description (``--model robot.urdf``: the description's own parameters)
+DESCRIPTION_SUFFIXES = (".urdf", ".xml", ".mjcf", ".xacro")
+
+
+def is_robot_description(model: str | Path | None) -> bool:
+    """True for a robot description file (URDF/MJCF/xacro) given where a model is expected."""
+    return model is not None and Path(model).suffix.lower() in DESCRIPTION_SUFFIXES
+
+
 @dataclasses.dataclass
 class ModelArtifact:
     """A validated model folder: the document, the structure rebuilt on the robot, the parameters,
-    and the preprocessing its training logs had (a stored gains file resolved inside the folder)."""
+    and the preprocessing its training logs had (a stored gains file resolved inside the folder).
+    ``origin``: "identified", or "prior" for a robot description used as the model (:func:`prior_model`)."""
 
     path: Path
     doc: dict
     structure: Any
     parameters: np.ndarray
     preprocessing: dict
+    origin: str = "identified"
 
     @property
     def folder(self) -> Path:
         return self.path.parent
+
+    @property
+    def label(self) -> str:
+        """What the model is, for outputs: the identified model's folder or the prior's file."""
+        if self.origin == "prior":
+            return f"prior: the inertial parameters of {self.path} (no identified model, no friction)"
+        return f"identified ({self.doc.get('method', '?')}): {self.folder}"
 
     @property
     def schema_version(self) -> int:
@@ -123,6 +182,7 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
     if doc.get("robot") is not None:
         c.mapping("robot", doc["robot"])
     check_structure_settings(c, settings)
+    _check_robot_matches(c, check_robot_settings(c, settings.get("robot")), robot)
     check_verdicts(c, (doc.get("diagnostics") or {}).get("verdicts") if isinstance(doc.get("diagnostics"), dict) else None)
     pre = check_preprocessing_settings(c, settings.get("preprocessing"))
     try:
@@ -136,6 +196,40 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
     params = _parameters(c, structure, values, doc, robot)
     _check_bodies(c, structure, params, physical=method == "lmi")
     return ModelArtifact(path, doc, structure, params, pre)
+
+
+def _check_robot_matches(c: Checker, stored: dict, robot) -> None:
+    """The robot must be loaded as for the fit: the same passive joints (they change the parameters)."""
+    passive = list(getattr(robot, "passive_joints", ()) or ())
+    if stored and sorted(stored.get("passive", [])) != sorted(passive):
+        raise c.fail("settings.robot.passive", f"the model was identified with passive joint(s) "
+                     f"{stored.get('passive', [])}, the robot given has {passive}; load the robot as for the fit "
+                     "(sensorless.identification.artifact.load_model_robot; the commands do it)")
+
+
+def prior_model(robot, description=None, source: str | Path | None = None) -> ModelArtifact:
+    """The robot description as a model: the inertials (and armature) of ``description`` (a robot with
+    the same bodies, e.g. another URDF of it; default ``robot`` itself), no friction, on the rows of a
+    per-joint model (known generalized forces: actuated and passive joints, and a floating base's 6).
+    ``origin`` is "prior": outputs say the parameters are the prior's, not identified."""
+    from ..errors import RobotModelError
+    from ..regressor.terms import ModelStructure
+
+    if getattr(robot, "coupled", False):
+        structure = robot.make_structure(None)
+    else:
+        structure = ModelStructure(robot, joint_terms=("armature",))
+    params = np.asarray(structure.prior(), dtype=float)
+    if description is not None and description is not robot:
+        missing = [b for b in robot.body_names if b not in description.body_names]
+        if missing:
+            raise RobotModelError(f"{source or description.source}: the model lacks bodies {missing} of '{robot.name}'")
+        pi = description.inertial_parameters().reshape(-1, 10)
+        for k, b in enumerate(robot.body_names):
+            params[10 * k: 10 * k + 10] = pi[description.body_names.index(b)]
+    path = Path(source or getattr(robot, "source", "") or robot.name)
+    doc = {"method": "prior", "robot": robot.summary(), "settings": {"robot": robot_settings(robot)}}
+    return ModelArtifact(path, doc, structure, params, {}, origin="prior")
 
 
 def _parameters(c: Checker, structure, values: dict, doc: dict, robot) -> np.ndarray:
@@ -276,7 +370,7 @@ def save_model_folder(directory: str | Path, result, doc: dict | None = None, *,
         write_result(doc, directory / RESULT)
         return doc
     law = {j: {"stribeck_velocity": float((s.stribeck_velocity or {}).get(j, 0.0)) if "stribeck" in s.terms_of(j)
-               else 0.0, "coulomb_smoothing": s.smoothing_of(j)} for j in s.robot.actuated_joints}
+               else 0.0, "coulomb_smoothing": s.smoothing_of(j)} for j in s.robot.term_joints}
     terms = JointTerms.from_dict({j: {**d, **law[j]} for j, d in result.joint_terms().items()})
     write_joint_terms(terms, directory / "joint_terms.json")
     try:

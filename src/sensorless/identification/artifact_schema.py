@@ -15,7 +15,8 @@ from typing import Any, Mapping
 
 from ..errors import ParameterError
 
-__all__ = ["Checker", "summary", "check_friction_law", "check_preprocessing_settings", "check_structure_settings",
+__all__ = ["Checker", "summary", "check_friction_law", "check_preprocessing_settings", "check_robot_settings",
+           "check_structure_settings",
            "check_verdicts"]
 
 #: bounds of the stored preprocessing (outside them no log can be processed sensibly)
@@ -241,6 +242,38 @@ def check_preprocessing_settings(c: Checker, pre: Any, key: str = "settings.prep
     out["trim"] = _trim(c, k("trim"), pre.get("trim"))
     if pre.get("trims") is not None:  # each log's own window (sensorless.data.trims.LogTrims.settings)
         out["trims"] = {log: _trim(c, f"{k('trims')}.{log}", w) for log, w in c.mapping(k("trims"), pre["trims"]).items()}
+    return out
+
+
+# ---- settings.robot (how the robot description was loaded) -----------------------------------
+def check_robot_settings(c: Checker, value: Any, key: str = "settings.robot") -> dict:
+    """``{"floating_base": bool, "lock": [joint], "passive": [joint], "frames": [[name, parent, xyz, rpy]]}``
+    (each key optional; an empty dict for a model written before it existed)."""
+    if value is None:
+        return {}
+    v = c.mapping(key, value)
+    out: dict = {}
+    if v.get("floating_base") is not None:
+        if not isinstance(v["floating_base"], bool):
+            raise c.fail(f"{key}.floating_base", f"expected true or false, got {summary(v['floating_base'])}")
+        out["floating_base"] = v["floating_base"]
+    for name in ("lock", "passive"):
+        out[name] = c.strings(f"{key}.{name}", v.get(name, []))
+    frames = v.get("frames", [])
+    if not isinstance(frames, list) or len(frames) > 1000:
+        raise c.fail(f"{key}.frames", f"expected a list of frames, got {summary(frames)}")
+    out["frames"] = []
+    for i, f in enumerate(frames):
+        k = f"{key}.frames[{i}]"
+        if not isinstance(f, list) or len(f) != 4:
+            raise c.fail(k, f"expected [name, parent, [x, y, z], [r, p, y]], got {summary(f)}")
+        name, parent = c.string(f"{k}[0]", f[0], max_len=256), c.string(f"{k}[1]", f[1], max_len=256)
+        vecs = []
+        for j in (2, 3):
+            if not isinstance(f[j], list) or len(f[j]) != 3:
+                raise c.fail(f"{k}[{j}]", f"expected 3 numbers, got {summary(f[j])}")
+            vecs.append([c.number(f"{k}[{j}][{n}]", x, -1e3, 1e3) for n, x in enumerate(f[j])])
+        out["frames"].append([name, parent, *vecs])
     return out
 
 

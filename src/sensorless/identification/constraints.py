@@ -131,7 +131,7 @@ class LmiContext:
         s = self.structure
         if term not in s.joint_terms:
             return np.zeros(0, dtype=int)
-        return np.array([s.joint_term_index(j, term) for j in s.robot.actuated_joints], dtype=int)
+        return np.array([s.joint_term_index(j, term) for j in s.robot.term_joints], dtype=int)
 
     # ---- pseudo-inertias -------------------------------------------------------------
     def T(self, k: int) -> np.ndarray:

@@ -116,7 +116,7 @@ def _moving_weights(lengths: Sequence[int], moving: Sequence[np.ndarray] | None)
 
 
 def moving_joints(structure: ModelStructure, traj: Trajectory) -> np.ndarray:
-    """Per actuated joint: does it move in this log (position range ≥ 1e-3)?"""
+    """Per term joint (actuated, then passive): does it move in this log (position range ≥ 1e-3)?"""
     t, cols = _act_columns(structure, traj)
     q = np.asarray(t.q)[:, cols]
     return np.ptp(q, axis=0) >= 1e-3 if len(q) else np.zeros(len(cols), dtype=bool)
@@ -141,13 +141,13 @@ def coulomb_smoothing_from_noise(
 def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajectory, list[int]]:
     r = structure.robot
     traj = _in_robot_order(r, traj)
-    return traj, [r.joint_names.index(j) for j in r.actuated_joints]
+    return traj, [r.joint_names.index(j) for j in r.term_joints]
 
 
 def _friction_params(structure: ModelStructure, params: np.ndarray) -> np.ndarray:
     """``params`` with everything but the velocity-dependent friction terms and offset zeroed."""
     p = np.zeros_like(params)
-    for j in structure.robot.actuated_joints:
+    for j in structure.robot.term_joints:
         for t in structure.terms_of(j):
             if t != "armature":
                 k = structure.joint_term_index(j, t)
@@ -156,24 +156,23 @@ def _friction_params(structure: ModelStructure, params: np.ndarray) -> np.ndarra
 
 
 def friction_residual(structure: ModelStructure, params: np.ndarray, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
-    """(v, r) per actuated joint, shape (N, n_act): r = τ − (rigid body + armature) prediction,
-    the torque the friction model has to explain."""
+    """(v, r) per term joint (actuated, then passive), shape (N, n): r = τ − (rigid body + armature)
+    prediction, the torque the friction model has to explain (τ = 0 on a passive joint)."""
     traj, cols = _act_columns(structure, traj)
     rigid = params - _friction_params(structure, params)
-    pred = structure.torques(rigid, traj)[:, structure.actuated_rows]
-    meas = structure.target(traj)[:, structure.actuated_rows]
+    pred = structure.torques(rigid, traj)[:, structure.term_rows]
+    meas = structure.target(traj)[:, structure.term_rows]
     return traj.v[:, cols], meas - pred
 
 
 def friction_curve(structure: ModelStructure, params: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Identified friction τ_f(v) per actuated joint for velocities ``v`` (N, n_act)."""
+    """Identified friction τ_f(v) per term joint (actuated, then passive) for velocities ``v`` (N, n)."""
     v = np.atleast_2d(np.asarray(v, dtype=float))
     V = np.zeros((v.shape[0], structure.robot.nv))
-    V[:, structure.robot.actuated_v_indices] = v
+    V[:, structure.robot.term_v_indices] = v
     F = structure.joint_features(V, np.zeros_like(V))  # armature column 0 at zero acceleration
-    nt = len(structure.joint_terms)
-    phi = _friction_params(structure, params)[structure.n_body_params:].reshape(structure.robot.n_actuated, nt) \
-        if nt else np.zeros((structure.robot.n_actuated, 0))
+    nt, n = len(structure.joint_terms), len(structure.robot.term_joints)
+    phi = _friction_params(structure, params)[structure.n_body_params:].reshape(n, nt) if nt else np.zeros((n, 0))
     return np.einsum("nkt,kt->nk", F, phi)
 
 
@@ -273,7 +272,7 @@ def friction_structure(
 
 def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity, factor, noise_logs,
                     lowpass_hz):
-    joints = list(structure.robot.actuated_joints)
+    joints = list(structure.robot.term_joints)
     has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
     for name, val in (("coulomb_smoothing", coulomb_smoothing), ("rest_velocity", rest_velocity)):
         if isinstance(val, str) and val != "auto":
@@ -360,7 +359,7 @@ def _logged_velocity_noise(structure: ModelStructure, logs: list, moving: list |
     infos = [t.provenance.get("rest") for t in logs]
     if not infos or any(i is None for i in infos):
         return None
-    joints = structure.robot.actuated_joints
+    joints = structure.robot.term_joints
     try:
         sig = np.array([[i["velocity_noise"][j] for j in joints] for i in infos], dtype=float)
     except KeyError:

@@ -149,7 +149,7 @@ def identify(
     sample_count_check(ne, base)
     slow: dict[str, float] = {}
     if motion is not None:
-        slow = check_joint_motion(motion, structure.robot, {j: structure.terms_of(j) for j in structure.robot.actuated_joints}
+        slow = check_joint_motion(motion, structure.robot, {j: structure.terms_of(j) for j in structure.robot.term_joints}
                                   if getattr(structure, "per_joint_terms", None) else structure.joint_terms)
     report = None
     if method in ("svd", "lmi"):
@@ -216,6 +216,10 @@ def identify(
         extra["joint_term_inflation"] = collinear
         fit_notes.append(_collinear_note(collinear, ne.n_samples))
     t_solve = time.perf_counter() - t1
+    zero = structure.fixed_zero_index  # terms a joint does not have (e.g. a passive joint's armature): zero columns
+    if zero.size:
+        params = np.array(params, dtype=float)
+        params[zero] = 0.0
     if not np.all(np.isfinite(params)):
         raise SolverError(f"method '{method}' returned non-finite parameters; check the data for extreme values")
     dof = max(ne.n_samples - base.rank / max(ne.A.shape[0], 1), 1.0)

@@ -51,7 +51,7 @@ class IdentificationResult:
         s = self.structure
         return {
             j: {t: float(self.parameters[s.joint_term_index(j, t)]) for t in s.terms_of(j)}
-            for j in s.robot.actuated_joints
+            for j in s.robot.term_joints
         }
 
     def predict(self, traj: Trajectory) -> np.ndarray:
@@ -97,7 +97,7 @@ class IdentificationResult:
                 "com_frame": "base frame at the neutral configuration"}
 
     def to_dict(self) -> dict:
-        from .artifact import SCHEMA_VERSION
+        from .artifact import SCHEMA_VERSION, robot_settings
 
         mass = self.mass_properties()
         return {
@@ -115,7 +115,7 @@ class IdentificationResult:
             },
             "train_metrics": self.train_metrics.to_dict(),
             "diagnostics": self.diagnostics,
-            "settings": self.settings,
+            "settings": {**self.settings, "robot": robot_settings(self.robot)},
             "versions": versions(),
         }
 

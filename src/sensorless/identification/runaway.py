@@ -80,7 +80,7 @@ def active_bounds(lmi: dict, params: np.ndarray, structure) -> dict:
         if hits:
             bodies[rep.get("name", str(k))] = hits
     joints = []
-    for j in structure.robot.actuated_joints:
+    for j in structure.robot.term_joints:
         for t in ("fv", "fc", "armature"):
             if t in structure.terms_of(j) and params[structure.joint_term_index(j, t)] <= 0.0:
                 joints.append(f"{j}.{t}")

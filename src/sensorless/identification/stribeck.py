@@ -48,7 +48,7 @@ class StribeckCandidates:
         if type(structure) is not ModelStructure:
             raise DataError(f"the Stribeck velocity search needs a per-joint model (got {type(structure).__name__}); "
                             "give the Stribeck velocity as a number instead")
-        joints = list(structure.robot.actuated_joints)
+        joints = list(structure.robot.term_joints)
         unknown = [j for j in grid if j not in joints or "stribeck" not in structure.terms_of(j)]
         if unknown:
             raise DataError(f"Stribeck grid given for joints without a 'stribeck' term: {unknown}")
@@ -73,7 +73,7 @@ class StribeckCandidates:
     row_map = property(lambda self: self.structure.row_map)
     n_body_params = property(lambda self: self.structure.n_body_params)
     n_block_params = property(lambda self: self.structure.n_block_params)
-    actuated_rows = property(lambda self: self.structure.actuated_rows)
+    term_rows = property(lambda self: self.structure.term_rows)
 
     @property
     def n_terms(self) -> int:
@@ -82,7 +82,7 @@ class StribeckCandidates:
 
     @property
     def n_params(self) -> int:
-        return self.n_block_params + self.structure.robot.n_actuated * self.n_terms
+        return self.n_block_params + len(self.structure.robot.term_joints) * self.n_terms
 
     def row_body_columns(self):
         return self.structure.row_body_columns()
@@ -101,7 +101,7 @@ class StribeckCandidates:
 
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         s = self.structure
-        v = V[:, s.robot.actuated_v_indices]
+        v = V[:, s.robot.term_v_indices]
         Z = np.exp(-((v[:, :, None] / self.grid[None]) ** 2)) * s.coulomb_sign(v)[:, :, None]
         Z *= self.searched[None, :, None]
         return np.concatenate([s.joint_features(V, A), Z], axis=2)
@@ -125,7 +125,7 @@ class StribeckCandidates:
         final = self.structure_for(choice)
         terms = list(self.structure.joint_terms)
         idx = list(range(self.n_block_params))
-        for k in range(final.robot.n_actuated):
+        for k in range(len(final.robot.term_joints)):
             idx += [self._column(k, terms.index(t), choice) for t in final.joint_terms]
         idx = np.asarray(idx)
         A, b = ne.A[:, idx][:, :, idx], ne.b[:, idx]
@@ -138,7 +138,7 @@ class StribeckCandidates:
         import dataclasses
 
         s = self.structure
-        joints = list(s.robot.actuated_joints)
+        joints = list(s.robot.term_joints)
         dropped = {j for k, j in enumerate(joints) if self.searched[k] and choice[k] < 0}
         vs = {j: v for j, v in (s.stribeck_velocity or {}).items() if j not in dropped}
         vs.update({j: float(self.grid[k, choice[k]]) for k, j in enumerate(joints)
@@ -173,7 +173,7 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
     from .least_squares import two_step_sigma
 
     s = cand.structure
-    joints = list(s.robot.actuated_joints)
+    joints = list(s.robot.term_joints)
     choice = np.array([cand.sizes.get(j, 1) // 2 for j in joints])
     sigma = (np.asarray(weights, dtype=float) if isinstance(weights, np.ndarray)
              else two_step_sigma(cand.select(ne, choice)))

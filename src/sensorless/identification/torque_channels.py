@@ -75,7 +75,19 @@ class TorqueChannels:
     def __post_init__(self) -> None:
         s = self.structure
         joints = set(s.robot.joint_names)
-        self.rows = tuple(s.row_names) if all(r in joints for r in s.row_names) else ()
+        names = list(s.row_names)
+        # the measured rows only: a passive joint's row has the known target 0 (no channel to check);
+        # a per-sample map (contacts) mixes the rows, and structures with base rows are not checked
+        plain = all(r in joints for r in names) and not s.row_map.per_sample
+        act = getattr(s, "actuated_rows", None)
+        self._cols = np.asarray(act if act is not None else np.arange(len(names)), dtype=int) if plain \
+            else np.zeros(0, dtype=int)
+        self.rows = tuple(names[i] for i in self._cols)
+        # a contact projection: the logged torques themselves are checked for a constant or zero channel
+        # (a joint without actuator logged as zero gets actuator terms: its offset would absorb m·g)
+        self._raw = getattr(s, "mode", None) == "projected" and getattr(s.robot, "transmission_matrix", None) is None
+        if self._raw:
+            self.rows = tuple(s.robot.actuated_joints)
         n = len(self.rows)
         self.lo, self.hi = np.full(n, np.inf), np.full(n, -np.inf)
         self.ss_meas, self.ss_prior = np.zeros(n), np.zeros(n)
@@ -87,16 +99,21 @@ class TorqueChannels:
             self.raw_energy += float(np.sum(np.square(traj.tau)))
         if not self.rows or traj.tau is None or not len(traj):
             return traj
-        y = self.structure.target(traj)
+        if self._raw:
+            y = traj.tau[:, [traj.joint_names.index(j) for j in self.rows]]
+        else:
+            y = self.structure.target(traj)[:, self._cols]
         self.lo = np.minimum(self.lo, y.min(axis=0))
         self.hi = np.maximum(self.hi, y.max(axis=0))
         self._dead_runs(traj, y)
+        if self._raw:
+            return traj
         sub = traj.take(np.unique(np.linspace(0, len(traj) - 1, min(len(traj), SUBSAMPLE)).astype(int)))
         if self._prior is None:
             self._prior = self.structure.prior()
         with np.errstate(all="ignore"):
-            pred = self.structure.torques(self._prior, sub)
-        ys = self.structure.target(sub)
+            pred = self.structure.torques(self._prior, sub)[:, self._cols]
+        ys = self.structure.target(sub)[:, self._cols]
         if np.all(np.isfinite(pred)) and np.all(np.isfinite(ys)):
             self.ss_meas += np.sum(ys**2, axis=0)
             self.ss_prior += np.sum(pred**2, axis=0)
@@ -137,7 +154,8 @@ def check_torque_channels(ch: TorqueChannels) -> None:
         if not span > 1e-12 * max(1.0, abs(ch.hi[i]), abs(ch.lo[i])):
             what = "zero" if ch.hi[i] == 0 and ch.lo[i] == 0 else f"constant ({ch.hi[i]:.6g})"
             raise DataError(f"joint '{row}': the torque channel is {what} in every log, so it says nothing "
-                            f"about the joint; {_FIX}, or lock the joint (--lock {row})")
+                            f"about the joint; {_FIX}, lock the joint (--lock {row}), or, if it has no actuator "
+                            f"(a rail, a free pivot), declare it passive (--passive {row}): its torque is then known to be 0")
     for row, (secs, src, t0, val) in ch.dead.items():
         raise DataError(f"joint '{row}': the torque channel holds {val:.6g} for {secs:.3g} s from t = {t0:.6g} s "
                         f"while the joint moves (a dead sensor?); {_FIX}, or trim the log (--trim)", src)

@@ -89,10 +89,11 @@ def check_joint_motion(motion: JointMotion, robot, joint_terms: "tuple[str, ...]
     (``joint_terms``: the same for every joint, or ``{joint: terms}``);
     returns the joints that barely move, ``{joint: range}``."""
     ranges = motion.ranges
-    per_joint = joint_terms if isinstance(joint_terms, dict) else {j: tuple(joint_terms) for j in robot.actuated_joints}
-    needs_of = {j: [t for t in per_joint.get(j, ()) if t in _MOTION_TERMS] for j in robot.actuated_joints}
+    joints = robot.term_joints
+    per_joint = joint_terms if isinstance(joint_terms, dict) else {j: tuple(joint_terms) for j in joints}
+    needs_of = {j: [t for t in per_joint.get(j, ()) if t in _MOTION_TERMS] for j in joints}
     still = {j: r for j, r in ranges.items()
-             if j in robot.actuated_joints and needs_of[j] and r < NO_MOTION[_kind(robot, j)]}
+             if j in joints and needs_of[j] and r < NO_MOTION[_kind(robot, j)]}
     needs = sorted({t for j in still for t in needs_of[j]}, key=list(_MOTION_TERMS).index)
     if still:
         desc = ", ".join(f"'{j}' (position range {r:.2g} {'rad' if _kind(robot, j) == 'revolute' else 'm'})"

@@ -122,7 +122,7 @@ def _quantities(structure: ModelStructure, params: np.ndarray, prior: np.ndarray
     out.append(("robot", "robot", "total_mass", tot, params[0:nb:10].sum(), prior[0:nb:10].sum(),
                 float(scale[0:nb:10].sum())))
     s = structure
-    for j in s.robot.actuated_joints:
+    for j in s.robot.term_joints:
         for t in s.terms_of(j):
             idx = s.joint_term_index(j, t)
             a = np.zeros(p)
@@ -149,7 +149,7 @@ def _row_units(structure: ModelStructure, ne: NormalEquations) -> dict[str, floa
     """``joint.term`` → ``√(c_r / A_r,jj)``: the term's value that alone explains row r's RMS torque."""
     out = {}
     rows = list(structure.row_names)
-    for j in structure.robot.actuated_joints:
+    for j in structure.robot.term_joints:
         for t in structure.terms_of(j):
             idx = structure.joint_term_index(j, t)
             col = ne.A[:, idx, idx]

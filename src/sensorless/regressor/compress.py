@@ -259,8 +259,8 @@ def compress(
                 F, y = structure.joint_features(V, A), structure.target(part)
                 keep = structure.fit_mask(V)
                 if keep is not None:  # equations left out of the fit (a joint at rest): zero rows
-                    Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.actuated_rows, None], y * keep
-                args = (Wb, F, structure.actuated_rows, y, cols)
+                    Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.term_rows, None], y * keep
+                args = (Wb, F, structure.term_rows, y, cols)
                 if pool:
                     pending[slot] = pool.submit(_fold_chunk, ne, *args)
                 else:

@@ -15,6 +15,12 @@ active contacts' rows only; rank-deficient stances (e.g. dependent foot rows) ar
 without a per-sample pinv. A sample with no contact (flight) has P = I: the full
 floating-base equations.
 
+Every unactuated coordinate keeps its row with the known generalized force 0: the 6 rows of a
+floating base, and the rows of passive joints (no actuator, ``Robot.passive_joints``; e.g. a leg
+on a vertical rail, a fixed-base model whose rail is the unactuated "base"). The projected
+equations use all nv rows, with Sᵀτ zero on those rows; a passive joint's own friction terms
+are columns on its row like an actuated joint's.
+
 Compression folds the projected equations through an orthonormal null-space basis B
 (nv × k, k = nv − rank Jc: 6 for four point feet on Solo12, 12 for two), since P = B Bᵀ gives
 Σ Wᵀ P W = Σ (BᵀW)ᵀ(BᵀW): k rows per sample instead of nv (see :func:`null_space_basis`,
@@ -101,7 +107,8 @@ def choose_contact_rows(trajectories: Trajectory | Iterable[Trajectory]) -> tupl
 
 @dataclass
 class ContactStructure(ModelStructure):
-    """A floating-base :class:`ModelStructure` whose rows are mapped by the contacts.
+    """A :class:`ModelStructure` on all nv rows (a floating base, or a fixed base with passive
+    joints, module docstring) whose rows are mapped by the contacts.
 
     ``mode="projected"``: rows P W, target P Sᵀ τ (no force sensing).
     ``mode="wrench"``: rows W, target Sᵀ τ + Jcᵀ f (measured wrenches in
@@ -117,7 +124,10 @@ class ContactStructure(ModelStructure):
     :func:`detect_contacts` (projected mode). ``contact_offset`` is the radius of spherical feet: point
     contacts are taken that far below the foot frame (world z), where the ground touches.
     ``fold_basis`` (projected mode): ``"nullspace"`` folds k = nv − rank Jc pooled rows per sample
-    (module docstring), ``"projector"`` the nv projected rows kept apart.
+    (module docstring), ``"projector"`` the nv projected rows kept apart (each row weighted by its own
+    residual σ); ``"auto"``: the projector when the robot has passive joints (their rows hold no torque
+    noise and may be in other units, N on a rail: pooled with the torque rows, one weight misweights
+    them and the acceleration noise in the regressor shrinks the masses), else the null-space basis.
     """
 
     contact_frames: tuple[str, ...] = ()
@@ -129,15 +139,14 @@ class ContactStructure(ModelStructure):
     contact_rows: Literal["auto", "base", "all"] = "auto"
     wrench_offset: Literal["none", "net", "foot", "sole"] = "none"
     offset_axes: str = "xy"
-    fold_basis: Literal["nullspace", "projector"] = "nullspace"
+    fold_basis: Literal["auto", "nullspace", "projector"] = "auto"
     _fids: list[int] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
-        if not self.robot.floating_base:
+        if not self.robot.floating_base and self.contact_rows == "base":
             raise RobotModelError(
-                f"{self.robot.name}: contact structures need a floating-base robot, but it was loaded fixed-base; "
-                "load it with floating_base=True (CLI: --floating-base)"
-            )
+                f"{self.robot.name}: contact_rows='base' fits the 6 floating-base rows, but the robot has a fixed base; "
+                "load it with floating_base=True (CLI: --floating-base)")
         self.rows = "all"
         super().__post_init__()
         if not self.contact_frames:
@@ -150,8 +159,10 @@ class ContactStructure(ModelStructure):
             raise RobotModelError(f"unknown contact mode '{self.mode}'; use 'projected' or 'wrench'")
         if self.contact_rows not in ("auto", "base", "all"):
             raise RobotModelError(f"unknown contact_rows '{self.contact_rows}'; use 'auto', 'base' or 'all'")
-        if self.fold_basis not in ("nullspace", "projector"):
-            raise RobotModelError(f"unknown fold_basis '{self.fold_basis}'; use 'nullspace' or 'projector'")
+        if self.fold_basis not in ("auto", "nullspace", "projector"):
+            raise RobotModelError(f"unknown fold_basis '{self.fold_basis}'; use 'auto', 'nullspace' or 'projector'")
+        if self.fold_basis == "auto":  # passive rows: no torque noise, their own unit (N on a rail): own weights
+            self.fold_basis = "projector" if self.robot.passive_joints else "nullspace"
         if self.wrench_offset not in WRENCH_OFFSETS:
             raise RobotModelError(f"unknown wrench_offset '{self.wrench_offset}'; choose from {WRENCH_OFFSETS}")
         if self.mode == "projected" and (self.contact_rows == "base" or self.wrench_offset != "none"):

@@ -132,9 +132,9 @@ def detect_contacts(
 
     A frame is in contact when it is within ``height`` of the ground (default: the 2nd
     percentile of all foot heights, i.e. the floor as seen in the log) and its world
-    velocity is below ``speed``. Needs the base pose and twist (``base_q``, ``base_v``).
+    velocity is below ``speed``. A floating base needs the base pose and twist (``base_q``, ``base_v``).
     """
-    if traj.base_q is None or traj.base_v is None:
+    if robot.floating_base and (traj.base_q is None or traj.base_v is None):
         raise DataError("contact detection needs base_q and base_v (base pose and twist)", traj.source)
     model, data = robot.model, robot.data
     fids = [robot.frame_id(f) for f in frames]

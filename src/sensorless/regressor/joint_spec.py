@@ -13,9 +13,12 @@ import numpy as np
 
 from ..errors import RobotModelError
 
-__all__ = ["DEFAULT_STRIBECK_VELOCITY", "JOINT_TERMS", "parse_joint_terms"]
+__all__ = ["DEFAULT_STRIBECK_VELOCITY", "JOINT_TERMS", "PASSIVE_TERMS", "parse_joint_terms", "passive_terms"]
 
 JOINT_TERMS = ("fv", "fc", "stribeck", "offset", "armature")
+#: terms a passive joint (no actuator) can have: its friction. No offset (there is no torque sensor
+#: to be offset; on a rail along gravity it would be m·g again) and no armature (no rotor).
+PASSIVE_TERMS = ("fv", "fc", "stribeck")
 #: Stribeck velocity vs [rad/s or m/s] of a joint whose vs is not given
 DEFAULT_STRIBECK_VELOCITY = 0.1
 
@@ -47,6 +50,30 @@ def parse_joint_terms(spec: "str | Mapping | tuple | list", joints: "tuple[str, 
         if bad:
             raise RobotModelError(f"unknown joint term(s) {bad} for '{j}'; choose from {JOINT_TERMS}")
         out[j] = tuple(t for t in JOINT_TERMS if t in terms)
+    return out
+
+
+def named_joints(spec) -> set[str]:
+    """Joints a terms spec names explicitly (not through '*' or one list for every joint)."""
+    if isinstance(spec, str):
+        if "=" not in spec:
+            return set()
+        return {item.partition("=")[0].strip() for item in spec.split(";") if item.strip()} - {"*"}
+    if isinstance(spec, Mapping):
+        return set(spec) - {"*"}
+    return set()
+
+
+def passive_terms(per_joint: Mapping[str, tuple[str, ...]], passive, named=()) -> dict[str, tuple[str, ...]]:
+    """``per_joint`` with each passive joint's terms cut to :data:`PASSIVE_TERMS`; a passive joint
+    ``named`` explicitly with another term is an error (RobotModelError naming it)."""
+    out = dict(per_joint)
+    for j in passive:
+        bad = [t for t in out.get(j, ()) if t not in PASSIVE_TERMS]
+        if bad and j in named:
+            raise RobotModelError(f"passive joint '{j}' cannot have the term(s) {bad}: it has no actuator (no torque "
+                                  f"sensor to be offset, no rotor); a passive joint's terms are {', '.join(PASSIVE_TERMS)}")
+        out[j] = tuple(t for t in out.get(j, ()) if t in PASSIVE_TERMS)
     return out
 
 

@@ -6,7 +6,8 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
 
 * ``Y`` is Pinocchio's joint-torque regressor (``computeJointTorqueRegressor``), with
   π the stacked body parameters (10 per body, see :mod:`sensorless.parameters`).
-* Joint terms, per actuated joint and in this order when enabled: viscous ``fv``,
+* Joint terms, per *term joint* (the actuated joints, then the passive ones,
+  :attr:`~sensorless.robot.Actuation.term_joints`) and in this order when enabled: viscous ``fv``,
   Coulomb ``fc`` (``sgn`` is ``tanh(v / ε_j)`` when a smoothing velocity ε_j > 0 is
   given), Stribeck ``stribeck`` (column ``exp(−(v/vs_j)²) sgn v``, its parameter is
   fs − fc; ``vs_j`` is a fixed per-joint velocity, :mod:`sensorless.identification.friction`
@@ -22,6 +23,10 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
   friction there is indeterminate (at rest static friction holds anything in ±fs, and a
   slow motion lost in the noise has ±fs), so they would only bias the other parameters.
 
+* A passive joint (no actuator, generalized force 0) has only the friction terms
+  (:data:`~.joint_spec.PASSIVE_TERMS`: fv, fc, stribeck): no offset (no torque sensor) and no
+  armature (no rotor). Its equation is kept, with the known target 0.
+
 * Terms may differ per joint (``joint_terms={"j1": ("fv",), "*": ("fv", "fc")}``). The
   column block of every joint still holds the union of the terms (same layout for all
   joints); a term a joint does not have is a zero column, so its parameter is fixed at 0
@@ -35,7 +40,8 @@ The full parameter vector is ``[π (10 · n_bodies), drive terms, terms of joint
 joint 2, …]``; π and the drive terms are the *block* columns (:meth:`ModelStructure.block_regressor`),
 folded densely, the joint terms sit on their joint's row only.
 Which rows of the equation are used (the "row map", :mod:`.rowmap`) is chosen by ``rows``:
-``"actuated"`` keeps the actuated joints' rows (fixed-base arms), ``"all"`` keeps all
+``"actuated"`` keeps the rows whose generalized force is known, the actuated joints' (measured)
+then the passive joints' (zero) (fixed-base arms), ``"all"`` keeps all
 nv rows with τ_full = Sᵀ τ (a floating base in flight; contact maps come with the
 contact module, coupling matrices with the transmission module). The structure's arrays
 (Q, V, A) are mapped to Pinocchio's by :meth:`ModelStructure.pinocchio_state` (the
@@ -54,7 +60,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
-from .joint_spec import DEFAULT_STRIBECK_VELOCITY, JOINT_TERMS, _per_joint, parse_joint_terms
+from .joint_spec import DEFAULT_STRIBECK_VELOCITY, JOINT_TERMS, _per_joint, named_joints, parse_joint_terms, passive_terms
 from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
@@ -88,7 +94,8 @@ class ModelStructure:
 
     def __post_init__(self) -> None:
         r = self.robot
-        joints = tuple(r.actuated_joints)
+        joints = tuple(r.term_joints)
+        named = named_joints(self.joint_terms if isinstance(self.joint_terms, (str, Mapping)) else self.per_joint_terms)
         if isinstance(self.joint_terms, (str, Mapping)):
             self.per_joint_terms = parse_joint_terms(self.joint_terms, joints)
         elif self.per_joint_terms is not None:
@@ -97,6 +104,9 @@ class ModelStructure:
             bad = [t for t in self.joint_terms if t not in JOINT_TERMS]
             if bad:
                 raise RobotModelError(f"unknown joint term(s) {bad}; choose from {JOINT_TERMS}")
+        if r.passive_joints:  # a joint without actuator has its friction only (joint_spec.PASSIVE_TERMS)
+            per = self.per_joint_terms or {j: tuple(t for t in JOINT_TERMS if t in self.joint_terms) for j in joints}
+            self.per_joint_terms = passive_terms(per, r.passive_joints, named)
         if self.per_joint_terms is not None:
             union = {t for ts in self.per_joint_terms.values() for t in ts}
             self.joint_terms = tuple(t for t in JOINT_TERMS if t in union)
@@ -119,12 +129,12 @@ class ModelStructure:
         if self.rows is None:
             self.rows = "all" if self.robot.floating_base else "actuated"
         self.labels = [f"{b}.{p}" for b in r.body_names for p in PARAMETER_NAMES]
-        self.labels += [f"{j}.{t}" for j in r.actuated_joints for t in self.joint_terms]
-        self._act = r.actuated_v_indices
+        self.labels += [f"{j}.{t}" for j in r.term_joints for t in self.joint_terms]
+        self._act = r.term_v_indices  # velocity columns of the term joints (actuated, then passive)
         self._row_idx = self._act if self.rows == "actuated" else np.arange(r.nv)
-        # position of each actuated joint among the kept rows
+        # position of each term joint among the kept rows (the first n_actuated: the measured ones)
         self._act_row = (
-            np.arange(r.n_actuated) if self.rows == "actuated" else self._act
+            np.arange(len(self._act)) if self.rows == "actuated" else self._act
         )
 
     # ---- sizes -------------------------------------------------------------------
@@ -143,7 +153,7 @@ class ModelStructure:
 
     @property
     def n_params(self) -> int:
-        return self.n_block_params + len(self.joint_terms) * self.robot.n_actuated
+        return self.n_block_params + len(self.joint_terms) * len(self.robot.term_joints)
 
     @property
     def n_rows(self) -> int:
@@ -154,7 +164,7 @@ class ModelStructure:
     def row_names(self) -> list[str]:
         m = self.robot.model
         if self.rows == "actuated":
-            return list(self.robot.actuated_joints)
+            return list(self.robot.term_joints)
         names = [f"base_{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")] if self.robot.floating_base else []
         return names + list(self.robot.joint_names) if self.robot.floating_base else [
             m.names[j] for j in range(1, m.njoints)
@@ -179,14 +189,15 @@ class ModelStructure:
 
     @property
     def term_mask(self) -> np.ndarray:
-        """(n_actuated, n_terms) bool: True where a joint has the term of that column."""
-        return np.array([[t in self.terms_of(j) for t in self.joint_terms] for j in self.robot.actuated_joints],
-                        dtype=bool).reshape(len(self.robot.actuated_joints), len(self.joint_terms))
+        """(n_term_joints, n_terms) bool: True where a joint has the term of that column."""
+        joints = self.robot.term_joints
+        return np.array([[t in self.terms_of(j) for t in self.joint_terms] for j in joints],
+                        dtype=bool).reshape(len(joints), len(self.joint_terms))
 
     @property
     def fixed_zero_index(self) -> np.ndarray:
         """Parameter indices of terms a joint does not have (zero columns, fixed at 0)."""
-        return np.array([self.joint_term_index(j, t) for j in self.robot.actuated_joints for t in self.joint_terms
+        return np.array([self.joint_term_index(j, t) for j in self.robot.term_joints for t in self.joint_terms
                          if t not in self.terms_of(j)], dtype=int)
 
     def smoothing_of(self, joint: str) -> float:
@@ -195,10 +206,10 @@ class ModelStructure:
         return float(eps.get(joint, 0.0)) if isinstance(eps, Mapping) else float(eps)
 
     def joint_term_index(self, joint: str, term: str) -> int:
-        """Index of joint term ``term`` of actuated joint ``joint``, or of parameter ``term``
-        (fv, fc, offset, inertia, k, k_rest) of drive ``joint``."""
-        if term in self.joint_terms and joint in self.robot.actuated_joints:
-            k = list(self.robot.actuated_joints).index(joint)
+        """Index of joint term ``term`` of term joint ``joint`` (actuated or passive), or of parameter
+        ``term`` (fv, fc, offset, inertia, k, k_rest) of drive ``joint``."""
+        if term in self.joint_terms and joint in self.robot.term_joints:
+            k = list(self.robot.term_joints).index(joint)
             return self.n_block_params + k * len(self.joint_terms) + self.joint_terms.index(term)
         label = f"{joint}.{term}"
         try:
@@ -265,7 +276,7 @@ class ModelStructure:
         tau = _in_robot_order(r, traj).tau
         cols = [r.joint_names.index(j) for j in r.actuated_joints]
         y = np.zeros((len(traj), self.n_rows))
-        y[:, self._act_row] = tau[:, cols]
+        y[:, self._act_row[: len(cols)]] = tau[:, cols]  # passive rows: 0, their generalized force
         return y
 
     def body_regressor(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -338,13 +349,13 @@ class ModelStructure:
         return out
 
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Joint-term block, shape (N, n_actuated, n_terms): [v, sgn v, e^{−(v/vs)²} sgn v, 1, v̇]
-        per actuated joint (sgn v = tanh(v/ε) for ε > 0, and 0 for |v| ≤ δ, the rest velocity);
+        """Joint-term block, shape (N, n_term_joints, n_terms): [v, sgn v, e^{−(v/vs)²} sgn v, 1, v̇]
+        per term joint (sgn v = tanh(v/ε) for ε > 0, and 0 for |v| ≤ δ, the rest velocity);
         zero where a joint lacks a term."""
         v = V[:, self._act]
         if not self.joint_terms:
             return np.zeros(v.shape + (0,))
-        joints = self.robot.actuated_joints
+        joints = self.robot.term_joints
         sgn = (lambda: self.coulomb_sign(v))
         vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
         cols = {
@@ -360,9 +371,9 @@ class ModelStructure:
         return F
 
     def coulomb_sign(self, v: np.ndarray) -> np.ndarray:
-        """The Coulomb sign of actuated velocities ``v`` (N, n_actuated): tanh(v/ε) (sgn v for
+        """The Coulomb sign of term-joint velocities ``v`` (N, n_term_joints): tanh(v/ε) (sgn v for
         ε = 0), and 0 where |v| ≤ δ (the rest velocity)."""
-        joints = self.robot.actuated_joints
+        joints = self.robot.term_joints
         eps = np.array([self.smoothing_of(j) for j in joints])
         rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in joints])
         return np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)) * (np.abs(v) > rest)
@@ -375,15 +386,20 @@ class ModelStructure:
             return None
         keep = np.ones((V.shape[0], self.n_rows))
         v = V[:, self._act]
-        for k, j in enumerate(self.robot.actuated_joints):
+        for k, j in enumerate(self.robot.term_joints):
             if rest.get(j, 0.0) > 0:
-                keep[:, self.actuated_rows[k]] = np.abs(v[:, k]) > rest[j]
+                keep[:, self.term_rows[k]] = np.abs(v[:, k]) > rest[j]
         return keep
 
     @property
-    def actuated_rows(self) -> np.ndarray:
-        """Index, among the kept rows, of each actuated joint's equation."""
+    def term_rows(self) -> np.ndarray:
+        """Index, among the kept rows, of each term joint's equation (actuated, then passive)."""
         return self._act_row
+
+    @property
+    def actuated_rows(self) -> np.ndarray:
+        """Index, among the kept rows, of each actuated joint's (measured) equation."""
+        return self._act_row[: self.robot.n_actuated]
 
     def evaluate(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """Full regressor of N samples at the structure's arrays (:meth:`state`), shape (N, n_rows, n_params)."""
@@ -397,6 +413,17 @@ class ModelStructure:
             c = self.n_block_params + k * nt
             W[:, row, c : c + nt] = F[:, k]
         return W
+
+    def equations_of_motion(self) -> "ModelStructure":
+        """The unmapped per-joint structure on the rows of known generalized force (a floating base's 6
+        and all joints, or the term joints of a fixed base: actuated, then passive), with this structure's
+        joint terms: its parameters are the first ``n_params`` of this one's (a contact structure's
+        wrench biases come after). The equations of motion without a row map, e.g. to estimate the
+        external (contact) forces a contact projection removes."""
+        return ModelStructure(self.robot, joint_terms=self.joint_terms, coulomb_smoothing=self.coulomb_smoothing,
+                              rows="all" if self.robot.floating_base else "actuated",
+                              per_joint_terms=self.per_joint_terms, stribeck_velocity=self.stribeck_velocity,
+                              rest_velocity=self.rest_velocity)
 
     def fold(self, ne, traj: Trajectory) -> None:
         """Add one chunk's assembled equations (W, y) to normal equations ``ne``; used by

@@ -28,7 +28,7 @@ def plot_friction(structure, params: np.ndarray, logs: Iterable, path: str | Pat
     if len(V) > max_points:
         idx = np.random.default_rng(0).choice(len(V), max_points, replace=False)
         V, R = V[idx], R[idx]
-    joints = list(structure.robot.actuated_joints)
+    joints = list(structure.robot.term_joints)  # actuated, then passive (τ = 0)
     n = len(joints)
     vmax = np.nanmax(np.abs(V), axis=0) if len(V) else np.ones(n)
     grid = np.linspace(-1.0, 1.0, 801)[:, None] * np.where(vmax > 0, vmax, 1.0)[None, :]

@@ -1,4 +1,5 @@
-"""MuJoCo scenes built programmatically from a floating-base :class:`~sensorless.robot.Robot`.
+"""MuJoCo scenes built programmatically from a :class:`~sensorless.robot.Robot` (a floating base, or a
+fixed base whose unactuated "base" is a passive joint, e.g. a leg on a vertical rail).
 
 The MuJoCo model is written body by body from the Pinocchio model with ``mujoco.MjSpec``
 (no URDF/mesh round trip), so its inertial parameters are those of the Pinocchio model
@@ -8,9 +9,10 @@ mass, CoM ``lever`` and rotational inertia about the CoM (``fullinertia``) copie
 
 Added to the kinematic tree:
 
-* a free joint on the root body, a ground plane (``z = 0``) and a collision sphere at each
-  foot frame (feet collide with the ground only; nothing else collides);
-* a torque motor per actuated joint (``gear = 1``, ``ctrlrange = ±torque_limit``);
+* a free joint on the root body of a floating base, a ground plane (``z = 0``) and a collision sphere
+  at each foot frame (feet collide with the ground only; nothing else collides);
+* a torque motor per actuated joint (``gear = 1``, ``ctrlrange = ±torque_limit``), none on a passive
+  joint (``robot.passive_joints``), which only has its friction;
 * joint armature ``Ia``, viscous damping ``fv`` and Coulomb friction loss ``fc``, so the
   actuated-joint dynamics is
 
@@ -76,8 +78,9 @@ class MujocoScene:
     """A compiled MuJoCo model of ``robot`` plus the index maps between the two libraries.
 
     ``robot`` is the Pinocchio model the scene was built from (the simulation's truth).
-    Per-joint arrays (``fv``, ``fc``, ``armature``, ``torque_limit``) are in
-    ``robot.actuated_joints`` order; actuator ``k`` drives ``robot.actuated_joints[k]``.
+    Per-joint arrays (``armature``, ``torque_limit``) are in ``robot.actuated_joints`` order, ``fv``
+    and ``fc`` in ``robot.term_joints`` order (actuated, then passive); actuator ``k`` drives
+    ``robot.actuated_joints[k]``.
     """
 
     robot: Robot
@@ -92,6 +95,7 @@ class MujocoScene:
     qpos_adr: np.ndarray = field(repr=False)  # per robot.joint_names
     dof_adr: np.ndarray = field(repr=False)  # per robot.joint_names
     act_dof_adr: np.ndarray = field(repr=False)  # per robot.actuated_joints
+    term_dof_adr: np.ndarray = field(repr=False)  # per robot.term_joints (actuated, then passive)
     foot_geoms: np.ndarray = field(repr=False)  # per foot_frames
     floor_geom: int = 0
     base_body: int = 1
@@ -140,19 +144,19 @@ class MujocoScene:
         """With ``coulomb_velocity`` ε > 0, write −fc tanh(v/ε) of the current velocities into
         ``qfrc_applied`` (call after ``mj_step1``, before ``mj_step2``); a no-op otherwise."""
         if self.coulomb_velocity > 0:
-            v = data.qvel[self.act_dof_adr]
-            data.qfrc_applied[self.act_dof_adr] = -self.fc * np.tanh(v / self.coulomb_velocity)
+            v = data.qvel[self.term_dof_adr]
+            data.qfrc_applied[self.term_dof_adr] = -self.fc * np.tanh(v / self.coulomb_velocity)
 
     def joint_friction(self, data: mujoco.MjData) -> np.ndarray:
         """Friction torque the joints actually receive, −(fv v + Coulomb/friction-loss force), per
-        actuated joint (valid after the acceleration stage: ``mj_step2`` / ``mj_forward``)."""
+        term joint (actuated, then passive; valid after the acceleration stage: ``mj_step2`` / ``mj_forward``)."""
         if self.coulomb_velocity > 0:
-            return data.qfrc_damper[self.act_dof_adr] + data.qfrc_applied[self.act_dof_adr]
+            return data.qfrc_damper[self.term_dof_adr] + data.qfrc_applied[self.term_dof_adr]
         fl = np.zeros(self.model.nv)
         rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF
         if np.any(rows):
             fl[data.efc_id[rows]] = data.efc_force[rows]
-        return data.qfrc_damper[self.act_dof_adr] + fl[self.act_dof_adr]
+        return data.qfrc_damper[self.term_dof_adr] + fl[self.term_dof_adr]
 
     def foot_positions(self, data: mujoco.MjData) -> np.ndarray:
         """World positions of the foot-sphere centres (n_feet, 3)."""
@@ -179,9 +183,10 @@ def build_scene(
 ) -> MujocoScene:
     """Build and compile a MuJoCo scene whose rigid-body model equals ``robot``'s.
 
-    ``robot`` must have a free-flyer root. ``fv``, ``fc``, ``armature`` (scalar or per
-    actuated joint; ``armature=None`` takes ``robot.armature``) become the MuJoCo joints'
-    ``damping``, ``frictionloss`` and ``armature``. ``torque_limit`` defaults to the
+    ``robot`` has a free-flyer root, or a fixed base (its first joint is then attached to the world:
+    a passive rail carrying a leg). ``fv``, ``fc`` (scalar, per actuated joint, or per term joint:
+    actuated then passive) and ``armature`` (scalar or per actuated joint; ``None`` takes
+    ``robot.armature``) become the MuJoCo joints' ``damping``, ``frictionloss`` and ``armature``. ``torque_limit`` defaults to the
     model's effort limits. ``joint_limits=False`` leaves joints unlimited (a limit
     force would be an unlogged torque). ``foot_radius`` is the collision-sphere radius
     centred on each foot frame (Solo12's foot: 0.016 m).
@@ -200,24 +205,25 @@ def build_scene(
     """
     if coulomb_velocity < 0:
         raise RobotModelError(f"coulomb_velocity must be ≥ 0, got {coulomb_velocity}")
-    if not robot.floating_base:
-        raise RobotModelError(f"{robot.source or robot.name}: a MuJoCo quadruped scene needs a floating base")
     pm = robot.model
-    if not pm.jointPlacements[1].isIdentity():
+    if robot.floating_base and not pm.jointPlacements[1].isIdentity():
         raise RobotModelError(f"{robot.source or robot.name}: the free-flyer placement must be the identity")
     feet = tuple(foot_frames) if foot_frames is not None else default_foot_frames(robot)
     for f in feet:
         robot.frame_id(f)  # RobotModelError naming the frame
-    n_act = robot.n_actuated
+    n_act, terms = robot.n_actuated, tuple(robot.term_joints)
 
-    def per_joint(x, name):
-        arr = np.broadcast_to(np.asarray(x, dtype=float), (n_act,)).copy() if np.ndim(x) == 0 else np.asarray(x, float)
-        if arr.shape != (n_act,):
-            raise ShapeMismatchError(f"{name} has shape {arr.shape}; expected ({n_act},) (one per actuated joint)")
+    def per_joint(x, name, n=n_act):
+        arr = np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy() if np.ndim(x) == 0 else np.asarray(x, float)
+        if n != n_act and arr.shape == (n_act,):  # friction given for the actuated joints: passive ones without
+            arr = np.concatenate([arr, np.zeros(n - n_act)])
+        if arr.shape != (n,):
+            raise ShapeMismatchError(f"{name} has shape {arr.shape}; expected ({n},) (one per "
+                                     f"{'actuated' if n == n_act else 'actuated or passive'} joint)")
         return arr
 
-    fv = per_joint(fv, "fv")
-    fc = per_joint(fc, "fc")
+    fv = per_joint(fv, "fv", len(terms))
+    fc = per_joint(fc, "fc", len(terms))
     arm = robot.armature if armature is None else per_joint(armature, "armature")
     eff = np.array([pm.effortLimit[robot.v_index(j)] for j in robot.actuated_joints])
     lim = per_joint(eff if torque_limit is None else torque_limit, "torque_limit")
@@ -245,8 +251,8 @@ def build_scene(
 
     bodies: dict[int, mujoco.MjsBody] = {0: spec.worldbody}
     arm_by_joint = dict(zip(robot.actuated_joints, arm))
-    fv_by_joint = dict(zip(robot.actuated_joints, fv))
-    fc_by_joint = dict(zip(robot.actuated_joints, fc))
+    fv_by_joint = dict(zip(terms, fv))
+    fc_by_joint = dict(zip(terms, fc))
     for j in range(1, pm.njoints):
         M = pm.jointPlacements[j]
         quat = pin.Quaternion(M.rotation).coeffs()  # x y z w
@@ -261,7 +267,7 @@ def build_scene(
         body.fullinertia = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
         body.explicitinertial = True
         bodies[j] = body
-        if j == 1:
+        if j == 1 and robot.floating_base:
             body.add_freejoint(name=name)
             continue
         jm = pm.joints[j]
@@ -315,6 +321,7 @@ def build_scene(
 
     jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in robot.joint_names]
     act_jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in robot.actuated_joints]
+    term_jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in terms]
     return MujocoScene(
         robot=robot,
         model=model,
@@ -328,6 +335,7 @@ def build_scene(
         qpos_adr=np.asarray(model.jnt_qposadr[jid], dtype=int),
         dof_adr=np.asarray(model.jnt_dofadr[jid], dtype=int),
         act_dof_adr=np.asarray(model.jnt_dofadr[act_jid], dtype=int),
+        term_dof_adr=np.asarray(model.jnt_dofadr[term_jid], dtype=int),
         foot_geoms=np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f) for f in feet], dtype=int),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor"),
         base_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, pm.names[1]),
@@ -357,6 +365,11 @@ def mj_to_pin_state(
     qpos = _as2d(qpos, m.nq, "qpos")
     qvel = _as2d(qvel, m.nv, "qvel")
     qacc = _as2d(qacc, m.nv, "qacc")
+    if not r.floating_base:  # a fixed base: the joints only
+        Q = r.full_configuration(qpos[:, scene.qpos_adr])
+        V = None if qvel is None else r.full_velocity(qvel[:, scene.dof_adr])
+        A = None if qacc is None or qvel is None else r.full_velocity(qacc[:, scene.dof_adr])
+        return Q, V, A
     base_q = np.concatenate([qpos[:, :3], qpos[:, 4:7], qpos[:, 3:4]], axis=1)
     Q = r.full_configuration(qpos[:, scene.qpos_adr], base_q)
     if qvel is None:
@@ -383,14 +396,22 @@ def pin_to_mj_state(
     a = _as2d(a, r.nv, "a")
     N = q.shape[0]
     qpos = np.zeros((N, m.nq))
-    qpos[:, :3] = q[:, :3]
-    qpos[:, 3] = q[:, 6]
-    qpos[:, 4:7] = q[:, 3:6]
+    if r.floating_base:
+        qpos[:, :3] = q[:, :3]
+        qpos[:, 3] = q[:, 6]
+        qpos[:, 4:7] = q[:, 3:6]
     for k, name in enumerate(r.joint_names):
         iq = r.q_index(name)
         qpos[:, scene.qpos_adr[k]] = np.arctan2(q[:, iq + 1], q[:, iq]) if r.is_continuous(name) else q[:, iq]
     if v is None:
         return qpos, None, None
+    if not r.floating_base:
+        vidx = [r.v_index(n) for n in r.joint_names]
+        qvel, qacc = np.zeros((N, m.nv)), None if a is None else np.zeros((N, m.nv))
+        qvel[:, scene.dof_adr] = v[:, vidx]
+        if a is not None:
+            qacc[:, scene.dof_adr] = a[:, vidx]
+        return qpos, qvel, qacc
     R = quat_to_matrix(q[:, 3:7])
     vidx = [r.v_index(n) for n in r.joint_names]
     qvel = np.zeros((N, m.nv))
