@@ -8,7 +8,10 @@ the others are combinations of them, W₂ = W₁ K with K = R11⁻¹ R12. Hence
 
 ``B`` (r × p) maps standard to base parameters. Structural rank uses random states
 (so it does not depend on how well a given log excites the robot); how well a log
-excites them is measured separately on its own data (condition number of W₁).
+excites them is measured separately on its own data (condition number of W₁). Half of the
+states move slowly (speeds log-uniform in [10⁻⁵, 1] rad/s): a low-speed friction column (a
+Stribeck bump of width vs ≪ the generic speeds, a transition of width v_t) is zero at generic
+speeds, and would otherwise be taken for a structurally zero column and fixed at 0.
 """
 
 from __future__ import annotations
@@ -92,6 +95,11 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     p = structure.n_params
     n = n_samples or max(20, int(np.ceil(3 * p / max(structure.n_rows, 1))))
     W = structure.evaluate(*_random_states(structure, n, rng)).reshape(-1, p)
+    Q, V, A = _random_states(structure, n, rng)
+    slow = V * 10.0 ** rng.uniform(-5.0, 0.0, V.shape) / np.maximum(np.abs(V), 1e-12)  # |v| log-uniform
+    W_all = np.concatenate([W, structure.evaluate(Q, slow, A).reshape(-1, p)])
+    rms = np.sqrt(np.mean(W ** 2, axis=0))  # per equation row over the generic states, physical units
+    W = W_all
     scale = np.linalg.norm(W, axis=0)
     zero = scale <= 1e-9 * scale.max()  # structurally zero columns (round-off only)
     W[:, zero] = 0.0
@@ -108,5 +116,4 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     B = np.zeros((r, p))
     B[np.arange(r), ind] = 1.0
     B[:, dep] = K
-    rms = np.sqrt(np.mean(W[:, ind] ** 2, axis=0))  # per equation row, physical units
-    return BaseParameters(independent=ind, B=B, labels=list(structure.labels), column_rms=rms)
+    return BaseParameters(independent=ind, B=B, labels=list(structure.labels), column_rms=rms[ind])
