@@ -191,12 +191,13 @@ def identify(
             result, fleet = identify_on_dask(structure, data, scheduler, workers, LogReader(**prep, imu_frame=imu_frame),
                                              method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
-                                             friction_fit.stribeck_grid if friction_fit is not None else None)
-            structure = result.structure  # with the chosen Stribeck terms
-            if friction_fit is not None and friction_fit.stribeck_grid:
-                friction_fit.stribeck_velocity = dict(result.structure.stribeck_velocity or {})
-                friction_fit.stribeck_search = result.diagnostics.get("stribeck_search")
+                                             friction_fit.stribeck_grid if friction_fit is not None else None,
+                                             friction_fit.width_grid if friction_fit is not None else None)
+            structure = result.structure  # with the chosen Stribeck terms and transition widths
             if friction_fit is not None:
+                from ..identification.friction import record_search
+
+                record_search(friction_fit, result)
                 result.settings["friction"] = _friction_settings(friction_fit, friction_fit, data[0])
             reuse = first is not None and fleet.files and Path(fleet.files[0]) == Path(data[0])
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
@@ -218,7 +219,8 @@ def identify(
                                                  stribeck_velocity, lowpass)
                     fric = dict(coulomb_smoothing=law.coulomb_smoothing if coulomb_smoothing == "auto"
                                 else coulomb_smoothing,
-                                stribeck_velocity=law.stribeck_grid or stribeck_velocity)
+                                stribeck_velocity=law.stribeck_grid or stribeck_velocity,
+                                width_grid=law.width_grid)
                 try:  # the logs' outliers were handled on reading
                     model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
                 except ExcitationError as exc:

@@ -7,14 +7,24 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
 * ``Y`` is Pinocchio's joint-torque regressor (``computeJointTorqueRegressor``), with
   π the stacked body parameters (10 per body, see :mod:`sensorless.parameters`).
 * Joint terms, per actuated joint and in this order when enabled: viscous ``fv``,
-  Coulomb ``fc`` (``sgn`` is ``tanh(v / ε_j)`` when a smoothing velocity ε_j > 0 is
-  given), Stribeck ``stribeck`` (column ``exp(−(v/vs_j)²) sgn v``, its parameter is
-  fs − fc; ``vs_j`` is a fixed per-joint velocity, :mod:`sensorless.identification.friction`
-  searches it), constant ``offset`` and ``armature`` (reflected rotor inertia). Together
+  Coulomb ``fc`` (column T = tanh(v/ε_j), ε_j the joint's transition width; sgn v for
+  ε_j = 0), Stribeck ``stribeck`` (parameter fs − fc; column T − (1 − exp(−(v/vs_j)²)) sgn v),
+  constant ``offset`` and ``armature`` (reflected rotor inertia). Together (``friction_law``
+  "blend")
 
-      τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o.
+      τ_f = fs tanh(v/ε) − (fs − fc)(1 − e^{−(v/vs)²}) sgn v + fv v + o:
 
-  With a rest velocity δ_j > 0 (``rest_velocity``) the two sign columns are 0 where
+  friction rises from 0 to the static level fs over the width ε, then decays to the Coulomb
+  level fc over vs (≥ 3 ε), plus viscous friction. ε and vs are fixed per joint here;
+  :mod:`sensorless.identification.friction` measures ε from the velocity noise and chooses
+  both from the data (:mod:`sensorless.identification.stribeck`). The two columns depend on ε
+  and vs separately (the decay (1 − e^{−(v/vs)²}) sgn v is continuous at 0 and needs no
+  smoothing), which lets one compression pass hold candidates for both. Models written before
+  (``friction_law`` "product", read from older result.json files) have the Stribeck column
+  e^{−(v/vs)²} tanh(v/ε): the same law up to (fs − fc)(1 − e^{−(v/vs)²})(T − sgn v), a few %
+  of fs − fc for |v| ≲ ε.
+
+  With a rest velocity δ_j > 0 (``rest_velocity``) the sign functions are 0 where
   |v| ≤ δ_j: a joint whose velocity is within the noise of zero is at rest, and a joint
   at rest has no sliding friction (static friction holds whatever is needed, 0 here), so
   the model does not chatter through sgn(noise) at rest. The equations of a joint within
@@ -54,7 +64,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
-from .joint_spec import DEFAULT_STRIBECK_VELOCITY, JOINT_TERMS, _per_joint, parse_joint_terms
+from .joint_spec import DEFAULT_STRIBECK_VELOCITY, FRICTION_LAWS, JOINT_TERMS, _per_joint, parse_joint_terms
 from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
@@ -67,8 +77,9 @@ class ModelStructure:
 
     ``joint_terms``: a tuple (the same terms on every actuated joint), or a per-joint
     mapping / spec string (:func:`parse_joint_terms`); afterwards ``joint_terms`` is the
-    union and ``per_joint_terms`` the mapping. ``coulomb_smoothing``: ε for every joint, or
-    ``{joint: ε}`` (0 = sgn). ``stribeck_velocity``: vs per joint with a ``stribeck`` term.
+    union and ``per_joint_terms`` the mapping. ``coulomb_smoothing``: the transition width ε
+    for every joint, or ``{joint: ε}`` (0 = sgn). ``stribeck_velocity``: vs per joint with a
+    ``stribeck`` term. ``friction_law``: the Stribeck column (module docstring).
     """
 
     robot: Robot
@@ -78,6 +89,7 @@ class ModelStructure:
     per_joint_terms: dict | None = None
     stribeck_velocity: dict | None = None
     rest_velocity: dict | None = None
+    friction_law: str = "blend"
     labels: list[str] = field(init=False)
     #: drive terms (coupled columns, module docstring); set by :class:`~.transmission.TransmissionStructure`
     drives = ()  # not a dataclass field
@@ -107,6 +119,8 @@ class ModelStructure:
             self.coulomb_smoothing = _per_joint(self.coulomb_smoothing, joints, "coulomb_smoothing")
         elif not (np.isfinite(self.coulomb_smoothing) and self.coulomb_smoothing >= 0):
             raise RobotModelError(f"coulomb_smoothing must be a finite number >= 0, got {self.coulomb_smoothing!r}")
+        if self.friction_law not in FRICTION_LAWS:
+            raise RobotModelError(f"friction_law must be one of {FRICTION_LAWS}, got {self.friction_law!r}")
         self.stribeck_velocity = _per_joint(self.stribeck_velocity, joints, "stribeck_velocity") or None
         self.rest_velocity = _per_joint(self.rest_velocity, joints, "rest_velocity") or None
         need = [j for j in joints if "stribeck" in self.terms_of(j)]
@@ -338,8 +352,8 @@ class ModelStructure:
         return out
 
     def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Joint-term block, shape (N, n_actuated, n_terms): [v, sgn v, e^{−(v/vs)²} sgn v, 1, v̇]
-        per actuated joint (sgn v = tanh(v/ε) for ε > 0, and 0 for |v| ≤ δ, the rest velocity);
+        """Joint-term block, shape (N, n_actuated, n_terms): [v, T, T − (1 − e^{−(v/vs)²}) sgn v, 1, v̇]
+        per actuated joint (T = tanh(v/ε), sgn v for ε = 0; both 0 for |v| ≤ δ, the rest velocity);
         zero where a joint lacks a term."""
         v = V[:, self._act]
         if not self.joint_terms:
@@ -350,7 +364,8 @@ class ModelStructure:
         cols = {
             "fv": lambda: v,
             "fc": sgn,
-            "stribeck": lambda: np.exp(-((v / vs) ** 2)) * sgn(),
+            "stribeck": lambda: (np.exp(-((v / vs) ** 2)) * sgn() if self.friction_law == "product"
+                                 else sgn() - stribeck_decay(v, vs, self.sliding_sign(v))),
             "offset": lambda: np.ones_like(v),
             "armature": lambda: A[:, self._act],
         }
@@ -366,6 +381,11 @@ class ModelStructure:
         eps = np.array([self.smoothing_of(j) for j in joints])
         rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in joints])
         return np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)) * (np.abs(v) > rest)
+
+    def sliding_sign(self, v: np.ndarray) -> np.ndarray:
+        """sgn v of actuated velocities ``v`` (N, n_actuated), 0 where |v| ≤ δ (the rest velocity)."""
+        rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in self.robot.actuated_joints])
+        return np.sign(v) * (np.abs(v) > rest)
 
     def fit_mask(self, V: np.ndarray) -> "np.ndarray | None":
         """(N, n_rows) 0/1 weights of the equations in the fit: 0 on a joint's row where
@@ -432,9 +452,17 @@ class ModelStructure:
             out["joint_terms_by_joint"] = {j: list(t) for j, t in self.per_joint_terms.items()}
         if getattr(self, "stribeck_velocity", None):
             out["stribeck_velocity"] = dict(self.stribeck_velocity)
+        if "stribeck" in self.joint_terms:
+            out["friction_law"] = getattr(self, "friction_law", "blend")
         if getattr(self, "rest_velocity", None):
             out["rest_velocity"] = dict(self.rest_velocity)
         return out
+
+
+def stribeck_decay(v: np.ndarray, vs: np.ndarray, sgn: np.ndarray) -> np.ndarray:
+    """(1 − e^{−(v/vs)²}) sgn v: the Stribeck decay from fs to fc (module docstring); ``vs``
+    broadcasts against ``v``, ``sgn`` is the sign to use (0 at rest)."""
+    return -np.expm1(-((v / vs) ** 2)) * sgn
 
 
 def _in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:
