@@ -92,8 +92,9 @@ def test_projection_criterion_equals_a_direct_fit_per_candidate(arm):
 
     def direct(c):
         s = cand.structure_for(c)
-        W = s.regressor(part)  # (N, rows, p)
-        y = s.target(part)
+        keep = s.fit_mask(s.state(part)[1])  # the samples next to a reversal are left out of the fit
+        W = s.regressor(part) * keep[:, :, None]  # (N, rows, p)
+        y = s.target(part) * keep
         X = W.reshape(-1, W.shape[-1])[:, base_parameters(s).independent if s.per_joint_terms else ind]
         coef, *_ = np.linalg.lstsq(X, y.ravel(), rcond=None)
         return float(np.sum((y.ravel() - X @ coef) ** 2))

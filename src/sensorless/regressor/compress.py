@@ -258,8 +258,10 @@ def compress(
                 Wb = structure.block_regressor(Q, V, A, out=bufs[slot])  # [bodies | drive terms]
                 F, y = structure.joint_features(V, A), structure.target(part)
                 keep = structure.fit_mask(V)
-                if keep is not None:  # equations left out of the fit (a joint at rest): zero rows
-                    Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.actuated_rows, None], y * keep
+                if keep is not None:  # equations left out of the fit (at rest, at a reversal): zero rows, in place
+                    out = keep == 0
+                    Wb[out], y[out] = 0.0, 0.0
+                    F[out[:, structure.actuated_rows]] = 0.0
                 args = (Wb, F, structure.actuated_rows, y, cols)
                 if pool:
                     pending[slot] = pool.submit(_fold_chunk, ne, *args)
