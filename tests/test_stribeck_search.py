@@ -75,8 +75,9 @@ def test_candidate_equations_contain_the_models_exactly(arm):
 
 
 def test_projection_criterion_equals_a_direct_fit_per_candidate(arm):
-    """SSE(w, vs) from the compressed equations (Frisch–Waugh–Lovell) = the residual of an explicit
-    least-squares fit with that width and Stribeck velocity, on the base columns."""
+    """SSE(w, vs) from the compressed equations (Frisch–Waugh–Lovell, and the left-out equations'
+    quadratic) = the residual, on every sample, of an explicit least-squares fit with that width and
+    Stribeck velocity to the samples the fit keeps (not those next to a reversal), on the base columns."""
     from sensorless.identification.base import base_parameters
 
     robot, truth, vs_true, traj = arm
@@ -92,12 +93,12 @@ def test_projection_criterion_equals_a_direct_fit_per_candidate(arm):
 
     def direct(c):
         s = cand.structure_for(c)
-        keep = s.fit_mask(s.state(part)[1])  # the samples next to a reversal are left out of the fit
-        W = s.regressor(part) * keep[:, :, None]  # (N, rows, p)
-        y = s.target(part) * keep
+        keep = s.fit_mask(s.state(part)[1]).ravel() > 0  # the samples next to a reversal are left out of the fit
+        assert 0.9 < keep.mean() < 1.0
+        W, y = s.regressor(part), s.target(part).ravel()  # (N, rows, p)
         X = W.reshape(-1, W.shape[-1])[:, base_parameters(s).independent if s.per_joint_terms else ind]
-        coef, *_ = np.linalg.lstsq(X, y.ravel(), rcond=None)
-        return float(np.sum((y.ravel() - X @ coef) ** 2))
+        coef, *_ = np.linalg.lstsq(X[keep], y[keep], rcond=None)
+        return float(np.sum((y - X @ coef) ** 2))  # scored on every sample
 
     for h in (0, 5, choice[k, 1]):
         c = choice.copy()

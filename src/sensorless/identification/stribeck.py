@@ -20,7 +20,15 @@ R_M = Lᵀ R L and β_M = Lᵀ β on the pair's two candidates (one column witho
 whose solution R_M⁻¹ β_M is (fc, fs − fc). Joints are visited in turn (coordinate descent,
 :data:`SWEEPS` sweeps).
 
-**What the data must support (BIC).** The criterion is the noise-normalised residual plus ln N
+**Every sample scores the law.** The fit leaves out the equations around velocity reversals
+(:meth:`~sensorless.regressor.ModelStructure.fit_mask`: the torque there blends both friction
+branches and would bias the parameters), but how the law passes through zero is seen exactly
+there. Those equations are compressed apart (``NormalEquations.left_out``), and a candidate is
+scored by the residual of the fit to the kept equations on all of them: SSE(g, h) above plus, on
+the left-out ones, the residual of that same fit, a quadratic in the candidate coefficients
+(:func:`_left_out_score`).
+
+**What the data must support (BIC).** The criterion is that noise-normalised residual plus ln N
 per non-linear law parameter it adds (N samples): 2 ln N for a Stribeck term (vs and fs − fc),
 ln N for a fitted width (w ≠ ε). A Stribeck term counts only for a physical effect: fs − fc > 0
 (static friction above Coulomb), fc ≥ 0 and vs ≥ :data:`MIN_STRIBECK_OVER_WIDTH` · w (the decay
@@ -111,6 +119,9 @@ class StribeckCandidates:
                     arr[k] = np.concatenate([lst, np.full(arr.shape[1] - lst.size, lst[-1])])
 
     # ---- what compress() reads (the wrapped structure's, plus the candidate columns) ------------
+    #: the equations left out of the fit (velocity reversals, rest) are compressed apart, to score a law
+    #: on every sample (:func:`choose_stribeck`)
+    track_left_out = True
     robot = property(lambda self: self.structure.robot)
     n_rows = property(lambda self: self.structure.n_rows)
     row_names = property(lambda self: self.structure.row_names)
@@ -245,6 +256,21 @@ def _gain(R: np.ndarray, beta: np.ndarray, L: np.ndarray, raw: np.ndarray) -> tu
     return float(bM @ coef), coef
 
 
+def _left_out_score(Ao, bo, co, LX, theta_x0, U, Z):
+    """θ_Z ↦ residual sum of squares, on the left-out equations (Ao, bo, co), of the fit of the kept
+    ones with candidate coefficients θ_Z: the other columns are then θ_X = θ_X0 − U θ_Z, so the full
+    vector is π = π₀ + D θ_Z with π₀ = L_X θ_X0 and D = E_Z − L_X U, and the score is the quadratic
+    s₀ + 2 gᵀθ_Z + θ_Zᵀ H θ_Z (module docstring)."""
+    pi0 = LX @ theta_x0
+    D = -LX @ U
+    D[Z, np.arange(len(Z))] += 1.0
+    AoD = Ao @ D
+    s0 = float(pi0 @ Ao @ pi0 - 2.0 * bo @ pi0 + co)
+    g = D.T @ (Ao @ pi0 - bo)
+    H = D.T @ AoD
+    return lambda tz: max(s0 + 2.0 * float(g @ tz) + float(tz @ H @ tz), 0.0)
+
+
 def _finite(x) -> list:
     """A list for result.json (strict JSON): non-finite values as None."""
     return [float(v) if np.isfinite(v) else None for v in np.ravel(x)]
@@ -273,6 +299,7 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
     sigma = (np.asarray(weights, dtype=float) if isinstance(weights, np.ndarray)
              else two_step_sigma(cand.select(ne, choice)))
     A, b, c = ne.total(1.0 / sigma**2)
+    Ao, bo, co = ne.left_out.total(1.0 / sigma**2) if ne.left_out is not None else (None, None, 0.0)
     ln_n = np.log(max(ne.n_samples, 2))
     base = base_parameters(s).independent
     nb, nt = cand.n_block_params, len(s.joint_terms)
@@ -307,6 +334,7 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
             R = A[np.ix_(Z, Z)] - AXZ.T @ U
             beta = b[Z] - U.T @ bX
             raw = np.diag(A)[Z]
+            left = _left_out_score(Ao, bo, co, LX, P @ bX, U, Z) if Ao is not None else None
             terms = s.terms_of(j)
             has_fc, has_st = "fc" in terms, "stribeck" in terms
             best = (np.inf, 0, -1)
@@ -320,7 +348,7 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
                     L = np.zeros((nw + ns, 1))
                     L[g, 0] = 1.0
                     gain, coef = _gain(R, beta, L, raw)
-                    sse_without[g] = sse_x - gain
+                    sse_without[g] = sse_x - gain + (left(L @ coef) if left else 0.0)
                     if g == 0 or coef[0] > 0:
                         best = min(best, (sse_without[g] + pen_w, g, -1))
                 for h in range(ns):
@@ -329,12 +357,12 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
                     L[g, :] = 1.0
                     L[nw + h, -1] = -1.0
                     gain, coef = _gain(R, beta, L, raw)
-                    sse[g, h], coef_st[g, h] = sse_x - gain, coef[-1]
+                    sse[g, h], coef_st[g, h] = sse_x - gain + (left(L @ coef) if left else 0.0), coef[-1]
                     ok = slow and coef[-1] > 0 and (not has_fc or coef[0] >= 0)
                     if ok or not cand.vs_searched[k]:  # a fixed vs is kept whatever its sign
                         best = min(best, (sse[g, h] + pen_w + 2 * ln_n * cand.vs_searched[k], g, h))
             if not np.isfinite(best[0]):  # stribeck without fc and no physical candidate: the term is dropped
-                best = (sse_x, 0, -1)
+                best = (sse_x + (left(np.zeros(nw + ns)) if left else 0.0), 0, -1)
             choice[k] = best[1:]
             g = best[1]
             record[j] = {"grid": cand.vs_lists[k].tolist(), "widths": cand.width_lists[k].tolist(),

@@ -90,12 +90,16 @@ class NormalEquations:
     y_max: np.ndarray = field(default=None)  # type: ignore[assignment]
     y_sum: np.ndarray = field(default=None)  # type: ignore[assignment]
     n_samples: int = 0
+    #: the equations the structure left out of the fit (:meth:`~.terms.ModelStructure.fit_mask`), kept
+    #: apart when the structure asks for them (``track_left_out``, e.g. to score a law on every sample)
+    left_out: "NormalEquations | None" = None
 
     @classmethod
-    def zeros(cls, rows: int, p: int) -> "NormalEquations":
+    def zeros(cls, rows: int, p: int, left_out: bool = False) -> "NormalEquations":
         return cls(
             np.zeros((rows, p, p)), np.zeros((rows, p)), np.zeros(rows),
             np.full(rows, np.inf), np.full(rows, -np.inf), np.zeros(rows), 0,
+            cls.zeros(rows, p) if left_out else None,
         )
 
     def add(self, W: np.ndarray, y: np.ndarray) -> None:
@@ -144,6 +148,8 @@ class NormalEquations:
         """Complete each A_r from its upper triangle (after folds with ``upper_only``)."""
         for r in range(self.A.shape[0]):
             self.A[r] = _mirror(self.A[r])
+        if self.left_out is not None:
+            self.left_out.mirror_upper()
 
     def add_pooled(self, Z: np.ndarray, z: np.ndarray, y_rows: np.ndarray) -> None:
         """Fold equations whose rows are not kept apart: Z (m, p), z (m,) add ZᵀZ, Zᵀz and ‖z‖²
@@ -167,10 +173,12 @@ class NormalEquations:
         self.n_samples += y.shape[0]
 
     def merge(self, other: "NormalEquations") -> "NormalEquations":
+        both = self.left_out is not None and other.left_out is not None
         return NormalEquations(
             self.A + other.A, self.b + other.b, self.c + other.c,
             np.minimum(self.y_min, other.y_min), np.maximum(self.y_max, other.y_max),
             self.y_sum + other.y_sum, self.n_samples + other.n_samples,
+            self.left_out.merge(other.left_out) if both else None,
         )
 
     def total(self, row_weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
@@ -229,7 +237,8 @@ def compress(
         from .distributed import compress_files
 
         return compress_files(structure, data, client=client, reader=reader, chunk=chunk, progress=progress).equations
-    ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
+    track = bool(getattr(structure, "track_left_out", False))
+    ne = NormalEquations.zeros(structure.n_rows, structure.n_params, left_out=track)
     row_map = structure.row_map
     own_fold = row_map.per_sample  # a map that changes per sample (contacts): the structure folds its equations
     # per-row subtree columns only where each kept row is one row of Pinocchio's joint-torque regressor
@@ -260,6 +269,11 @@ def compress(
                 keep = structure.fit_mask(V)
                 if keep is not None:  # equations left out of the fit (at rest, at a reversal): zero rows, in place
                     out = keep == 0
+                    if track and out.any():  # ... folded apart, only the samples with such rows
+                        i = np.flatnonzero(out.any(axis=1))
+                        o = out[i]
+                        ne.left_out.add_blocks(Wb[i] * o[:, :, None], F[i] * o[:, structure.actuated_rows, None],
+                                               structure.actuated_rows, y[i] * o, cols, upper_only=True)
                     Wb[out], y[out] = 0.0, 0.0
                     F[out[:, structure.actuated_rows]] = 0.0
                 args = (Wb, F, structure.actuated_rows, y, cols)

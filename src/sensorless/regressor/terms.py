@@ -37,7 +37,9 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
   the interval the reversal fell and on the signal chain (current-loop and anti-aliasing
   filters, resampling a jittered log), a blend of the two branches that no velocity law
   predicts; fitted, those samples bias fc, fs and fv (on the simulated real-arm benchmark
-  they drove most of the held-out error left). Prediction still covers every sample.
+  they drove most of the held-out error left). Prediction still covers every sample, and
+  the friction law's search scores its candidates on them too
+  (:mod:`sensorless.identification.stribeck`).
 
 * Terms may differ per joint (``joint_terms={"j1": ("fv",), "*": ("fv", "fc")}``). The
   column block of every joint still holds the union of the terms (same layout for all
