@@ -109,10 +109,12 @@ def identify(
     imu_frame: Optional[str] = typer.Option(None, help="model frame of the accelerometer ('imu_acc'): rotation and "
                                             "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
-                                          "the joint's velocity noise (docs/arm.md §7)"),
+                                          "the joint's velocity noise, or a transition width fitted per joint where "
+                                          "the data support it (BIC; docs/arm.md §7)"),
     rest: Rest = typer.Option(Rest.auto, help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
                              "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
-                             "remembers it) | off (docs/arm.md §7)"),
+                             "remembers it), unless it drifts consistently (creeping: v = its drift) | off "
+                             "(docs/arm.md §7)"),
     stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (per joint, "
                                           "the best of a grid of candidates compressed in the same pass)"),
     force: bool = force_option(),

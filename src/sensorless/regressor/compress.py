@@ -110,7 +110,8 @@ class NormalEquations:
         self._stats(y)
 
     def add_blocks(self, Wb: np.ndarray, F: np.ndarray, act_rows: np.ndarray, y: np.ndarray,
-                   body_columns: list[tuple[int, int]] | None = None, *, upper_only: bool = False) -> None:
+                   body_columns: list[tuple[int, int]] | None = None, *, upper_only: bool = False,
+                   y_stats: np.ndarray | None = None) -> None:
         """Fold a chunk given as blocks: body regressor Wb (n, rows, nb), joint features
         F (n, n_act, nt) that sit on row ``act_rows[k]`` in columns nb + k·nt … (k+1)·nt.
 
@@ -119,7 +120,8 @@ class NormalEquations:
         terms are folded, as three products on strided views of Wb and F (no copies): the body block
         MᵀM (NumPy calls BLAS SYRK for ``M.T @ M``), the cross block MᵀF_r and F_rᵀF_r.
         ``upper_only`` skips the lower cross block, left to one :meth:`mirror_upper` after the last
-        chunk (what :func:`compress` does); otherwise A stays symmetric.
+        chunk (what :func:`compress` does); otherwise A stays symmetric. ``y_stats``: the targets for
+        the range statistics, when ``y`` has rows left out of the fit (zeroed).
         """
         n, rows, nb = Wb.shape
         nt = F.shape[2]
@@ -142,7 +144,7 @@ class NormalEquations:
                 Ar[c0:c1, t] += cross
                 if not upper_only:
                     Ar[t, c0:c1] += cross.T
-        self._stats(y)
+        self._stats(y, y_stats)
 
     def mirror_upper(self) -> None:
         """Complete each A_r from its upper triangle (after folds with ``upper_only``)."""
@@ -165,8 +167,10 @@ class NormalEquations:
         self.y_sum += y_rows.sum(axis=0)
         self.n_samples += y_rows.shape[0]
 
-    def _stats(self, y: np.ndarray) -> None:
+    def _stats(self, y: np.ndarray, y_stats: np.ndarray | None = None) -> None:
+        """c from the fitted targets ``y``; range, sum and count from ``y_stats`` (default ``y``)."""
         self.c += np.einsum("nr,nr->r", y, y)
+        y = y if y_stats is None else y_stats
         self.y_min = np.minimum(self.y_min, y.min(axis=0))
         self.y_max = np.maximum(self.y_max, y.max(axis=0))
         self.y_sum += y.sum(axis=0)
@@ -254,7 +258,8 @@ def compress(
         k = 0
         for traj in iter_trajectories(data):
             seen = True
-            for part in traj.chunks(chunk):
+            for start, part in enumerate(traj.chunks(chunk)):
+                start *= chunk
                 if own_fold:
                     structure.fold(ne, part)
                     if progress is not None:
@@ -266,7 +271,8 @@ def compress(
                 Q, V, A = structure.state(part)
                 Wb = structure.block_regressor(Q, V, A, out=bufs[slot])  # [bodies | drive terms]
                 F, y = structure.joint_features(V, A), structure.target(part)
-                keep = structure.fit_mask(V)
+                keep = _fit_mask(structure, traj, start, len(part), V)
+                y_stats = None
                 if keep is not None:  # equations left out of the fit (at rest, at a reversal): zero rows, in place
                     out = keep == 0
                     if track and out.any():  # ... folded apart, only the samples with such rows
@@ -274,9 +280,10 @@ def compress(
                         o = out[i]
                         ne.left_out.add_blocks(Wb[i] * o[:, :, None], F[i] * o[:, structure.actuated_rows, None],
                                                structure.actuated_rows, y[i] * o, cols, upper_only=True)
+                    y_stats = y.copy()
                     Wb[out], y[out] = 0.0, 0.0
                     F[out[:, structure.actuated_rows]] = 0.0
-                args = (Wb, F, structure.actuated_rows, y, cols)
+                args = (Wb, F, structure.actuated_rows, y, cols, y_stats)
                 if pool:
                     pending[slot] = pool.submit(_fold_chunk, ne, *args)
                 else:
@@ -294,6 +301,18 @@ def compress(
     return ne
 
 
+def _fit_mask(structure, traj: Trajectory, start: int, n: int, V: np.ndarray):
+    """The structure's fit mask of samples [start, start + n) of ``traj`` (velocities ``V``), seen with
+    one neighbour sample on each side (a mask may depend on them, e.g. a velocity reversal), so that
+    it does not depend on the chunking."""
+    lo, hi = max(start - 1, 0), min(start + n + 1, len(traj))
+    if (lo, hi) == (start, start + n):
+        return structure.fit_mask(V)
+    ext = structure.state(traj.take(slice(lo, hi)))[1]
+    keep = structure.fit_mask(ext)
+    return None if keep is None else keep[start - lo : start - lo + n]
+
+
 def _idle_core() -> bool:
     cores = os.cpu_count() or 1
     try:
@@ -302,9 +321,9 @@ def _idle_core() -> bool:
         return cores > 1
 
 
-def _fold_chunk(ne: NormalEquations, Wb, F, act_rows, y, cols) -> None:
+def _fold_chunk(ne: NormalEquations, Wb, F, act_rows, y, cols, y_stats=None) -> None:
     """One chunk into ``ne`` (runs in the helper thread with ``overlap``; folds are sequential)."""
-    ne.add_blocks(Wb, F, act_rows, y, cols, upper_only=True)
+    ne.add_blocks(Wb, F, act_rows, y, cols, upper_only=True, y_stats=y_stats)
 
 
 class _NoPool:
