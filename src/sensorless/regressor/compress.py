@@ -258,6 +258,7 @@ def compress(
         k = 0
         for traj in iter_trajectories(data):
             seen = True
+            prev_v = None
             for start, part in enumerate(traj.chunks(chunk)):
                 start *= chunk
                 if own_fold:
@@ -271,7 +272,8 @@ def compress(
                 Q, V, A = structure.state(part)
                 Wb = structure.block_regressor(Q, V, A, out=bufs[slot])  # [bodies | drive terms]
                 F, y = structure.joint_features(V, A), structure.target(part)
-                keep = _fit_mask(structure, traj, start, len(part), V)
+                keep = _fit_mask(structure, traj, start, len(part), V, prev_v)
+                prev_v = V[-1:]
                 y_stats = None
                 if keep is not None:  # equations left out of the fit (at rest, at a reversal): zero rows, in place
                     out = keep == 0
@@ -301,15 +303,16 @@ def compress(
     return ne
 
 
-def _fit_mask(structure, traj: Trajectory, start: int, n: int, V: np.ndarray):
-    """The structure's fit mask of samples [start, start + n) of ``traj`` (velocities ``V``), seen with
-    one neighbour sample on each side (a mask may depend on them, e.g. a velocity reversal), so that
-    it does not depend on the chunking."""
+def _fit_mask(structure, traj: Trajectory, start: int, n: int, V: np.ndarray, prev_v: "np.ndarray | None"):
+    """The structure's fit mask of samples [start, start + n) of ``traj`` (velocities ``V``; ``prev_v``:
+    those of the sample before), seen with one neighbour sample on each side (a mask may depend on
+    them, e.g. a velocity reversal), so that it does not depend on the chunking."""
     lo, hi = max(start - 1, 0), min(start + n + 1, len(traj))
     if (lo, hi) == (start, start + n):
         return structure.fit_mask(V)
-    ext = structure.state(traj.take(slice(lo, hi)))[1]
-    keep = structure.fit_mask(ext)
+    parts = [prev_v if prev_v is not None else structure.state(traj.take(slice(lo, start)))[1]] if lo < start else []
+    parts += [V] + ([structure.state(traj.take(slice(start + n, hi)))[1]] if hi > start + n else [])
+    keep = structure.fit_mask(np.concatenate(parts))
     return None if keep is None else keep[start - lo : start - lo + n]
 
 
