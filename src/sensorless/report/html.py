@@ -113,7 +113,8 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
     parts.append(_verdict_table(d.get("verdicts")))
     if doc.get("urdf"):
         parts.append(f"<h2>Model</h2><p>URDF: {_e(doc['urdf'])} — {_e(doc.get('urdf_export', ''))}</p>")
-    parts.append("<h2>Settings</h2><pre>" + _e(json.dumps(doc.get("settings", {}), indent=1, default=str)[:20000]) + "</pre>")
+    parts.append("<h2>Settings</h2><pre>" + _e(json.dumps(_settings_view(doc.get("settings", {})), indent=1,
+                                                         default=str)) + "</pre>")
     body = "\n".join(parts)
     return (f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{_e(rname)} identification</title>"
             f"<style>{_CSS}</style></head><body>\n{body}\n</body></html>\n")
@@ -128,3 +129,15 @@ def write_html_report(out_dir: str | Path, doc: dict | None = None) -> Path:
         doc = read_result(out_dir)
     figures = {p.stem.replace("_", " "): p.read_bytes() for p in sorted(out_dir.glob("*.png"))}
     return atomic_write_text(out_dir / "report.html", render_html_report(doc, figures))
+
+
+def _settings_view(value, depth: int = 0):
+    """The settings for reading: a long list of numbers (a search grid, per-candidate scores) is
+    summarised as its range and length (result.json holds it whole), nothing is cut mid-way."""
+    if isinstance(value, dict):
+        return {k: _settings_view(v, depth + 1) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        if len(value) > 12 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+            return f"{len(value)} values in [{min(value):.4g}, {max(value):.4g}] (whole in result.json)"
+        return [_settings_view(v, depth + 1) for v in value]
+    return value
