@@ -91,7 +91,10 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     rng = np.random.default_rng(seed)
     p = structure.n_params
     n = n_samples or max(20, int(np.ceil(3 * p / max(structure.n_rows, 1))))
-    W = structure.evaluate(*_random_states(structure, n, rng)).reshape(-1, p)
+    states = _random_states(structure, n, rng)
+    if "presliding" in getattr(structure, "joint_terms", ()):  # a friction state anywhere in [−1, 1]
+        states += (rng.uniform(-1.0, 1.0, (n, len(structure.robot.term_joints))),)
+    W = structure.evaluate(*states).reshape(-1, p)
     scale = np.linalg.norm(W, axis=0)
     zero = scale <= 1e-9 * scale.max()  # structurally zero columns (round-off only)
     W[:, zero] = 0.0

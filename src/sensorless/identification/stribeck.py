@@ -99,12 +99,15 @@ class StribeckCandidates:
     def fit_mask(self, V):
         return self.structure.fit_mask(V)
 
-    def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
+    def friction_states(self, traj):
+        return self.structure.friction_states(traj)
+
+    def joint_features(self, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None) -> np.ndarray:
         s = self.structure
         v = V[:, s.robot.term_v_indices]
-        Z = np.exp(-((v[:, :, None] / self.grid[None]) ** 2)) * s.coulomb_sign(v)[:, :, None]
-        Z *= self.searched[None, :, None]
-        return np.concatenate([s.joint_features(V, A), Z], axis=2)
+        C = np.exp(-((v[:, :, None] / self.grid[None]) ** 2)) * s.coulomb_sign(v)[:, :, None]
+        C *= self.searched[None, :, None]
+        return np.concatenate([s.joint_features(V, A, Z), C], axis=2)
 
     # ---- from candidate equations to the model's -------------------------------------------------
     def _column(self, k: int, term_index: int, choice: np.ndarray) -> int:

@@ -245,6 +245,9 @@ def compress(
         k = 0
         for traj in iter_trajectories(data):
             seen = True
+            # a presliding state depends on the history of q: integrated along this whole log from 0
+            states = getattr(structure, "friction_states", None)
+            Z, at = (states(traj) if states is not None and not own_fold else None), 0
             for part in traj.chunks(chunk):
                 if own_fold:
                     structure.fold(ne, part)
@@ -256,7 +259,8 @@ def compress(
                     pending[slot].result()
                 Q, V, A = structure.state(part)
                 Wb = structure.block_regressor(Q, V, A, out=bufs[slot])  # [bodies | drive terms]
-                F, y = structure.joint_features(V, A), structure.target(part)
+                F = structure.joint_features(V, A, None if Z is None else Z[at : at + len(part)])
+                y, at = structure.target(part), at + len(part)
                 keep = structure.fit_mask(V)
                 if keep is not None:  # equations left out of the fit (a joint at rest): zero rows
                     Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.term_rows, None], y * keep
