@@ -97,3 +97,35 @@ def test_default_terms_unchanged_and_state_needs_whole_logs():
                                                                                         "j2": {"k": 50.0}})
     with pytest.raises(Exception, match="history of q"):
         sp.joint_features(np.zeros((3, 2)), np.zeros((3, 2)))
+
+
+def _csv(traj: Trajectory, path) -> str:
+    cols = {"t": traj.t}
+    for k, j in enumerate(traj.joint_names):
+        cols.update({f"pos_{j}": traj.q[:, k], f"vel_{j}": traj.v[:, k], f"tau_{j}": traj.tau[:, k]})
+    np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",", header=",".join(cols), comments="")
+    return str(path)
+
+
+def test_cli_identify_predict_with_presliding(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+
+    runner = CliRunner()
+    train, test = _csv(arm_log(0), tmp_path / "train.csv"), _csv(arm_log(5, 20.0), tmp_path / "test.csv")
+    cols = ["--columns", "q=pos_{joint};v=vel_{joint};tau=tau_{joint}"]
+    r = runner.invoke(app, ["identify", "--robot", TWO_LINK, "--data", train, *cols, "--method", "ols", "--no-plot",
+                            "--joint-terms", "fv,fc,stribeck,offset,presliding", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "m" / "result.json").read_text())
+    assert set(doc["settings"]["presliding"]) == {"j1"}
+    assert doc["diagnostics"]["presliding_search"]["j2"]["kept"] is False
+    r = runner.invoke(app, ["predict", "--robot", TWO_LINK, "--model", str(tmp_path / "m"), "--data", test,
+                            "--out", str(tmp_path / "pred.npz")])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["identify", "--robot", TWO_LINK, "--data", train, *cols, "--scheduler", "local",
+                            "--joint-terms", "fv,presliding", "--out", str(tmp_path / "m2")])
+    assert r.exit_code != 0 and "--scheduler" in r.output
