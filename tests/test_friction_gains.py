@@ -113,16 +113,18 @@ def test_identify_cli_per_joint_terms_auto_friction_saved_and_reloaded(ur10_logs
     jt = json.loads((out / "joint_terms.json").read_text())  # the whole friction law, Stribeck included
     kept = [j for j, t in doc["joint_terms"].items() if "stribeck" in t]
     assert kept and "stribeck" not in jt["wrist_3_joint"]
+    width = {j: fr["transition_width"][j] or fr["coulomb_smoothing"][j] for j in fr["transition_width"]}
+    assert set(width) == set(robot.actuated_joints) - {"wrist_3_joint"}  # searched on every joint with fc
     for j in kept:
         assert jt[j]["stribeck"] == pytest.approx(doc["joint_terms"][j]["stribeck"])
         assert jt[j]["stribeck_velocity"] == pytest.approx(fr["stribeck_velocity"][j])
-        assert jt[j]["coulomb_smoothing"] == pytest.approx(fr["coulomb_smoothing"][j])
+        assert jt[j]["coulomb_smoothing"] == pytest.approx(width[j])  # the width the law uses
     assert (out / "friction.png").stat().st_size > 10_000
     from sensorless.estimators import load_parameters
 
     st, p = load_parameters(out / "result.json", robot)
     assert st.terms_of("wrist_3_joint") == ("fv", "offset")
-    assert st.smoothing_of("elbow_joint") == pytest.approx(fr["coulomb_smoothing"]["elbow_joint"])
+    assert st.smoothing_of("elbow_joint") == pytest.approx(width["elbow_joint"])
     # predict reloads it; the first 1.4 s are at rest: residual within 2x the torque noise
     r = CliRunner().invoke(app, ["predict", "--robot", "ur10", "--model", str(out), "--data", str(d / "b.csv"),
                                  "--trim", "0:1.4", "--out", str(tmp_path / "idle.npz")])

@@ -273,7 +273,12 @@ def test_base_and_eigen_reductions_agree(panda_case):
     a = solve_lmi(ne, s)
     b = solve_lmi(ne, s, base=base_parameters(s))
     assert a.status == b.status == "optimal"
-    np.testing.assert_allclose(a.params, b.params, atol=1e-5 * np.abs(a.params).max())
+    assert a.summary()["objective"] == pytest.approx(b.summary()["objective"], rel=1e-6)
+    # directions the data do not see are held by the regulariser alone, whose curvature there is ~γ/m²:
+    # the solver's 1e-8 objective tolerance leaves them ~1e-3 apart; the predicted torques agree closely
+    np.testing.assert_allclose(a.params, b.params, atol=1e-3 * np.abs(a.params).max())
+    W = s.regressor(next(iter(_log(s.robot, perturbed_truth(s.robot, rng=0), 7).chunks(200))))
+    np.testing.assert_allclose(W @ a.params, W @ b.params, atol=1e-4 * np.abs(W @ a.params).max())
 
 
 def test_synthetic_panda_lmi_beats_ols_on_another_trajectory(panda, panda_case):

@@ -117,7 +117,7 @@ def test_cli_identify_predict_with_presliding(tmp_path):
     runner = CliRunner()
     train, test = _csv(arm_log(0), tmp_path / "train.csv"), _csv(arm_log(5, 20.0), tmp_path / "test.csv")
     cols = ["--columns", "q=pos_{joint};v=vel_{joint};tau=tau_{joint}"]
-    r = runner.invoke(app, ["identify", "--robot", TWO_LINK, "--data", train, *cols, "--method", "ols", "--no-plot",
+    r = runner.invoke(app, ["identify", "--robot", TWO_LINK, "--data", train, *cols, "--no-plot",
                             "--joint-terms", "fv,fc,stribeck,offset,presliding", "--out", str(tmp_path / "m")])
     assert r.exit_code == 0, r.output
     doc = json.loads((tmp_path / "m" / "result.json").read_text())

@@ -75,31 +75,44 @@ def test_candidate_equations_contain_the_models_exactly(arm):
 
 
 def test_projection_criterion_equals_a_direct_fit_per_candidate(arm):
-    """SSE(g) from the compressed equations (Frisch–Waugh–Lovell) = the residual of an explicit
-    least-squares fit with candidate g, on the base columns."""
+    """SSE(w, vs) from the compressed equations (Frisch–Waugh–Lovell, and the left-out equations'
+    quadratic) = the residual, on every sample, of an explicit least-squares fit with that width and
+    Stribeck velocity to the samples the fit keeps (not those next to a reversal), on the base columns."""
     from sensorless.identification.base import base_parameters
 
     robot, truth, vs_true, traj = arm
     part = traj.chunks(2000).__next__()
-    cand = StribeckCandidates(truth, _grid(vs_true))
+    widths = {j: [0.003, 0.03] for j in robot.actuated_joints}
+    cand = StribeckCandidates(truth, _grid(vs_true), widths)
     ne_c = compress(cand, part)
     choice, record = choose_stribeck(cand, ne_c, np.ones(robot.n_actuated))  # σ = 1: the plain residual
-    assert np.all(choice >= 0)  # the truth has Stribeck friction on every joint
-    j = robot.actuated_joints[2]
+    assert np.all(choice[:, 1] >= 0)  # the truth has Stribeck friction on every joint
     k = 2
+    j = robot.actuated_joints[k]
     ind = base_parameters(truth).independent
-    for g in (0, 5, choice[k]):
-        c = choice.copy()
-        c[k] = g
+
+    def direct(c):
         s = cand.structure_for(c)
-        W = s.regressor(part)  # (N, rows, p)
-        y = s.target(part)
-        X = W.reshape(-1, W.shape[-1])[:, ind]
-        coef, *_ = np.linalg.lstsq(X, y.ravel(), rcond=None)
-        sse = float(np.sum((y.ravel() - X @ coef) ** 2))
-        if g == choice[k]:
-            assert record[j]["sse"][g] == pytest.approx(sse, rel=1e-6)
-    assert record[j]["vs"] == pytest.approx(cand.grid[k, choice[k]])
+        keep = s.fit_mask(s.state(part)[1]).ravel() > 0  # the samples next to a reversal are left out of the fit
+        assert 0.9 < keep.mean() < 1.0
+        W, y = s.regressor(part), s.target(part).ravel()  # (N, rows, p)
+        X = W.reshape(-1, W.shape[-1])[:, base_parameters(s).independent if s.per_joint_terms else ind]
+        coef, *_ = np.linalg.lstsq(X[keep], y[keep], rcond=None)
+        return float(np.sum((y - X @ coef) ** 2))  # scored on every sample
+
+    for h in (0, 5, choice[k, 1]):
+        c = choice.copy()
+        c[k, 1] = h
+        assert record[j]["sse"][h] == pytest.approx(direct(c), rel=1e-6)
+    c = choice.copy()
+    c[k, 1] = -1
+    assert record[j]["sse_without"] == pytest.approx(direct(c), rel=1e-6)
+    for g in range(3):  # the best per width is no worse than any candidate at that width
+        c = choice.copy()
+        c[k] = (g, choice[k, 1])
+        assert record[j]["sse_width"][g] <= direct(c) * (1 + 1e-6)
+    assert record[j]["vs"] == pytest.approx(cand.grid[k, choice[k, 1]])
+    assert record[j]["widths"][0] == truth.smoothing_of(j)
 
 
 def test_identify_recovers_the_true_stribeck_velocity_in_one_pass(arm):

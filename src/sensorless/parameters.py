@@ -334,9 +334,9 @@ def is_physically_consistent(pi: np.ndarray, tol: float = 1e-9) -> bool:
 class JointTerms:
     """Per actuated joint: viscous ``fv`` and Coulomb ``fc`` friction, torque ``offset`` and rotor
     ``armature``, and the optional friction-law terms ``stribeck`` (fs − fc), ``stribeck_velocity``
-    vs and ``coulomb_smoothing`` ε (0: none / sgn), i.e.
-    ``tau = ... + fv qd + fc s + stribeck exp(-(qd/vs)^2) s + offset + armature qdd``,
-    s = tanh(qd/ε) (sign(qd) for ε = 0)."""
+    vs and ``coulomb_smoothing`` (the transition width w; 0: none / sgn), i.e.
+    ``tau = ... + fv qd + fc s + stribeck (s - (1 - exp(-(qd/vs)^2)) sign(qd)) + offset + armature qdd``,
+    s = tanh(qd/w) (sign(qd) for w = 0; :mod:`sensorless.regressor.terms`)."""
 
     joint_names: tuple[str, ...]
     fv: np.ndarray = field(default=None)  # type: ignore[assignment]

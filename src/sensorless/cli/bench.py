@@ -1,4 +1,4 @@
-"""`sensorless benchmark identify | dask | contact | speed | lmi | peers` (JSON output)."""
+"""`sensorless benchmark identify | dask | contact | speed | lmi | peers | real-arm` (JSON output)."""
 
 from __future__ import annotations
 
@@ -122,4 +122,26 @@ def bench_peers_cmd(
                               f"{c[v]['worst_nrmse_percent']:.3f} %, all bodies consistent: {c[v]['all_consistent']}")
         verdict = {True: "[green]PASS[/]", False: "[red]FAIL[/]", None: "—"}[c["passed"]]
         console.print(f"{name:4s} acceptance (lmi ≤ {c['acceptance_percent']} %, consistent): {verdict}; peers: {peers}")
+    return res
+
+
+@bench_command("real-arm", results="real_arm")
+def bench_real_arm_cmd(
+    seeds: int = typer.Option(20, help="number of seeds (simulated arms)"),
+    seed: int = typer.Option(0, help="first seed"),
+    work: Path = typer.Option(Path("results/real_arm"), help="folder for the simulated logs and identified models"),
+) -> dict:
+    """Real-arm acceptance on a simulated UR10 (Stribeck friction, motor currents, jittered 100 Hz, drive
+    gains, payload) through the CLI defaults: held-out NRMSE / true model (whole log and motion only),
+    idle residual, drive gains and payload per seed (sensorless.benchmarks.real_arm)."""
+    from ..benchmarks.real_arm import run
+
+    if seeds < 1:
+        raise OptionError("--seeds must be >= 1")
+    res = run(work, seeds=seeds, seed=seed, console=console)
+    a = res["acceptance"]
+    console.print(f"NRMSE / true model: whole log max {a['nrmse_ratio_max']:.3f} (mean {a['nrmse_ratio_mean']:.3f}), "
+                  f"motion only max {a['nrmse_ratio_motion_only_max']:.3f} (mean {a['nrmse_ratio_motion_only_mean']:.3f}); "
+                  f"idle/noise max {a['idle_ratio_max']:.2f}; gains max {100 * a['gains_error_max']:.2f} %; "
+                  f"payload max {100 * a['payload_error_max']:.2f} %")
     return res

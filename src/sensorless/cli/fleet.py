@@ -7,10 +7,11 @@ from .common import err_console, progress_bar
 
 
 def identify_on_dask(structure, files, scheduler: str, workers, reader, method: str, skip_bad: bool, lmi_kw: dict,
-                     stribeck_grid=None):
+                     stribeck_grid=None, width_grid=None):
     """Connect to (or start) a Dask cluster, compress ``files`` on its workers with a progress
-    bar of finished file tasks, solve on this machine. ``stribeck_grid``: Stribeck candidates
-    compressed with the model and chosen on the client (:mod:`~sensorless.identification.stribeck`).
+    bar of finished file tasks, solve on this machine. ``stribeck_grid`` / ``width_grid``: Stribeck
+    velocity and transition width candidates compressed with the model and chosen on the client
+    (:mod:`~sensorless.identification.stribeck`).
     Returns (result, FleetEquations)."""
     from ..identification.stribeck import StribeckCandidates
 
@@ -23,10 +24,12 @@ def identify_on_dask(structure, files, scheduler: str, workers, reader, method: 
         err_console.print(f"Dask: {scheduler} ({n} workers), {len(files)} files", highlight=False)
         with progress_bar() as bar:
             task = bar.add_task("files (dask)", total=len(files) * (2 if lmi_auto else 1))
-            fleet = compress_files(StribeckCandidates(structure, stribeck_grid) if stribeck_grid else structure, files, client=client, reader=reader, skip_bad=skip_bad,
+            cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
+            fleet = compress_files(cand or structure, files, client=client, reader=reader, skip_bad=skip_bad,
                                    n_folds=5 if lmi_auto else None, progress=lambda k: bar.advance(task, k))
     try:
-        result = identify_fleet(structure, fleet, method=method, stribeck_grid=stribeck_grid, **lmi_kw)
+        result = identify_fleet(structure, fleet, method=method, stribeck_grid=stribeck_grid, width_grid=width_grid,
+                                **lmi_kw)
         return result, fleet
     except ExcitationError as exc:
         raise ExcitationError(f"{len(fleet.files)} files ({fleet.files[0]} …): {exc}") from None

@@ -122,10 +122,12 @@ def identify(
     imu_frame: Optional[str] = typer.Option(None, help="model frame of the accelerometer ('imu_acc'): rotation and "
                                             "lever arm from the model, on any body (e.g. imu_link)"),
     coulomb_smoothing: str = typer.Option("auto", help="ε [rad/s] of the Coulomb term tanh(v/ε); 0 = sgn(v); auto: 3 × "
-                                          "the joint's velocity noise (docs/arm.md §7)"),
+                                          "the joint's velocity noise, or a transition width fitted per joint where "
+                                          "the data support it (BIC; docs/arm.md §7)"),
     rest: Rest = typer.Option(Rest.auto, help="auto: a joint whose logged |v| stays within 5 noise stds of 0 over the "
                              "derivative window is at rest, v = v̇ = 0 there (no friction chatter at rest; the model "
-                             "remembers it) | off (docs/arm.md §7)"),
+                             "remembers it), unless it drifts consistently (creeping: v = its drift) | off "
+                             "(docs/arm.md §7)"),
     stribeck_velocity: str = typer.Option("auto", help="vs [rad/s] of the 'stribeck' term: a number, or auto (per joint, "
                                           "the best of a grid of candidates compressed in the same pass)"),
     force: bool = force_option(),
@@ -215,12 +217,13 @@ def identify(
             result, fleet = identify_on_dask(structure, data, scheduler, workers, reader,
                                              method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
-                                             friction_fit.stribeck_grid if friction_fit is not None else None)
-            structure = result.structure  # with the chosen Stribeck terms
-            if friction_fit is not None and friction_fit.stribeck_grid:
-                friction_fit.stribeck_velocity = dict(result.structure.stribeck_velocity or {})
-                friction_fit.stribeck_search = result.diagnostics.get("stribeck_search")
+                                             friction_fit.stribeck_grid if friction_fit is not None else None,
+                                             friction_fit.width_grid if friction_fit is not None else None)
+            structure = result.structure  # with the chosen Stribeck terms and transition widths
             if friction_fit is not None:
+                from ..identification.friction import record_search
+
+                record_search(friction_fit, result)
                 result.settings["friction"] = _friction_settings(friction_fit, friction_fit, data[0])
             reuse = first is not None and fleet.files and Path(fleet.files[0]) == Path(data[0])
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
@@ -242,7 +245,8 @@ def identify(
                                                  stribeck_velocity, lowpass)
                     fric = dict(coulomb_smoothing=law.coulomb_smoothing if coulomb_smoothing == "auto"
                                 else coulomb_smoothing,
-                                stribeck_velocity=law.stribeck_grid or stribeck_velocity)
+                                stribeck_velocity=law.stribeck_grid or stribeck_velocity,
+                                width_grid=law.width_grid)
                 try:  # the logs' outliers were handled on reading
                     model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
                 except ExcitationError as exc:

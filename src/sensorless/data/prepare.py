@@ -30,7 +30,8 @@
    smoothed accelerations near a touchdown carry the impact);
 6. **rest** (``rest="auto"``, with a logged v): a joint whose |v| stays within 5 noise stds
    of zero and whose q moves less than 8 noise stds over the derivative window is at rest,
-   v = v̇ = 0 there
+   v = v̇ = 0 there, unless it drifts consistently in one direction (creeping under load: v =
+   its measured drift, v̇ = 0)
    (:mod:`sensorless.data.rest`; no friction chatter through sgn(noise) at rest);
 7. **base acceleration** from the accelerometer or the base twist (:mod:`sensorless.data.imu`);
 8. **decimate** (anti-aliased).

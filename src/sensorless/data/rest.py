@@ -1,22 +1,40 @@
-"""Rest detection: a joint at rest gets v = v̇ = 0 (no sliding friction, no noise chatter).
+"""Rest detection: a joint at rest gets v = v̇ = 0 (no sliding friction, no noise chatter); a
+joint creeping slower than the velocity noise keeps sliding, at its measured drift.
 
 A robot at rest logs v = noise n. Sliding friction fs sgn(n) (or fs tanh(n/ε)) would then
 chatter by up to fs, far above the torque noise of a geared arm, while any smoothing wide
 enough to hide it blurs the friction in motion. Per sample, rest and a slow motion lost in
-the noise cannot be told apart; over time they can: at rest |v| stays within the noise.
+the noise cannot be told apart; over time they can: at rest |v| stays within the noise and q
+does not drift.
 
-Joint j is **at rest** at sample k when, over the centred window of ``window`` samples
+Joint j is **quiet** at sample k when, over the centred window of ``window`` samples
 (default: the derivative window, 0.2 s),
 
 * |v_j| ≤ δ_j = ``REST_SIGMAS`` · σ_v,j at every sample (5: a Gaussian noise exceeds it once
   in ~2·10⁶ samples; a velocity reversal is not rest, |v| exceeds δ near it), and
 * q_j moves less than ``RANGE_SIGMAS`` · σ_q,j (max − min over the window; 8: the range of
-  ≤ 41 Gaussian samples is 4–5 σ on average): a joint creeping below the velocity noise,
-  common where v is a quantised encoder difference, still moves.
+  ≤ 41 Gaussian samples is 4–5 σ on average).
 
-There v_j and v̇_j are set to 0.
+A quiet joint is **creeping** (sliding under a load its friction barely holds, e.g. a joint
+sagging at 3·10⁻⁴ rad/s with a torque equal to its Coulomb friction) when it drifts consistently
+in one direction. With q_i = q̄ + c t_i + e_i and v_i = c + n_i (white noise of std σ_q, σ_v),
+the drift c over the ``creep_window`` samples around k (``CREEP_SECONDS``, cut at the ends of the
+quiet stretch, so a motion next to it does not leak in) is estimated by
 
-σ_j is the white-noise std of the logged v (:func:`signal_noise`), measured before any
+    the mean velocity   v̄ = Σ v_i / n,                   SE = σ_v / √n,
+    the position slope  ŝ = Σ (t_i − t̄)(q_i − q̄) / Σ (t_i − t̄)²,   SE = σ_q / √Σ (t_i − t̄)²,
+
+whichever has the smaller standard error (v is often a difference of q, so the two are not
+independent and are not pooled). The joint creeps where |ĉ| > ``CREEP_SIGMAS`` · SE (5: a joint at
+rest passes for creeping about once in 2·10⁶ windows). σ is floored at the quantum / √12 of
+the signal (the smallest non-zero step between samples), so that a quantised encoder at rest does
+not have zero noise.
+
+A quiet joint that is not creeping is **at rest**: v_j = v̇_j = 0 there. A creeping joint gets
+v_j = ĉ (the sign of its friction is known, its speed far better than from one noisy sample)
+and v̇_j = 0 (steady sliding).
+
+σ_j is the white-noise std of the logged v and q (:func:`signal_noise`), measured before any
 low-pass (a filter colours the noise and its edge transients, often on a rest at the start
 of a log, give the filtered noise heavier tails than its white-noise gain predicts).
 """
@@ -27,10 +45,14 @@ import numpy as np
 
 from ..errors import DataError
 
-__all__ = ["RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "rest_mask", "signal_noise", "zero_at_rest"]
+__all__ = ["CREEP_SECONDS", "CREEP_SIGMAS", "RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "creep_drift", "rest_mask",
+           "signal_noise", "zero_at_rest"]
 
 REST_SIGMAS = 5.0
 RANGE_SIGMAS = 8.0
+CREEP_SIGMAS = 5.0
+#: length of the window over which a quiet joint's drift is measured [s]
+CREEP_SECONDS = 1.0
 REST_MODES = ("auto", "off")
 
 
@@ -52,31 +74,96 @@ def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndar
     return 1.4826 * mad / np.sqrt(1.0 - c0)
 
 
-def rest_mask(v: np.ndarray, sigma: np.ndarray, window: int, sigmas: float = REST_SIGMAS,
-              q: "np.ndarray | None" = None, sigma_q: "np.ndarray | None" = None) -> np.ndarray:
-    """(N, n) bool: |v| ≤ sigmas · σ throughout the centred window and, with ``q``, a position
-    range within ``RANGE_SIGMAS`` · σ_q over it (module docstring)."""
+def _quiet(v, sigma, window, sigmas, q, sigma_q) -> np.ndarray:
     from scipy.ndimage import maximum_filter1d, minimum_filter1d  # imported on use (CLI start-up)
 
     w = max(int(window), 1)
-    peak = maximum_filter1d(np.abs(np.asarray(v, dtype=float)), size=w, axis=0, mode="nearest")
+    peak = maximum_filter1d(np.abs(v), size=w, axis=0, mode="nearest")
     mask = peak <= sigmas * np.asarray(sigma, dtype=float)[None, :]
     if q is not None and sigma_q is not None:
-        q = np.asarray(q, dtype=float)
         span = maximum_filter1d(q, size=w, axis=0, mode="nearest") - minimum_filter1d(q, size=w, axis=0, mode="nearest")
         mask &= span <= RANGE_SIGMAS * np.asarray(sigma_q, dtype=float)[None, :]
     return mask
 
 
+def _quantum_floor(x: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """σ floored at (smallest non-zero step of the column) / √12, the noise of a quantised signal."""
+    d = np.abs(np.diff(x, axis=0))
+    step = np.array([np.min(c[c > 0]) if np.any(c > 0) else 0.0 for c in d.T]) if len(d) else np.zeros(x.shape[1])
+    return np.maximum(np.asarray(sigma, dtype=float), step / np.sqrt(12.0))
+
+
+def _window_sums(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    return c[hi] - c[lo]
+
+
+def creep_drift(v: np.ndarray, q: np.ndarray, sigma_v: np.ndarray, sigma_q: np.ndarray, quiet: np.ndarray,
+                dt: float, creep_window: int) -> tuple[np.ndarray, np.ndarray]:
+    """(creeping, drift), each (N, n): where a quiet joint drifts significantly, and its drift
+    velocity ĉ (module docstring; 0 elsewhere). ``quiet``: the quiet samples (:func:`rest_mask`
+    without the drift test); windows of ``creep_window`` samples are cut at its stretches' ends."""
+    v, q = np.asarray(v, dtype=float), np.asarray(q, dtype=float)
+    creeping = np.zeros(v.shape, dtype=bool)
+    drift = np.zeros(v.shape)
+    sv, sq = _quantum_floor(v, sigma_v), _quantum_floor(q, sigma_q)
+    h = max(int(creep_window), 3) // 2
+    for j in range(v.shape[1]):
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet[:, j].astype(np.int8), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):  # one quiet stretch [a, b)
+            k = np.arange(b - a)
+            lo, hi = np.maximum(k - h, 0), np.minimum(k + h + 1, b - a)
+            n = (hi - lo).astype(float)
+            t = k.astype(float)
+            qq = q[a:b, j] - q[a, j]
+            st, stt = _window_sums(t, lo, hi), _window_sums(t * t, lo, hi)
+            sxx = np.maximum(stt - st**2 / n, 0.0)  # Σ (t − t̄)² [samples²]
+            slope = (_window_sums(t * qq, lo, hi) - st * _window_sums(qq, lo, hi) / n) / np.where(sxx > 0, sxx, 1.0) / dt
+            se_s = np.where(sxx > 0, sq[j] / np.sqrt(np.where(sxx > 0, sxx, 1.0)) / dt, np.inf)
+            mean = _window_sums(v[a:b, j], lo, hi) / n
+            se_v = sv[j] / np.sqrt(n)
+            est, se = np.where(se_v <= se_s, mean, slope), np.minimum(se_v, se_s)
+            sig = (n >= 3) & (np.abs(est) > CREEP_SIGMAS * se)
+            creeping[a:b, j] = sig
+            drift[a:b, j] = np.where(sig, est, 0.0)
+    return creeping, drift
+
+
+def rest_mask(v: np.ndarray, sigma: np.ndarray, window: int, sigmas: float = REST_SIGMAS,
+              q: "np.ndarray | None" = None, sigma_q: "np.ndarray | None" = None, dt: "float | None" = None,
+              creep_window: "int | None" = None) -> np.ndarray:
+    """(N, n) bool: at rest (module docstring): |v| ≤ sigmas · σ throughout the centred window and,
+    with ``q``, a position range within ``RANGE_SIGMAS`` · σ_q over it and, with ``q`` and ``dt``
+    [s], no significant drift over ``creep_window`` samples (default ``CREEP_SECONDS``)."""
+    v = np.asarray(v, dtype=float)
+    q = None if q is None else np.asarray(q, dtype=float)
+    mask = _quiet(v, sigma, window, sigmas, q, sigma_q)
+    if q is None or sigma_q is None or dt is None:
+        return mask
+    cw = creep_window if creep_window is not None else max(int(window), int(round(CREEP_SECONDS / dt)))
+    creeping, _ = creep_drift(v, q, sigma, sigma_q, mask, dt, cw)
+    return mask & ~creeping
+
+
 def zero_at_rest(traj, sigma: np.ndarray, window: int, sigma_q: "np.ndarray | None" = None):
-    """``traj`` with v = v̇ = 0 where a joint is at rest; provenance["rest"] records σ, δ and
-    the fraction of samples at rest per joint."""
-    mask = rest_mask(traj.v, sigma, window, q=None if sigma_q is None else traj.q, sigma_q=sigma_q)
-    v = np.where(mask, 0.0, traj.v)
-    a = None if traj.a is None else np.where(mask, 0.0, traj.a)
+    """``traj`` with v = v̇ = 0 where a joint is at rest, and v = its drift, v̇ = 0 where it creeps
+    (module docstring); provenance["rest"] records σ, δ and the fractions of samples at rest and
+    creeping per joint."""
+    v = np.asarray(traj.v, dtype=float)
+    q = None if sigma_q is None else np.asarray(traj.q, dtype=float)
+    quiet = _quiet(v, sigma, window, REST_SIGMAS, q, sigma_q)
+    creeping, drift = np.zeros_like(quiet), np.zeros(v.shape)
+    dt = float(np.median(np.diff(traj.t))) if len(traj.t) > 1 else 0.0
+    if q is not None and dt > 0:
+        cw = max(int(window), int(round(CREEP_SECONDS / dt)))
+        creeping, drift = creep_drift(v, q, sigma, sigma_q, quiet, dt, cw)
+    rest = quiet & ~creeping
+    v = np.where(rest, 0.0, np.where(creeping, drift, v))
+    a = None if traj.a is None else np.where(quiet, 0.0, traj.a)
     info = {"velocity_noise": dict(zip(traj.joint_names, map(float, sigma))),
             "rest_velocity": dict(zip(traj.joint_names, map(float, REST_SIGMAS * np.asarray(sigma)))),
             "window_samples": int(window),
             "position_noise": None if sigma_q is None else dict(zip(traj.joint_names, map(float, sigma_q))),
-            "fraction_at_rest": dict(zip(traj.joint_names, map(float, mask.mean(axis=0))))}
+            "fraction_at_rest": dict(zip(traj.joint_names, map(float, rest.mean(axis=0)))),
+            "fraction_creeping": dict(zip(traj.joint_names, map(float, creeping.mean(axis=0))))}
     return traj.with_(v=v, a=a, provenance={**traj.provenance, "rest": info})

@@ -326,6 +326,8 @@ def structure_from_settings(settings: dict, doc: dict, robot):
                       ("rest_velocity", "rest_velocity"), ("presliding", "presliding")):
         if settings.get(key) is not None:
             common[name] = settings[key]
+    if "stribeck" in common["joint_terms"]:  # files written before the fitted transition width: the product law
+        common["friction_law"] = settings.get("friction_law", "product")
     if settings.get("contact_frames"):
         from ..regressor.contact import ContactStructure
 

@@ -280,7 +280,7 @@ def check_robot_settings(c: Checker, value: Any, key: str = "settings.robot") ->
 # ---- settings (the model structure) ---------------------------------------------------------
 def check_structure_settings(c: Checker, s: Mapping) -> None:
     """Types and ranges of the structure keys of ``settings`` (the constructors check the rest)."""
-    from ..regressor.joint_spec import JOINT_TERMS
+    from ..regressor.joint_spec import FRICTION_LAWS, JOINT_TERMS
 
     if s.get("structure") == "transmission":
         for name in ("coordinates", "tree_joints", "bodies"):
@@ -317,6 +317,8 @@ def check_structure_settings(c: Checker, s: Mapping) -> None:
     for name, lo_open in (("coulomb_smoothing_by_joint", False), ("stribeck_velocity", True), ("rest_velocity", False)):
         if s.get(name) is not None:
             c.per_joint(f"settings.{name}", s[name], 0, MAX_SMOOTHING, lo_open=lo_open)
+    if s.get("friction_law") is not None:
+        c.string("settings.friction_law", s["friction_law"], FRICTION_LAWS)
     if s.get("presliding") is not None:  # {joint: {"k": 1/presliding distance > 0, "play": h >= 0}}
         for j, p in c.mapping("settings.presliding", s["presliding"]).items():
             p = c.mapping(f"settings.presliding.{j}", p)

@@ -8,7 +8,11 @@ the others are combinations of them, W₂ = W₁ K with K = R11⁻¹ R12. Hence
 
 ``B`` (r × p) maps standard to base parameters. Structural rank uses random states
 (so it does not depend on how well a given log excites the robot); how well a log
-excites them is measured separately on its own data (condition number of W₁).
+excites them is measured separately on its own data (condition number of W₁). As many slow
+states (speeds log-uniform in [10⁻⁵, 1] rad/s) are appended with a weight of
+:data:`SLOW_WEIGHT`: a low-speed friction column (a Stribeck term of width vs ≪ the generic
+speeds) is ~zero at generic speeds and would otherwise be taken for a structurally zero column and
+fixed at 0; the small weight leaves the pivoting of the other columns as it was.
 """
 
 from __future__ import annotations
@@ -22,6 +26,9 @@ from ..errors import ExcitationError
 from ..regressor.terms import ModelStructure
 
 __all__ = ["BaseParameters", "base_parameters"]
+
+#: weight of the slow random states' rows (module docstring)
+SLOW_WEIGHT = 1e-3
 
 
 @dataclass
@@ -91,10 +98,15 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     rng = np.random.default_rng(seed)
     p = structure.n_params
     n = n_samples or max(20, int(np.ceil(3 * p / max(structure.n_rows, 1))))
-    states = _random_states(structure, n, rng)
-    if "presliding" in getattr(structure, "joint_terms", ()):  # a friction state anywhere in [−1, 1]
-        states += (rng.uniform(-1.0, 1.0, (n, len(structure.robot.term_joints))),)
-    W = structure.evaluate(*states).reshape(-1, p)
+    Q, V, A = _random_states(structure, n, rng)
+    Z = (rng.uniform(-1.0, 1.0, (n, len(structure.robot.term_joints)))  # a friction state anywhere in [−1, 1]
+         if "presliding" in getattr(structure, "joint_terms", ()) else None)
+    W = structure.evaluate(Q, V, A, *(() if Z is None else (Z,))).reshape(-1, p)
+    Q, V, A = _random_states(structure, n, rng)
+    slow = V * 10.0 ** rng.uniform(-5.0, 0.0, V.shape) / np.maximum(np.abs(V), 1e-12)  # |v| log-uniform
+    W_all = np.concatenate([W, SLOW_WEIGHT * structure.evaluate(Q, slow, A, *(() if Z is None else (Z,))).reshape(-1, p)])
+    rms = np.sqrt(np.mean(W ** 2, axis=0))  # per equation row over the generic states, physical units
+    W = W_all
     scale = np.linalg.norm(W, axis=0)
     zero = scale <= 1e-9 * scale.max()  # structurally zero columns (round-off only)
     W[:, zero] = 0.0
@@ -111,5 +123,4 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     B = np.zeros((r, p))
     B[np.arange(r), ind] = 1.0
     B[:, dep] = K
-    rms = np.sqrt(np.mean(W[:, ind] ** 2, axis=0))  # per equation row, physical units
-    return BaseParameters(independent=ind, B=B, labels=list(structure.labels), column_rms=rms)
+    return BaseParameters(independent=ind, B=B, labels=list(structure.labels), column_rms=rms[ind])

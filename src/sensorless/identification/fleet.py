@@ -46,24 +46,25 @@ def identify_files(
     ``identify``. ``result.settings`` lists the files used and every skipped file with its error.
     """
     lmi_auto = method == "lmi" and identify_kwargs.get("gamma", 1e-3) == "auto"
-    grid = identify_kwargs.get("stribeck_grid")
-    fleet = compress_files(StribeckCandidates(structure, grid) if grid else structure, files, client=client, reader=reader, chunk=chunk, skip_bad=skip_bad,
+    grid, widths = identify_kwargs.get("stribeck_grid"), identify_kwargs.get("width_grid")
+    fleet = compress_files(StribeckCandidates(structure, grid, widths) if (grid or widths) else structure, files, client=client, reader=reader, chunk=chunk, skip_bad=skip_bad,
                            retries=retries, n_folds=5 if lmi_auto else None, progress=progress)
     return identify_fleet(structure, fleet, method=method, chunk=chunk, **identify_kwargs)
 
 
 def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: str = "ols",
                    stribeck_grid: Mapping[str, Sequence[float]] | None = None,
+                   width_grid: Mapping[str, Sequence[float]] | None = None,
                    **identify_kwargs: Any) -> IdentificationResult:
     """Solve from already summed :class:`FleetEquations` (see :func:`identify_files`); with
-    ``stribeck_grid`` they are the equations of :class:`~.stribeck.StribeckCandidates` on that grid,
-    and vs is chosen on them as :func:`~.identify.identify` does."""
+    ``stribeck_grid`` / ``width_grid`` they are the equations of :class:`~.stribeck.StribeckCandidates`
+    on those grids, and vs and the widths are chosen on them as :func:`~.identify.identify` does."""
     kw = dict(identify_kwargs)
     cv, record = None, None
-    if stribeck_grid:
+    if stribeck_grid or width_grid:
         from .weights import check_weights
 
-        cand = StribeckCandidates(structure, stribeck_grid)
+        cand = StribeckCandidates(structure, stribeck_grid, width_grid)
         choice, record = choose_stribeck(cand, fleet.equations, check_weights(kw.get("weights", "auto"),
                                                                               structure.row_names))
         before, structure = structure, cand.structure_for(choice)

@@ -1,9 +1,12 @@
-"""Joint friction: noise-aware Coulomb smoothing and the Stribeck velocity search.
+"""Joint friction: noise-aware Coulomb smoothing, the fitted low-speed transition and the
+Stribeck velocity search.
 
 Friction model of joint j (linear terms are regressor columns, see
 :mod:`sensorless.regressor.terms`):
 
-    τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o.
+    τ_f = fs tanh(v/w) − (fs − fc)(1 − e^{−(v/vs)²}) sgn v + fv v + o,
+
+rising from 0 to fs over the transition width w, decaying to fc over vs.
 
 **Noise, rest and smoothing (the defaults).** The noise of a signal x is the
 high-frequency part of it, the residual of a Savitzky–Golay fit, r = x − S x. For white
@@ -22,7 +25,12 @@ found in preprocessing (:mod:`sensorless.data.rest`: |v| within 5 σ_v over the 
 window → v = v̇ = 0, so sgn v = 0), and here
 
 * **Coulomb smoothing** ε = ``factor`` σ_v (3): tanh(v/ε) only averages the sign over the
-  velocity noise in motion;
+  velocity noise in motion. This is the simpler law's width w = ε. With ``width_grid="auto"``
+  the width is also fitted: candidates log-spaced from ε/10 (a sharp sign whose noisy samples
+  sit near zero at reversals) to 0.1 · P95|v| (friction that rises smoothly over a speed range,
+  as measured below ~0.03 rad/s on geared arms) are compressed in the same pass, and a fitted
+  width replaces ε only where it lowers the noise-normalised residual by more than ln N
+  (BIC, :mod:`~.stribeck`; :func:`transition_grid`);
 * optionally a per-sample **rest gate** δ (``rest_velocity``: "auto" = ``REST_SIGMAS`` σ_v of
   the unfiltered logs; default 0 = off): |v| ≤ δ gives no Coulomb/Stribeck friction and is
   left out of the fit (:class:`~sensorless.regressor.ModelStructure`). Per sample it cannot
@@ -33,7 +41,7 @@ a model without a rest gate (``rest_velocity=0``): ε = max(k σ_v, 2 fs σ_v / 
 at most ``max_fraction`` · P95(|v|), so that the chatter at rest stays below σ_τ / 2.
 
 **Stribeck velocity.** vs enters nonlinearly. Per joint a log-spaced grid of candidates
-(:func:`stribeck_grid`) is compressed with the model in one pass, and the vs minimising the
+(:func:`stribeck_grid`) is compressed with the model in one pass, and the (w, vs) pair minimising the
 weighted least-squares residual of the whole model is chosen by variable projection on the
 compressed equations, or no Stribeck term where the log shows no physical effect
 (:mod:`~.stribeck`); the model is then solved with those columns.
@@ -66,6 +74,7 @@ __all__ = [
     "search_stribeck_velocity",
     "signal_noise",
     "stribeck_grid",
+    "transition_grid",
 ]
 
 #: relative grid of Stribeck velocities (× P95 |v| of the joint)
@@ -78,6 +87,11 @@ REST_SIGMAS = 5.0
 #: the Stribeck bump must be wider than the Coulomb smoothing (vs ≥ this × ε): a narrower
 #: one would only fit the sign chatter of a joint at rest
 MIN_STRIBECK_OVER_SMOOTHING = 3.0
+#: fitted transition widths: this many candidates, log-spaced from ε / WIDTH_GRID_BELOW to
+#: WIDTH_GRID_TOP × the joint's speed scale (the simpler law's ε is always a candidate)
+WIDTH_GRID_SIZE = 12
+WIDTH_GRID_BELOW = 10.0
+WIDTH_GRID_TOP = 0.1
 
 
 def lowpass_noise_gain(cutoff_hz: float, rate_hz: float, order: int = 4) -> float:
@@ -181,8 +195,10 @@ def search_stribeck_velocity(
     v: np.ndarray, r: np.ndarray, *, eps: float, terms: Sequence[str], grid: Sequence[float],
 ) -> tuple[float, np.ndarray]:
     """The vs in ``grid`` whose least-squares fit of r on the joint's friction columns
-    ([v, tanh(v/ε), exp(−(v/vs)²) tanh(v/ε), 1], those in ``terms``) leaves the smallest
-    residual; returns (vs, residual sum of squares per grid point)."""
+    ([v, T, T − (1 − exp(−(v/vs)²)) sgn v, 1] with T = tanh(v/ε), those in ``terms``) leaves the
+    smallest residual; returns (vs, residual sum of squares per grid point)."""
+    from ..regressor.friction_columns import stribeck_decay
+
     v, r = np.asarray(v, dtype=float), np.asarray(r, dtype=float)
     ok = np.isfinite(v) & np.isfinite(r)
     v, r = v[ok], r[ok]
@@ -190,7 +206,7 @@ def search_stribeck_velocity(
     fixed = [c for t, c in (("fv", v), ("fc", sgn), ("offset", np.ones_like(v))) if t in terms]
     sse = np.full(len(grid), np.inf)
     for i, vs in enumerate(grid):
-        X = np.column_stack(fixed + [np.exp(-((v / vs) ** 2)) * sgn])
+        X = np.column_stack(fixed + [sgn - stribeck_decay(v, vs, np.sign(v))])
         coef, *_ = np.linalg.lstsq(X, r, rcond=None)
         sse[i] = float(np.sum((r - X @ coef) ** 2))
     return float(grid[int(np.argmin(sse))]), sse
@@ -209,6 +225,9 @@ class FrictionFit:
     stribeck_grid: dict[str, list[float]] | None = None
     rest_velocity: dict[str, float] | None = None
     rest_velocity_mode: str = "off"
+    #: candidate transition widths per joint (besides ε) and the fitted ones (None: the simpler law, w = ε)
+    width_grid: dict[str, list[float]] | None = None
+    transition_width: dict[str, "float | None"] | None = None
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -225,6 +244,7 @@ def identify_friction(
     identify_kwargs: dict | None = None,
     noise_logs: Iterable[Trajectory] | None = None,
     lowpass_hz: float | None = None,
+    width_grid: "str | dict | None" = "auto",
 ):
     """Identify with noise-aware Coulomb smoothing, a rest gate and searched Stribeck velocities.
 
@@ -234,8 +254,10 @@ def identify_friction(
     term) or vs. ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training
     logs went through (module docstring); default: the noise of the training logs as they are.
     ``stribeck_velocity`` may also be candidate values per joint (``{joint: [vs, …]}``).
+    ``width_grid``: "auto" (fitted transition widths, :func:`transition_grid`, when ε is "auto"),
+    candidate widths per joint, or None (w = ε).
     Runs :func:`~sensorless.identification.identify` once with ``identify_kwargs`` (with the
-    candidates when vs is searched: one compression pass, :mod:`~.stribeck`). Returns
+    candidates when vs or w is searched: one compression pass, :mod:`~.stribeck`). Returns
     ``(result, FrictionFit)``.
     """
     from .identify import identify
@@ -243,13 +265,23 @@ def identify_friction(
     train = list(train)
     kw = dict(identify_kwargs or {})
     s, fit, auto_vs = _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity,
-                                      factor, noise_logs, lowpass_hz)
-    if not auto_vs:
+                                      factor, noise_logs, lowpass_hz, width_grid)
+    if not (auto_vs or fit.width_grid):
         return identify(s, train, **kw), fit
-    result = identify(s, train, stribeck_grid=fit.stribeck_grid, **kw)
-    fit.stribeck_velocity = dict(result.structure.stribeck_velocity or {})
-    fit.stribeck_search = result.diagnostics.get("stribeck_search")
-    return result, fit
+    result = identify(s, train, stribeck_grid=fit.stribeck_grid if auto_vs else None, width_grid=fit.width_grid,
+                      **kw)
+    return result, record_search(fit, result)
+
+
+def record_search(fit: FrictionFit, result) -> FrictionFit:
+    """``fit`` completed with what the search of ``result`` chose (vs, fitted widths, the record)."""
+    search = result.diagnostics.get("stribeck_search") or {}
+    if fit.stribeck_grid:
+        fit.stribeck_velocity = dict(result.structure.stribeck_velocity or {})
+    fit.stribeck_search = search or None
+    if fit.width_grid:
+        fit.transition_width = {j: search.get(j, {}).get("width") for j in fit.width_grid}
+    return fit
 
 
 def friction_structure(
@@ -261,18 +293,20 @@ def friction_structure(
     factor: float = 3.0,
     noise_logs: Iterable[Trajectory] | None = None,
     lowpass_hz: float | None = None,
+    width_grid: "str | dict | None" = "auto",
 ):
     """The structure :func:`identify_friction` would fit, with ε set from ``logs`` and, when vs is
     "auto", the candidate grid in ``FrictionFit.stribeck_grid`` (the structure's vs is 0.1 · P95|v|
-    until a fit chooses): for fitting elsewhere, e.g. on Dask workers from ε and the grid measured on
-    the client's log. Returns ``(structure, FrictionFit)``."""
+    until a fit chooses) and the candidate widths in ``FrictionFit.width_grid``: for fitting
+    elsewhere, e.g. on Dask workers from ε and the grids measured on the client's log. Returns
+    ``(structure, FrictionFit)``."""
     s, fit, _ = _friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
-                                noise_logs, lowpass_hz)
+                                noise_logs, lowpass_hz, width_grid)
     return s, fit
 
 
 def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity, factor, noise_logs,
-                    lowpass_hz):
+                    lowpass_hz, width_grid="auto"):
     joints = list(structure.robot.term_joints)
     has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
     for name, val in (("coulomb_smoothing", coulomb_smoothing), ("rest_velocity", rest_velocity)):
@@ -280,6 +314,9 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
             raise DataError(f"{name} must be 'auto' or a number >= 0, got {val!r}")
     auto_eps, auto_rest = isinstance(coulomb_smoothing, str), isinstance(rest_velocity, str)
     auto_vs = isinstance(stribeck_velocity, str) and bool(has_stribeck)
+    if isinstance(width_grid, str) and width_grid != "auto":
+        raise DataError(f"width_grid must be 'auto', candidate widths per joint or None, got {width_grid!r}")
+    auto_w = width_grid == "auto" and auto_eps and structure.friction_law == "blend"
     speed, sigma_v = None, None
     if auto_eps or auto_rest or auto_vs:
         v_all = [_act_columns(structure, t)[0].v[:, _act_columns(structure, t)[1]] for t in train]
@@ -306,13 +343,19 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
     rest = (coulomb_smoothing_from_noise(sigma_raw, speed=speed, factor=REST_SIGMAS) if auto_rest
             else np.full(len(joints), float(rest_velocity)))
     grid = None
+    limits = dict(zip(structure.robot.joint_names, structure.robot.velocity_limits()))
+    vlim = np.array([limits.get(j, np.inf) for j in joints])
+    law = [j for j in joints if {"fc", "stribeck"} & set(structure.terms_of(j))]
+    if auto_w:
+        width_grid = transition_grid(speed, eps, joints, law, vlim)
+    elif isinstance(width_grid, str):
+        width_grid = None
+    low = np.array([min([eps[k]] + (width_grid or {}).get(j, [])) for k, j in enumerate(joints)])
     if isinstance(stribeck_velocity, str):
         if stribeck_velocity != "auto":
             raise DataError(f"stribeck_velocity must be 'auto' or a number > 0, got {stribeck_velocity!r}")
         vs = {j: float(0.1 * speed[k]) for k, j in enumerate(joints) if j in has_stribeck} if has_stribeck else None
-        limits = dict(zip(structure.robot.joint_names, structure.robot.velocity_limits()))
-        vlim = np.array([limits.get(j, np.inf) for j in joints])
-        grid = stribeck_grid(speed, eps, rest, joints, has_stribeck, vlim) if has_stribeck else None
+        grid = stribeck_grid(speed, low, rest, joints, has_stribeck, vlim) if has_stribeck else None
     elif isinstance(stribeck_velocity, dict) and any(np.ndim(x) for x in stribeck_velocity.values()):
         grid = {j: list(map(float, np.atleast_1d(x))) for j, x in stribeck_velocity.items()}  # candidates given
         vs = {j: g[len(g) // 2] for j, g in grid.items()}
@@ -328,7 +371,8 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
     fit = FrictionFit(coulomb_smoothing=dict(zip(joints, map(float, eps))),
                       coulomb_smoothing_mode="auto" if auto_eps else "given", stribeck_velocity=vs, stribeck_grid=grid,
                       rest_velocity=dict(zip(joints, map(float, rest))),
-                      rest_velocity_mode="auto" if auto_rest else ("given" if np.any(rest > 0) else "off"))
+                      rest_velocity_mode="auto" if auto_rest else ("given" if np.any(rest > 0) else "off"),
+                      width_grid=width_grid or None)
     if sigma_v is not None:
         fit.velocity_noise = dict(zip(joints, map(float, sigma_v)))
         fit.torque_noise = dict(zip(joints, map(float, _pooled_noise([s.target(t)[:, s.actuated_rows] for t in raw]))))
@@ -350,6 +394,22 @@ def stribeck_grid(speed: np.ndarray, eps: np.ndarray, rest: np.ndarray, joints: 
         grid = STRIBECK_GRID * speed[k]
         lo = MIN_STRIBECK_OVER_SMOOTHING * max(eps[k], rest[k])
         out[j] = (grid[grid >= lo] if np.any(grid >= lo) else grid[-1:]).tolist()
+    return out
+
+
+def transition_grid(speed: np.ndarray, eps: np.ndarray, joints: Sequence[str], law_joints: Sequence[str],
+                    velocity_limit: np.ndarray | None = None) -> dict[str, list[float]]:
+    """Candidate transition widths per joint with an fc or stribeck term (module docstring):
+    :data:`WIDTH_GRID_SIZE` values log-spaced from ε / :data:`WIDTH_GRID_BELOW` to
+    :data:`WIDTH_GRID_TOP` × s (s as in :func:`stribeck_grid`); none for a joint with ε = 0."""
+    if velocity_limit is not None:
+        lim = np.asarray(velocity_limit, dtype=float)
+        speed = np.maximum(speed, np.where(np.isfinite(lim) & (lim > 0), GRID_SPEED_FLOOR * lim, 0.0))
+    out = {}
+    for k, j in enumerate(joints):
+        lo, hi = eps[k] / WIDTH_GRID_BELOW, WIDTH_GRID_TOP * speed[k]
+        if j in law_joints and 0 < lo < hi:
+            out[j] = np.geomspace(lo, hi, WIDTH_GRID_SIZE).tolist()
     return out
 
 

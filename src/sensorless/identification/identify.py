@@ -69,6 +69,7 @@ def identify(
     progress: Callable[[int], None] | None = None,
     outliers: str = "error",
     stribeck_grid: Mapping[str, Sequence[float]] | None = None,
+    width_grid: Mapping[str, Sequence[float]] | None = None,
     check_torques: bool = True,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
@@ -96,6 +97,8 @@ def identify(
     ``stribeck`` term): all candidates are compressed in the one pass and each joint's vs is chosen
     by variable projection on the compressed equations (:mod:`~.stribeck`) before the fit; the
     result's structure carries the chosen vs and ``diagnostics["stribeck_search"]`` the criterion.
+    ``width_grid``: candidate transition widths of the Coulomb term per joint besides the structure's
+    own ε (``{joint: [w, …]}``), chosen the same way (a fitted width must pay its BIC term).
     Precompressed ``data`` must then be the candidates' equations.
     A ``presliding`` term without a given distance is chosen per joint, or dropped, by
     :mod:`~.presliding` (two fits; ``diagnostics["presliding_search"]``).
@@ -139,7 +142,7 @@ def identify(
         if isinstance(data, NormalEquations):
             raise SolverError("gamma='auto' needs the training trajectories, not precompressed equations")
         data = list(data)
-    cand = StribeckCandidates(structure, stribeck_grid) if stribeck_grid else None
+    cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
     t0 = time.perf_counter()
     ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
                                                                   progress=progress)

@@ -90,12 +90,16 @@ class NormalEquations:
     y_max: np.ndarray = field(default=None)  # type: ignore[assignment]
     y_sum: np.ndarray = field(default=None)  # type: ignore[assignment]
     n_samples: int = 0
+    #: the equations the structure left out of the fit (:meth:`~.terms.ModelStructure.fit_mask`), kept
+    #: apart when the structure asks for them (``track_left_out``, e.g. to score a law on every sample)
+    left_out: "NormalEquations | None" = None
 
     @classmethod
-    def zeros(cls, rows: int, p: int) -> "NormalEquations":
+    def zeros(cls, rows: int, p: int, left_out: bool = False) -> "NormalEquations":
         return cls(
             np.zeros((rows, p, p)), np.zeros((rows, p)), np.zeros(rows),
             np.full(rows, np.inf), np.full(rows, -np.inf), np.zeros(rows), 0,
+            cls.zeros(rows, p) if left_out else None,
         )
 
     def add(self, W: np.ndarray, y: np.ndarray) -> None:
@@ -106,7 +110,8 @@ class NormalEquations:
         self._stats(y)
 
     def add_blocks(self, Wb: np.ndarray, F: np.ndarray, act_rows: np.ndarray, y: np.ndarray,
-                   body_columns: list[tuple[int, int]] | None = None, *, upper_only: bool = False) -> None:
+                   body_columns: list[tuple[int, int]] | None = None, *, upper_only: bool = False,
+                   y_stats: np.ndarray | None = None) -> None:
         """Fold a chunk given as blocks: body regressor Wb (n, rows, nb), joint features
         F (n, n_act, nt) that sit on row ``act_rows[k]`` in columns nb + k·nt … (k+1)·nt.
 
@@ -115,7 +120,8 @@ class NormalEquations:
         terms are folded, as three products on strided views of Wb and F (no copies): the body block
         MᵀM (NumPy calls BLAS SYRK for ``M.T @ M``), the cross block MᵀF_r and F_rᵀF_r.
         ``upper_only`` skips the lower cross block, left to one :meth:`mirror_upper` after the last
-        chunk (what :func:`compress` does); otherwise A stays symmetric.
+        chunk (what :func:`compress` does); otherwise A stays symmetric. ``y_stats``: the targets for
+        the range statistics, when ``y`` has rows left out of the fit (zeroed).
         """
         n, rows, nb = Wb.shape
         nt = F.shape[2]
@@ -138,12 +144,14 @@ class NormalEquations:
                 Ar[c0:c1, t] += cross
                 if not upper_only:
                     Ar[t, c0:c1] += cross.T
-        self._stats(y)
+        self._stats(y, y_stats)
 
     def mirror_upper(self) -> None:
         """Complete each A_r from its upper triangle (after folds with ``upper_only``)."""
         for r in range(self.A.shape[0]):
             self.A[r] = _mirror(self.A[r])
+        if self.left_out is not None:
+            self.left_out.mirror_upper()
 
     def add_pooled(self, Z: np.ndarray, z: np.ndarray, y_rows: np.ndarray) -> None:
         """Fold equations whose rows are not kept apart: Z (m, p), z (m,) add ZᵀZ, Zᵀz and ‖z‖²
@@ -159,18 +167,22 @@ class NormalEquations:
         self.y_sum += y_rows.sum(axis=0)
         self.n_samples += y_rows.shape[0]
 
-    def _stats(self, y: np.ndarray) -> None:
+    def _stats(self, y: np.ndarray, y_stats: np.ndarray | None = None) -> None:
+        """c from the fitted targets ``y``; range, sum and count from ``y_stats`` (default ``y``)."""
         self.c += np.einsum("nr,nr->r", y, y)
+        y = y if y_stats is None else y_stats
         self.y_min = np.minimum(self.y_min, y.min(axis=0))
         self.y_max = np.maximum(self.y_max, y.max(axis=0))
         self.y_sum += y.sum(axis=0)
         self.n_samples += y.shape[0]
 
     def merge(self, other: "NormalEquations") -> "NormalEquations":
+        both = self.left_out is not None and other.left_out is not None
         return NormalEquations(
             self.A + other.A, self.b + other.b, self.c + other.c,
             np.minimum(self.y_min, other.y_min), np.maximum(self.y_max, other.y_max),
             self.y_sum + other.y_sum, self.n_samples + other.n_samples,
+            self.left_out.merge(other.left_out) if both else None,
         )
 
     def total(self, row_weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
@@ -229,7 +241,8 @@ def compress(
         from .distributed import compress_files
 
         return compress_files(structure, data, client=client, reader=reader, chunk=chunk, progress=progress).equations
-    ne = NormalEquations.zeros(structure.n_rows, structure.n_params)
+    track = bool(getattr(structure, "track_left_out", False))
+    ne = NormalEquations.zeros(structure.n_rows, structure.n_params, left_out=track)
     row_map = structure.row_map
     own_fold = row_map.per_sample  # a map that changes per sample (contacts): the structure folds its equations
     # per-row subtree columns only where each kept row is one row of Pinocchio's joint-torque regressor
@@ -245,10 +258,12 @@ def compress(
         k = 0
         for traj in iter_trajectories(data):
             seen = True
+            prev_v = None
             # a presliding state depends on the history of q: integrated along this whole log from 0
             states = getattr(structure, "friction_states", None)
-            Z, at = (states(traj) if states is not None and not own_fold else None), 0
-            for part in traj.chunks(chunk):
+            Z = states(traj) if states is not None and not own_fold else None
+            for start, part in enumerate(traj.chunks(chunk)):
+                start *= chunk
                 if own_fold:
                     structure.fold(ne, part)
                     if progress is not None:
@@ -259,12 +274,22 @@ def compress(
                     pending[slot].result()
                 Q, V, A = structure.state(part)
                 Wb = structure.block_regressor(Q, V, A, out=bufs[slot])  # [bodies | drive terms]
-                F = structure.joint_features(V, A, None if Z is None else Z[at : at + len(part)])
-                y, at = structure.target(part), at + len(part)
-                keep = structure.fit_mask(V)
-                if keep is not None:  # equations left out of the fit (a joint at rest): zero rows
-                    Wb, F, y = Wb * keep[:, :, None], F * keep[:, structure.term_rows, None], y * keep
-                args = (Wb, F, structure.term_rows, y, cols)
+                F = structure.joint_features(V, A, None if Z is None else Z[start : start + len(part)])
+                y = structure.target(part)
+                keep = _fit_mask(structure, traj, start, len(part), V, prev_v)
+                prev_v = V[-1:]
+                y_stats = None
+                if keep is not None:  # equations left out of the fit (at rest, at a reversal): zero rows, in place
+                    out = keep == 0
+                    if track and out.any():  # ... folded apart, only the samples with such rows
+                        i = np.flatnonzero(out.any(axis=1))
+                        o = out[i]
+                        ne.left_out.add_blocks(Wb[i] * o[:, :, None], F[i] * o[:, structure.term_rows, None],
+                                               structure.term_rows, y[i] * o, cols, upper_only=True)
+                    y_stats = y.copy()
+                    Wb[out], y[out] = 0.0, 0.0
+                    F[out[:, structure.term_rows]] = 0.0
+                args = (Wb, F, structure.term_rows, y, cols, y_stats)
                 if pool:
                     pending[slot] = pool.submit(_fold_chunk, ne, *args)
                 else:
@@ -282,6 +307,19 @@ def compress(
     return ne
 
 
+def _fit_mask(structure, traj: Trajectory, start: int, n: int, V: np.ndarray, prev_v: "np.ndarray | None"):
+    """The structure's fit mask of samples [start, start + n) of ``traj`` (velocities ``V``; ``prev_v``:
+    those of the sample before), seen with one neighbour sample on each side (a mask may depend on
+    them, e.g. a velocity reversal), so that it does not depend on the chunking."""
+    lo, hi = max(start - 1, 0), min(start + n + 1, len(traj))
+    if (lo, hi) == (start, start + n):
+        return structure.fit_mask(V)
+    parts = [prev_v if prev_v is not None else structure.state(traj.take(slice(lo, start)))[1]] if lo < start else []
+    parts += [V] + ([structure.state(traj.take(slice(start + n, hi)))[1]] if hi > start + n else [])
+    keep = structure.fit_mask(np.concatenate(parts))
+    return None if keep is None else keep[start - lo : start - lo + n]
+
+
 def _idle_core() -> bool:
     cores = os.cpu_count() or 1
     try:
@@ -290,9 +328,9 @@ def _idle_core() -> bool:
         return cores > 1
 
 
-def _fold_chunk(ne: NormalEquations, Wb, F, act_rows, y, cols) -> None:
+def _fold_chunk(ne: NormalEquations, Wb, F, act_rows, y, cols, y_stats=None) -> None:
     """One chunk into ``ne`` (runs in the helper thread with ``overlap``; folds are sequential)."""
-    ne.add_blocks(Wb, F, act_rows, y, cols, upper_only=True)
+    ne.add_blocks(Wb, F, act_rows, y, cols, upper_only=True, y_stats=y_stats)
 
 
 class _NoPool:

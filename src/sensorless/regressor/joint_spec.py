@@ -13,13 +13,17 @@ import numpy as np
 
 from ..errors import RobotModelError
 
-__all__ = ["DEFAULT_STRIBECK_VELOCITY", "JOINT_TERMS", "PASSIVE_TERMS", "parse_joint_terms", "parse_presliding",
+__all__ = ["DEFAULT_STRIBECK_VELOCITY", "FRICTION_LAWS", "JOINT_TERMS", "PASSIVE_TERMS", "parse_joint_terms",
+           "parse_presliding",
            "passive_terms"]
 
 JOINT_TERMS = ("fv", "fc", "stribeck", "offset", "armature", "presliding")
 #: terms a passive joint (no actuator) can have: its friction. No offset (there is no torque sensor
 #: to be offset; on a rail along gravity it would be m·g again) and no armature (no rotor).
 PASSIVE_TERMS = ("fv", "fc", "stribeck")
+#: forms of the Stribeck column (:mod:`.terms`): "blend" (fs tanh(v/ε) − (fs − fc)(1 − e^{−(v/vs)²}) sgn v,
+#: written since the transition width is fitted) and "product" (e^{−(v/vs)²} tanh(v/ε), older models)
+FRICTION_LAWS = ("blend", "product")
 #: Stribeck velocity vs [rad/s or m/s] of a joint whose vs is not given
 DEFAULT_STRIBECK_VELOCITY = 0.1
 

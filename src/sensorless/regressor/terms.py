@@ -8,21 +8,10 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
   π the stacked body parameters (10 per body, see :mod:`sensorless.parameters`).
 * Joint terms, per *term joint* (the actuated joints, then the passive ones,
   :attr:`~sensorless.robot.Actuation.term_joints`) and in this order when enabled: viscous ``fv``,
-  Coulomb ``fc`` (``sgn`` is ``tanh(v / ε_j)`` when a smoothing velocity ε_j > 0 is
-  given), Stribeck ``stribeck`` (column ``exp(−(v/vs_j)²) sgn v``, its parameter is
-  fs − fc; ``vs_j`` is a fixed per-joint velocity, :mod:`sensorless.identification.friction`
-  searches it), constant ``offset``, ``armature`` (rotor inertia) and, opt-in, ``presliding`` (the state
-  s_c of :mod:`.friction_state` along each log from 0, :meth:`ModelStructure.friction_states`). Together
-
-      τ_f = fc tanh(v/ε) + (fs − fc) exp(−(v/vs)²) tanh(v/ε) + fv v + o  (+ f_p s_c(q history)).
-
-  With a rest velocity δ_j > 0 (``rest_velocity``) the two sign columns are 0 where
-  |v| ≤ δ_j: a joint whose velocity is within the noise of zero is at rest, and a joint
-  at rest has no sliding friction (static friction holds whatever is needed, 0 here), so
-  the model does not chatter through sgn(noise) at rest. The equations of a joint within
-  its rest velocity are also left out of the fit (:meth:`ModelStructure.fit_mask`): the
-  friction there is indeterminate (at rest static friction holds anything in ±fs, and a
-  slow motion lost in the noise has ±fs), so they would only bias the other parameters.
+  Coulomb ``fc``, Stribeck ``stribeck`` (parameter fs − fc), constant ``offset``, ``armature``
+  (reflected rotor inertia) and, opt-in, ``presliding`` (the state s_c of :mod:`.friction_state`
+  along each log from 0, :meth:`ModelStructure.friction_states`). The friction columns, the rest velocity and the equations left out
+  of the fit (at rest, at a velocity reversal) are :mod:`.friction_columns`.
 
 * A passive joint (no actuator, generalized force 0) has only the friction terms
   (:data:`~.joint_spec.PASSIVE_TERMS`: fv, fc, stribeck): no offset (no torque sensor) and no
@@ -61,9 +50,10 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
+from .friction_columns import coulomb_sign, fit_keep, sliding_sign, stribeck_decay
 from .friction_state import presliding_states
-from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, JOINT_TERMS, _per_joint, named_joints, parse_joint_terms,
-                         parse_presliding, passive_terms)
+from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, FRICTION_LAWS, JOINT_TERMS, _per_joint, named_joints,
+                         parse_joint_terms, parse_presliding, passive_terms)
 from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
@@ -76,8 +66,9 @@ class ModelStructure:
 
     ``joint_terms``: a tuple (the same terms on every actuated joint), or a per-joint
     mapping / spec string (:func:`parse_joint_terms`); afterwards ``joint_terms`` is the
-    union and ``per_joint_terms`` the mapping. ``coulomb_smoothing``: ε for every joint, or
-    ``{joint: ε}`` (0 = sgn). ``stribeck_velocity``: vs per joint with a ``stribeck`` term.
+    union and ``per_joint_terms`` the mapping. ``coulomb_smoothing``: the transition width ε
+    for every joint, or ``{joint: ε}`` (0 = sgn). ``stribeck_velocity``: vs per joint with a
+    ``stribeck`` term. ``friction_law``: the Stribeck column (module docstring).
     """
 
     robot: Robot
@@ -87,6 +78,7 @@ class ModelStructure:
     per_joint_terms: dict | None = None
     stribeck_velocity: dict | None = None
     rest_velocity: dict | None = None
+    friction_law: str = "blend"
     presliding: dict | None = None  #: {joint: {"k": 1/presliding distance [1/rad], "play": h [rad]}}
     labels: list[str] = field(init=False)
     #: drive terms (coupled columns, module docstring); set by :class:`~.transmission.TransmissionStructure`
@@ -121,6 +113,8 @@ class ModelStructure:
             self.coulomb_smoothing = _per_joint(self.coulomb_smoothing, joints, "coulomb_smoothing")
         elif not (np.isfinite(self.coulomb_smoothing) and self.coulomb_smoothing >= 0):
             raise RobotModelError(f"coulomb_smoothing must be a finite number >= 0, got {self.coulomb_smoothing!r}")
+        if self.friction_law not in FRICTION_LAWS:
+            raise RobotModelError(f"friction_law must be one of {FRICTION_LAWS}, got {self.friction_law!r}")
         self.stribeck_velocity = _per_joint(self.stribeck_velocity, joints, "stribeck_velocity") or None
         self.rest_velocity = _per_joint(self.rest_velocity, joints, "rest_velocity") or None
         need = [j for j in joints if "stribeck" in self.terms_of(j)]
@@ -354,9 +348,9 @@ class ModelStructure:
         return out
 
     def joint_features(self, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None) -> np.ndarray:
-        """Joint-term block, shape (N, n_term_joints, n_terms): [v, sgn v, e^{−(v/vs)²} sgn v, 1, v̇, s_c]
-        per term joint (sgn v = tanh(v/ε) for ε > 0, and 0 for |v| ≤ δ, the rest velocity; s_c the
-        presliding state ``Z`` (N, n_term_joints) of these rows, :meth:`friction_states`);
+        """Joint-term block, shape (N, n_term_joints, n_terms): [v, T, T − (1 − e^{−(v/vs)²}) sgn v, 1, v̇, s_c]
+        per term joint (T = tanh(v/ε), sgn v for ε = 0; both 0 for |v| ≤ δ, the rest velocity; s_c the
+        presliding state ``Z`` of these rows, :meth:`friction_states`);
         zero where a joint lacks a term."""
         v = V[:, self._act]
         if not self.joint_terms:
@@ -367,7 +361,8 @@ class ModelStructure:
         cols = {
             "fv": lambda: v,
             "fc": sgn,
-            "stribeck": lambda: np.exp(-((v / vs) ** 2)) * sgn(),
+            "stribeck": lambda: (np.exp(-((v / vs) ** 2)) * sgn() if self.friction_law == "product"
+                                 else sgn() - stribeck_decay(v, vs, self.sliding_sign(v))),
             "offset": lambda: np.ones_like(v),
             "armature": lambda: A[:, self._act],
             "presliding": lambda: _state_rows(Z, v.shape),
@@ -390,25 +385,28 @@ class ModelStructure:
         traj, cols = _in_robot_order(self.robot, traj), [self.robot.joint_names.index(j) for j in joints]
         return presliding_states(traj.q[:, cols], traj.v[:, cols], [laws.get(j) for j in joints])
 
+    def _rest_velocities(self) -> np.ndarray:
+        rest = getattr(self, "rest_velocity", None) or {}
+        return np.array([rest.get(j, 0.0) for j in self.robot.term_joints])
+
     def coulomb_sign(self, v: np.ndarray) -> np.ndarray:
-        """The Coulomb sign of term-joint velocities ``v`` (N, n_term_joints): tanh(v/ε) (sgn v for
-        ε = 0), and 0 where |v| ≤ δ (the rest velocity)."""
-        joints = self.robot.term_joints
-        eps = np.array([self.smoothing_of(j) for j in joints])
-        rest = np.array([(getattr(self, "rest_velocity", None) or {}).get(j, 0.0) for j in joints])
-        return np.where(eps > 0, np.tanh(v / np.where(eps > 0, eps, 1.0)), np.sign(v)) * (np.abs(v) > rest)
+        """:func:`.friction_columns.coulomb_sign` of term-joint velocities ``v`` (N, n_term_joints)."""
+        eps = np.array([self.smoothing_of(j) for j in self.robot.term_joints])
+        return coulomb_sign(v, eps, self._rest_velocities())
+
+    def sliding_sign(self, v: np.ndarray) -> np.ndarray:
+        """:func:`.friction_columns.sliding_sign` of term-joint velocities ``v`` (N, n_term_joints)."""
+        return sliding_sign(v, self._rest_velocities())
 
     def fit_mask(self, V: np.ndarray) -> "np.ndarray | None":
-        """(N, n_rows) 0/1 weights of the equations in the fit: 0 on a joint's row where
-        |v| ≤ its rest velocity (module docstring); None when no joint has one."""
-        rest = getattr(self, "rest_velocity", None)
-        if not rest:
+        """(N, n_rows) 0/1 weights of the equations in the fit (:func:`.friction_columns.fit_keep` on
+        each term joint's row); None when nothing is left out."""
+        law = [bool({"fc", "stribeck"} & set(self.terms_of(j))) for j in self.robot.term_joints]
+        keep_j = fit_keep(V[:, self._act], self._rest_velocities(), np.array(law, dtype=bool))
+        if keep_j is None:
             return None
         keep = np.ones((V.shape[0], self.n_rows))
-        v = V[:, self._act]
-        for k, j in enumerate(self.robot.term_joints):
-            if rest.get(j, 0.0) > 0:
-                keep[:, self.term_rows[k]] = np.abs(v[:, k]) > rest[j]
+        keep[:, self.term_rows] = keep_j
         return keep
 
     @property
@@ -480,6 +478,8 @@ class ModelStructure:
             out["joint_terms_by_joint"] = {j: list(t) for j, t in self.per_joint_terms.items()}
         if getattr(self, "stribeck_velocity", None):
             out["stribeck_velocity"] = dict(self.stribeck_velocity)
+        if "stribeck" in self.joint_terms:
+            out["friction_law"] = getattr(self, "friction_law", "blend")
         if getattr(self, "rest_velocity", None):
             out["rest_velocity"] = dict(self.rest_velocity)
         return {**out, "presliding": {j: dict(p) for j, p in self.presliding.items()}} if self.presliding else out

@@ -45,7 +45,7 @@ def plot_friction(structure, params: np.ndarray, logs: Iterable, path: str | Pat
         eps = structure.smoothing_of(joints[k])
         terms = ",".join(t for t in structure.terms_of(joints[k]) if t != "armature")
         vs = (structure.stribeck_velocity or {}).get(joints[k])
-        ax.set_title(f"{joints[k]}\n{terms}; ε={eps:.3g}" + (f", vs={vs:.3g}" if vs else ""), fontsize=7)
+        ax.set_title(f"{joints[k]}\n{terms}; w={eps:.3g}" + (f", vs={vs:.3g}" if vs else ""), fontsize=7)
         ax.set_xlabel("v", fontsize=7)
         ax.tick_params(labelsize=6)
     axes[0, 0].set_ylabel("torque", fontsize=7)

@@ -101,9 +101,13 @@ def simulate(
     robot, truth, gains, *, seed: int, rate: float = 100.0, motion: float = 20.0, idle_start: float = 2.0,
     idle_end: float = 3.0, ramp: float = 2.0, jitter: float = 0.15, duplicates: int = 3,
     current_noise: float = 0.01, q_noise: float = 1e-4, v_noise: float = 1e-3, motion_seed: int | None = None,
+    creep: "dict[str, float] | None" = None, moving: "list[str] | None" = None,
 ) -> pd.DataFrame:
     """One current-logged run as a table (columns as in the module docstring). ``motion_seed``:
-    the excitation's own seed (default ``seed``), so two runs can share a trajectory."""
+    the excitation's own seed (default ``seed``), so two runs can share a trajectory. ``creep``:
+    {joint: speed [rad/s]} added to those joints' velocity throughout (q drifts by speed · t): in the
+    idle segments they creep under load, with the friction of that speed. ``moving``: only these joints
+    are excited (the others hold their centre position; a single-joint calibration log)."""
     rng = np.random.default_rng(seed)
     frng = rng if motion_seed is None else np.random.default_rng(motion_seed)
     fourier = random_fourier(robot, rng=frng, position_fraction=0.3, max_velocity=1.0, max_acceleration=4.0)
@@ -122,10 +126,18 @@ def simulate(
     dw = d1 * s2 - s1 * d2
     ddw = dd1 * s2 - 2 * d1 * d2 + s1 * dd2
     qc = fourier.q0
+    if moving is not None:
+        still = [k for k, j in enumerate(robot.joint_names) if j not in moving]
+        f, fd, fdd = f.copy(), fd.copy(), fdd.copy()
+        f[:, still], fd[:, still], fdd[:, still] = qc[still], 0.0, 0.0
     dev = f - qc
     q = qc + w[:, None] * dev
     v = dw[:, None] * dev + w[:, None] * fd
     a = ddw[:, None] * dev + 2 * dw[:, None] * fd + w[:, None] * fdd
+    for j, speed in (creep or {}).items():
+        k = list(robot.joint_names).index(j)
+        q[:, k] += speed * true_t
+        v[:, k] += speed
     tau = truth.torques(robot.full_configuration(q), robot.full_velocity(v), robot.full_velocity(a))
     K = np.asarray(gains, dtype=float)
     current = tau / K + rng.normal(0.0, current_noise, tau.shape)
