@@ -1,4 +1,4 @@
-"""The friction state (sensorless.identification.friction_state): oracles for the state update,
+"""The friction state (sensorless.regressor.friction_state): oracles for the state update,
 its rate independence, the play operator, streaming vs whole-log evaluation, and the law's checks."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sensorless.errors import ParameterError
-from sensorless.identification.friction_state import (
+from sensorless.regressor.friction_state import (
     FrictionLaw,
     FrictionStateIntegrator,
     dahl_state_blocks,

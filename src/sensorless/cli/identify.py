@@ -80,7 +80,7 @@ def identify(
     weights: str = typer.Option("auto", help="per-joint noise weighting, every method: auto (two-step: σ from an "
                                 "unweighted fit's residual) | none | FILE (JSON {joint: σ} or CSV 'joint,σ' rows)"),
     out: Path = typer.Option(..., help="output directory (written atomically)"),
-    joint_terms: str = typer.Option("fv,fc,stribeck,offset,armature", help="joint terms fv,fc,stribeck,offset,armature for every "
+    joint_terms: str = typer.Option("fv,fc,stribeck,offset,armature", help="joint terms fv,fc,stribeck,offset,armature (and opt-in presliding, docs/arm.md §7) for every "
                                     "joint, or per joint 'JOINT=fv,fc,offset;JOINT=fv;*=fv,fc' ('*': the joints not "
                                     "listed, else none); a --passive joint keeps its friction terms only "
                                     "(dvrk_psm: drive set 'authors' (default) or 'motors')"),
@@ -167,6 +167,9 @@ def identify(
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
         raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
+    if scheduler is not None and "presliding" in joint_terms:
+        raise OptionError("--joint-terms presliding needs the whole logs in order (its state depends on the history "
+                          "of q): run without --scheduler")
     if floating_base is None and contact_frames and not passive:
         floating_base = True  # a legged robot's base floats; with --passive a passive joint is the unactuated "base"
     r = load_robot_arg(robot, lock, floating_base, passive)

@@ -1,7 +1,7 @@
 """Friction test-bench logs: joints with position and/or velocity and torque (or currents with
 drive gains), kept at their own time stamps.
 
-A friction fit needs no uniform sampling (:mod:`sensorless.identification.friction_state`
+A friction fit needs no uniform sampling (:mod:`sensorless.regressor.friction_state`
 integrates its state over position steps), so the samples are never interpolated: a step that is
 longer than the others is a step like any other. Only the *derivatives* the log lacks (v from q,
 v̇ from v) need a uniform grid: each stretch between two **gaps** (a step over ``max_gap`` median

@@ -3,7 +3,7 @@
 A bench joint's modelled dynamics are its inertia J (the law's ``inertia`` term; 0 without one)
 and its friction, J v̇ + τ_f = τ + τ_ext, so with p = J v and β = −τ_f the observer of
 :mod:`.momentum` (ṗ = τ + β + τ_ext) applies unchanged. τ_f carries the friction state
-(:mod:`sensorless.identification.friction_state`): :meth:`FrictionDynamics.momentum_series`
+(:mod:`sensorless.regressor.friction_state`): :meth:`FrictionDynamics.momentum_series`
 integrates it along a whole log and :meth:`FrictionDynamics.friction_integrator` gives the
 streaming state that :meth:`~.momentum.MomentumObserver.step` advances sample by sample, both from
 the zero state, so ``run`` and ``step`` give the same numbers.
@@ -17,7 +17,7 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, JointNameError
-from ..identification.friction_state import FrictionStateIntegrator
+from ..regressor.friction_state import FrictionStateIntegrator
 
 __all__ = ["FrictionDynamics"]
 

@@ -45,6 +45,7 @@ from scipy import signal
 
 from ..data.integral_filter import observer_filter
 from ..data.trajectory import Trajectory
+from ..regressor.friction_state import FrictionLaw, FrictionStateIntegrator
 from ..errors import DataError, RobotModelError, ShapeMismatchError, TimestampError
 from ..parameters import pin_inertia
 
@@ -149,6 +150,8 @@ class MomentumDynamics:
             self._act, self._terms = act, terms
             nt, n = len(structure.joint_terms), len(r.term_joints)
             self._phi = params[nb:nb + n * nt].reshape(n, nt) if nt else np.zeros((n, 0))
+            self._iq = np.array([robot.model.joints[robot.joint_id(j)].idx_q for j in r.term_joints], dtype=int)
+            self._state_laws = _presliding_laws(structure, params)
             if depth_first_model(model)[0] is not model:
                 raise RobotModelError(f"{structure.robot.name}: joints are not numbered depth-first; "
                                       "Pinocchio's crba/computeCoriolisMatrix need it")
@@ -226,7 +229,8 @@ class MomentumDynamics:
                 vals = {k: val for k, val in self._drive_values[d.name].items() if k != "inertia"}
                 out += d.force(vals, q2, v2, np.zeros_like(v2), s.coulomb_smoothing)[:, None] * d.g[None, :]
         elif self._phi.shape[1]:
-            F = s.joint_features(v2, np.zeros_like(v2))  # (N, n_term_joints, n_terms); armature column is 0
+            Z = np.zeros((v2.shape[0], len(self._terms))) if "presliding" in s.joint_terms else None  # carried apart
+            F = s.joint_features(v2, np.zeros_like(v2), Z)  # (N, n_term_joints, n_terms); armature column is 0
             out[:, self._terms] = np.einsum("nkt,kt->nk", F, self._phi)
         return out if np.ndim(v) == 2 else out[0]
 
@@ -264,7 +268,43 @@ class MomentumDynamics:
         P, B = np.empty((N, self.n)), np.empty((N, self.n))
         for i in range(N):
             P[i], B[i] = self.momentum_terms(Q[i], V[i])
+        if getattr(self, "_state_laws", None):  # the presliding friction, its state integrated from 0
+            B[:, self._terms] -= np.column_stack([law.torque(Q[:, iq], V[:, iv]) for law, iq, iv
+                                                  in zip(self._state_laws, self._iq, self._terms)])
         return P, B
+
+    def friction_integrator(self) -> "_StateFriction | None":
+        """The presliding friction, streaming from the zero state, for :meth:`MomentumObserver.step`
+        (None without a ``presliding`` term): the same numbers as :meth:`momentum_series`."""
+        return _StateFriction(self) if getattr(self, "_state_laws", None) else None
+
+
+def _presliding_laws(structure, params: np.ndarray) -> "list[FrictionLaw] | None":
+    """Per term joint, the ``presliding`` term f_p s_c as a state :class:`FrictionLaw` (a joint without
+    it: an empty static law, 0); None when no joint has the term."""
+    if "presliding" not in structure.joint_terms:
+        return None
+    out = []
+    for j in structure.robot.term_joints:
+        if "presliding" in structure.terms_of(j):
+            p = structure.presliding[j]
+            coef = {"fc": float(params[structure.joint_term_index(j, "presliding")])}
+            out.append(FrictionLaw("state", coef, k=p["k"], play=p["play"]))
+        else:
+            out.append(FrictionLaw("static", {}))
+    return out
+
+
+class _StateFriction:
+    """The presliding friction of :class:`MomentumDynamics` one sample at a time (observer rows)."""
+
+    def __init__(self, dyn: MomentumDynamics) -> None:
+        self.dyn, self.integrator = dyn, FrictionStateIntegrator(dyn._state_laws)
+
+    def step(self, qf: np.ndarray, vf: np.ndarray) -> np.ndarray:
+        out = np.zeros(self.dyn.n)
+        out[self.dyn._terms] = self.integrator.step(np.asarray(qf)[self.dyn._iq], np.asarray(vf)[self.dyn._terms])
+        return out
 
 
 @dataclass

@@ -107,7 +107,8 @@ def model_static_friction(structure, params: np.ndarray, names) -> StaticFrictio
         terms = structure.terms_of(n) if n in structure.robot.actuated_joints else ()
         if "fc" not in terms:
             continue
-        fc = params[structure.joint_term_index(n, "fc")]
+        fc = params[structure.joint_term_index(n, "fc")]  # + the presliding amplitude: its state is ±1 sliding
+        fc += params[structure.joint_term_index(n, "presliding")] if "presliding" in terms else 0.0
         st = params[structure.joint_term_index(n, "stribeck")] if "stribeck" in terms else 0.0
         vals[k] = max(fc, fc + st, 0.0)
         src[k] = "model: fc + Stribeck (fs − fc)" if "stribeck" in terms else "model: Coulomb fc"

@@ -323,7 +323,7 @@ def structure_from_settings(settings: dict, doc: dict, robot):
     if by_joint is not None:
         common["per_joint_terms"] = {j: tuple(t) for j, t in by_joint.items()}
     for key, name in (("coulomb_smoothing_by_joint", "coulomb_smoothing"), ("stribeck_velocity", "stribeck_velocity"),
-                      ("rest_velocity", "rest_velocity")):
+                      ("rest_velocity", "rest_velocity"), ("presliding", "presliding")):
         if settings.get(key) is not None:
             common[name] = settings[key]
     if "stribeck" in common["joint_terms"]:  # files written before the fitted transition width: the product law
@@ -373,7 +373,9 @@ def save_model_folder(directory: str | Path, result, doc: dict | None = None, *,
         return doc
     law = {j: {"stribeck_velocity": float((s.stribeck_velocity or {}).get(j, 0.0)) if "stribeck" in s.terms_of(j)
                else 0.0, "coulomb_smoothing": s.smoothing_of(j)} for j in s.robot.term_joints}
-    terms = JointTerms.from_dict({j: {**d, **law[j]} for j, d in result.joint_terms().items()})
+    # the presliding state (its amplitude, k and play) lives in result.json only: a URDF has no friction state
+    terms = JointTerms.from_dict({j: {**{t: x for t, x in d.items() if t != "presliding"}, **law[j]}
+                                  for j, d in result.joint_terms().items()})
     write_joint_terms(terms, directory / "joint_terms.json")
     try:
         from ..urdf_patch import export_urdf  # the source URDF patched (meshes kept), else write_urdf

@@ -319,6 +319,11 @@ def check_structure_settings(c: Checker, s: Mapping) -> None:
             c.per_joint(f"settings.{name}", s[name], 0, MAX_SMOOTHING, lo_open=lo_open)
     if s.get("friction_law") is not None:
         c.string("settings.friction_law", s["friction_law"], FRICTION_LAWS)
+    if s.get("presliding") is not None:  # {joint: {"k": 1/presliding distance > 0, "play": h >= 0}}
+        for j, p in c.mapping("settings.presliding", s["presliding"]).items():
+            p = c.mapping(f"settings.presliding.{j}", p)
+            c.number(f"settings.presliding.{j}.k", p.get("k"), 0, 1e12, lo_open=True)
+            c.number(f"settings.presliding.{j}.play", p.get("play", 0.0), 0, 1e3)
     if s.get("rows") is not None:
         c.string("settings.rows", s["rows"], ROWS)
     if s.get("contact_frames"):
@@ -366,8 +371,8 @@ MAX_PRESLIDING_K = 1e9
 
 
 def check_friction_law(c: Checker, key: str, d: Any):
-    """A friction law of a friction-only model (:class:`~.friction_state.FrictionLaw`), checked key by key."""
-    from .friction_state import LAW_KINDS, LAW_TERMS, FrictionLaw
+    """A friction law of a friction-only model (:class:`~sensorless.regressor.friction_state.FrictionLaw`), checked key by key."""
+    from ..regressor.friction_state import LAW_KINDS, LAW_TERMS, FrictionLaw
 
     d = c.mapping(key, d)
     kind = c.string(f"{key}.kind", d.get("kind"), LAW_KINDS)

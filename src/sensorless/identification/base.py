@@ -98,10 +98,13 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     rng = np.random.default_rng(seed)
     p = structure.n_params
     n = n_samples or max(20, int(np.ceil(3 * p / max(structure.n_rows, 1))))
-    W = structure.evaluate(*_random_states(structure, n, rng)).reshape(-1, p)
+    Q, V, A = _random_states(structure, n, rng)
+    Z = (rng.uniform(-1.0, 1.0, (n, len(structure.robot.term_joints)))  # a friction state anywhere in [−1, 1]
+         if "presliding" in getattr(structure, "joint_terms", ()) else None)
+    W = structure.evaluate(Q, V, A, *(() if Z is None else (Z,))).reshape(-1, p)
     Q, V, A = _random_states(structure, n, rng)
     slow = V * 10.0 ** rng.uniform(-5.0, 0.0, V.shape) / np.maximum(np.abs(V), 1e-12)  # |v| log-uniform
-    W_all = np.concatenate([W, SLOW_WEIGHT * structure.evaluate(Q, slow, A).reshape(-1, p)])
+    W_all = np.concatenate([W, SLOW_WEIGHT * structure.evaluate(Q, slow, A, *(() if Z is None else (Z,))).reshape(-1, p)])
     rms = np.sqrt(np.mean(W ** 2, axis=0))  # per equation row over the generic states, physical units
     W = W_all
     scale = np.linalg.norm(W, axis=0)

@@ -184,7 +184,8 @@ def friction_curve(structure: ModelStructure, params: np.ndarray, v: np.ndarray)
     v = np.atleast_2d(np.asarray(v, dtype=float))
     V = np.zeros((v.shape[0], structure.robot.nv))
     V[:, structure.robot.term_v_indices] = v
-    F = structure.joint_features(V, np.zeros_like(V))  # armature column 0 at zero acceleration
+    Z = np.sign(v) if "presliding" in structure.joint_terms else None  # steady sliding: s_c = sgn v
+    F = structure.joint_features(V, np.zeros_like(V), Z)  # armature column 0 at zero acceleration
     nt, n = len(structure.joint_terms), len(structure.robot.term_joints)
     phi = _friction_params(structure, params)[structure.n_body_params:].reshape(n, nt) if nt else np.zeros((n, 0))
     return np.einsum("nkt,kt->nk", F, phi)

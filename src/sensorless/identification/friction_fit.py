@@ -2,7 +2,7 @@
 
 Data: per log the joint's position q, velocity v, acceleration v̇ (for an ``inertia`` term) and
 torque τ at its own time stamps (no uniform sampling needed). Every candidate is linear in its
-amplitudes given its non-linear parameters (:mod:`.friction_state`), so each is a least-squares
+amplitudes given its non-linear parameters (:mod:`sensorless.regressor.friction_state`), so each is a least-squares
 fit of τ, and the non-linear ones are chosen on grids (variable projection):
 
 * **static**: τ_f = fc tanh(v/ε) [+ (fs − fc) e^{−(v/vs)²} tanh(v/ε)] + fv v + o [+ J v̇], ε from
@@ -34,7 +34,7 @@ from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, OptionError
 from .friction import coulomb_smoothing_from_noise, stribeck_grid
-from .friction_state import STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
+from ..regressor.friction_state import STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
 
 __all__ = ["DEFAULT_TERMS", "STATE_MODES", "JointFit", "JointSeries", "fit_joint_friction", "joint_series"]
 
@@ -361,7 +361,7 @@ def _state_candidates(ctx, k_grid, vs_list, damping, add, with_none: bool = True
     """Add, via ``add``, the state candidates for each k of ``k_grid``, each vs of ``vs_list`` (and no
     Stribeck term with ``with_none``), with each ``damping`` choice. The columns of each k are
     [s_c, s_s (each vs), damping, fixed terms, initial states], folded into one Gram matrix per k
-    block by block (:func:`~.friction_state.dahl_state_blocks`: memory independent of the log length)."""
+    block by block (:func:`~sensorless.regressor.friction_state.dahl_state_blocks`: memory independent of the log length)."""
     series, qps, starts, B, y, base_terms = ctx
     if len(k_grid) == 0:
         return

@@ -3,7 +3,7 @@
 Each joint gets its own law, static or with a state (:mod:`.friction_fit`), fitted on the
 joint's samples of every training log. :class:`FrictionModel` has the estimator interface of the
 package (``fit(trajectories) -> self``, ``predict(trajectory) -> τ̂``); a prediction integrates
-each state law along the log from the zero state (:meth:`~.friction_state.FrictionLaw.torque`),
+each state law along the log from the zero state (:meth:`~sensorless.regressor.friction_state.FrictionLaw.torque`),
 and :meth:`FrictionModel.integrator` does the same one sample at a time (an observer).
 
 **Error near reversals.** A velocity reversal is a sign change of v between two samples where
@@ -23,7 +23,7 @@ from ..data.rest import REST_SIGMAS, signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, JointNameError, OptionError
 from .friction_fit import DEFAULT_TERMS, STATE_MODES, JointFit, fit_joint_friction, joint_series
-from .friction_state import FrictionLaw, FrictionStateIntegrator
+from ..regressor.friction_state import FrictionLaw, FrictionStateIntegrator
 
 __all__ = ["DEFAULT_REVERSAL_WINDOW", "FrictionModel", "friction_errors", "reversal_mask", "reversal_threshold"]
 

@@ -33,6 +33,7 @@ from .least_squares import (
 )
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
+from .presliding import needs_presliding_search, search_presliding
 from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
 from .torque_channels import TorqueChannels, check_information, check_torque_channels
 from .weights import check_weights
@@ -99,6 +100,8 @@ def identify(
     ``width_grid``: candidate transition widths of the Coulomb term per joint besides the structure's
     own ε (``{joint: [w, …]}``), chosen the same way (a fitted width must pay its BIC term).
     Precompressed ``data`` must then be the candidates' equations.
+    A ``presliding`` term without a given distance is chosen per joint, or dropped, by
+    :mod:`~.presliding` (two fits; ``diagnostics["presliding_search"]``).
     ``standard``: how to pick standard parameters from the base ones, "closest_to_prior"
     (nearest to the model's own inertials) or "min_norm".
 
@@ -116,8 +119,13 @@ def identify(
     checked (:mod:`~.torque_channels`: constant, dead while its joint moves, or > 100× off the
     prior's scale) unless ``check_torques=False``.
     """
+    args = {k: v for k, v in locals().items() if k not in ("model", "data")}
     _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard)
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
+    if needs_presliding_search(structure):  # k per joint by BIC on a first fit's friction residual
+        if isinstance(data, NormalEquations):
+            raise OptionError("the 'presliding' term's distance is chosen from the logs, not precompressed equations")
+        return search_presliding(identify, structure, [data] if isinstance(data, Trajectory) else data, args)
     weights = check_weights(weights, structure.row_names)
     motion = channels = None
     if not isinstance(data, NormalEquations):

@@ -155,7 +155,10 @@ class StribeckCandidates:
     def fit_mask(self, V):
         return self.structure.fit_mask(V)
 
-    def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
+    def friction_states(self, traj):
+        return self.structure.friction_states(traj)
+
+    def joint_features(self, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None) -> np.ndarray:
         s = self.structure
         v = V[:, s.robot.term_v_indices]
         gate = s.sliding_sign(v) != 0  # 0 at rest (|v| ≤ δ)
@@ -164,7 +167,7 @@ class StribeckCandidates:
         T *= gate[:, :, None] * self.searched[None, :, None]
         D = stribeck_decay(v[:, :, None], self.grid[None], s.sliding_sign(v)[:, :, None])
         D *= self.searched[None, :, None]
-        return np.concatenate([s.joint_features(V, A), T, D], axis=2)
+        return np.concatenate([s.joint_features(V, A, Z), T, D], axis=2)
 
     # ---- from candidate equations to the model's -------------------------------------------------
     def _choice(self, choice) -> np.ndarray:

@@ -50,7 +50,7 @@ __all__ = [
 MAX_RELATIVE_STD = 1.0
 NO_MOTION = {"revolute": 1e-3, "prismatic": 1e-3}
 LOW_MOTION = {"revolute": 0.05, "prismatic": 0.01}
-_MOTION_TERMS = ("fv", "fc", "stribeck", "armature")  # joint terms that need the joint to move
+_MOTION_TERMS = ("fv", "fc", "stribeck", "armature", "presliding")  # joint terms that need the joint to move
 
 
 @dataclass

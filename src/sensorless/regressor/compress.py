@@ -259,6 +259,9 @@ def compress(
         for traj in iter_trajectories(data):
             seen = True
             prev_v = None
+            # a presliding state depends on the history of q: integrated along this whole log from 0
+            states = getattr(structure, "friction_states", None)
+            Z = states(traj) if states is not None and not own_fold else None
             for start, part in enumerate(traj.chunks(chunk)):
                 start *= chunk
                 if own_fold:
@@ -271,7 +274,8 @@ def compress(
                     pending[slot].result()
                 Q, V, A = structure.state(part)
                 Wb = structure.block_regressor(Q, V, A, out=bufs[slot])  # [bodies | drive terms]
-                F, y = structure.joint_features(V, A), structure.target(part)
+                F = structure.joint_features(V, A, None if Z is None else Z[start : start + len(part)])
+                y = structure.target(part)
                 keep = _fit_mask(structure, traj, start, len(part), V, prev_v)
                 prev_v = V[-1:]
                 y_stats = None

@@ -14,9 +14,10 @@ import numpy as np
 from ..errors import RobotModelError
 
 __all__ = ["DEFAULT_STRIBECK_VELOCITY", "FRICTION_LAWS", "JOINT_TERMS", "PASSIVE_TERMS", "parse_joint_terms",
+           "parse_presliding",
            "passive_terms"]
 
-JOINT_TERMS = ("fv", "fc", "stribeck", "offset", "armature")
+JOINT_TERMS = ("fv", "fc", "stribeck", "offset", "armature", "presliding")
 #: terms a passive joint (no actuator) can have: its friction. No offset (there is no torque sensor
 #: to be offset; on a rail along gravity it would be m·g again) and no armature (no rotor).
 PASSIVE_TERMS = ("fv", "fc", "stribeck")
@@ -79,6 +80,24 @@ def passive_terms(per_joint: Mapping[str, tuple[str, ...]], passive, named=()) -
                                   f"sensor to be offset, no rotor); a passive joint's terms are {', '.join(PASSIVE_TERMS)}")
         out[j] = tuple(t for t in out.get(j, ()) if t in PASSIVE_TERMS)
     return out
+
+
+def parse_presliding(value, joints, need) -> "dict | None":
+    """{joint: {"k", "play"}} for the joints ``need`` that have it given (a joint without one has its k
+    chosen by the identification, :mod:`sensorless.identification.presliding`); RobotModelError on bad values."""
+    if not value:
+        return None
+    out = {}
+    for j, p in value.items():
+        if j not in joints:
+            raise RobotModelError(f"presliding given for unknown joint '{j}'; term joints are {list(joints)}")
+        if j not in need:
+            continue
+        k, h = (p.get("k"), p.get("play", 0.0)) if isinstance(p, Mapping) else (p, 0.0)
+        if not all(isinstance(x, (int, float, np.floating)) and np.isfinite(x) for x in (k, h)) or k <= 0 or h < 0:
+            raise RobotModelError(f"presliding of '{j}' needs k > 0 [1/rad] and play >= 0 [rad], got {p!r}")
+        out[j] = {"k": float(k), "play": float(h)}
+    return out or None
 
 
 def _by_joint(value, joints, what: str) -> Mapping:

@@ -8,8 +8,9 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
   π the stacked body parameters (10 per body, see :mod:`sensorless.parameters`).
 * Joint terms, per *term joint* (the actuated joints, then the passive ones,
   :attr:`~sensorless.robot.Actuation.term_joints`) and in this order when enabled: viscous ``fv``,
-  Coulomb ``fc``, Stribeck ``stribeck`` (parameter fs − fc), constant ``offset`` and ``armature``
-  (reflected rotor inertia). The friction columns, the rest velocity and the equations left out
+  Coulomb ``fc``, Stribeck ``stribeck`` (parameter fs − fc), constant ``offset``, ``armature``
+  (reflected rotor inertia) and, opt-in, ``presliding`` (the state s_c of :mod:`.friction_state`
+  along each log from 0, :meth:`ModelStructure.friction_states`). The friction columns, the rest velocity and the equations left out
   of the fit (at rest, at a velocity reversal) are :mod:`.friction_columns`.
 
 * A passive joint (no actuator, generalized force 0) has only the friction terms
@@ -50,7 +51,9 @@ from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
 from .friction_columns import coulomb_sign, fit_keep, sliding_sign, stribeck_decay
-from .joint_spec import DEFAULT_STRIBECK_VELOCITY, FRICTION_LAWS, JOINT_TERMS, _per_joint, named_joints, parse_joint_terms, passive_terms
+from .friction_state import presliding_states
+from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, FRICTION_LAWS, JOINT_TERMS, _per_joint, named_joints,
+                         parse_joint_terms, parse_presliding, passive_terms)
 from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
@@ -76,6 +79,7 @@ class ModelStructure:
     stribeck_velocity: dict | None = None
     rest_velocity: dict | None = None
     friction_law: str = "blend"
+    presliding: dict | None = None  #: {joint: {"k": 1/presliding distance [1/rad], "play": h [rad]}}
     labels: list[str] = field(init=False)
     #: drive terms (coupled columns, module docstring); set by :class:`~.transmission.TransmissionStructure`
     drives = ()  # not a dataclass field
@@ -120,6 +124,7 @@ class ModelStructure:
             if bad:
                 raise RobotModelError(f"Stribeck velocity vs of {bad} must be > 0")
             self.stribeck_velocity = {j: vs.get(j, DEFAULT_STRIBECK_VELOCITY) for j in need}
+        self.presliding = parse_presliding(self.presliding, joints, [j for j in joints if "presliding" in self.terms_of(j)])
         if self.rows is None:
             self.rows = "all" if self.robot.floating_base else "actuated"
         self.labels = [f"{b}.{p}" for b in r.body_names for p in PARAMETER_NAMES]
@@ -342,9 +347,10 @@ class ModelStructure:
             out.append((10 * (j - 1), 10 * max(m.subtrees[j])))
         return out
 
-    def joint_features(self, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Joint-term block, shape (N, n_term_joints, n_terms): [v, T, T − (1 − e^{−(v/vs)²}) sgn v, 1, v̇]
-        per term joint (T = tanh(v/ε), sgn v for ε = 0; both 0 for |v| ≤ δ, the rest velocity);
+    def joint_features(self, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None) -> np.ndarray:
+        """Joint-term block, shape (N, n_term_joints, n_terms): [v, T, T − (1 − e^{−(v/vs)²}) sgn v, 1, v̇, s_c]
+        per term joint (T = tanh(v/ε), sgn v for ε = 0; both 0 for |v| ≤ δ, the rest velocity; s_c the
+        presliding state ``Z`` of these rows, :meth:`friction_states`);
         zero where a joint lacks a term."""
         v = V[:, self._act]
         if not self.joint_terms:
@@ -359,11 +365,25 @@ class ModelStructure:
                                  else sgn() - stribeck_decay(v, vs, self.sliding_sign(v))),
             "offset": lambda: np.ones_like(v),
             "armature": lambda: A[:, self._act],
+            "presliding": lambda: _state_rows(Z, v.shape),
         }
         F = np.stack([cols[t]() for t in self.joint_terms], axis=2)
         if getattr(self, "per_joint_terms", None) is not None:
             F *= self.term_mask[None, :, :]
         return F
+
+    def friction_states(self, traj: Trajectory) -> "np.ndarray | None":
+        """The presliding state s_c of each term joint along the log ``traj`` from 0 (N, n_term_joints,
+        :func:`~.friction_state.presliding_states`; 0 for a joint without the term); None when no joint
+        has ``presliding`` (the model is then memoryless)."""
+        if "presliding" not in self.joint_terms:
+            return None
+        joints, laws = self.robot.term_joints, self.presliding or {}
+        if (missing := [j for j in joints if "presliding" in self.terms_of(j) and j not in laws]) or traj.v is None:
+            raise DataError(f"the presliding state needs the joint velocities and a presliding distance for "
+                            f"{missing} (identify chooses it)", traj.source)
+        traj, cols = _in_robot_order(self.robot, traj), [self.robot.joint_names.index(j) for j in joints]
+        return presliding_states(traj.q[:, cols], traj.v[:, cols], [laws.get(j) for j in joints])
 
     def _rest_velocities(self) -> np.ndarray:
         rest = getattr(self, "rest_velocity", None) or {}
@@ -399,13 +419,13 @@ class ModelStructure:
         """Index, among the kept rows, of each actuated joint's (measured) equation."""
         return self._act_row[: self.robot.n_actuated]
 
-    def evaluate(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """Full regressor of N samples at the structure's arrays (:meth:`state`), shape (N, n_rows, n_params)."""
+    def evaluate(self, Q: np.ndarray, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None) -> np.ndarray:
+        """Full regressor (N, n_rows, n_params) at the structure's arrays (:meth:`state`; ``Z``: :meth:`friction_states`)."""
         Q, V, A = np.atleast_2d(Q), np.atleast_2d(V), np.atleast_2d(A)
         N = Q.shape[0]
         W = np.zeros((N, self.n_rows, self.n_params))
         self.block_regressor(Q, V, A, out=W[:, :, : self.n_block_params])
-        F = self.joint_features(V, A)
+        F = self.joint_features(V, A, Z)
         nt = len(self.joint_terms)
         for k, row in enumerate(self._act_row):
             c = self.n_block_params + k * nt
@@ -421,7 +441,7 @@ class ModelStructure:
         return ModelStructure(self.robot, joint_terms=self.joint_terms, coulomb_smoothing=self.coulomb_smoothing,
                               rows="all" if self.robot.floating_base else "actuated",
                               per_joint_terms=self.per_joint_terms, stribeck_velocity=self.stribeck_velocity,
-                              rest_velocity=self.rest_velocity)
+                              rest_velocity=self.rest_velocity, presliding=self.presliding)
 
     def fold(self, ne, traj: Trajectory) -> None:
         """Add one chunk's assembled equations (W, y) to normal equations ``ne``; used by
@@ -430,14 +450,15 @@ class ModelStructure:
 
     def regressor(self, traj: Trajectory) -> np.ndarray:
         """Regressor of a (short) trajectory, shape (N, n_rows, n_params)."""
-        return self.evaluate(*self.state(traj))
+        return self.evaluate(*self.state(traj), self.friction_states(traj))
 
     def torques(self, params: np.ndarray, traj: Trajectory, chunk: int = 4096) -> np.ndarray:
-        """Predicted effort W π on the kept rows, shape (N, n_rows), evaluated in chunks."""
+        """Predicted effort W π on the kept rows (N, n_rows), in chunks (presliding states from 0 first)."""
         out = np.empty((len(traj), self.n_rows))
+        Z = self.friction_states(traj)
         for s in range(0, len(traj), chunk):
             part = traj.take(slice(s, s + chunk))
-            out[s : s + len(part)] = self.evaluate(*self.state(part)) @ params
+            out[s : s + len(part)] = self.evaluate(*self.state(part), None if Z is None else Z[s : s + len(part)]) @ params
         return out
 
     def settings(self) -> dict:
@@ -461,7 +482,13 @@ class ModelStructure:
             out["friction_law"] = getattr(self, "friction_law", "blend")
         if getattr(self, "rest_velocity", None):
             out["rest_velocity"] = dict(self.rest_velocity)
-        return out
+        return {**out, "presliding": {j: dict(p) for j, p in self.presliding.items()}} if self.presliding else out
+
+
+def _state_rows(Z, shape) -> np.ndarray:  # the presliding column's rows
+    if Z is None or np.shape(Z) != shape:
+        raise DataError("the 'presliding' term depends on the history of q: evaluate whole logs (regressor, torques)")
+    return np.asarray(Z, dtype=float)
 
 
 def _in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:

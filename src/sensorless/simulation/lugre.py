@@ -1,6 +1,6 @@
 """A single joint on a friction test bench with LuGre friction: presliding and hysteresis.
 
-Ground truth for the friction state (:mod:`sensorless.identification.friction_state`). LuGre
+Ground truth for the friction state (:mod:`sensorless.regressor.friction_state`). LuGre
 (Canudas de Wit et al. 1995) with bristle deflection z [rad]:
 
     ż = v − σ0 |v| z / g(v),   g(v) = fc + (fs − fc) exp(−(v/vs)²),

@@ -14,7 +14,7 @@ k = σ0/fc), which makes the state equation linear:
 
 so σ0 z = fc s_c + (fs − fc) s_s (LuGre with g/σ0 → 1/k) and σ1 ż = σ1 (q̇ − |q̇| s_c). Given k
 (and vs) the torque is **linear** in (fc, fs − fc, σ1, fv, o, J): k is chosen by variable projection
-on a grid, as the Stribeck velocity is (:mod:`.friction_fit`). The states depend on the path,
+on a grid, as the Stribeck velocity is (:mod:`sensorless.identification.friction_fit`). The states depend on the path,
 not on time (rate-independent): with the input u held over a step (its sign that of the step),
 the exact update from sample i−1 to i is
 
@@ -26,7 +26,7 @@ at rest would make the state random-walk towards 0; q is therefore first passed 
 leaves ±h around it, so noise does not move the state and a motion shifts it by h ≪ 1/k. From an
 initial state s(0) the solution is the one from 0 plus s(0) e^{−k S_i} (S the travelled distance):
 a fit gives each log a column e^{−kS} (its unknown initial state); a prediction starts at 0.
-As k → ∞ the states become sgn q̇ (the static law); :mod:`.friction_fit` keeps the state only
+As k → ∞ the states become sgn q̇ (the static law); :mod:`sensorless.identification.friction_fit` keeps the state only
 where the data support a finite presliding distance.
 
 The static law (``kind="static"``) is the one of :mod:`sensorless.regressor.terms`:
@@ -44,7 +44,8 @@ import numpy as np
 from ..errors import DataError, ParameterError
 
 __all__ = ["FrictionLaw", "FrictionStateIntegrator", "LAW_KINDS", "LAW_TERMS", "STATE_BLOCK", "dahl_state_blocks",
-           "dahl_states", "play"]
+           "dahl_states", "play",
+           "presliding_states"]
 
 LAW_KINDS = ("static", "state")
 #: linear terms of a law, in column order (``damping`` only with a state; ``inertia`` = J v̇)
@@ -103,6 +104,18 @@ def dahl_states(qp: np.ndarray, v: np.ndarray, k: np.ndarray, vs: Sequence[float
     parts = [b for _, _, b in dahl_state_blocks(qp, v, k, vs)]
     k = np.atleast_1d(np.asarray(k, dtype=float))
     return np.concatenate(parts) if parts else np.zeros((0, k.size, 1 + len(list(vs))))
+
+
+def presliding_states(q: np.ndarray, v: np.ndarray, laws: Sequence["dict | None"]) -> np.ndarray:
+    """The Coulomb state s_c (N, n) of joints ``q``, ``v`` (N, n) along a log from 0: per column with a
+    law ``{"k", "play"}`` :func:`dahl_states` with that k on the position played with half-width
+    ``play`` (the ``presliding`` column of a rigid-body model); 0 where the law is None."""
+    q, v = np.atleast_2d(q), np.atleast_2d(v)
+    Z = np.zeros(q.shape)
+    for c, law in enumerate(laws):
+        if law is not None:
+            Z[:, c] = dahl_states(play(q[:, c], law["play"]), v[:, c], [law["k"]])[:, 0, 0]
+    return Z
 
 
 @dataclasses.dataclass
