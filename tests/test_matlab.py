@@ -128,3 +128,25 @@ def test_corrupt_mat_is_a_data_error(tmp_path):
     (tmp_path / "y.mat").write_bytes(b"MATLAB 7.3 MAT-file, but not HDF5")
     with pytest.raises(DataError, match="y.mat: not a readable MATLAB v7.3"):
         read_trajectory(tmp_path / "y.mat")
+
+
+def test_v5_numeric_or_mixed_joint_names_are_refused_like_v73(tmp_path):
+    """Fuzz class ``formats``: a v5 ``joint_names`` of numbers read as names '1.0', '2.0' with exit 0
+    (v7.3 refuses the same variable); a count that differs from q's columns names both, in flag words."""
+    from scipy.io import savemat
+
+    t, q, _, tau = _log(k=2)
+    for names, why in ((np.array([1.0, 2.0]), r"'joint_names' holds float64 values, not text"),
+                       (np.array([1.5, "x"], dtype=object), r"'joint_names' is a cell array whose items are not all "
+                                                              r"text \(one is float 1.5\)")):
+        savemat(tmp_path / "n.mat", {"t": t, "q": q, "tau": tau, "joint_names": names})
+        with pytest.raises(DataError, match=why):
+            read_trajectory(tmp_path / "n.mat")
+    write_mat73(tmp_path / "n73.mat", {"t": t, "q": q, "tau": tau, "joint_names": np.array([1.0, 2.0])})
+    with pytest.raises(DataError, match=r"'joint_names' holds double values, not text"):
+        read_trajectory(tmp_path / "n73.mat")
+    savemat(tmp_path / "three.mat", {"t": t, "q": q, "joint_names": np.array(NAMES, dtype=object)})
+    with pytest.raises(ShapeMismatchError, match=r"joint names are 3 \('shoulder', 'elbow', 'wrist'\) but 'q' \('q'\) "
+                                                 r"has 2 columns.*--columns 'q=\.\.\.'") as err:
+        read_trajectory(tmp_path / "three.mat")
+    assert "pass joint_names" not in str(err.value)

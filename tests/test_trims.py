@@ -110,3 +110,28 @@ def test_a_config_file_gives_one_window_as_a_string(tmp_path):
     assert r.exit_code == 0, r.output
     pre = json.loads((tmp_path / "m" / "result.json").read_text())["settings"]["preprocessing"]
     assert pre["trim"] == "1:-1" and pre["trims"] == {str(tmp_path / "train.csv"): "1:-1"}
+
+
+def test_a_window_does_not_hide_stamps_running_backwards_in_the_middle(tmp_path):
+    """Fuzz class ``formats``: stamps reset to 0 for 3 rows mid-log fell outside the window and were
+    dropped silently (the gap then interpolated by --resample auto); the corrupt prefix is still cut."""
+    import warnings
+
+    from sensorless.data import read_trajectory
+    from sensorless.errors import TimestampError
+
+    n = 300
+    t = 1.0 + np.arange(n) / 100.0
+    q = np.column_stack([np.sin(t), np.cos(t)])
+    tt = t.copy()
+    tt[150:153] = 0.0  # a logger's clock reset mid-log
+    tt[:5] = 9.0 + np.arange(5)  # and a corrupt prefix (later than the log)
+    path = tmp_path / "run.csv"
+    np.savetxt(path, np.column_stack([tt, q]), delimiter=",", header="t,q_a,q_b", comments="", fmt="%.17g")
+    with pytest.raises(TimestampError, match=r"run.csv: trim window 'abs:1.1:3.8' .* would leave out 3 sample\(s\) "
+                                             r"amid the ones it keeps, first sample 150 \(t\[150\] = 0 s"):
+        read_trajectory(path, trim="abs:1.1:3.8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tr = read_trajectory(path, trim="abs:1.1:2.4")  # a window that ends before the reset: the prefix is cut
+    assert len(tr) == 131 and np.array_equal(tr.t, t[10:141]) and np.array_equal(tr.q, q[10:141])

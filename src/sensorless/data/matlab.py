@@ -91,7 +91,14 @@ def _v5_value(val: Any, key: str, src: str, text: bool) -> Any:
     if text:
         if isinstance(val, str):
             return [val]
-        return [str(v) for v in np.asarray(val, dtype=object).reshape(-1)]
+        items = np.asarray(val, dtype=object).reshape(-1)
+        if isinstance(val, np.ndarray) and val.dtype.kind not in "USO":
+            raise DataError(f"'{key}' holds {val.dtype} values, not text (a char matrix or a cell array of char)", src)
+        odd = next((v for v in items if not isinstance(v, str)), None)
+        if odd is not None:
+            raise DataError(f"'{key}' is a cell array whose items are not all text (one is {type(odd).__name__} "
+                            f"{str(odd)[:40]}); save the joint names as a cell array of char", src)
+        return [str(v) for v in items]
     if isinstance(val, (str, list)) or (isinstance(val, np.ndarray) and val.dtype.kind in "USO"):
         raise DataError(f"'{key}' holds text or a cell array, not numbers", src)
     return np.asarray(val)

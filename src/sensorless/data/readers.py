@@ -252,14 +252,17 @@ def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: fl
     elif raw.names is not None:
         if len(raw.names) != n:
             raise ShapeMismatchError(
-                f"the file's joint_names has {len(raw.names)} names but 'q' has {n} columns; "
-                "pass joint_names=[...] in column order", src)
+                f"the file's joint names are {len(raw.names)} ({', '.join(map(repr, list(raw.names)[:8]))}) but 'q' "
+                f"('{raw.origin.get('q', 'q')}') has {n} columns; store one name per q "
+                "column, or pick the q columns of those joints with --columns 'q=...' "
+                "(library: joint_names=[...] in column order)", src)
         names = list(raw.names)
     elif robot is not None:
         if len(robot.joint_names) != n:
             raise ShapeMismatchError(
                 f"'q' has {n} columns but robot '{robot.name}' has {len(robot.joint_names)} joints "
-                f"{list(robot.joint_names)}; pass joint_names=[...] in column order",
+                f"{list(robot.joint_names)}; pick the q columns of those joints with --columns 'q=...' "
+                "(library: joint_names=[...] in column order)",
                 src,
             )
         names = list(robot.joint_names)

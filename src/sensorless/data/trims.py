@@ -16,7 +16,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from ..errors import DataError, OptionError, TooFewSamplesError
+from ..errors import DataError, OptionError, TimestampError, TooFewSamplesError
 from .trajectory import Trajectory
 
 __all__ = ["TrimWindow", "trim_window", "LogTrims"]
@@ -85,9 +85,10 @@ def _seconds(text: Any, spec: Any) -> float:
 def trim_window(traj: Trajectory, window: "str | tuple | TrimWindow") -> Trajectory:
     """Samples of ``traj`` whose stamps lie inside ``window`` (typed errors if it is empty or outside the log).
 
-    The log need not be validated yet: stamps that are not finite or run backwards are kept
-    or dropped by the same test. A relative window counts from the first and last sample,
-    so those two stamps must be finite."""
+    The log need not be validated yet: stamps that are not finite or run backwards before the
+    first kept sample or after the last are dropped by the same test (a corrupt prefix or
+    suffix), but such rows amid the kept ones are a TimestampError naming the first of them.
+    A relative window counts from the first and last sample, so those two stamps must be finite."""
     src = traj.source
     try:
         win = TrimWindow.parse(window)
@@ -109,6 +110,15 @@ def trim_window(traj: Trajectory, window: "str | tuple | TrimWindow") -> Traject
     n = int(keep.sum())
     if n < 2:
         raise TooFewSamplesError(f"trim window '{win}' = [{lo:.6g}, {hi:.6g}] s holds {n} sample(s); {span}", src)
+    inside = np.flatnonzero(keep)
+    hole = np.flatnonzero(~keep[inside[0]:inside[-1] + 1]) + inside[0]
+    if hole.size:  # rows amid the window whose stamps lie outside it: corrupt stamps, not a cut
+        k = int(hole[0])
+        raise TimestampError(
+            f"trim window '{win}' = [{lo:.6g}, {hi:.6g}] s would leave out {hole.size} sample(s) amid the ones it "
+            f"keeps, first sample {k} (t[{k}] = {t[k]:.6g} s after t[{k - 1}] = {t[k - 1]:.6g} s): stamps that are "
+            "not finite or run backwards in the middle of the log are corruption, not a window; fix the log's time "
+            "column, or choose a window that ends before that sample", src)
     out = traj.take(keep)
     note = f"trim({win})"
     units = {**out.units, "processing": "; ".join(p for p in (out.units.get("processing"), note) if p)}
