@@ -202,7 +202,9 @@ def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header:
         if not header:
             raise DataError(f"pattern {spec!r} for '{field}' needs a header row; use an index range like '0:7'", src)
         if not names:
-            raise DataError(f"pattern {spec!r} for '{field}' needs joint names; pass joint_names=[...]", src)
+            raise DataError(f"pattern {spec!r} for '{field}' needs joint names: give the robot (--robot, whose joint "
+                            "names fill the pattern) or name the columns, e.g. --columns 'q=pos_a|pos_b' (library: "
+                            "joint_names=...)", src)
         labels = [spec.replace("{joint}", j) for j in names]
     elif isinstance(spec, str) and (m := _RANGE.match(spec)):
         start = int(m.group(1) or 0)
