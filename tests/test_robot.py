@@ -117,3 +117,20 @@ def test_xacro_that_needs_ros_says_how_to_expand_it(tmp_path, monkeypatch):
                    '<xacro:include filename="$(find no_such_pkg)/a.xacro"/></robot>')
     with pytest.raises(RobotModelError, match=r"bad.xacro: xacro could not expand it .*xacro .*bad.xacro > robot.urdf"):
         load_robot(bad, trust_xacro=True)
+
+
+def test_a_misspelt_robot_name_gets_the_close_names_on_the_cli():
+    """Issue 24: an unknown robot name is answered with "did you mean" (difflib), in one line, exit 2."""
+    from typer.testing import CliRunner
+
+    from sensorless.cli import app
+
+    with pytest.raises(RobotModelError, match=r"did you mean 'ur5'"):
+        load_robot("ur55")
+    with pytest.raises(RobotModelError, match=r"did you mean 'panda'"):
+        load_robot("Panda")
+    with pytest.raises(RobotModelError) as exc:
+        load_robot("qwertyuiop")
+    assert "did you mean" not in str(exc.value) and "dvrk_psm" in str(exc.value)
+    res = CliRunner().invoke(app, ["identify", "--robot", "solo13", "--data", "x.npz", "--out", "o"])
+    assert res.exit_code == 2 and "did you mean 'solo12'" in res.output and "Traceback" not in res.output

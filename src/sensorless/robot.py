@@ -328,9 +328,12 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
     import example_robot_data as erd
 
     if spec not in erd.robots_loader.ROBOTS:
+        known = sorted(erd.robots_loader.ROBOTS)
+        close = difflib.get_close_matches(str(spec).lower(), known + ["dvrk_psm"], n=3, cutoff=0.6)
+        hint = f"did you mean {' or '.join(repr(c) for c in close)}? " if close else ""
         raise RobotModelError(
-            f"'{spec}' is neither a .urdf/.xacro/.xml file nor an example-robot-data name "
-            f"(known names: {sorted(erd.robots_loader.ROBOTS)})"
+            f"'{spec}': neither a .urdf/.xacro/.xml file nor an example-robot-data name; {hint}"
+            f"(known names: {', '.join(known)}, and dvrk_psm)"
         )
     model, urdf = _erd_model(spec)
     if floating_base is False and model.joints[1].shortname() == "JointModelFreeFlyer":
