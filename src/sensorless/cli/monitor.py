@@ -162,8 +162,7 @@ def monitor(
                                min_duration=min_duration, merge_gap=merge_gap)
     with atomic_outdir(out, force, inputs=path_inputs(robot, model, data)) as tmp:
         (traj,), opts = ((bench_log,), {}) if bench else model_logs(art, [data], r, prep)
-        mon = monitor_log(dyn, traj, settings, static=_bench_static_friction(dyn) if bench else None,
-                          savgol_window=opts.get("savgol_window"))
+        mon = monitor_log(dyn, traj, settings, savgol_window=opts.get("savgol_window"))
         t, th, trace, tau_ext = mon.t, mon.thresholds, mon.trace, mon.tau_ext
         flag, intervals, band_ivs = mon.contact, mon.contacts, mon.static_band
         arrays = {"t": t, "tau_ext": tau_ext, "r_raw": mon.raw, "holding": trace.holding, "status": trace.status,
@@ -285,12 +284,3 @@ def bench_held_monitor(
                       f"mean contact fraction {s['mean_contact_fraction']:.3f}")
     return res
 
-
-def _bench_static_friction(dyn):
-    """f_s = max(fc, fc + (fs − fc)) per joint of a friction-only model's laws (as for an identified model)."""
-    from ..estimation.static_band import StaticFriction
-
-    names = list(dyn.actuated_names)
-    coefs = [dyn.model.laws_[n].coef for n in names]
-    vals = np.array([max(c.get("fc", np.nan), c.get("fc", np.nan) + c.get("stribeck", 0.0)) for c in coefs])
-    return StaticFriction(names, vals, ["model: friction law fc + Stribeck"] * len(names))

@@ -32,6 +32,7 @@ from ..data.trims import TrimWindow
 from ..errors import DataError
 
 __all__ = ["ContactInterval", "Thresholds", "contact_intervals", "detect_contacts", "observer_warmup", "quiet_mask",
+           "threshold_multiplier",
            "quiet_thresholds", "runs", "score_detection"]
 
 
@@ -104,6 +105,20 @@ def observer_warmup(gain: float, order: int, dt: float, damping: float = 1.0, to
     return float((off[-1] + 1) * dt) if off.size else 0.0
 
 
+def threshold_multiplier(k: float | None, false_alarm_rate: float | None, dt: float | None, n: int) -> float:
+    """k given, or from a false-alarm rate λ [1/min] over ``n`` joints (Gaussian, two-sided): per-sample
+    p = λ dt / (60 n), k = Φ⁻¹(1 − p/2). Exactly one of ``k`` and ``false_alarm_rate``."""
+    if (k is None) == (false_alarm_rate is None):
+        raise DataError("give exactly one of k or false_alarm_rate")
+    if false_alarm_rate is not None:
+        if not (false_alarm_rate > 0 and dt and dt > 0):
+            raise DataError(f"false_alarm_rate must be > 0 per minute with a sample period dt, got {false_alarm_rate}, dt={dt}")
+        k = float(stats.norm.isf(false_alarm_rate * dt / (60.0 * n) / 2))
+    if not k > 0:
+        raise DataError(f"k must be > 0, got {k}")
+    return float(k)
+
+
 def quiet_thresholds(r: np.ndarray, quiet: np.ndarray, names, *, k: float | None = None,
                      false_alarm_rate: float | None = None, dt: float | None = None) -> Thresholds:
     """Per-joint bias and σ from the quiet samples (boolean mask) and the multiplier k."""
@@ -111,15 +126,7 @@ def quiet_thresholds(r: np.ndarray, quiet: np.ndarray, names, *, k: float | None
     rq = r[np.asarray(quiet, bool)]
     if rq.shape[0] < 20:
         raise DataError(f"the quiet segment has {rq.shape[0]} samples; need ≥ 20")
-    if (k is None) == (false_alarm_rate is None):
-        raise DataError("give exactly one of k or false_alarm_rate")
-    if false_alarm_rate is not None:
-        if not (false_alarm_rate > 0 and dt and dt > 0):
-            raise DataError(f"false_alarm_rate must be > 0 per minute with a sample period dt, got {false_alarm_rate}, dt={dt}")
-        p = false_alarm_rate * dt / (60.0 * r.shape[1])
-        k = float(stats.norm.isf(p / 2))
-    if not k > 0:
-        raise DataError(f"k must be > 0, got {k}")
+    k = threshold_multiplier(k, false_alarm_rate, dt, r.shape[1])
     bias = np.median(rq, axis=0)
     sigma = np.maximum(rq.std(axis=0), 1e-12)
     return Thresholds(list(names), bias, sigma, float(k), int(rq.shape[0]))

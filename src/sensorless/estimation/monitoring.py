@@ -24,7 +24,7 @@ from .collision import ContactInterval, observer_warmup, quiet_mask, runs
 from .momentum import MomentumDynamics, MomentumObserver, ObserverResult
 from .monitored import MonitoredTorque, monitored_rows, monitored_torque
 from .static_band import (STATUS, MonitorTrace, RestAwareThresholds, StaticFriction, classify_at_rest,
-                          model_static_friction, rest_aware_thresholds, rest_intervals, rest_speeds)
+                          laws_static_friction, model_static_friction, rest_aware_thresholds, rest_intervals, rest_speeds)
 
 __all__ = ["MonitorResult", "MonitorSettings", "monitor_log", "still_mask"]
 
@@ -153,7 +153,8 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
     raw = -res.tau_ext if monitored is None else monitored.tau_ext
     t = np.asarray(traj.t, float)
     if s.static_friction == "model":
-        static = static or model_static_friction(dyn.structure, dyn.params, names)
+        static = static or (model_static_friction(dyn.structure, dyn.params, names) if hasattr(dyn, "structure")
+                            else laws_static_friction(dyn.model.laws_, names))  # a friction-only model
     elif s.static_friction == "off":
         static = StaticFriction(names, np.zeros(len(names)), ["off"] * len(names))
     else:

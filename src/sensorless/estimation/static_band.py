@@ -58,12 +58,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from ..errors import DataError
-from .collision import ContactInterval, contact_intervals, runs
+from .collision import ContactInterval, contact_intervals, runs, threshold_multiplier
 
-__all__ = ["STATUS", "MonitorTrace", "RestAwareThresholds", "StaticFriction", "classify_at_rest", "model_static_friction",
+__all__ = ["STATUS", "MonitorTrace", "RestAwareThresholds", "StaticFriction", "classify_at_rest", "laws_static_friction", "model_static_friction",
            "rest_aware_thresholds", "rest_intervals", "rest_speeds"]
 
 STATUS = ("quiet", "contact", "static_band", "warmup")
@@ -115,6 +114,15 @@ def model_static_friction(structure, params: np.ndarray, names) -> StaticFrictio
     return StaticFriction(names, vals, src)
 
 
+def laws_static_friction(laws: dict, names) -> StaticFriction:
+    """f_s = max(fc, fc + (fs − fc)) per joint of a friction-only model's laws ({joint: law with
+    ``coef``}, :mod:`sensorless.identification.friction_model`), as :func:`model_static_friction`."""
+    names = list(names)
+    coefs = [laws[n].coef for n in names]
+    vals = np.array([max(c.get("fc", np.nan), c.get("fc", np.nan) + c.get("stribeck", 0.0)) for c in coefs])
+    return StaticFriction(names, vals, ["model: friction law fc + Stribeck"] * len(names))
+
+
 @dataclass
 class RestAwareThresholds:
     """Per-joint statistics of a quiet window split by state (module docstring)."""
@@ -154,14 +162,7 @@ def rest_aware_thresholds(r: np.ndarray, rest: np.ndarray, quiet: np.ndarray, st
     n = r.shape[1]
     if quiet.sum() < MIN_SAMPLES:
         raise DataError(f"the quiet segment has {int(quiet.sum())} samples; need ≥ {MIN_SAMPLES}")
-    if (k is None) == (false_alarm_rate is None):
-        raise DataError("give exactly one of k or false_alarm_rate")
-    if false_alarm_rate is not None:
-        if not (false_alarm_rate > 0 and dt and dt > 0):
-            raise DataError(f"false_alarm_rate must be > 0 per minute with a sample period dt, got {false_alarm_rate}, dt={dt}")
-        k = float(stats.norm.isf(false_alarm_rate * dt / (60.0 * n) / 2))
-    if not k > 0:
-        raise DataError(f"k must be > 0, got {k}")
+    k = threshold_multiplier(k, false_alarm_rate, dt, n)
     nan = np.full(n, np.nan)
     s_r, s_m, b_r, b_m, c, band = nan.copy(), nan.copy(), nan.copy(), nan.copy(), nan.copy(), nan.copy()
     n_r, n_m = np.zeros(n, int), np.zeros(n, int)

@@ -26,7 +26,7 @@ from ..excitation import random_fourier
 from ..robot import Robot
 from .synthetic import NoiseSpec, TruthModel, add_white_noise
 
-__all__ = ["Push", "PushTruth", "simulate_pushes"]
+__all__ = ["Push", "PushTruth", "log_decimation", "noisy_joint_log", "push_torques", "simulate_pushes"]
 
 
 @dataclass(frozen=True)
@@ -72,9 +72,7 @@ def simulate_pushes(
     """Simulate the pushed arm; return (log, truth). See the module docstring.
 
     ``noise``: white noise on the logged joint signals (its ``q``, ``v``, ``tau``); None: none."""
-    ratio = sim_rate / log_rate
-    if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
-        raise SensorlessError(f"sim_rate ({sim_rate}) must be an integer multiple of log_rate ({log_rate})")
+    decim = log_decimation(sim_rate, log_rate)
     r = truth.robot
     if r.floating_base or r.n_actuated != r.nv:
         raise SensorlessError(f"{r.name}: the pushed-arm simulation needs a fixed-base, fully actuated arm")
@@ -87,7 +85,6 @@ def simulate_pushes(
     ref = random_fourier(r, rng=seed, base_freq=base_freq, max_velocity=1.0, max_acceleration=3.0)
     dt = 1.0 / sim_rate
     n_steps = int(round(duration * sim_rate))
-    decim = int(round(ratio))
     t_ref = np.arange(n_steps + 1) * dt
     Qr, Vr, _ = ref.evaluate(t_ref)
     q, v = r.full_configuration(Qr[:1])[0], Vr[0].copy()
@@ -96,16 +93,7 @@ def simulate_pushes(
     for k in range(n_steps + 1):
         t = k * dt
         tau = pin.computeGeneralizedGravity(nom_model, nom_data, q)[act] + kp * (Qr[k] - q[act]) + kd * (Vr[k] - v[act])
-        ext = np.zeros(r.nv)
-        F_tot = np.zeros(3)
-        on = False
-        for p in pushes:
-            F = p.force(t)
-            if np.any(F):
-                on = True
-                J = pin.computeFrameJacobian(model, data, q, fids[p.frame], pin.LOCAL_WORLD_ALIGNED)
-                ext += J[:3].T @ F
-                F_tot += F
+        ext, F_tot, on = push_torques(model, data, q, pushes, fids, t)
         if k % decim == 0:
             for key, val in zip(logs, (t, q[act], v[act], tau, ext, F_tot, on)):
                 logs[key].append(np.copy(val))
@@ -120,13 +108,40 @@ def simulate_pushes(
         a = np.linalg.solve(M, full - pin.nonLinearEffects(model, data, q, v) - fric + ext)
         v = v + dt * a
         q = pin.integrate(model, q, dt * v)
-    rng = np.random.default_rng(seed + 1)
     arr = {k: np.array(v_) for k, v_ in logs.items()}
+    traj = noisy_joint_log(arr, r, noise, seed, f"<pushed {r.name} seed={seed}>")
+    return traj, PushTruth(arr["t"], arr["ext"], arr["F"], arr["on"].astype(bool), tuple(pushes), coulomb_velocity)
+
+
+def log_decimation(sim_rate: float, log_rate: float) -> int:
+    """Simulation steps per logged sample; SensorlessError unless ``sim_rate`` is an integer multiple of ``log_rate``."""
+    ratio = sim_rate / log_rate
+    if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
+        raise SensorlessError(f"sim_rate ({sim_rate}) must be an integer multiple of log_rate ({log_rate})")
+    return int(round(ratio))
+
+
+def push_torques(model, data, q: np.ndarray, pushes: Sequence[Push], fids: dict, t: float):
+    """(τ_ext = Σ Jᵀ F over the pushes active at ``t`` (linear Jacobian, LOCAL_WORLD_ALIGNED), total F, any push on)."""
+    ext, F_tot, on = np.zeros(model.nv), np.zeros(3), False
+    for p in pushes:
+        F = p.force(t)
+        if np.any(F):
+            on = True
+            J = pin.computeFrameJacobian(model, data, q, fids[p.frame], pin.LOCAL_WORLD_ALIGNED)
+            ext += J[:3].T @ F
+            F_tot += F
+    return ext, F_tot, on
+
+
+def noisy_joint_log(arr: dict, robot: Robot, noise: NoiseSpec | None, seed: int, source: str,
+                    t0: float = 0.0) -> Trajectory:
+    """The logged joint signals ``arr`` (t, q, v, tau) with white noise (``noise``; None: none, seeded
+    by ``seed + 1``), stamps from ``t0``."""
+    rng = np.random.default_rng(seed + 1)
     noise = NoiseSpec.none() if noise is None else noise
-    traj = Trajectory(
-        t=arr["t"], q=add_white_noise(arr["q"], noise.q, rng), v=add_white_noise(arr["v"], noise.v, rng),
-        tau=add_white_noise(arr["tau"], noise.tau, rng),
-        joint_names=r.joint_names, source=f"<pushed {r.name} seed={seed}>",
+    return Trajectory(
+        t=t0 + arr["t"], q=add_white_noise(arr["q"], noise.q, rng), v=add_white_noise(arr["v"], noise.v, rng),
+        tau=add_white_noise(arr["tau"], noise.tau, rng), joint_names=robot.joint_names, source=source,
         units={"t": "s", "q": "rad", "v": "rad/s", "tau": "N·m"},
     )
-    return traj, PushTruth(arr["t"], arr["ext"], arr["F"], arr["on"].astype(bool), tuple(pushes), coulomb_velocity)

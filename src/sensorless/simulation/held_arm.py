@@ -37,7 +37,7 @@ from ..data.trajectory import Trajectory
 from ..errors import SensorlessError
 from ..excitation import random_fourier
 from ..robot import Robot
-from .arm_push import Push, PushTruth
+from .arm_push import Push, PushTruth, log_decimation, noisy_joint_log, push_torques
 from .synthetic import NoiseSpec, TruthModel, add_white_noise
 
 __all__ = ["HeldArmScenario", "Stiction", "held_arm_scenario", "karnopp_step", "noise_implied_force", "simulate_held_arm"]
@@ -117,9 +117,7 @@ def simulate_held_arm(
     whose ``evaluate(t)`` gives (q, v, v̇) references; neither: a random Fourier reference of
     ``base_freq``, ``max_velocity``. The arm first settles for ``settle``
     s (not logged); push times are seconds after the first logged sample."""
-    ratio = sim_rate / log_rate
-    if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
-        raise SensorlessError(f"sim_rate ({sim_rate}) must be an integer multiple of log_rate ({log_rate})")
+    decim = log_decimation(sim_rate, log_rate)
     r = truth.robot
     if r.floating_base or r.n_actuated != r.nv:
         raise SensorlessError(f"{r.name}: the held-arm simulation needs a fixed-base, fully actuated arm")
@@ -130,7 +128,7 @@ def simulate_held_arm(
     nom_data = nom_model.createData()
     fids = {p.frame: r.frame_id(p.frame) for p in pushes}
     dt = 1.0 / sim_rate
-    n_settle, n_steps, decim = int(round(settle * sim_rate)), int(round(duration * sim_rate)), int(round(ratio))
+    n_settle, n_steps = int(round(settle * sim_rate)), int(round(duration * sim_rate))
     t_all = (np.arange(n_settle + n_steps + 1) - n_settle) * dt
     if reference is not None:
         Qr, Vr, _ = reference.evaluate(np.maximum(t_all, 0.0))
@@ -147,14 +145,7 @@ def simulate_held_arm(
     logs = {k: [] for k in ("t", "q", "v", "tau", "ext", "F", "on")}
     for k, t in enumerate(t_all):
         tau = pin.computeGeneralizedGravity(nom_model, nom_data, q) + kp * (Qr[k] - q) + kd * (Vr[k] - v)
-        ext, F_tot, on = np.zeros(r.nv), np.zeros(3), False
-        for p in pushes:
-            F = p.force(t)
-            if np.any(F):
-                on = True
-                J = pin.computeFrameJacobian(model, data, q, fids[p.frame], pin.LOCAL_WORLD_ALIGNED)
-                ext += J[:3].T @ F
-                F_tot += F
+        ext, F_tot, on = push_torques(model, data, q, pushes, fids, t)
         if k >= n_settle and (k - n_settle) % decim == 0:
             for key, val in zip(logs, (t, q, v, tau, ext, F_tot, on)):
                 logs[key].append(np.copy(val))
@@ -166,14 +157,8 @@ def simulate_held_arm(
         a, _ = karnopp_step(M, u, v, dt, stiction)
         v = v + dt * a
         q = pin.integrate(model, q, dt * v)
-    rng = np.random.default_rng(seed + 1)
     arr = {k: np.array(v_) for k, v_ in logs.items()}
-    noise = NoiseSpec.none() if noise is None else noise
-    traj = Trajectory(
-        t=t0 + arr["t"], q=add_white_noise(arr["q"], noise.q, rng), v=add_white_noise(arr["v"], noise.v, rng),
-        tau=add_white_noise(arr["tau"], noise.tau, rng), joint_names=r.joint_names,
-        source=f"<held {r.name} seed={seed}>", units={"t": "s", "q": "rad", "v": "rad/s", "tau": "N·m"},
-    )
+    traj = noisy_joint_log(arr, r, noise, seed, f"<held {r.name} seed={seed}>", t0)
     return traj, PushTruth(arr["t"], arr["ext"], arr["F"], arr["on"].astype(bool), tuple(pushes), 0.0)
 
 
