@@ -53,7 +53,7 @@ def render() -> tuple[str, dict[str, list[str]]]:
             obj = getattr(mod, name, None)
             kind = "class" if inspect.isclass(obj) else "function" if callable(obj) else "constant"
             sig = _signature(name, obj) if kind != "constant" else name
-            lines += [f"### `{pkg}.{name}` ({kind})", "", f"```python\n{sig}\n```", "", _summary(obj) or "", ""]
+            lines += [f"### `{pkg}.{name}` ({kind})", "", f"```text\n{sig}\n```", "", _summary(obj) or "", ""]
         covered[pkg] = names
     return "\n".join(lines) + "\n", covered
 

@@ -66,3 +66,39 @@ def panda_train_npz(tmp_path_factory, panda):
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+def pytest_configure(config):
+    """The doc-block log (tests/test_docs_run.py) is shared by the xdist workers through the environment."""
+    import os
+    import tempfile
+
+    if not hasattr(config, "workerinput") and "SENSORLESS_DOC_LOG" not in os.environ:
+        fd, path = tempfile.mkstemp(prefix="sensorless-doc-blocks-", suffix=".jsonl")
+        os.close(fd)
+        os.environ["SENSORLESS_DOC_LOG"] = path
+        config._sensorless_doc_log = path
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """List every doc block the session ran (file:line, language, status, seconds)."""
+    import json
+    import os
+
+    path = getattr(config, "_sensorless_doc_log", None)
+    if not path or not os.path.exists(path):
+        return
+    with open(path, encoding="utf-8") as fh:
+        entries = [json.loads(line) for line in fh if line.strip()]
+    os.unlink(path)
+    if not entries:
+        return
+    ran = [e for e in entries if e["status"] != "skipped"]
+    terminalreporter.section(f"doc blocks: {len(ran)} run, {len(entries) - len(ran)} skipped")
+    for e in sorted(entries, key=lambda e: e["block"]):
+        extra = f"{e.get('seconds', 0):7.1f} s" if e["status"] != "skipped" else e.get("reason", "")
+        terminalreporter.write_line(f"{e['status']:8} {e['lang']:6} {e['block']:40} {extra}")
+    out = "/tmp/sensorless-bench/doc_blocks.json"
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    with open(out, "w", encoding="utf-8") as fh:
+        json.dump({"run": len(ran), "skipped": len(entries) - len(ran), "blocks": entries}, fh, indent=1)
