@@ -132,7 +132,7 @@ def main(argv=None) -> None:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=5)
-    p.add_argument("--out", type=Path, default=Path("benchmarks/results/paired_logs.json"))
+    p.add_argument("--out", type=Path, default=Path("sensorless-bench/paired_logs.json"))
     p.add_argument("--logs-only", type=Path, default=None, metavar="DIR",
                    help="only write the four logs of seed 0 into DIR (docs/arm.md §8)")
     args = p.parse_args(argv)

@@ -224,10 +224,10 @@ def main(argv=None) -> None:
     from rich.console import Console
 
     p = argparse.ArgumentParser(description="issue 17 acceptance on a simulated UR10")
-    p.add_argument("--out", type=Path, default=Path("results/real_arm"))
+    p.add_argument("--out", type=Path, default=Path("sensorless-bench/real_arm_work"))
     p.add_argument("--seeds", type=int, default=20)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--json", type=Path, default=Path("benchmarks/results/real_arm.json"))
+    p.add_argument("--json", type=Path, default=Path("sensorless-bench/real_arm.json"))
     a = p.parse_args(argv)
     res = run(a.out, seeds=a.seeds, seed=a.seed, console=Console())
     a.json.parent.mkdir(parents=True, exist_ok=True)

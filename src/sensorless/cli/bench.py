@@ -129,7 +129,7 @@ def bench_peers_cmd(
 def bench_real_arm_cmd(
     seeds: int = typer.Option(20, help="number of seeds (simulated arms)"),
     seed: int = typer.Option(0, help="first seed"),
-    work: Path = typer.Option(Path("results/real_arm"), help="folder for the simulated logs and identified models"),
+    work: Path = typer.Option(Path("sensorless-bench/real_arm_work"), help="folder for the simulated logs and identified models"),
 ) -> dict:
     """Real-arm acceptance on a simulated UR10 (Stribeck friction, motor currents, jittered 100 Hz, drive
     gains, payload) through the CLI defaults: held-out NRMSE / true model (whole log and motion only),

@@ -436,8 +436,9 @@ def model_options(model: str = "result.json (or its directory) from `sensorless 
 
 
 def bench_out_option(name: str):
-    """``--out`` of a benchmark: ``benchmarks/results/NAME.json``."""
-    return typer.Option(Path(f"benchmarks/results/{name}.json"))
+    """``--out`` of a benchmark: ``sensorless-bench/NAME.json`` in the working directory (never a tracked
+    file; the repository's record in benchmarks/results/ is rewritten only by naming it)."""
+    return typer.Option(Path(f"sensorless-bench/{name}.json"), help="JSON file to write")
 
 
 def bench_command(name: str, results: Optional[str] = None):
@@ -460,7 +461,7 @@ def experiment_options(out: str, quick: str, seed: str):
     """Decorator: a study's ``--out`` (default ``out``), ``--quick`` / ``--seed`` (help ``quick``,
     ``seed``) and ``--force`` options; one definition for the ``experiment`` commands."""
     return add_options({
-        "out": (Path, lambda: typer.Option(Path(out), help="output directory (written atomically)")),
+        "out": (Path, lambda: typer.Option(Path(out), help="output directory (written atomically; default in sensorless-results/)")),
         "quick": (bool, lambda: typer.Option(False, "--quick", help=quick)),
         "seed": (int, lambda: typer.Option(0, help=seed)),
         "force": (bool, force_option),

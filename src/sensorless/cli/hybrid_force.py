@@ -36,7 +36,7 @@ __all__ = ["estimate_force", "experiment_hybrid_force"]
 
 @experiment_app.command("hybrid-force")
 @guarded
-@experiment_options("results/hybrid_force", quick="shorter logs and training (≈1 min on 2 cores)",
+@experiment_options("sensorless-results/hybrid_force", quick="shorter logs and training (≈1 min on 2 cores)",
                     seed="random seed (simulation, training, bootstrap)")
 def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> None:
     """Model-based vs hybrid vs learning-only force estimation for a simulated PSM-like arm in a trocar

@@ -11,7 +11,7 @@ from .common import atomic_outdir, bench_command, console, experiment_app, exper
 
 @experiment_app.command("torque-control")
 @guarded
-@experiment_options("results/torque_control", quick="shorter protocols (≈ 30 s on 2 cores)",
+@experiment_options("sensorless-results/torque_control", quick="shorter protocols (≈ 30 s on 2 cores)",
                     seed="random seed (sensor noise, model error, protocols)")
 def experiment_torque_control(out: Path, quick: bool, seed: int, force: bool) -> None:
     """Simulated TALOS leg, position-controlled drives: F/T + IMU torque estimation, actuator fits
