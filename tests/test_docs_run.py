@@ -61,3 +61,31 @@ def test_commands_are_in_runnable_blocks():
     """A command shown in indented code or a ``text`` fence would escape the test: none is."""
     hidden = [h for p in doc_files() if str(p.relative_to(ROOT)) not in PENDING for h in hidden_commands(p)]
     assert not hidden, "commands outside ```bash/```python blocks:\n" + "\n".join(hidden)
+
+
+def test_inline_commands_name_real_commands_and_options():
+    """Every `sensorless ...` quoted inline in the docs names an existing command and its options."""
+    import re
+    import shlex
+
+    import typer
+
+    from sensorless.cli import app
+
+    root = typer.main.get_command(app)
+    bad, n = [], 0
+    for path in doc_files():
+        for m in re.finditer(r"`(sensorless [^`]+)`", path.read_text(encoding="utf-8")):
+            tokens = [t for t in shlex.split(m.group(1)) if t not in ("...", "…")]
+            n += 1
+            cmd, i = root, 1
+            while i < len(tokens) and hasattr(cmd, "commands") and tokens[i] in cmd.commands:
+                cmd, i = cmd.commands[tokens[i]], i + 1
+            if hasattr(cmd, "commands"):
+                if i < len(tokens) and not tokens[i].startswith("-"):
+                    bad.append(f"{path.name}: `{m.group(1)}`: no command '{tokens[i]}'")
+                continue
+            known = {o for p in cmd.params for o in (*p.opts, *p.secondary_opts)}
+            bad += [f"{path.name}: `{m.group(1)}`: no option {t.strip('[]').split('=')[0]}" for t in tokens[i:]
+                    if t.strip("[]").startswith("--") and t.strip("[]").split("=")[0] not in known]
+    assert n > 30 and not bad, "\n".join(bad)
