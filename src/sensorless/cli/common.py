@@ -12,9 +12,10 @@ from typing import Iterable, Iterator, List, Optional
 
 import typer
 from typer.core import TyperCommand
-from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
+
+from .console import console, err_console
 
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
@@ -27,8 +28,6 @@ bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (
 experiment_app = typer.Typer(no_args_is_help=True, help="Reproductions of the papers' studies (JSON + figures).")
 app.add_typer(bench_app, name="benchmark")
 app.add_typer(experiment_app, name="experiment")
-console = Console(stderr=False)
-err_console = Console(stderr=True)
 
 
 class MultiValueCommand(TyperCommand):
