@@ -188,22 +188,24 @@ def test_report_of_an_lmi_run_holds_bodies_verdicts_percent_and_no_raw_json(lmi_
     assert "http://" not in page and "https://" not in page and "<link" not in page
 
 
-def _chromium() -> str | None:
-    return next((shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
-
-
-def test_report_renders_in_headless_chromium(lmi_run, tmp_path):
-    browser = _chromium()
-    if browser is None:
+@pytest.fixture(scope="module")
+def browser() -> str:
+    """A Chromium binary (before the identify run, so a machine without one skips at once)."""
+    found = next((shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
+    if found is None:
         pytest.skip("no Chromium binary on PATH (chromium, chromium-browser, google-chrome): apt-get install chromium")
+    return found
+
+
+def test_report_renders_in_headless_chromium(browser, lmi_run, tmp_path):
     from PIL import Image
 
     shot = tmp_path / "report.png"
-    subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+    run = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
                     "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
                     "--hide-scrollbars", f"--screenshot={shot}", "--window-size=1280,2400",
-                    (lmi_run / "report.html").as_uri()], capture_output=True, timeout=180, check=False)
-    assert shot.exists(), "chromium wrote no screenshot"
+                    (lmi_run / "report.html").as_uri()], capture_output=True, text=True, timeout=180, check=False)
+    assert shot.exists(), f"chromium wrote no screenshot (exit {run.returncode}): {run.stderr[-2000:]}"
     img = np.asarray(Image.open(shot).convert("L"), dtype=float)
     assert img.shape == (2400, 1280)
     # not blank: text, table rules and the verdict badges make a page far from uniform

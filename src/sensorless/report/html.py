@@ -25,7 +25,7 @@ _CSS = """body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1180
 h1{font-size:1.5em;margin-bottom:.2em}h2{font-size:1.15em;border-bottom:1px solid #ccc;margin-top:1.6em}
 nav{font-size:.9em;color:#555}nav a{margin-right:.8em}
 table{border-collapse:collapse;margin:.5em 0;font-size:.9em}td,th{border:1px solid #ccc;padding:2px 7px;text-align:right}
-th{background:#f3f3f3}td.l,th.l{text-align:left}th.body{background:#eef2f7;vertical-align:top}
+th{background:#f3f3f3}th[colspan]{text-align:center}td.l,th.l{text-align:left}th.body{background:#eef2f7;vertical-align:top}
 .ok{color:#187a2f}.bad{color:#b00020;font-weight:bold}.legend{font-size:.85em;color:#444}
 .warn{background:#fff6d6;border-left:4px solid #e0a800;padding:4px 8px;margin:4px 0}
 .badge{display:inline-block;padding:0 .5em;border-radius:.6em;font-weight:600;font-size:.9em}
@@ -158,11 +158,12 @@ def _consistency(doc: dict) -> str:
     bad = pc.get("inconsistent_bodies") or []
     head = (f"<p class=bad>{len(bad)} of {pc.get('n_bodies')} bodies are not physically consistent: {esc(', '.join(bad))}</p>"
             if bad else f"<p class=ok>all {pc.get('n_bodies', len(bodies))} bodies are physically consistent</p>")
+    ok = {True: "<span class=ok>yes</span>", False: "<span class=bad>no</span>"}
     rows = "".join(
         f"<tr><td class=l>{esc(b.get('name'))}</td><td>{num(b.get('mass'))}</td>"
-        f"<td>{', '.join(num(x) for x in b.get('principal_moments') or [])}</td><td>{num(b.get('min_eig_pseudo_inertia'), 3)}</td>"
-        f"<td>{num(b.get('ellipsoid_margin'), 3)}</td><td class=l>{'<span class=ok>yes</span>' if b.get('consistent') else '<span class=bad>no</span>'}"
-        f"{' (projected)' if b.get('projected') else ''}</td></tr>" for b in bodies)
+        f"<td>{', '.join(num(x) for x in b.get('principal_moments') or [])}</td>"
+        f"<td>{num(b.get('min_eig_pseudo_inertia'), 3)}</td><td>{num(b.get('ellipsoid_margin'), 3)}</td>"
+        f"<td class=l>{ok[bool(b.get('consistent'))]}{' (projected)' if b.get('projected') else ''}</td></tr>" for b in bodies)
     table = ("<table><tr><th class=l>body</th><th>m [kg]</th><th>principal moments about the CoM [kg·m²]</th>"
              "<th>λ<sub>min</sub> pseudo-inertia</th><th>ellipsoid margin</th><th class=l>consistent</th></tr>"
              + rows + "</table>") if bodies else ""
@@ -181,7 +182,7 @@ def _floating_base(doc: dict) -> str:
         bw, cc, c = t.get("base_wrench") or {}, t.get("com_cop") or {}, t.get("contacts") or {}
         rows.append((f"training log {k + 1}: base-wrench RMSE (world)",
                      f"{num(bw.get('force_rmse_norm'), 3)} N, {num(bw.get('moment_rmse_norm'), 3)} N·m"))
-        if cc.get("n_samples"):
+        if cc.get("n_samples") and is_number(cc.get("distance_mean")):
             rows.append((f"training log {k + 1}: CoM–CoP (standing)", f"{num(1e3 * cc['distance_mean'], 3)} mm"))
         if c.get("fraction"):
             rows.append((f"training log {k + 1}: in contact", ", ".join(f"{esc(f)} {pct(v)} %" for f, v in c["fraction"].items())))
@@ -257,9 +258,10 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
 
 
 def _figure_order(figures: dict[str, bytes]) -> list[tuple[str, bytes]]:
-    """Friction first, then torques, then the rest in name order."""
-    rank = {"friction": 0, "torques": 1}
-    return sorted(figures.items(), key=lambda kv: (rank.get(kv[0], 2), kv[0]))
+    """Friction first, then torques (per-limb files included), then the rest, each in name order."""
+    def rank(name: str) -> int:
+        return 0 if name.startswith("friction") else 1 if name.startswith("torques") else 2
+    return sorted(figures.items(), key=lambda kv: (rank(kv[0]), kv[0]))
 
 
 def write_html_report(out_dir: str | Path, doc: dict | None = None) -> Path:

@@ -137,7 +137,7 @@ def joint_terms_table(doc: dict) -> str:
             lead = f"<th class='l body' rowspan={len(keys)}>{esc(joint)}</th>" if k == 0 else ""
             rows.append(_row(label, unit, terms[t], lead))
     return ("<h2 id=joints>Joint terms: prior against identified</h2>"
-            "<p class=legend>τ<sub>f</sub> = f<sub>s</sub> tanh(v/w) − (f<sub>s</sub> − f<sub>c</sub>)(1 − e<sup>−(v/v<sub>s</sub>)²</sup>) sgn v "
-            "+ f<sub>v</sub> v + offset; armature adds I<sub>a</sub> v̇. Units for a revolute joint "
+            "<p class=legend>τ<sub>f</sub> = f<sub>s</sub> tanh(v/w) − (f<sub>s</sub> − f<sub>c</sub>)"
+            "(1 − e<sup>−(v/v<sub>s</sub>)²</sup>) sgn v + f<sub>v</sub> v + offset; armature adds I<sub>a</sub> v̇. Units for a revolute joint "
             "(prismatic: N, N·s/m, kg).</p>"
             "<table class=verdicts>" + _HEAD.format(what="joint") + "".join(rows) + "</table>")
