@@ -7,6 +7,7 @@ and one line naming the key, never an internal error, a hang, or a file's conten
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import threading
@@ -355,6 +356,10 @@ def test_demo_result_json_is_the_model_of_its_urdf(tmp_path, panda_locked):
     assert code == 0, out
     art = load_model_folder(tmp_path / "demo", panda_locked)
     assert art.doc["method"] == "lmi" and art.doc["urdf"] == "model.urdf"
+    page = (tmp_path / "demo" / "report.html").read_text()  # make demo writes the one-page report, plots embedded
+    assert "Bodies: prior against identified" in page and "Held-out: validate.npz" in page
+    for png in ("torques.png", "friction.png"):
+        assert base64.b64encode((tmp_path / "demo" / png).read_bytes()).decode() in page
     urdf = load_robot(tmp_path / "demo" / "model.urdf")  # written without the locked fingers
     nb = art.structure.n_body_params
     from sensorless.excitation import random_fourier

@@ -5,8 +5,9 @@
 3. identify OLS, WLS and LMI (physically consistent, γ by cross-validation) on the first;
    validate on the second against the CAD model;
 4. write the logs, the model folder of the LMI model (result.json, model.urdf, joint_terms.json;
-   :func:`~sensorless.identification.artifact.save_model_folder`, as ``identify`` does) and torques.png;
-   the other methods' held-out scores are in result.json ``demo``.
+   :func:`~sensorless.identification.artifact.save_model_folder`, as ``identify`` does), torques.png,
+   friction.png and report.html (:func:`~sensorless.report.write_html_report`); every method's held-out
+   scores are in result.json ``validation`` (as ``identify --validate`` writes them) and ``demo``.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from .identification import identify
 from .identification.artifact import save_model_folder
 from .parameters import check_physical_consistency
 from .regressor import ModelStructure
-from .report import metrics_table, plot_torques
+from .report import metrics_table, plot_friction, plot_torques, write_html_report
 from .robot import load_robot
 from .simulation import perturbed_truth, synthetic_trajectory
 
@@ -70,9 +71,13 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
                 if not r.consistent] for m, res in results.items()},
         "settings": {"seed": seed, "rate_hz": rate, "duration_s": duration, "robot": "panda (fingers locked)"},
     }
+    doc["validation"] = {"validate.npz": {"cad": scores["CAD"].to_dict(),
+                                          **{m: scores[m.upper()].to_dict() for m in results}}}
     plot_torques(test.t, structure.target(test), {"OLS": ols.predict(test), "LMI": lmi.predict(test), "CAD": cad.predict(test)},
                  structure.row_names, out / "torques.png", title="Panda: held-out torques")
+    plot_friction(structure, lmi.parameters, [train], out / "friction.png", title="Panda: joint friction (training log)")
     save_model_folder(out, lmi, doc)
+    write_html_report(out, doc)
     console.print(
         f"held-out RMSE / noise σ: OLS {np.round(scores['OLS'].rmse / NOISE_STD, 3).tolist()}, "
         f"LMI {np.round(scores['LMI'].rmse / NOISE_STD, 3).tolist()} (1.0 = noise floor)"
