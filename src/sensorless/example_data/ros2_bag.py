@@ -10,8 +10,13 @@ __all__ = ["write", "write_bag"]
 def write_bag(traj, path: Path, t0: float = 1.7e9) -> Path:
     """``traj`` (q, v, τ) as ``sensor_msgs/JointState`` messages on ``/joint_states`` in a ROS 2 bag
     at ``path``, stamped from the Unix time ``t0`` (needs ``sensorless[ros]``: rosbags)."""
-    from rosbags.rosbag2 import Writer
-    from rosbags.typesys import Stores, get_typestore
+    try:
+        from rosbags.rosbag2 import Writer
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        from ..errors import SensorlessError
+
+        raise SensorlessError("writing a ROS 2 bag needs the rosbags package: pip install 'sensorless[ros]'") from None
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
     JS, Header, Time = (ts.types[k] for k in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header",
