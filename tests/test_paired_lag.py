@@ -47,7 +47,8 @@ def test_corrupt_shifted_pairs_gains_and_payload_with_the_cli_alone(tmp_path):
     (drive-gains, identify, payload; --skip-bad-rows, the defaults otherwise: pairing by time, the lag
     measured): gains within 2 %, payload mass within 3 %, the lag reported on the console and in the JSON.
     The same seed of ``python -m sensorless.benchmarks.paired_logs``."""
-    from sensorless.benchmarks.paired_logs import LAG as BENCH_LAG, one_seed
+    from sensorless.benchmarks.paired_logs import one_seed
+    from sensorless.example_data.paired_runs import LAG as BENCH_LAG
 
     r = one_seed(tmp_path, 0)
     assert np.all(np.abs(r["gains_relative_error"]) < 0.02), r["gains_relative_error"]

@@ -1,7 +1,7 @@
 """Paired runs recorded at different times, with corrupt rows, through the CLI alone (issue 27).
 
 Per seed: a "true" UR10 with Stribeck friction logged with motor currents at a jittery 100 Hz
-(:func:`~sensorless.simulation.current_arm.simulate`), and two pairs of runs of one trajectory
+(:func:`~sensorless.example_data.paired_runs.write_logs`), and two pairs of runs of one trajectory
 each, the loaded run starting its excitation ``LAG`` s after the unloaded one and its file
 holding 9 corrupt leading rows (values up to 1e154, time running backwards) and a last row cut
 after 11 of its 19 fields (:func:`~sensorless.simulation.log_faults.write_faulty_csv`):
@@ -22,7 +22,7 @@ Checked: the gains within 2 %, the payload mass within 3 %, the lags reported wi
 ``LAG``, the corrupt rows dropped (9 at the start, 1 at the end of each loaded file).
 
     python -m sensorless.benchmarks.paired_logs --seeds 5 --out benchmarks/results/paired_logs.json
-    python -m sensorless.benchmarks.paired_logs --logs-only DIR     # only the logs of seed 0
+    sensorless example paired-runs --out DIR                         # only the logs of seed 0
 """
 
 from __future__ import annotations
@@ -32,13 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run", "one_seed", "write_logs", "LAG"]
+from ..example_data.paired_runs import CAL_COM, CAL_MASS, LAG, write_logs
+
+__all__ = ["run", "one_seed"]
 
 COLUMNS = "q=pos_{joint};v=vel_{joint};tau=i_{joint}"
-LAG = 1.2  # [s] the loaded runs start their excitation this much later
-CAL_MASS, CAL_COM = 4.0, (0.15, 0.05, 0.05)
-_RUN = dict(motion=10.0, idle_end=1.0, ramp=1.0)
-_IDLE = 1.5
 
 
 def _cli(args: list) -> str:
@@ -50,27 +48,6 @@ def _cli(args: list) -> str:
     if r.exit_code != 0:
         raise RuntimeError(f"sensorless {' '.join(map(str, args))} failed:\n{r.output}")
     return " ".join(r.output.split())
-
-
-def write_logs(work: Path, seed: int = 0) -> dict:
-    """The four runs of one seed as CSV files in ``work``; returns the truth (robot, gains, payload)."""
-    from ..simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
-    from ..simulation.log_faults import write_faulty_csv
-
-    robot, truth = truth_model("ur10", seed, stribeck=True, friction_scale=4.0)
-    K = drive_gains_for(robot)
-    rng = np.random.default_rng(20_000 + seed)
-    m_pay = float(rng.uniform(2.0, 3.0))
-    com_pay = (float(rng.uniform(-0.05, 0.05)), float(rng.uniform(-0.05, 0.05)), float(rng.uniform(0.03, 0.1)))
-    work.mkdir(parents=True, exist_ok=True)
-    base = 1000 * seed
-    for pair, load, ms in (("cal", with_payload(truth, "tool0", CAL_MASS, CAL_COM), base + 30),
-                           ("pay", with_payload(truth, "tool0", m_pay, com_pay), base + 50)):
-        simulate(robot, truth, K, seed=ms, idle_start=_IDLE, motion_seed=ms, **_RUN).to_csv(
-            work / f"{pair}_unloaded.csv", index=False)
-        loaded = simulate(robot, load, K, seed=ms + 1, idle_start=_IDLE + LAG, motion_seed=ms, **_RUN)
-        write_faulty_csv(loaded, work / f"{pair}_loaded.csv", leading=9, cut_after=11, seed=seed)
-    return {"robot": robot, "gains": K, "mass": m_pay, "com": com_pay}
 
 
 def one_seed(work: Path, seed: int, identify_options: tuple = ()) -> dict:
@@ -133,12 +110,7 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=5)
     p.add_argument("--out", type=Path, default=Path("sensorless-bench/paired_logs.json"))
-    p.add_argument("--logs-only", type=Path, default=None, metavar="DIR",
-                   help="only write the four logs of seed 0 into DIR (docs/arm.md §8)")
     args = p.parse_args(argv)
-    if args.logs_only is not None:
-        write_logs(args.logs_only, 0)
-        return
     from rich.console import Console
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -17,7 +17,12 @@ __all__ = ["EXAMPLES", "example_names", "example_summary", "write_example"]
 
 #: name → module (under this package) that writes it
 EXAMPLES: dict[str, str] = {
+    "arm": "arm",
+    "current-arm": "current_arm",
+    "drive-gains": "drive_gains",
     "friction-bench": "friction_bench",
+    "paired-runs": "paired_runs",
+    "ros2-bag": "ros2_bag",
 }
 
 

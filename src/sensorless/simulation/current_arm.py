@@ -1,7 +1,7 @@
 """Simulated current-logged arm runs (motor currents, jittery ~100 Hz clock, idle ends),
 with an optional Stribeck-friction "true" robot and a payload at a frame.
 
-Used by ``examples/current_logged_arm.py`` (docs/arm.md §6) and the real-arm acceptance
+Used by ``sensorless example current-arm`` (docs/arm.md §6) and the real-arm acceptance
 experiment (:mod:`sensorless.benchmarks.real_arm`). A run (:func:`simulate`) is a table with
 ``time, pos_<joint>..., vel_<joint>..., i_<joint>...``: the true motion (a random Fourier
 excitation blended in and out with quintic ramps between idle segments) sampled at jittered
