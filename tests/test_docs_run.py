@@ -35,9 +35,9 @@ def test_doc_runs_as_printed(path, tmp_path):
         if "skip" in block.options:
             _record({**entry, "status": "skipped", "reason": block.options["skip"]})
             continue
-        if "../shared/" in block.code and not shared:
+        if "../shared/" in block.code and not shared:  # real logs: the blocks that use them say so
             _record({**entry, "status": "skipped", "reason": "../shared is absent"})
-            pytest.skip(f"{block.where} needs ../shared (absent); the blocks after it depend on it")
+            continue
         rc, output, seconds = run_block(block, work, env)
         want = int(block.options.get("exit", 0))
         _record({**entry, "status": "ok" if rc == want else "failed", "exit": rc, "seconds": round(seconds, 2)})
