@@ -57,3 +57,34 @@ def test_documented_drive_gains_recover_the_true_gains(doc, tmp_path, monkeypatc
     # the 95 % intervals are honest about it
     covered = [k["interval_95"][j][0] <= truth["gains"][j] <= k["interval_95"][j][1] for j in joints]
     assert sum(covered) >= len(joints) - 1, dict(zip(joints, covered))
+
+
+def test_a_wrong_com_is_refused_not_marked_ok(tmp_path, monkeypatch):
+    """The quoted failure: a CoM that is not where the mass is gave gains up to 2.6× off, all "ok".
+    Now the residual is compared with the log's own current noise: right CoM → every joint near 1×
+    and exit 0; a CoM 10 cm off → exit 2 naming the joints and the flags; --accept-misfit writes the
+    gains with each such joint flagged."""
+    monkeypatch.chdir(tmp_path)
+    run = CliRunner().invoke
+    assert run(app, ["example", "drive-gains", "--out", "cal"]).exit_code == 0
+    truth = json.loads((tmp_path / "cal" / "truth.json").read_text())
+    base = ["drive-gains", "--robot", "ur10", "--unloaded", "cal/cal0.csv", "--loaded", "cal/cal4kg.csv",
+            "--payload-mass", str(truth["calibration"]["mass"]), "--frame", truth["frame"]]
+    right = ",".join(map(str, truth["calibration"]["com"]))
+    r = run(app, base + ["--com", right, "--out", "k.json"])
+    assert r.exit_code == 0, r.output
+    k = json.loads((tmp_path / "k.json").read_text())
+    assert max(k["diagnostics"]["residual_over_noise"].values()) < 2.0
+    assert not any(k["misfit"].values())
+    wrong = "0.05,0.0,0.0"
+    r = run(app, base + ["--com", wrong, "--out", "bad.json"])
+    text = " ".join(r.output.split())
+    assert r.exit_code == 2 and "does not explain" in text and "--com" in text and "--accept-misfit" in text
+    assert not (tmp_path / "bad.json").exists()
+    r = run(app, base + ["--com", wrong, "--accept-misfit", "--out", "bad.json"])
+    assert r.exit_code == 0, r.output
+    bad = json.loads((tmp_path / "bad.json").read_text())
+    flagged = [j for j, m in bad["misfit"].items() if m]
+    assert len(flagged) >= 3 and not any(bad["identified"][j] for j in flagged)
+    off = [abs(bad["estimated_gains"][j] / truth["gains"][j] - 1) for j in flagged]
+    assert max(off) > 0.1  # what the check protects against: these gains are wrong

@@ -63,6 +63,8 @@ def drive_gains(
     n_boot: int = typer.Option(1000, help="moving-block bootstrap resamples"),
     seed: int = typer.Option(0, help="bootstrap seed"),
     lock: Optional[List[str]] = lock_option("joints to lock"),
+    accept_misfit: bool = typer.Option(False, help="write the gains even where the payload's torque does not "
+                                                   "explain the current difference (residual > 3× the noise)"),
     force: bool = force_option(),
 ) -> None:
     """Identify per-joint drive gains K (τ = K·i) from two runs of one trajectory, without and
@@ -89,6 +91,7 @@ def drive_gains(
     res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c, offset=offset,
                                align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed)
     print_pairing(res.diagnostics["alignment"])
+    _check_misfit(res, loaded, accept_misfit)
     doc = res.to_dict()
     written = dict(doc["gains"])
     nominal = resolve_gains(nominal_gains, r.actuated_joints, "--nominal-gains") if nominal_gains else None
@@ -112,6 +115,23 @@ def drive_gains(
     console.print(f"wrote {out}")
 
 
+def _check_misfit(res, loaded: Path, accept: bool) -> None:
+    """Refuse gains the payload description does not explain (identification.drive_gains, "Misfit")."""
+    from ..identification.drive_gains import MAX_MISFIT
+
+    bad = [j for j, m in zip(res.joints, res.misfit) if m]
+    if not bad:
+        return
+    ratio = res.diagnostics["residual_over_noise"]
+    text = (f"the payload's torque does not explain the loaded − unloaded current difference on "
+            f"{', '.join(f'{j} (residual {ratio[j]:.1f}× the current noise)' for j in bad)}; above "
+            f"{MAX_MISFIT:g}× the gains absorb the mismatch. Check --payload-mass, --frame and --com (where the mass "
+            "really is) and that both runs are the same trajectory")
+    if not accept:
+        raise DataError(text + "; --accept-misfit writes the gains anyway", str(loaded))
+    err_console.print(f"[yellow]warning:[/] {text}; written because of --accept-misfit", soft_wrap=True)
+
+
 def _print(res, missing: list, nominal: bool) -> None:
     from rich.table import Table
 
@@ -125,7 +145,8 @@ def _print(res, missing: list, nominal: bool) -> None:
     for k, j in enumerate(res.joints):
         lo, hi = res.interval[k]
         t.add_row(j, f"{res.gains[k]:.4g}", f"{res.std[k]:.2g}", f"[{lo:.4g}, {hi:.4g}]", f"{res.offset[k]:.3g}",
-                  "ok" if res.identified[k] else ("[yellow]nominal[/]" if nominal else "[yellow]weak[/]"))
+                  "ok" if res.identified[k] else "[red]misfit[/]" if res.misfit[k] else
+                  ("[yellow]nominal[/]" if nominal else "[yellow]weak[/]"))
     console.print(t)
     if missing:
         err_console.print(f"[yellow]warning:[/] not identified (relative σ > 20 % or K ≤ 0): {', '.join(missing)}")

@@ -30,6 +30,15 @@ load-dependent friction): an i.i.d. bootstrap is far too narrow. Reported are a 
 block bootstrap (blocks of ``block_seconds``, default: 4 × the lag where the residual
 autocorrelation falls below 0.1, at least 1 s) and a Newey–West (HAC) standard error with
 the same bandwidth; the 95 % interval is K ± 1.96 · max(both) (delta method 1/c).
+
+Misfit. With the right payload description the residual ε is the current noise (plus a little
+misalignment), whatever the gains; a wrong mass, CoM or frame, or two runs that are not one
+trajectory, leave the payload torque's shape in ε, and the fitted K absorb part of it (a CoM
+off by 10 cm gave gains 0.4–1.2× the truth with every interval narrow). The noise floor σ_n of
+each joint's d is measured on the log itself, from second differences (for white noise
+Var Δ²d = 6 σ_n², the smooth signal contributes (2π f Δt)² of its amplitude), robustly (MAD);
+a joint whose residual RMS exceeds :data:`MAX_MISFIT` σ_n is a misfit (``misfit``,
+``diagnostics["residual_over_noise"]``).
 """
 
 from __future__ import annotations
@@ -50,6 +59,8 @@ __all__ = ["DriveGains", "identify_drive_gains", "payload_torque"]
 REVERSAL_SECONDS = 0.1
 #: a joint whose gain has a relative std above this is reported as not identified
 MAX_RELATIVE_STD = 0.2
+#: residual RMS over the log's own current noise above which a joint is a misfit (module docstring)
+MAX_MISFIT = 3.0
 
 
 @dataclass
@@ -62,6 +73,7 @@ class DriveGains:
     interval: np.ndarray  # (n, 2) 95 %
     identified: np.ndarray  # bool
     offset: np.ndarray  # current offset b_j [A]
+    misfit: np.ndarray | None = None  # bool: residual > MAX_MISFIT × the current noise (module docstring)
     diagnostics: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
 
@@ -72,6 +84,8 @@ class DriveGains:
             "std": dict(zip(self.joints, map(float, self.std))),
             "identified": dict(zip(self.joints, map(bool, self.identified))),
             "current_offset": dict(zip(self.joints, map(float, self.offset))),
+            "misfit": dict(zip(self.joints, map(bool, self.misfit if self.misfit is not None
+                                               else np.zeros(len(self.joints), bool)))),
             "diagnostics": self.diagnostics,
             "settings": self.settings,
         }
@@ -151,6 +165,14 @@ def _hac_var(y: np.ndarray, e: np.ndarray, L: int, offset: bool, use: "np.ndarra
         S += w * (G + G.T)
     Xi = np.linalg.pinv(X.T @ X)
     return float((Xi @ S @ Xi)[0, 0])
+
+
+def _noise_floor(x: np.ndarray) -> float:
+    """White-noise std of ``x`` from its second differences, robustly: 1.4826 MAD(Δ²x) / √6."""
+    if len(x) < 5:
+        return float("nan")
+    d2 = np.diff(x, 2)
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
 def identify_drive_gains(
@@ -238,14 +260,23 @@ def identify_drive_gains(
         hi = np.where(c - 1.96 * std_c > 0, 1.0 / (c - 1.96 * std_c), np.inf)
     ident = seen & (c > 0) & (std_c < MAX_RELATIVE_STD * np.abs(c))
     yrms = np.sqrt(np.mean(y**2, axis=0))
+    noise = np.array([_noise_floor(d[use[:, k], k]) for k in range(nj)])
+    res_rms = np.array([float(np.sqrt(np.mean(res[use[:, k], k] ** 2))) if use[:, k].any() else np.nan
+                        for k in range(nj)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = res_rms / noise
+    misfit = seen & (ratio > MAX_MISFIT)
     return DriveGains(
-        joints=joints, gains=K, std=std_K, interval=np.column_stack([lo, hi]), identified=ident, offset=b,
+        joints=joints, gains=K, std=std_K, interval=np.column_stack([lo, hi]), identified=ident & ~misfit, offset=b,
+        misfit=misfit,
         diagnostics={"n_samples": n, "block_samples": L, "block_seconds": L * dt,
                      "alignment": pairing.to_dict(),
                      "samples_used": dict(zip(joints, map(int, use.sum(0)))),
                      "reversal_samples": width,
                      "payload_torque_rms": dict(zip(joints, map(float, yrms))),
                      "residual_rms_current": dict(zip(joints, map(float, res.std(axis=0)))),
+                     "current_noise": dict(zip(joints, map(float, noise))),
+                     "residual_over_noise": dict(zip(joints, map(float, ratio))),
                      "std_hac": dict(zip(joints, map(float, std_c_hac / c**2))),
                      "std_block_bootstrap": dict(zip(joints, map(float, std_c_boot / c**2)))},
         settings={"payload_mass": float(payload_mass), "payload_frame": payload_frame,
