@@ -71,7 +71,7 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
         "settings": {"seed": seed, "rate_hz": rate, "duration_s": duration, "robot": "panda (fingers locked)"},
     }
     plot_torques(test.t, structure.target(test), {"OLS": ols.predict(test), "LMI": lmi.predict(test), "CAD": cad.predict(test)},
-                 structure.row_names, out / "torques.png", title="Panda: held-out torques")
+                 structure.row_names, out / "torques.png", title="Panda: held-out torques", robot=structure.robot)
     save_model_folder(out, lmi, doc)
     console.print(
         f"held-out RMSE / noise σ: OLS {np.round(scores['OLS'].rmse / NOISE_STD, 3).tolist()}, "
