@@ -129,7 +129,7 @@ def friction(
             from ..report.friction_bench_plot import plot_bench_friction
 
             plot_bench_friction(model, held or train, tmp / "friction.png", window=reversal_window,
-                                title="held-out log" if held else "training log")
+                                title=f"friction per joint ({'held-out' if held else 'training'} log)")
     _print(model, validation or training, bool(validation))
     console.print(f"wrote {out}/")
 
