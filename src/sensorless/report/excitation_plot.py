@@ -63,7 +63,7 @@ def excitation_figure(traj, limits, hard: dict | None = None, *, robot=None, row
             ax.set_ylabel(f"{sym} [{units[c]}]", fontsize=7)
             ax.tick_params(labelsize=7)
             share = f"{100 * used[c]:.0f} % of the excitation {'range' if c == 0 else 'limit'}"
-            ax.set_title(f"{row}: {share}" if c == 0 else share, fontsize=7, loc="left")
+            ax.set_title(f"{row}: {share}" if c == 0 else share, fontsize=7, loc="left", y=1.0)
             if k == n - 1:
                 ax.set_xlabel("time [s]", fontsize=8)
             else:

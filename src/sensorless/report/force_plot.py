@@ -67,7 +67,7 @@ def force_figure(est, *, title: str = "", max_points: int = 4000):
         ax.tick_params(labelsize=7)
         n_u = int(unobs[:, c].sum())
         ax.set_title(f"{label}: {n_u} of {len(t)} samples unobservable" if n_u else f"{label}: observable on every sample",
-                     fontsize=7, loc="left")
+                     fontsize=7, loc="left", y=1.0)
         if c < m - 1:
             ax.tick_params(labelbottom=False)
     first.figure.axes[-1].set_xlabel("time [s]", fontsize=8)

@@ -75,11 +75,11 @@ def bench_friction_figure(model, logs: Sequence, *, window: float = 1.0, max_poi
             ax.set_ylabel(f"friction [{TU}]", fontsize=7)
             res.set_ylabel(f"residual [{TU}]", fontsize=7)
             res.set_xlabel(f"v [{VU}]", fontsize=7)
-        axes[3 * k][0].set_title(f"{j}: {law.kind} law", fontsize=8, loc="left")
-        axes[3 * k + 1][0].set_title("near v = 0", fontsize=8, loc="left")
+        axes[3 * k][0].set_title(f"{j}: {law.kind} law", fontsize=8, loc="left", y=1.0)
+        axes[3 * k + 1][0].set_title("near v = 0", fontsize=8, loc="left", y=1.0)
         ax, res = axes[3 * k + 2]
         m = reversal_mask(first.t, v1, window=window)
-        ax.set_title("first reversal", fontsize=8, loc="left")
+        ax.set_title("first reversal", fontsize=8, loc="left", y=1.0)
         if m.any():
             i0 = int(np.flatnonzero(m)[0])
             i1 = i0 + int(np.flatnonzero(~m[i0:])[0]) if (~m[i0:]).any() else m.size

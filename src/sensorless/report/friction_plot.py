@@ -55,7 +55,7 @@ def friction_figure(structure, params: np.ndarray, logs: Iterable, title: str = 
         terms = ",".join(t for t in structure.terms_of(j) if t != "armature")
         vs = (structure.stribeck_velocity or {}).get(j)
         ax.set_title(f"{j}: {terms}; w = {eps:.3g} {vu}" + (f", vs = {vs:.3g} {vu}" if vs else ""), fontsize=7,
-                     loc="left")
+                     loc="left", y=1.0)
         ax.set_ylabel(f"friction [{tu}]", fontsize=7)
         res.set_ylabel(f"residual [{tu}]", fontsize=7)
         res.set_xlabel(f"v [{vu}]", fontsize=7)

@@ -71,7 +71,7 @@ def monitor_figure(mon, *, robot=None, rows: Sequence[str] | None = None, title:
         ax.set_ylabel(f"τ_ext [{u}]", fontsize=7)
         ax.tick_params(labelsize=7)
         ax.set_title(f"{row}    threshold ±{th.k:.2f} σ: moving σ {th.sigma_move[j]:.3g} {u}, static band "
-                     f"±{th.band[j]:.3g} {u} ({th.band_source[j]})", fontsize=7, loc="left")
+                     f"±{th.band[j]:.3g} {u} ({th.band_source[j]})", fontsize=7, loc="left", y=1.0)
         if k % nr == nr - 1 or k == n - 1:
             ax.set_xlabel("time [s]", fontsize=8)
         else:

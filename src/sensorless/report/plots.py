@@ -1,9 +1,9 @@
 """Measured against predicted joint torques, with the residual of each model under each joint.
 
 Per row (joint, or a floating base's force/moment row) two panels share the time axis: the
-measured effort (a thick translucent grey band) and each model's prediction on top of it in its
-own colour, line style and z-order (two close models stay distinguishable: the later one is
-dashed or dotted over the earlier), and below it the residual τ_measured − τ_model per model,
+measured effort (a wide translucent grey band) and each model's prediction on top of it in its
+own colour, line style, width and z-order (two close models stay distinguishable: the first is a
+wide translucent line, the later ones thin, dashed or dotted, over it), and below it the residual τ_measured − τ_model per model,
 about a zero line. Each row's title gives the RMSE per model in the row's unit. One legend
 above the axes. Rows of a robot with several limbs go one limb per figure (:mod:`.rows`):
 :func:`plot_torques_by_limb` writes ``torques.png``, or ``torques_<limb>.png`` per limb.
@@ -21,16 +21,17 @@ from .rows import effort_unit, grouped_paths, limb_groups
 
 __all__ = ["plot_torques", "plot_torques_by_limb", "torque_figure"]
 
-#: (colour, line style, width) per model, in order; the measured trace is drawn under all of them
-MODEL_STYLES = [("C0", "-", 1.0), ("C3", "--", 1.2), ("C2", ":", 1.6), ("C1", "-.", 1.1), ("C4", (0, (5, 1, 1, 1)), 1.1),
-                ("C5", (0, (1, 2)), 1.4)]
+#: (colour, line style, width, alpha) per model, in order, each drawn over the previous: the first is a wide
+#: translucent line, the later ones thinner and dashed or dotted, so two equal traces show as a line on a halo
+MODEL_STYLES = [("C0", "-", 2.4, 0.6), ("C3", "--", 1.0, 1.0), ("C2", ":", 1.4, 1.0), ("C1", "-.", 0.9, 1.0),
+                ("C4", (0, (5, 1, 1, 1)), 0.9, 1.0), ("C5", (0, (1, 2)), 1.2, 1.0)]
 _QUANTITY = {"N·m": "torque", "N": "force"}
-MEASURED_STYLE = dict(color="0.2", lw=2.4, alpha=0.35, zorder=2, solid_capstyle="butt")
+MEASURED_STYLE = dict(color="0.2", lw=3.0, alpha=0.3, zorder=2, solid_capstyle="butt")
 
 
 def _style(k: int) -> dict:
-    c, ls, lw = MODEL_STYLES[k % len(MODEL_STYLES)]
-    return dict(color=c, ls=ls, lw=lw, zorder=3 + k)
+    c, ls, lw, alpha = MODEL_STYLES[k % len(MODEL_STYLES)]
+    return dict(color=c, ls=ls, lw=lw, alpha=alpha, zorder=3 + k)
 
 
 def torque_figure(t: np.ndarray, measured: np.ndarray, predictions: dict[str, np.ndarray], rows: Sequence[str], *,
@@ -62,7 +63,7 @@ def torque_figure(t: np.ndarray, measured: np.ndarray, predictions: dict[str, np
             r = measured[:, j] - p[:, j]
             res.plot(t, r, label=name, **_style(k))
             rms.append(f"{name} {np.sqrt(np.nanmean(r**2)):.3g}")
-        ax.set_title(f"{rows[j]}    RMSE: {', '.join(rms)} {u}", fontsize=8, loc="left")
+        ax.set_title(f"{rows[j]}    RMSE: {', '.join(rms)} {u}", fontsize=8, loc="left", y=1.0)
         ax.set_ylabel(f"{_QUANTITY.get(u, 'effort')} [{u}]", fontsize=7)
         res.set_ylabel(f"residual [{u}]", fontsize=7)
         if handles is None:
