@@ -80,6 +80,8 @@ def test_one_limb_is_one_group_several_are_split_and_a_long_tree_is_split_at_its
     assert limb_groups(torso, torso.joint_names) == {"": list(torso.joint_names)}  # 6 rows: readable as one
     assert limb_groups(torso, torso.joint_names, max_rows=4) == {"t": ["t1", "t2"], "la": ["la1", "la2"],
                                                                  "ra": ["ra1", "ra2"]}
+    named = _tree({"arm_1": None, "arm_2": "arm_1", "gripper": "arm_2", "leg_1": None, "leg_2": "leg_1"})
+    assert limb_groups(named, named.joint_names) == {"arm": ["arm_1", "arm_2", "gripper"], "leg": ["leg_1", "leg_2"]}
     assert limb_groups(None, ["a", "b"]) == {"": ["a", "b"]}  # no robot (a friction bench)
 
 

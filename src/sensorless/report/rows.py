@@ -9,13 +9,12 @@ arms) is drawn one limb per figure, so each stays readable. The limbs are the ki
 subtrees below the base: the children of the free-flyer joint (floating base) or of the
 universe (fixed base), from the Pinocchio model's ``parents``; the base rows are their own
 group. A subtree with more than ``max_rows`` rows is split at its first branching joint
-(the chain down to it, then each branch), recursively. A limb is named by the common prefix
-of its joints' names (``FL_HAA, FL_HFE, FL_KFE`` → ``FL``), else by its first joint.
+(the chain down to it, then each branch), recursively. A limb is named by the prefix its joints
+share (``FL_HAA, FL_HFE, FL_KFE`` → ``FL``), else the one most of them share, else its first joint.
 """
 
 from __future__ import annotations
 
-import os
 import re
 from pathlib import Path
 from typing import Sequence
@@ -118,9 +117,17 @@ def _split(i: int, children, wanted: set[int], max_rows: int, groups: list[list[
 
 
 def _limb_name(members: list[str]) -> str:
-    prefix = os.path.commonprefix(members) if len(members) > 1 else ""
-    prefix = re.sub(r"[^A-Za-z0-9]+$", "", prefix)
-    return prefix or members[0]
+    """The prefix all the limb's joints share (``FL_HAA, FL_HFE, FL_KFE`` → ``FL``), else the longest one most
+    share (``arm_left_1_joint`` … ``arm_left_7_joint``, ``gripper_left_joint`` → ``arm_left``), trailing
+    separators dropped; else its first joint."""
+    first = members[0]
+    if len(members) == 1:
+        return first
+    def shared(need: int) -> str:
+        k = next((k for k in range(len(first), 0, -1) if sum(m.startswith(first[:k]) for m in members) >= need), 0)
+        return re.sub(r"[^A-Za-z0-9]+$", "", first[:k])
+
+    return shared(len(members)) or shared(len(members) // 2 + 1) or first
 
 
 def grouped_paths(out_dir: "str | Path", stem: str, groups: dict[str, list[str]]) -> dict[str, Path]:
