@@ -184,3 +184,16 @@ def test_identify_writes_torques_with_residuals_of_every_model_and_friction_with
                                  "fv,fc,offset", "--method", "ols", "--no-plot", "--out", str(tmp_path / "n")])
     assert r.exit_code == 0, r.output
     assert not list((tmp_path / "n").glob("*.png"))  # --no-plot: no torques.png, no friction.png
+
+
+def test_long_logs_are_decimated_keeping_short_peaks():
+    """An hour at 1 kHz drawn in ~4000 points: a one-sample spike (a contact, a glitch) is still drawn."""
+    from sensorless.report.figure_kit import envelope_indices
+
+    rng = np.random.default_rng(1)
+    y = rng.normal(size=(3_600_000, 2))
+    y[1_234_567, 1] = 50.0
+    y[:10, 0] = np.nan  # an observer's warm-up
+    idx = envelope_indices(y, 4000)
+    assert len(idx) <= 4002 and 1_234_567 in idx and idx[0] == 0 and idx[-1] == len(y) - 1
+    assert np.all(np.diff(idx) > 0)

@@ -5,7 +5,7 @@ One panel per component (fx, fy, fz [N]; mx, my, mz [N·m]) in the estimate's re
 Where no joint torque measures a component (a singular configuration) the estimate is NaN: the
 trace breaks and a red band with a tick under it marks each such run. Light yellow bands mark the
 samples solved with damping (σ_min of the Jacobian below its threshold: the estimate is biased
-toward zero there). Long logs keep each bucket's extremes.
+toward zero there). Long logs keep each bucket's extremes and every break of the trace.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .figure_kit import envelope_indices, figure_legend, new_figure, runs_of, save_figure, shade_intervals
+from .figure_kit import envelope_indices, figure_legend, new_figure, runs_of, save_figure, shade_intervals, stride_indices
 
 __all__ = ["force_figure", "plot_force"]
 
@@ -49,7 +49,8 @@ def force_figure(est, *, title: str = "", max_points: int = 4000):
     idx = envelope_indices(np.where(np.isfinite(F), F, 0.0), max_points)
     keep = np.zeros(len(t), bool)
     keep[idx] = True
-    keep |= np.any(unobs, axis=1)  # the NaN samples themselves: the trace breaks there whatever the decimation
+    for c in range(m):  # the first NaN sample of each unobservable run: the trace breaks there whatever the decimation
+        keep[[a for a, _ in runs_of(unobs[:, c])]] = True
     sel = np.flatnonzero(keep)
     first = None
     for c, label in enumerate(est.labels):
@@ -59,8 +60,10 @@ def force_figure(est, *, title: str = "", max_points: int = 4000):
         shade_intervals(ax, _spans(t, damped), color="gold", alpha=0.25, gid="damped")
         spans = _spans(t, unobs[:, c])
         shade_intervals(ax, spans, color="C3", alpha=0.3, gid="unobservable", zorder=1)
-        if spans:
-            ax.plot(t[unobs[:, c]], np.zeros(int(unobs[:, c].sum())), "|", color="C3", ms=6,
+        if spans:  # one tick per unobservable sample (every k-th of them in a long log)
+            at = np.flatnonzero(unobs[:, c])
+            at = at[stride_indices(at.size, max_points)]
+            ax.plot(t[at], np.zeros(at.size), "|", color="C3", ms=6,
                     transform=ax.get_xaxis_transform(), clip_on=False, zorder=4, gid="unobservable_samples")
         ax.set_xlim(t[0], t[-1])
         ax.set_ylabel(f"{label} [{_unit(label)}]", fontsize=8)
