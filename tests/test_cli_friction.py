@@ -144,3 +144,26 @@ def test_friction_model_errors_are_one_line(bench, tmp_path):
     r = runner.invoke(app, ["friction", "--data", str(d / "test.csv"), "--terms", "fv,offset",
                             "--out", str(tmp_path / "o")])
     assert r.exit_code == 2 and "fc" in r.output
+
+
+def test_bench_friction_png_has_units_residuals_and_the_state_law_closer_at_the_reversal(bench):
+    """friction.png of `sensorless friction` (issue 24): per joint three panels with units, each with its
+    residual below, one legend above; at the first reversal the state law's residual is the smaller one."""
+    from sensorless.cli.friction import friction_model_log
+    from sensorless.report.friction_bench_plot import bench_friction_figure
+
+    d, _, _ = bench
+    art, log, _ = friction_model_log(d / "model", d / "test.csv", {})
+    fig = bench_friction_figure(art.model, [log], title="held-out log")
+    axes = fig.axes
+    assert len(axes) == 2 * 3 * 2  # 2 joints × 3 panels × (signal, residual)
+    pairs = list(zip(axes[0::2], axes[1::2]))
+    for k, (a, b) in enumerate(pairs):
+        u = "N·m"
+        assert b.get_ylabel() == f"residual [{u}]"
+        assert a.get_ylabel() == (f"τ [{u}]" if k % 3 == 2 else f"friction [{u}]")
+        assert b.get_xlabel() == ("time [s]" if k % 3 == 2 else "v [rad/s]")
+    assert len(fig.legends) == 1 and all(a.get_legend() is None for a in axes)
+    rev = pairs[2][1]  # slide: residuals at its first reversal, chosen (state) law then the static law
+    state, static = (ln.get_ydata() for ln in rev.get_lines()[1:3])
+    assert np.sqrt(np.mean(state**2)) < 0.5 * np.sqrt(np.mean(static**2))

@@ -137,3 +137,70 @@ def test_monitor_cli_on_a_current_logged_arm_with_a_gains_map(arm_logs):
     assert len(ivs) == 2, ivs
     for iv, push in zip(ivs, gt.pushes):
         assert push.start <= iv["start"] <= push.end
+
+
+def test_monitor_png_draws_tau_ext_its_threshold_and_the_contacts(arm_logs, monkeypatch):
+    """monitor.png (issue 24): per joint τ_ext [N·m] with the two threshold lines, the no-contact band, and one
+    shaded span per reported contact at its times; --no-plot writes none."""
+    import sensorless.report.monitor_plot as mp
+
+    from sensorless.report.figure_kit import save_figure
+
+    d, gt = arm_logs
+    saved = {}
+    monkeypatch.setattr(mp, "save_figure", lambda fig, path: saved.setdefault(path.name, fig) and save_figure(fig, path))
+    res = CliRunner().invoke(app, ["monitor", "--robot", "ur5", "--model", str(d / "id"), "--data", str(d / "pushed.npz"),
+                                   "--quiet", "0:10", "--out", str(d / "mon_png")])
+    assert res.exit_code == 0, res.output
+    assert (d / "mon_png" / "monitor.png").stat().st_size > 10_000
+    doc = json.loads((d / "mon_png" / "monitor.json").read_text())
+    arrays = np.load(d / "mon_png" / "monitor.npz")
+    fig = saved["monitor.png"]
+    names = load_robot("ur5").joint_names
+    assert [a.get_title(loc="left").split()[0] for a in fig.axes] == list(names)
+    t0 = arrays["t"][0]
+    for ax in fig.axes:
+        assert ax.get_ylabel() == "τ_ext [N·m]"
+        assert len([ln for ln in ax.get_lines() if ln.get_gid() == "threshold"]) == 2
+        assert [c.get_gid() for c in ax.collections].count("no_contact_band") == 1
+        (spans,) = [c for c in ax.collections if c.get_gid() == "contact"]
+        xs = [(p.vertices[:, 0].min(), p.vertices[:, 0].max()) for p in spans.get_paths()]
+        np.testing.assert_allclose(xs, [(c["start"] - t0, c["end"] - t0) for c in doc["contacts"]])
+        assert len(xs) == len(gt.pushes) == 2
+    assert fig.axes[-1].get_xlabel() == "time [s]"
+    labels = [x.get_text() for x in fig.legends[0].get_texts()]
+    assert {"contact threshold", "no-contact band", "contact (reported) (2)"} <= set(labels)
+    # the threshold lines are where τ_ext turns into a contact: the push peak lies outside them, on its joint
+    ax = fig.axes[1]  # shoulder_lift_joint: pushed by the first (vertical) push
+    tau = next(ln for ln in ax.get_lines() if ln.get_gid() == "tau_ext")
+    lo, hi = (ln.get_ydata() for ln in ax.get_lines() if ln.get_gid() == "threshold")
+    assert np.nanmax(np.abs(tau.get_ydata())) == pytest.approx(np.nanmax(np.abs(arrays["tau_ext"][:, 1])))  # peak kept
+    k = np.nanargmax(np.abs(tau.get_ydata()))
+    assert not lo[k] <= tau.get_ydata()[k] <= hi[k]
+    res = CliRunner().invoke(app, ["monitor", "--robot", "ur5", "--model", str(d / "id"), "--data", str(d / "pushed.npz"),
+                                   "--quiet", "0:10", "--no-plot", "--out", str(d / "mon_noplot")])
+    assert res.exit_code == 0 and not list((d / "mon_noplot").glob("*.png"))
+
+
+def test_estimate_force_png_next_to_the_npz(arm_logs, monkeypatch):
+    """estimate-force writes f.png next to f.npz (fx, fy, fz [N] against time [s]); --no-plot writes none."""
+    import sensorless.report.force_plot as fp
+
+    from sensorless.report.figure_kit import save_figure
+
+    d, _ = arm_logs
+    saved = {}
+    monkeypatch.setattr(fp, "save_figure", lambda fig, path: saved.setdefault(path.name, fig) and save_figure(fig, path))
+    args = ["estimate-force", "--robot", "ur5", "--model", str(d / "id"), "--data", str(d / "pushed.npz"),
+            "--frame", "tool0"]
+    res = CliRunner().invoke(app, [*args, "--out", str(d / "f_png.npz")])
+    assert res.exit_code == 0, res.output
+    assert (d / "f_png.png").stat().st_size > 10_000 and "f_png.png" in res.output.replace("\n", "")
+    fig = saved["f_png.png"]
+    assert [a.get_ylabel() for a in fig.axes] == ["fx [N]", "fy [N]", "fz [N]"]
+    assert fig.axes[-1].get_xlabel() == "time [s]"
+    ef = np.load(d / "f_png.npz")
+    line = next(ln for ln in fig.axes[2].get_lines() if ln.get_gid() == "force")
+    assert np.nanmax(np.abs(line.get_ydata())) == pytest.approx(np.nanmax(np.abs(ef["force"][:, 2])))  # peaks kept
+    res = CliRunner().invoke(app, [*args, "--no-plot", "--out", str(d / "f_none.npz")])
+    assert res.exit_code == 0 and (d / "f_none.npz").exists() and not (d / "f_none.png").exists()

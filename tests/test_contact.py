@@ -179,6 +179,9 @@ def test_cli_identifies_a_legged_robot_from_npz_logs_with_contact_flags(solo12, 
     assert r.exit_code == 0, r.output
     doc = json.loads((out / "result.json").read_text())
     assert doc["settings"]["contact_frames"] == list(FEET)
+    # the torque figures go one per limb (issue 24): the 6 base rows, then each leg's 3 joints
+    assert sorted(p.name for p in out.glob("torques*.png")) == [f"torques_{g}.png" for g in ("FL", "FR", "HL", "HR",
+                                                                                             "base")]
     assert doc["physical_consistency"]["inconsistent_bodies"] == []
     val = doc["validation"][str(paths["val"])]
     assert val["lmi"]["mean_rmse"] < 0.9 * val["cad"]["mean_rmse"]  # measured 0.049 vs 0.060 (SG accelerations)

@@ -132,3 +132,36 @@ def test_cli_full_fraction_stays_inside_the_robot_limits(tmp_path, panda):
     assert len(tr) == 500
     assert np.all(tr.q >= lo - 1e-9) and np.all(tr.q <= hi + 1e-9)
     assert np.all(np.abs(tr.v) <= panda.velocity_limits() + 1e-9)
+
+
+def test_excitation_png_draws_the_trajectory_against_its_limits(tmp_path, panda, monkeypatch):
+    """excitation.png (issue 24): q [rad], v [rad/s], v̇ [rad/s²] per joint with the excitation limits and the
+    robot's own position and velocity limits; the curves drawn are the written samples, inside those lines."""
+    import sensorless.report.excitation_plot as xp
+
+    from sensorless.report.figure_kit import save_figure
+
+    saved = {}
+    monkeypatch.setattr(xp, "save_figure", lambda fig, path: saved.setdefault(path.name, fig) and save_figure(fig, path))
+    out = tmp_path / "ex"
+    r = _excite(out, "--rate", "50")
+    assert r.exit_code == 0, r.output
+    assert (out / "excitation.png").stat().st_size > 10_000
+    fig = saved["excitation.png"]
+    tr = read_trajectory(out / "trajectory.npz")
+    assert len(fig.axes) == 3 * 7
+    lo, hi = panda.position_limits()
+    for j in range(7):
+        axq, axv, axa = fig.axes[3 * j : 3 * j + 3]
+        assert (axq.get_ylabel(), axv.get_ylabel(), axa.get_ylabel()) == ("q [rad]", "v [rad/s]", "v̇ [rad/s²]")
+        assert axq.get_title(loc="left").startswith(panda.joint_names[j])
+        for ax, x in ((axq, tr.q[:, j]), (axv, tr.v[:, j]), (axa, tr.a[:, j])):
+            (curve,) = [ln for ln in ax.get_lines() if ln.get_gid() == "trajectory"]
+            np.testing.assert_allclose(curve.get_ydata(), x)
+            exc = sorted(ln.get_ydata()[0] for ln in ax.get_lines() if ln.get_gid() == "excitation_limit")
+            assert len(exc) == 2 and exc[0] <= x.min() and x.max() <= exc[1]
+        robot = sorted(ln.get_ydata()[0] for ln in axq.get_lines() if ln.get_gid() == "robot_limit")
+        assert robot == pytest.approx([lo[j], hi[j]])
+    assert fig.axes[-1].get_xlabel() == "time [s]"
+    r = _excite(tmp_path / "none", "--rate", "50", "--no-plot")
+    assert r.exit_code == 0 and not list((tmp_path / "none").glob("*.png"))

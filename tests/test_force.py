@@ -297,3 +297,32 @@ def test_cli_refuses_a_frame_whose_force_is_never_observable(panda, tmp_path):
     assert r.exit_code == 0, r.output
     z = np.load(tmp_path / "f1.npz")
     assert z["unobservable"].shape == z["force"].shape and np.isfinite(z["force"][~z["unobservable"]]).all()
+
+
+def test_force_figure_marks_the_unobservable_samples(ur5):
+    """At the wrist singularity (wrist_2 = 0) the UR5 tool's wrench loses a direction: those samples are NaN
+    and the figure marks each run (a red span, one tick per sample) on the components concerned only."""
+    from sensorless.report import force_figure
+
+    rng = np.random.default_rng(4)
+    n = 400
+    t = np.arange(n) * 0.01
+    Q = np.tile([0.3, -1.0, 1.2, -0.5, 0.8, 0.2], (n, 1)) + 0.3 * np.sin(t)[:, None]
+    Q[150:180, 4] = Q[300, 4] = 0.0
+    est = CartesianForceEstimator(ur5, "tool0", "local_world_aligned", components="wrench")
+    res = est.from_external_torque(Q, rng.normal(size=(n, 6)), t)
+    assert res.unobservable[:, 2].sum() == 0 and (res.unobservable.sum(axis=0)[[0, 1, 3, 4, 5]] == 31).all()
+    fig = force_figure(res)
+    assert [a.get_ylabel() for a in fig.axes] == ["fx [N]", "fy [N]", "fz [N]", "mx [N·m]", "my [N·m]", "mz [N·m]"]
+    for c, ax in enumerate(fig.axes):
+        spans = [col for col in ax.collections if col.get_gid() == "unobservable"]
+        ticks = [ln for ln in ax.get_lines() if ln.get_gid() == "unobservable_samples"]
+        if c == 2:
+            assert not spans and not ticks and "observable on every sample" in ax.get_title(loc="left")
+            continue
+        (span,) = spans
+        assert len(span.get_paths()) == 2  # the runs 1.50–1.79 s and 3.00 s
+        assert len(ticks[0].get_xdata()) == 31 and "31 of 400" in ax.get_title(loc="left")
+        force = next(ln for ln in ax.get_lines() if ln.get_gid() == "force")
+        assert np.isnan(force.get_ydata()[np.isin(force.get_xdata(), t[150:180])]).all()  # the trace breaks there
+    assert "unobservable (NaN: no joint torque measures it)" in [x.get_text() for x in fig.legends[0].get_texts()]

@@ -218,8 +218,8 @@ def test_plot_window_predicts_only_the_decimated_samples(ur5, tmp_path, monkeypa
 
     import sensorless.report as report
 
-    monkeypatch.setattr(report, "plot_torques", lambda t, meas, preds, *a, **k: seen.update(points=len(t)))
-    core._plot_window(log, ModelStructure(ur5), {"M": Model()}, tmp_path / "x.png", "t")
+    monkeypatch.setattr(report, "plot_torques_by_limb", lambda t, meas, preds, *a, **k: seen.update(points=len(t)) or {})
+    core._plot_window(log, ModelStructure(ur5), {"M": Model()}, tmp_path, "t")
     assert seen["n"] == seen["points"] <= core.PLOT_POINTS
     assert seen["t_end"] < log.t[core.PLOT_WINDOW]
 

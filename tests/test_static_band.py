@@ -184,3 +184,21 @@ def test_noise_implied_force_is_the_pseudo_inverse_map():
     n = np.random.default_rng(0).normal(size=(20000, 6)) * 0.05
     F = np.linalg.lstsq(J.T, n.T, rcond=None)[0].T
     assert f == pytest.approx(np.sqrt(np.mean(np.sum(F**2, axis=1))), rel=0.02)
+
+
+def test_contact_bounds_are_where_a_sample_becomes_a_contact():
+    """monitor.png's threshold lines (MonitorTrace.contact_bounds): the reported τ_ext leaves them exactly on
+    the samples classified as contact, at rest (the dead zone, shifted by the holding level) and in motion (±kσ)."""
+    t, r, rest = _rest_log()
+    static = StaticFriction(["a", "b"], np.array([1.0, 1.0]), ["given", "given"])
+    quiet = quiet_mask(t, "0:1", exclude=t < t[0] + 0.14)
+    th = rest_aware_thresholds(r, rest, quiet, static, k=5.0, margin=0.0)
+    tr = classify_at_rest(r, t, rest, th, quiet=quiet, warmup=0.14, settle=0.14)
+    lo, hi = tr.contact_bounds(r, th)
+    live = ~np.isnan(tr.tau_ext)
+    outside = (tr.tau_ext < lo) | (tr.tau_ext > hi)
+    np.testing.assert_array_equal(outside[live], (tr.status == STATUS.index("contact"))[live])
+    assert np.isnan(lo[~live]).all()
+    ts = t - t[0]
+    assert (hi - lo)[(ts > 2) & (ts < 3), 0] == pytest.approx(2 * (1.0 + 5.0 * th.sigma_rest[0]))  # at rest: the band
+    assert (hi - lo)[(ts > 3.95) & (ts < 4.0), 0] == pytest.approx(2 * 5.0 * th.sigma_move[0])  # sliding (settled: 0.14 s after leaving rest): ±kσ

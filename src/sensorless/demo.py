@@ -74,7 +74,7 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
     doc["validation"] = {"validate.npz": {"cad": scores["CAD"].to_dict(),
                                           **{m: scores[m.upper()].to_dict() for m in results}}}
     plot_torques(test.t, structure.target(test), {"OLS": ols.predict(test), "LMI": lmi.predict(test), "CAD": cad.predict(test)},
-                 structure.row_names, out / "torques.png", title="Panda: held-out torques")
+                 structure.row_names, out / "torques.png", title="Panda: held-out torques", robot=structure.robot)
     plot_friction(structure, lmi.parameters, [train], out / "friction.png", title="Panda: joint friction (training log)")
     save_model_folder(out, lmi, doc)
     write_html_report(out, doc)

@@ -68,7 +68,8 @@ def _check_options(**opts) -> None:
 @robot_source_options
 def excite(
     robot: str = robot_option(),
-    out: Path = typer.Option(..., help="output directory (written atomically): excitation.json, trajectory.npz"),
+    out: Path = typer.Option(..., help="output directory (written atomically): excitation.json, trajectory.npz, "
+                                       "excitation.png"),
     harmonics: int = typer.Option(5, help="Fourier harmonics per joint"),
     base_freq: float = typer.Option(0.1, help="base frequency f0 [Hz] (period 1/f0)"),
     criterion: Criterion = typer.Option(Criterion.cond, help="cond (condition number of the column-equilibrated base regressor) | dopt (−log det)"),
@@ -85,6 +86,8 @@ def excite(
     box: List[str] = typer.Option([], help="Cartesian box for a frame: 'FRAME:xmin,ymin,zmin:xmax,ymax,zmax' ('-' = open)"),
     lock: Optional[List[str]] = lock_option(),
     force: bool = force_option(),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="write excitation.png: q, v, v̇ per joint against the "
+                              "excitation and robot limits"),
 ) -> None:
     """Optimise a Fourier excitation (joint limits as hard constraints); export coefficients and samples.
 
@@ -116,6 +119,11 @@ def excite(
                 progress=lambda i, f: status.update(f"optimising excitation … iteration {i}, objective {f:.4g}"),
             )
         design.save(tmp, rate=rate, periods=periods)
+        if plot:
+            from ..report.excitation_plot import plot_excitation
+
+            plot_excitation(design.sample(rate, periods), design.limits, tmp, design.hard_limits, robot=structure.robot,
+                            title=f"{structure.robot.name}: excitation ({periods} period(s) at {rate:g} Hz)")
     m, b = design.metrics, design.random_metrics
     console.print(
         f"[bold]{structure.robot.name}[/]: base-regressor condition number (column-equilibrated) "

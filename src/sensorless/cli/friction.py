@@ -87,7 +87,7 @@ def friction(
     savgol_window: Optional[int] = typer.Option(None, help="Savitzky-Golay window [samples] for derivatives "
                                                            "(default 0.2 s)"),
     reversal_window: float = typer.Option(1.0, help="seconds on each side of a velocity reversal counted as near it"),
-    plot: bool = typer.Option(True, help="write friction.png"),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="write friction.png"),
     force: bool = force_option(),
 ) -> None:
     """Identify joint friction from test-bench logs, without a robot model: static law (Coulomb,
@@ -129,7 +129,7 @@ def friction(
             from ..report.friction_bench_plot import plot_bench_friction
 
             plot_bench_friction(model, held or train, tmp / "friction.png", window=reversal_window,
-                                title="held-out log" if held else "training log")
+                                title=f"friction per joint ({'held-out' if held else 'training'} log)")
     _print(model, validation or training, bool(validation))
     console.print(f"wrote {out}/")
 

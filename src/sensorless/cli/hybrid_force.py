@@ -73,6 +73,8 @@ def estimate_force(
     passive: list[str] | None = passive_option(),
     floating_base: bool | None = floating_base_option(),
     force: bool = force_option(),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="write the force against time, unobservable samples "
+                              "marked, next to --out as a PNG of the same name (f.npz → f.png)"),
     prep: dict = None,
 ) -> None:
     """Cartesian force at FRAME from the torque the model (+ residual) does not explain:
@@ -84,6 +86,9 @@ def estimate_force(
     from ..estimators import PhysicalModel
 
     output_file(out, path_inputs(robot, model, data, residual), force)
+    figure = _figure_path(out) if plot else None
+    if figure is not None:
+        output_file(figure, path_inputs(robot, model, data, residual), force)
     r, art = robot_and_model(robot, model, lock=lock, passive=passive, floating=floating_base)
     console.print(f"model: {art.label}", highlight=False, soft_wrap=True)
     phys = PhysicalModel.from_parameters(art.structure, art.parameters)
@@ -104,6 +109,10 @@ def estimate_force(
     _check_observable(res, frame)
     write_npz_atomic(out, **res.arrays(), rows=np.array(est.row_names),
                      model=np.array(art.origin), model_label=np.array(art.label))
+    if figure is not None:
+        from ..report.force_plot import plot_force
+
+        plot_force(res, figure, title=f"{Path(data).name}: force at {frame}, {art.label.split(':')[0]} model")
     damped = float(np.mean(res.damping > 0))
     with np.errstate(invalid="ignore"):
         rms = np.sqrt(np.nanmean(res.F**2, axis=0))
@@ -111,8 +120,14 @@ def estimate_force(
              if res.n_unobservable else "")
     console.print(
         f"{len(res.t)} samples; RMS {', '.join(f'{l}={v:.3g}' for l, v in zip(res.labels, rms))}; "
-        f"damped on {100 * damped:.1f}% of samples{unobs}; wrote {out}"
+        f"damped on {100 * damped:.1f}% of samples{unobs}; wrote {out}" + (f" and {figure}" if figure else "")
     )
+
+
+def _figure_path(out: Path) -> Path:
+    """The PNG next to ``--out``: its name with the suffix .png (``_force.png`` if --out is itself a .png)."""
+    png = out.with_suffix(".png")
+    return png if png != out else out.with_name(out.stem + "_force.png")
 
 
 def _check_observable(res, frame: str) -> None:

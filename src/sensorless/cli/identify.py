@@ -149,7 +149,8 @@ def identify(
                                     "gets the prior's mass, the identified dynamics unchanged) | regularised (the "
                                     "regularised values of result.json)"),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "
-                              "held-out log, else of the first training log)"),
+                              "held-out log, else of the first training log, with residuals; torques_<limb>.png per "
+                              "limb for a robot with several) and friction.png"),
 ) -> None:
     """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png, report.html.
 
@@ -298,10 +299,11 @@ def identify(
         _print_bodies(result)
         shown = val[0] if val else (train[0] if train else None)
         if plot and shown is not None:  # with --scheduler, the client may not see the training files
-            _plot_window(shown, structure, {method.upper(): model, "CAD": cad}, tmp / "torques.png",
+            shown_models = {method.upper(): model, **({"OLS": baseline} if baseline is not None else {}), "CAD": cad}
+            _plot_window(shown, structure, shown_models, tmp,
                          f"{r.name}: {'held-out' if val else 'training'} torques")
         _floating_base_checks(structure, result, doc, train, val, validate)
-        if _plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")):
+        if plot and _plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")):
             from ..report.friction_plot import plot_friction
 
             plot_friction(structure, result.parameters, train, tmp / "friction.png",

@@ -17,16 +17,19 @@ PLOT_WINDOW = 20_000  # samples of the log shown in torques.png (from its start)
 PLOT_POINTS = 2_000  # points per curve after decimation
 
 
-def _plot_window(traj, structure, models: dict, path: Path, title: str) -> None:
-    """torques.png: measured vs predicted effort on the first ``PLOT_WINDOW`` samples, every k-th sample
-    (≤ ``PLOT_POINTS`` points). Only those samples are predicted (the model is pointwise in q, v, v̇)."""
-    from ..report import plot_torques
+def _plot_window(traj, structure, models: dict, out_dir: Path, title: str) -> list[Path]:
+    """torques.png (or torques_<limb>.png per limb of a robot with several): measured vs predicted effort
+    and the residuals on the first ``PLOT_WINDOW`` samples, every k-th sample (≤ ``PLOT_POINTS`` points).
+    Only those samples are predicted (the model is pointwise in q, v, v̇)."""
+    from .. import report
 
     n = min(len(traj), PLOT_WINDOW)
     part = traj.take(np.arange(0, n, max(1, math.ceil(n / PLOT_POINTS))))
     span = f"first {part.t[-1] - traj.t[0]:.3g} s" if n < len(traj) else "whole log"
-    plot_torques(part.t, structure.target(part), {k: m.predict(part) for k, m in models.items()},
-                 structure.row_names, path, title=f"{title} ({span}, {len(part)} points)")
+    figs = report.plot_torques_by_limb(part.t, structure.target(part), {k: m.predict(part) for k, m in models.items()},
+                                       structure.row_names, out_dir, robot=structure.robot,
+                                       title=f"{title} ({span}, {len(part)} points)")
+    return list(figs)
 
 
 def _print_bodies(result) -> None:

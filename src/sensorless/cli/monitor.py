@@ -79,7 +79,8 @@ def monitor(
     robot: Optional[str],
     model: Optional[Path],
     data: Path = typer.Option(..., help="log to monitor (.csv .npz .parquet .h5)"),
-    out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json + monitor.npz (written atomically)"),
+    out: Path = typer.Option(Path("monitor"), help="output directory: monitor.json, monitor.npz, monitor.png (written "
+                                                   "atomically)"),
     frame: Optional[str] = typer.Option(None, help="frame at which to estimate the Cartesian force (damped J⁻ᵀ)"),
     reference: ForceReference = typer.Option(ForceReference.local_world_aligned, help="frame of the force"),
     quiet: str = typer.Option("0:1", help="contact-free window for the thresholds, like --trim: START:END in seconds "
@@ -103,6 +104,8 @@ def monitor(
     passive: Optional[List[str]] = passive_option(),
     floating_base: Optional[bool] = floating_base_option(),
     force: bool = force_option(),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="write monitor.png: τ_ext per joint with its threshold "
+                              "band and the contact intervals (monitor_<limb>.png per limb for a robot with several)"),
     prep: dict = None,
 ) -> None:
     """Detect contacts/collisions in a log: momentum observer → per-joint thresholds from a
@@ -209,6 +212,10 @@ def monitor(
 
         (tmp / "monitor.json").write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
         np.savez(tmp / "monitor.npz", **arrays)
+        if plot:
+            from ..report.monitor_plot import plot_monitor
+
+            plot_monitor(mon, tmp, robot=r, title=f"{Path(data).name}: external torque, {doc['model_label'].split(':')[0]} model")
     console.print(f"model: {doc['model_label']}" + ("; external torque projected by the contacts, P(q) r"
                                                      if doc["projected"] else ""), highlight=False, soft_wrap=True)
     console.print(f"observer order {order}, K = {gain:g} 1/s, warm-up {warm:.3f} s; k = {th.k:.2f} σ from "

@@ -199,16 +199,28 @@ def rest_aware_thresholds(r: np.ndarray, rest: np.ndarray, quiet: np.ndarray, st
 @dataclass
 class MonitorTrace:
     """Per-sample decisions: reported τ_ext (N, n; NaN in the warm-up), holding level h (NaN when not at rest), status
-    codes (N, n) into :data:`STATUS`, the settled-rest mask and the contact flag (N,)."""
+    codes (N, n) into :data:`STATUS`, the settled-rest mask, the contact flag (N,) and ``near`` (N, n): at rest or
+    breaking away, where the static-friction band applies."""
 
     tau_ext: np.ndarray
     holding: np.ndarray
     status: np.ndarray
     rest: np.ndarray
     contact: np.ndarray
+    near: np.ndarray | None = None
 
     def status_names(self) -> np.ndarray:
         return np.asarray(STATUS)[self.status]
+
+    def contact_bounds(self, r: np.ndarray, th: "RestAwareThresholds") -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (N, n): the reported τ_ext outside which a sample is a contact. With the offset
+        o = r − τ_ext (the holding level or the moving bias): b_m ± kσ_m − o in motion (= ±kσ_m),
+        c ± (f_s + kσ_r) − o at rest or breaking away (the static-friction dead zone); NaN in the warm-up."""
+        off = np.asarray(r, float) - self.tau_ext
+        near = np.zeros_like(self.rest) if self.near is None else self.near
+        centre = np.where(near, th.centre, th.bias_move)
+        half = np.where(near, th.band + th.k * th.sigma_rest, th.k * th.sigma_move)
+        return centre - half - off, centre + half - off
 
 
 def classify_at_rest(r: np.ndarray, t: np.ndarray, rest: np.ndarray, th: RestAwareThresholds, *, quiet: np.ndarray,
@@ -250,7 +262,7 @@ def classify_at_rest(r: np.ndarray, t: np.ndarray, rest: np.ndarray, th: RestAwa
     warm = t < t[0] + warmup
     status[warm] = WARMUP
     tau[warm] = np.nan  # the observer has not converged: no estimate
-    return MonitorTrace(tau, h, status, rest, (status == CONTACT).any(axis=1))
+    return MonitorTrace(tau, h, status, rest, (status == CONTACT).any(axis=1), near)
 
 
 def _holding_level(x: np.ndarray, t: np.ndarray, h0: float | None, thr: float, settle: float) -> np.ndarray:

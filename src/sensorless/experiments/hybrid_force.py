@@ -158,7 +158,8 @@ def _figures(out: Path, con: Trajectory, forces: dict, trocar_test: Trajectory, 
     fig.savefig(out / "forces.png", dpi=110)
     plt.close(fig)
     plot_torques(trocar_test.t, preds["measured"], {k: v for k, v in preds.items() if k != "measured"}, joints,
-                 out / "trocar_torques.png", title="In the trocar, held-out: measured vs model-based vs hybrid")
+                 out / "trocar_torques.png", title="In the trocar, held-out: measured vs model-based vs hybrid",
+                 units=["N" if j == "insertion" else "N·m" for j in joints])
     fig, ax = plt.subplots(figsize=(8, 3.5))
     x = np.arange(len(t2["joints"]))
     ax.bar(x - 0.2, [t2["model_based"]["nrmse"][j] * 100 for j in t2["joints"]], 0.4, label="model-based")

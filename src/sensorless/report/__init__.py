@@ -1,8 +1,14 @@
 """Figures and console tables."""
 
+from .excitation_plot import excitation_figure, plot_excitation
+from .force_plot import force_figure, plot_force
 from .friction_plot import plot_friction
 from .html import render_html_report, write_html_report
-from .plots import plot_torques
+from .monitor_plot import monitor_figure, plot_monitor
+from .plots import plot_torques, plot_torques_by_limb, torque_figure
+from .rows import limb_groups
 from .tables import metrics_table
 
-__all__ = ["metrics_table", "plot_friction", "plot_torques", "render_html_report", "write_html_report"]
+__all__ = ["excitation_figure", "force_figure", "limb_groups", "metrics_table", "monitor_figure", "plot_excitation",
+           "plot_force", "plot_friction", "plot_monitor", "plot_torques", "plot_torques_by_limb", "render_html_report",
+           "torque_figure", "write_html_report"]

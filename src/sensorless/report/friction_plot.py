@@ -1,4 +1,12 @@
-"""Friction against velocity, one panel per actuated joint (Agg backend, files only)."""
+"""``identify``'s friction.png: friction against velocity per joint, with its residual.
+
+Per term joint (actuated, then passive) two panels share the velocity axis: the torque the
+rigid-body + armature model leaves to friction, r = τ − [Y π]_j − Ia_j v̇_j (grey dots, at most
+``max_points`` samples drawn at random with a fixed seed), with the identified steady friction
+curve τ_f(v) (:func:`~sensorless.identification.friction.friction_curve`); and below it the
+residual r − τ_f(v) of each dot. Units per joint (N·m against rad/s, or N against m/s); one
+legend above the axes.
+"""
 
 from __future__ import annotations
 
@@ -7,19 +15,14 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ["plot_friction"]
+from .figure_kit import figure_legend, new_figure, paired_axes, save_figure
+from .rows import effort_unit, motion_units
+
+__all__ = ["friction_figure", "plot_friction"]
 
 
-def plot_friction(structure, params: np.ndarray, logs: Iterable, path: str | Path, title: str = "",
-                  max_points: int = 4000) -> None:
-    """Per joint: the torque the rigid-body + armature model leaves to friction,
-    r = τ − [Y π]_j − Ia_j v̇_j (grey dots, at most ``max_points``), and the identified
-    friction curve τ_f(v) (:func:`~sensorless.identification.friction.friction_curve`)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def friction_figure(structure, params: np.ndarray, logs: Iterable, title: str = "", max_points: int = 4000):
+    """The figure (module docstring) of the identified ``params`` of ``structure`` on ``logs``."""
     from ..identification.friction import friction_curve, friction_residual
 
     pairs = [friction_residual(structure, params, t) for t in logs]
@@ -33,25 +36,40 @@ def plot_friction(structure, params: np.ndarray, logs: Iterable, path: str | Pat
     vmax = np.nanmax(np.abs(V), axis=0) if len(V) else np.ones(n)
     grid = np.linspace(-1.0, 1.0, 801)[:, None] * np.where(vmax > 0, vmax, 1.0)[None, :]
     curve = friction_curve(structure, params, grid)
+    resid = R - friction_curve(structure, params, V) if len(V) else R
     cols = 3 if n > 4 else n
-    rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.3 * cols, 2.6 * rows + 0.6), squeeze=False)
-    for k, ax in enumerate(axes.ravel()):
-        if k >= n:
-            ax.axis("off")
-            continue
-        ax.plot(V[:, k], R[:, k], ".", ms=1.5, color="0.6", label="τ − rigid body")
-        ax.plot(grid[:, k], curve[:, k], color="C3", lw=1.4, label="identified friction")
-        eps = structure.smoothing_of(joints[k])
-        terms = ",".join(t for t in structure.terms_of(joints[k]) if t != "armature")
-        vs = (structure.stribeck_velocity or {}).get(joints[k])
-        ax.set_title(f"{joints[k]}\n{terms}; w={eps:.3g}" + (f", vs={vs:.3g}" if vs else ""), fontsize=7)
-        ax.set_xlabel("v", fontsize=7)
-        ax.tick_params(labelsize=6)
-    axes[0, 0].set_ylabel("torque", fontsize=7)
-    axes[0, 0].legend(fontsize=6, loc="upper left")
+    top = 0.55 + (0.3 if title else 0.0)
+    nr = int(np.ceil(n / cols))
+    fig = new_figure(0.6 + 4.0 * cols, top + 0.55 + 2.6 * nr + 0.55 * (nr - 1))
+    axes, nr = paired_axes(fig, n, cols, left=0.75, right=0.15, top=top, bottom=0.55, wspace=0.32, gap=0.55,
+                           share_all=False, by_rows=True)
+    robot = structure.robot
+    for k, j in enumerate(joints):
+        ax, res = axes[k]
+        tu, vu = effort_unit(robot, j), motion_units(robot, j)[1]
+        ax.plot(V[:, k], R[:, k], ".", ms=1.5, color="0.6", label="τ − rigid body (samples)", zorder=2)
+        ax.plot(grid[:, k], curve[:, k], color="C3", lw=1.4, label="identified friction τ_f(v)", zorder=3)
+        res.axhline(0.0, color="C3", lw=0.8, zorder=1)
+        res.plot(V[:, k], resid[:, k], ".", ms=1.2, color="0.4", zorder=2)
+        eps = structure.smoothing_of(j)
+        terms = ",".join(t for t in structure.terms_of(j) if t != "armature")
+        vs = (structure.stribeck_velocity or {}).get(j)
+        ax.set_title(f"{j}: {terms}; w = {eps:.3g} {vu}" + (f", vs = {vs:.3g} {vu}" if vs else ""), fontsize=7,
+                     loc="left", y=1.0)
+        ax.set_ylabel(f"friction [{tu}]", fontsize=7)
+        res.set_ylabel(f"residual [{tu}]", fontsize=7)
+        res.set_xlabel(f"v [{vu}]", fontsize=7)
+    handles, labels = axes[0][0].get_legend_handles_labels()
     if title:
-        fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+        fig.suptitle(title, fontsize=10, y=1 - 0.1 / fig.get_figheight(), va="top")
+    figure_legend(fig, handles, labels, top_in=top - 0.5, markerscale=4)
+    return fig
+
+
+def plot_friction(structure, params: np.ndarray, logs: Iterable, path: "str | Path | None" = None, title: str = "",
+                  max_points: int = 4000):
+    """:func:`friction_figure`, written to ``path`` (PNG) if given; returns the figure."""
+    fig = friction_figure(structure, params, logs, title=title, max_points=max_points)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
