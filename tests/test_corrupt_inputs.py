@@ -86,7 +86,7 @@ def test_resample_auto_says_what_it_did():
     t = np.arange(400) / 100.0
     t[200:] += 0.004  # one late step: not uniform
     traj = Trajectory(t=t, q=np.sin(t)[:, None], joint_names=("a",), v=np.cos(t)[:, None])
-    with pytest.warns(DataWarning, match=r"--resample auto: .*merged 0 duplicate sample\(s\) and interpolated 400 "
+    with pytest.warns(DataWarning, match=r"`resample='auto'`: .*merged 0 duplicate sample\(s\) and interpolated 400 "
                                          r"onto \d+ samples at 100 Hz"):
         prepare(traj, resample="auto")
 
@@ -116,7 +116,7 @@ def test_implausible_gains_are_refused_naming_the_joint(tmp_path, gain):
     robot = _current_log(path)
     cols = "q=q_{joint};tau=i_{joint}"
     assert load_log(path, robot, cols, None, None, None, 1, gains="10").tau is not None  # the right gain passes
-    with pytest.raises(UnitsError, match=r"joint '\w+': drive gain .*--accept-implausible-gains"):
+    with pytest.raises(UnitsError, match=r"joint '\w+': drive gain .*`accept_implausible_gains=True`"):
         load_log(path, robot, cols, None, None, None, 1, gains=gain)
     assert load_log(path, robot, cols, None, None, None, 1, gains=gain, accept_implausible_gains=True) is not None
 

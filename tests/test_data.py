@@ -160,7 +160,7 @@ def test_degrees_on_limited_joints(panda):
     q[:, 1] = np.rad2deg(q[:, 1])  # panda_joint2 limits +-1.76 rad
     q[:, 3] = -1.5  # inside [-3.07, -0.07]
     tr = tr.with_(q=q)
-    with pytest.raises(UnitsError, match=r"joint 'panda_joint2' positions reach -?4\d\.\d, beyond its limits \[-1.76, 1.76\] rad: they look like degrees; convert to radians \(np.deg2rad\)"):
+    with pytest.raises(UnitsError, match=r"joint 'panda_joint2' positions reach -?4\d\.\d, beyond its limits \[-1.76, 1.76\] rad: they look like degrees; if the log is in degrees, read it with `angle_unit='deg'`"):
         validate_trajectory(tr, panda)
     assert validate_trajectory(tr, panda, check_units=False).q.shape == tr.q.shape
 
