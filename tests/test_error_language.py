@@ -147,7 +147,7 @@ _NEEDS_OUT = {"identify": "run", "predict": "p.npz", "payload": "p.json", "drive
               "estimate-force": "f.npz", "excite": "ex", "friction": "fr"}
 _KWARG = re.compile(r"(?<![\w.\-\[])([a-z][a-z0-9]*_[a-z0-9_]+|rate|prior|columns|gains|trim|mode|flags|robot|method|gamma|"
                     r"weights|outliers|resample|velocity|accept|force|ellipsoids|regularization|quiet|state|align)\s*=(?!=)")
-_CLAIMED = [re.compile(r"\b(?:drop|remove|omit|without|leave out|leave)\s+(--[a-z][\w-]*)"),
+_CLAIMED = [re.compile(r"\b(?:drop|remove|omit|without|leave out|leave|instead of)\s+(--[a-z][\w-]*)"),
             re.compile(r"(--[a-z][\w-]*)\s+(?:was|were|is)\s+(?:given|passed)")]
 
 
@@ -241,7 +241,8 @@ def _tiny_app(message: str) -> typer.Typer:
     @tiny.command()
     @guarded
     def run(contain_prior: bool = typer.Option(True), rate: float = typer.Option(None),
-            lock: list[str] = typer.Option(None)) -> None:
+            lock: list[str] = typer.Option(None),
+            floating_base: bool = typer.Option(None, "--floating-base/--fixed-base")) -> None:
         raise SensorlessError(message)
 
     return tiny
@@ -249,13 +250,16 @@ def _tiny_app(message: str) -> typer.Typer:
 
 def test_a_flag_is_said_to_be_dropped_only_when_it_was_given():
     msg = (f"use the grown ellipsoids ({setting('contain_prior', True)}), give {setting('rate', placeholder='HZ')}, "
-           f"lock {setting('lock_joints', ['a', 'b'])}, set {setting('lowpass', 5.0)}" + python_only("call prepare() first"))
+           f"lock {setting('lock_joints', ['a', 'b'])}, set {setting('lowpass', 5.0)}, load it with "
+           f"{setting('floating_base', True)}" + python_only("call prepare() first"))
     tiny = _tiny_app(msg)
-    given = runner.invoke(tiny, ["--no-contain-prior"]).output
+    given = runner.invoke(tiny, ["--no-contain-prior", "--fixed-base"]).output
     assert "drop --no-contain-prior" in given and "--rate HZ" in given and "--lock a --lock b" in given
+    assert "--floating-base instead of --fixed-base" in given  # the default is neither: not "drop"
     assert "lowpass 5.0" in given and "in Python" not in given and "`" not in given  # no such option: in words
     default = runner.invoke(tiny, []).output
-    assert "--contain-prior, already in effect" in default and "drop" not in default
+    assert "--contain-prior, already in effect" in default and "drop" not in default and "instead" not in default
+    assert "load it with --floating-base" in default
 
 
 def test_library_messages_never_say_pass_keyword():
@@ -274,6 +278,8 @@ def test_library_messages_never_say_pass_keyword():
             else:
                 continue
             if re.search(r"\bpass [A-Za-z_]\w*=", text) or re.search(r"\((?:library|CLI|command line):|in Python\)", text):
+                bad.append(f"{path.relative_to(SRC)}:{n.lineno}: {text[:80]}")
+            elif isinstance(n, ast.Constant) and re.search(r"\{(?:setting|python_only|did_you_mean)\(", text):  # not an f-string
                 bad.append(f"{path.relative_to(SRC)}:{n.lineno}: {text[:80]}")
     assert bad == []
 

@@ -114,7 +114,7 @@ def test_hdf5_external_and_virtual_datasets_are_refused_unless_allowed(tmp_path)
         f["times"] = np.arange(300) / 100.0
         f.create_dataset("positions", shape=(300, 1), dtype="<f8", external=[(str(secret), 0, 2400)])
     msg = _fast(lambda: read_trajectory(ext))
-    assert "'positions'" in msg and "external raw storage" in msg and "--allow-hdf5-external" in msg
+    assert "'positions'" in msg and "external raw storage" in msg and "`allow_external=True`" in msg
     assert read_trajectory(ext, allow_external=True).q[5, 0] == 5.0
 
     vds = tmp_path / "vds.h5"

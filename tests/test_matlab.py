@@ -147,6 +147,6 @@ def test_v5_numeric_or_mixed_joint_names_are_refused_like_v73(tmp_path):
         read_trajectory(tmp_path / "n73.mat")
     savemat(tmp_path / "three.mat", {"t": t, "q": q, "joint_names": np.array(NAMES, dtype=object)})
     with pytest.raises(ShapeMismatchError, match=r"joint names are 3 \('shoulder', 'elbow', 'wrist'\) but 'q' \('q'\) "
-                                                 r"has 2 columns.*--columns 'q=\.\.\.'") as err:
+                                                 r"has 2 columns.*`columns=\{'q': '\.\.\.'\}`") as err:
         read_trajectory(tmp_path / "three.mat")
     assert "pass joint_names" not in str(err.value)

@@ -19,6 +19,7 @@ from rich.text import Text
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
+from .blas import blas_threads_for_command
 from .flags import cli_words
 from .logs import log_trims, trim_option
 from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
@@ -123,31 +124,6 @@ def guarded(fn):
                 raise typer.Exit(3) from None
 
     return wrapper
-
-
-_BLAS_ENV = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
-
-
-@contextlib.contextmanager
-def blas_threads_for_command() -> Iterator[None]:
-    """BLAS on one thread while a command runs, unless the user set ``OPENBLAS_NUM_THREADS`` (or MKL/BLIS).
-
-    The commands' products and factorisations are small (p ≲ a few hundred); threaded BLAS only
-    adds synchronisation, and under CPU contention it was measured 39× slower (a 252×84 QR took
-    0.3 s). NumPy and SciPy each bundle their own OpenBLAS: the loaded ones are limited with
-    threadpoolctl, the ones loaded during the command read the environment variable set here.
-    """
-    if any(v in os.environ for v in _BLAS_ENV):
-        yield
-        return
-    from threadpoolctl import threadpool_limits
-
-    os.environ["OPENBLAS_NUM_THREADS"] = "1"
-    try:
-        with threadpool_limits(limits=1, user_api="blas"):
-            yield
-    finally:
-        os.environ.pop("OPENBLAS_NUM_THREADS", None)
 
 
 @contextlib.contextmanager

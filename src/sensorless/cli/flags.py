@@ -4,8 +4,9 @@
 The field is looked up among the command's options (``lock_joints`` → ``--lock``, ``rate`` →
 ``--rate``, ``contain_prior=True`` → ``--contain-prior``); the value is written as that option
 takes it (a list as repeated flags or a comma list, a column map as ``'q=0:7;v=7:14'``). A boolean
-setting that asks to undo an option the user gave reads "drop --no-contain-prior"; one already in
-effect says so, so no message tells the user to drop a flag they never passed. A field the
+setting that asks to undo an option the user gave reads "drop --no-contain-prior" (back to the default) or
+"--floating-base instead of --fixed-base"; one already in effect says so, so no message tells the user to
+drop a flag they never passed. A field the
 command has no option for is written in words.
 """
 
@@ -16,7 +17,7 @@ import shlex
 
 from ..errors import PYTHON_ONLY_PATTERN, SETTING_PATTERN
 
-__all__ = ["cli_words", "given_options"]
+__all__ = ["cli_words"]
 
 # library keyword -> the CLI parameter that sets it (when the names differ)
 _ALIASES = {
@@ -26,7 +27,6 @@ _ALIASES = {
     "allow_external": "allow_hdf5_external",
     "max_memory": "max_log_memory",
     "joint_names": "columns",
-    "frame": "frame",
     "wrench_frames": "wrench_frame",
     "validation": "validate",
     "cutoff_hz": "lowpass",
@@ -60,23 +60,6 @@ def _source_given(ctx, name: str) -> bool:
     except Exception:  # noqa: BLE001
         return False
     return src is not None and getattr(src, "name", str(src)) in ("COMMANDLINE", "ENVIRONMENT", "DEFAULT_MAP")
-
-
-def given_options(ctx=None) -> set[str]:
-    """The flags (``--rate``, ``--no-contain-prior``...) the user gave to the running command."""
-    ctx = ctx or _context()
-    if ctx is None:
-        return set()
-    out = set()
-    for p in ctx.command.params:
-        if getattr(p, "param_type_name", "") != "option" or not _source_given(ctx, p.name):
-            continue
-        value = ctx.params.get(p.name)
-        if getattr(p, "is_flag", False) and getattr(p, "secondary_opts", None) and value is False:
-            out.update(o for o in p.secondary_opts if o.startswith("--"))
-        else:
-            out.update(o for o in p.opts if o.startswith("--"))
-    return out
 
 
 def _parse(text: str | None):
@@ -137,8 +120,9 @@ def _flag(field: str, text: str | None, ctx) -> str:
             return f"drop {opt}" if _source_given(ctx, name) and ctx.params.get(name) else f"{opt} not given, already in effect"
         if ctx.params.get(name) == value:
             return f"{want}, already in effect"
-        if _source_given(ctx, name):
-            return f"drop {opt if not value else off}"
+        if _source_given(ctx, name):  # the user gave the opposite flag
+            typed = off if value else opt
+            return f"drop {typed}" if p.default == value else f"{want} instead of {typed}"
         return want
     if text is None:  # the option named, not a value suggested
         return opt
