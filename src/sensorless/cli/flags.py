@@ -53,13 +53,17 @@ def _context():
     return get_current_context(silent=True)
 
 
-def _source_given(ctx, name: str) -> bool:
-    """Whether the user set option ``name`` (command line, environment or the --config file)."""
+def _source_name(ctx, name: str) -> str | None:
     try:
         src = ctx.get_parameter_source(name)
     except Exception:  # noqa: BLE001
-        return False
-    return src is not None and getattr(src, "name", str(src)) in ("COMMANDLINE", "ENVIRONMENT", "DEFAULT_MAP")
+        return None
+    return None if src is None else getattr(src, "name", str(src))
+
+
+def _source_given(ctx, name: str) -> bool:
+    """Whether the user set option ``name`` (command line, environment or the --config file)."""
+    return _source_name(ctx, name) in ("COMMANDLINE", "ENVIRONMENT", "DEFAULT_MAP")
 
 
 def _parse(text: str | None):
@@ -122,7 +126,8 @@ def _flag(field: str, text: str | None, ctx) -> str:
             return f"{want}, already in effect"
         if _source_given(ctx, name):  # the user gave the opposite flag
             typed = off if value else opt
-            return f"drop {typed}" if p.default == value else f"{want} instead of {typed}"
+            where = " (in the --config file)" if _source_name(ctx, name) == "DEFAULT_MAP" else ""
+            return f"drop {typed}{where}" if p.default == value else f"{want} instead of {typed}{where}"
         return want
     if text is None:  # the option named, not a value suggested
         return opt
