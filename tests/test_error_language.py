@@ -323,3 +323,19 @@ def test_degrees_leave_prismatic_joints_alone():
     assert "rail" in out.units["angles"] and "angles" not in Trajectory(t=t, q=q, joint_names=("hinge", "rail")).units
     with pytest.raises(SensorlessError, match="angle_unit"):
         to_radians(out, "grad")
+
+
+def test_frame_and_joint_names_get_the_closest_known_ones(solo12):
+    """One helper (errors.did_you_mean) for every name lookup: robot frames, the IMU frame, joints."""
+    from sensorless.data.imu import imu_frame_base_acceleration
+    from sensorless.errors import RobotModelError, did_you_mean
+
+    assert did_you_mean("FL_FOT", ["FL_FOOT", "FR_FOOT", "HL_FOOT"]).startswith("did you mean 'FL_FOOT' or ")
+    assert did_you_mean("pandaa", ["PANDA", "ur5"]) == "did you mean 'PANDA'?"  # case-insensitive, the known spelling
+    assert did_you_mean("zzz", ["panda", "ur5"]) == ""
+    with pytest.raises(RobotModelError, match="no frame 'bse_link' for the IMU; did you mean 'base_link'"):
+        imu_frame_base_acceleration(solo12, None, "bse_link", None)
+    with pytest.raises(RobotModelError, match=r"unknown frame 'FL_FOT' \(did you mean 'FL_FOOT'"):
+        solo12.frame_id("FL_FOT")
+    with pytest.raises(RobotModelError, match=r"unknown joint 'FL_KNE' \(did you mean 'FL_KFE'"):
+        solo12.joint_id("FL_KNE")
