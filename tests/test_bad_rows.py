@@ -44,7 +44,7 @@ def _corrupt(t, q, tau, lead=9):
 def test_a_corrupt_prefix_and_cut_last_row_are_dropped_and_reported():
     t, q, tau = _log()
     bad = _corrupt(t, q, tau)
-    with pytest.warns(DataWarning, match=r"run.csv: --skip-bad-rows dropped 9 row\(s\) at the start \(samples 0..8") as w:
+    with pytest.warns(DataWarning, match=r"run.csv: `skip_bad_rows=True` dropped 9 row\(s\) at the start \(samples 0..8") as w:
         out = validate_trajectory(_traj(*bad), skip_bad_rows=True)
     msg = str(w[0].message)
     assert "absurd values" in msg and "time going backwards" in msg and "1 row(s) at the end (sample 999" in msg
@@ -59,8 +59,8 @@ def test_without_the_option_the_error_says_how_to_drop_the_corrupt_rows():
     with pytest.raises(DataError) as exc:
         validate_trajectory(_traj(*bad))
     msg = str(exc.value)
-    assert "--skip-bad-rows" in msg and "--trim run.csv=abs:" in msg and "samples 0..8" in msg, msg
-    window = msg.split("--trim run.csv=")[1].split(",")[0]
+    assert "`skip_bad_rows=True`" in msg and "`trim='run.csv=abs:" in msg and "samples 0..8" in msg, msg
+    window = msg.split("`trim='run.csv=")[1].split("'")[0]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the window suggested cuts them out without --skip-bad-rows
         out = validate_trajectory(_traj(*bad), trim=window)
@@ -81,7 +81,7 @@ def test_a_trim_is_cut_before_the_time_axis_is_checked():
 def test_corruption_in_the_middle_stays_an_error_naming_the_sample():
     t, q, tau = _corrupt(*_log())
     q[600, 1] = np.nan
-    with pytest.raises(NonFiniteError, match=r"sample 600 .*--skip-bad-rows drops only a corrupt prefix or suffix "
+    with pytest.raises(NonFiniteError, match=r"sample 600 .*`skip_bad_rows` drops only a corrupt prefix or suffix "
                                              r"of at most 50 rows \(it dropped 9 row\(s\) at the start.*middle"):
         with pytest.warns(DataWarning):
             validate_trajectory(_traj(t, q, tau), skip_bad_rows=True)
@@ -132,7 +132,7 @@ def test_csv_with_corrupt_leading_rows_and_a_last_row_cut_mid_number(tmp_path):
     table = pd.DataFrame({"time": t, "q_a": q[:, 0], "q_b": q[:, 1], "tau_a": tau[:, 0], "tau_b": tau[:, 1]})
     path = write_faulty_csv(table, tmp_path / "run.csv", leading=9, cut_after=3, seed=2)
     path.write_text(path.read_text() + "e-")  # the last field cut in its exponent: not a number
-    with pytest.raises(DataError, match=r"non-numeric value .* at row 1008 .*--skip-bad-rows"):
+    with pytest.raises(DataError, match=r"non-numeric value .* at row 1008 .*`skip_bad_rows=True`"):
         read_trajectory(path)
     with pytest.warns(DataWarning, match=r"dropped 9 row\(s\) at the start .* and 1 row\(s\) at the end \(sample 1008"):
         out = read_trajectory(path, skip_bad_rows=True)

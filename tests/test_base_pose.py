@@ -213,7 +213,7 @@ def test_pose_ends_rest_and_gap_rules(truth):
     # a 0.12 s hold while moving is 12 periods at 100 Hz: refused, naming the option
     moving = Q.copy()
     moving[200:211] = moving[199]
-    with pytest.raises(DataError, match=r"0.120 s gap .* 10 median pose periods .*--pose-max-gap"):
+    with pytest.raises(DataError, match=r"0.120 s gap .* 10 median pose periods .*`pose_max_gap=PERIODS`"):
         clean_base_pose(t, moving[:, :3], moving[:, 3:])
     ok = clean_base_pose(t, moving[:, :3], moving[:, 3:], max_gap_periods=15)
     assert ok.report["max_gap"] == pytest.approx(0.12) and ok.report["n_held"] == 11

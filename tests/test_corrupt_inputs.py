@@ -61,9 +61,9 @@ def test_zeroed_mcap_chunk_is_an_error_naming_it_or_skipped_with_a_count(tmp_pat
     assert len(read_trajectory(mcap, joint_names=["j1", "j2", "j3"])) == 4000
     off = _zero_second_chunk(mcap)
     with pytest.raises(DataError, match=rf"corrupt chunk\(s\) at byte offset\(s\) {off} .*'/joint_states': \d+ of "
-                                        r"4000 messages lost.*--skip-bad"):
+                                        r"4000 messages lost.*`skip_bad=True`"):
         read_trajectory(mcap, joint_names=["j1", "j2", "j3"])
-    with pytest.warns(DataWarning, match=r"--skip-bad: skipped 1 corrupt chunk"):
+    with pytest.warns(DataWarning, match=r"`skip_bad=True`: skipped 1 corrupt chunk"):
         traj = read_trajectory(mcap, joint_names=["j1", "j2", "j3"], skip_bad=True, allow_duplicate_times=True)
     assert 0 < len(traj) < 4000
 
@@ -74,7 +74,7 @@ def test_every_stamp_duplicated_is_refused_with_the_count_and_an_explicit_rate_w
     q = np.sin(t)[:, None] + 0.001 * np.arange(t.size)[:, None] % 2
     path = tmp_path / "dup.csv"
     np.savetxt(path, np.column_stack([t, q]), delimiter=",", header="t,q_a", comments="")
-    with pytest.raises(TimestampError, match=r"500 of 999 time steps \(50 %\) repeat.*--resample RATE_HZ"):
+    with pytest.raises(TimestampError, match=r"500 of 999 time steps \(50 %\) repeat.*`resample=RATE_HZ`"):
         load_log(path, None, None, None, None, None, 1)
     out = load_log(path, None, None, None, None, None, 1, resample=100)
     assert len(out) == 500 and out.provenance["resampled"]["duplicates_merged"] == 500
@@ -86,7 +86,7 @@ def test_resample_auto_says_what_it_did():
     t = np.arange(400) / 100.0
     t[200:] += 0.004  # one late step: not uniform
     traj = Trajectory(t=t, q=np.sin(t)[:, None], joint_names=("a",), v=np.cos(t)[:, None])
-    with pytest.warns(DataWarning, match=r"--resample auto: .*merged 0 duplicate sample\(s\) and interpolated 400 "
+    with pytest.warns(DataWarning, match=r"`resample='auto'`: .*merged 0 duplicate sample\(s\) and interpolated 400 "
                                          r"onto \d+ samples at 100 Hz"):
         prepare(traj, resample="auto")
 
@@ -116,7 +116,7 @@ def test_implausible_gains_are_refused_naming_the_joint(tmp_path, gain):
     robot = _current_log(path)
     cols = "q=q_{joint};tau=i_{joint}"
     assert load_log(path, robot, cols, None, None, None, 1, gains="10").tau is not None  # the right gain passes
-    with pytest.raises(UnitsError, match=r"joint '\w+': drive gain .*--accept-implausible-gains"):
+    with pytest.raises(UnitsError, match=r"joint '\w+': drive gain .*`accept_implausible_gains=True`"):
         load_log(path, robot, cols, None, None, None, 1, gains=gain)
     assert load_log(path, robot, cols, None, None, None, 1, gains=gain, accept_implausible_gains=True) is not None
 

@@ -4,6 +4,7 @@ errors naming the bad file, --skip-bad reporting, retries, and a worker killed m
 from __future__ import annotations
 
 import json
+import logging
 import os
 import threading
 from dataclasses import dataclass
@@ -18,11 +19,12 @@ distributed = pytest.importorskip("distributed")
 from sensorless.benchmarks.fleet import write_fleet_logs  # noqa: E402
 from sensorless.cli import app  # noqa: E402
 from sensorless.cli.common import load_logs  # noqa: E402
-from sensorless.errors import DataError  # noqa: E402
+from sensorless.errors import DataError, JointNameError  # noqa: E402
 from sensorless.identification import identify, identify_files  # noqa: E402
 from sensorless.identification.lmi import _split_folds  # noqa: E402
 from sensorless.regressor import ModelStructure, compress, compress_files, expand_paths  # noqa: E402
-from sensorless.regressor.distributed import DistributedError, LogReader, _Model, _structure, connect  # noqa: E402
+from sensorless.regressor.dask_cluster import connect  # noqa: E402
+from sensorless.regressor.distributed import DistributedError, LogReader, _Model, _structure  # noqa: E402
 
 TOL = 1e-10
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
@@ -293,6 +295,58 @@ def test_cli_bad_file_fails_without_output_or_is_skipped_and_listed(with_corrupt
     doc, _ = _params(out)
     assert [e["file"] for e in doc["settings"]["skipped_files"]] == [bad]
     assert bad not in doc["settings"]["data"] and len(doc["settings"]["data"]) == 4
+
+
+@dataclass(frozen=True)
+class CountingReader(LogReader):
+    """Appends the path to ``log`` at each read (how many times a task ran)."""
+
+    log: str = ""
+
+    def __call__(self, path, robot):
+        with open(self.log, "a") as f:
+            f.write(f"{path}\n")
+        return super().__call__(path, robot)
+
+
+def test_a_file_that_cannot_be_used_fails_once_as_its_typed_error_with_nothing_logged(fleet, client, tmp_path, caplog):
+    """Regression (issue 24, quickstart 6): without the finger locks every file failed on the workers,
+    was retried, and Dask logged each attempt with a traceback. The typed error now returns as a
+    value: raised once on the client, naming the file and the fix, no retry, no log line."""
+    from sensorless import load_robot
+
+    _, files = fleet
+    unlocked = ModelStructure(load_robot("panda"), joint_terms=("fv",))
+    reader = CountingReader(log=str(tmp_path / "reads.txt"))
+    with caplog.at_level(logging.INFO), pytest.raises(JointNameError) as exc:
+        compress_files(unlocked, files, client=client, reader=reader, retries=2)
+    msg = str(exc.value)
+    assert any(f in msg for f in files) and "`lock_joints=['panda_finger_joint1', 'panda_finger_joint2']`" in msg
+    reads = (tmp_path / "reads.txt").read_text().split()
+    assert len(reads) == len(set(reads)) <= len(files)  # no file read twice: no retry of a typed error
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING and r.name.startswith("distributed")]
+
+
+def test_cli_missing_lock_on_a_cluster_is_the_single_process_line(fleet, tcp_cluster, tmp_path):
+    """Quickstart 6 as printed (no --lock for the fingers) on a cluster: the same one line as the
+    single-process run, in flag language; with the friction law fitted on the workers too (the client
+    reads no log), one error line naming a file and the --lock fix, no traceback."""
+    d, _ = fleet
+    pattern = str(d / "**" / "*.parquet")
+    base = ["identify", "--robot", "panda", "--data", pattern, "--method", "ols", "--no-plot"]
+    lines = {}
+    for name, extra in (("single", []), ("dask", ["--scheduler", tcp_cluster, "--workers", 2]),
+                        ("workers", ["--scheduler", tcp_cluster, "--joint-terms", "fv,fc,offset",
+                                     "--coulomb-smoothing", "0.01"])):
+        r = _cli([*base, *extra, "--out", tmp_path / name])
+        text = r.output
+        errors = [ln for ln in text.splitlines() if ln.startswith("error:")]
+        assert r.exit_code == 2 and len(errors) == 1 and "Traceback" not in text and not (tmp_path / name).exists(), text
+        assert len([ln for ln in text.splitlines() if ln.strip()]) <= 2, text  # at most the "Dask: ..." line besides
+        assert "--lock panda_finger_joint1 --lock panda_finger_joint2" in errors[0] and "lock_joints" not in text
+        lines[name] = errors[0]
+    assert lines["dask"] == lines["single"]
+    assert ".parquet: missing joint(s)" in lines["workers"]
 
 
 def test_cli_glob_matching_nothing_fails_naming_the_pattern(tmp_path):

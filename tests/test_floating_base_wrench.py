@@ -96,7 +96,7 @@ def test_world_axis_offsets_recovered(legs, truth, kind, frame):
 def test_zero_or_missing_torques_in_all_rows_raise_a_typed_error(legs, log):
     """Regression: zero torques used to fit 12 joint rows to a zero target, silently."""
     s = _structure(legs, contact_rows="all")
-    with pytest.raises(DataError, match="contact-rows base"):
+    with pytest.raises(DataError, match="`contact_rows='base'`"):
         identify(s, log)  # no torques at all
     zeros = log.with_(tau=np.zeros_like(log.q))
     with pytest.raises(DataError, match="every joint torque is zero"):

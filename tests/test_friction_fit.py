@@ -68,14 +68,14 @@ def test_state_modes(lugre_fit):
     model, test, _ = lugre_fit
     train, _ = simulate_lugre_joint(LUGRE, duration=30.0, seed=4)
     off = FrictionModel(state="off").fit([train])
-    assert off.laws_["joint"].kind == "static" and "--state off" in off.fits_["joint"].reason
+    assert off.laws_["joint"].kind == "static" and "`state='off'`" in off.fits_["joint"].reason
     assert set(STATE_MODES) == {"auto", "on", "off"}
-    with pytest.raises(OptionError, match="--state"):
+    with pytest.raises(OptionError, match="`state` must be one of"):
         FrictionModel(state="maybe")
     # no reversal in the log: the state cannot be seen, and --state on says why
     ramp = train.take(slice(0, 200))
     ramp = ramp.with_(q=np.linspace(0, 0.5, 200)[:, None], v=np.full((200, 1), 0.5), a=np.zeros((200, 1)))
-    with pytest.raises(ExcitationError, match="--state on.*reversal"):
+    with pytest.raises(ExcitationError, match="`state='on'`.*reversal"):
         FrictionModel(state="on", terms=("fc", "fv")).fit([ramp])
 
 

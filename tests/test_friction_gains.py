@@ -194,7 +194,7 @@ def test_rest_detection_zeroes_a_joint_at_rest_but_not_a_reversal():
     assert near_reversal.sum() > 10 and np.all(out.v[near_reversal, 0] != 0)  # a reversal is motion
     assert info["fraction_at_rest"]["j2"] == 1.0 and 0.25 < info["fraction_at_rest"]["j1"] < 0.32
     assert np.array_equal(prepare(traj, rest="off").v, traj.v)  # off: the logged v as it is
-    with pytest.raises(Exception, match="--rest"):
+    with pytest.raises(Exception, match="`rest` must be one of"):
         prepare(traj, rest="sometimes")
 
 

@@ -140,5 +140,5 @@ def test_imu_frame_errors(solo12, panda):
         imu_frame_base_acceleration(solo12, traj.with_(extras={"imu_acc": np.zeros((2, 3))}), "imu_nope", np.zeros((2, 3)))
     with pytest.raises(DataError, match="no 'imu_acc'"):
         imu_frame_base_acceleration(solo12, traj, "base_link", np.zeros((2, 3)))
-    with pytest.raises(RobotModelError, match="--floating-base"):
+    with pytest.raises(RobotModelError, match="`floating_base=True`"):
         imu_frame_base_acceleration(panda, traj, "panda_link0", np.zeros((2, 3)))

@@ -157,7 +157,7 @@ def test_output_dir_has_manifest_and_umask_permissions(tmp_path, umask022):
 def test_existing_output_is_untouched_without_force(tmp_path):
     out = tmp_path / "run"
     _make_output(out, "first")
-    with pytest.raises(OutputError, match="--force"):
+    with pytest.raises(OutputError, match="`force=True`"):
         _make_output(out, "second")
     assert (out / "result.txt").read_text() == "first"
     _no_leftovers(out)

@@ -56,7 +56,7 @@ def test_budget_refuses_a_log_over_it_and_reads_it_when_raised(tmp_path, suffix)
         path = tmp_path / "log.csv"
         np.savetxt(path, data, delimiter=",", header="t,q_a,q_b,q_c", comments="")
     msg = _fast(lambda: read_trajectory(path, max_memory="100KB"))
-    assert str(path) in msg and "--max-log-memory" in msg and "split the log" in msg and "100.0 KiB" not in msg
+    assert str(path) in msg and "`max_memory=SIZE`" in msg and "split the log" in msg and "100.0 KiB" not in msg
     assert len(read_trajectory(path, max_memory="1GiB")) == 5000
 
 
@@ -102,7 +102,7 @@ def test_hdf5_declared_size_is_checked_before_reading(tmp_path):
         f.create_dataset("times", shape=(10**9,), dtype="f8", chunks=(1000,))
     assert path.stat().st_size < 50_000
     msg = _fast(lambda: read_trajectory(path))
-    assert str(path) in msg and "--max-log-memory" in msg
+    assert str(path) in msg and "`max_memory=SIZE`" in msg
 
 
 def test_hdf5_external_and_virtual_datasets_are_refused_unless_allowed(tmp_path):
@@ -114,7 +114,7 @@ def test_hdf5_external_and_virtual_datasets_are_refused_unless_allowed(tmp_path)
         f["times"] = np.arange(300) / 100.0
         f.create_dataset("positions", shape=(300, 1), dtype="<f8", external=[(str(secret), 0, 2400)])
     msg = _fast(lambda: read_trajectory(ext))
-    assert "'positions'" in msg and "external raw storage" in msg and "--allow-hdf5-external" in msg
+    assert "'positions'" in msg and "external raw storage" in msg and "`allow_external=True`" in msg
     assert read_trajectory(ext, allow_external=True).q[5, 0] == 5.0
 
     vds = tmp_path / "vds.h5"

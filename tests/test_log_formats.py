@@ -115,7 +115,7 @@ def test_npz_dq_ddq_are_used_and_an_unused_array_is_named(sim, files, ur5):
 
 
 def test_tick_column_without_a_unit_is_refused_naming_the_column_and_the_flag(files, ur5, tmp_path):
-    with pytest.raises(UnitsError, match=r"time column 'tick'.*--time-unit tick --rate HZ"):
+    with pytest.raises(UnitsError, match=r"time column 'tick'.*`time_unit='tick'` `rate=HZ`"):
         _read(files["dat"], ur5)
     r = CliRunner().invoke(app, ["identify", "--robot", "ur5", "--data", str(files["dat"]), "--method", "ols",
                                  "--out", str(tmp_path / "m")])

@@ -116,12 +116,14 @@ def test_one_table_for_fields_time_units_and_cli_choices():
     from sensorless.cli import options
     from sensorless.data.readers import FIELDS
     from sensorless.data.tabular import FIELD_WORDS, TIME_COLUMNS
+    from sensorless.data.angles import ANGLE_UNITS
     from sensorless.data.timebase import TIME_UNITS
     from sensorless.identification import artifact_schema
 
     assert FIELDS == tuple(FIELD_NAMES)
     assert all(FIELD_WORDS[f] == FIELD_NAMES[f] for f in FIELD_WORDS) and set(FIELD_NAMES["t"]) <= set(TIME_COLUMNS)
     assert tuple(options.TimeUnit) == TIME_UNITS == artifact_schema.TIME_UNITS
+    assert tuple(options.AngleUnit) == ANGLE_UNITS == artifact_schema.ANGLE_UNITS
     names = [n.lower() for names in FIELD_NAMES.values() for n in names]
     assert len(names) == len(set(names)), "a name stands for one field"
     assert field_of("jointPositions") == "q" and field_of("dq") == "v" and field_of("Ticks") == "t"

@@ -37,7 +37,7 @@ def test_v73_char_matrix_names_and_struct_paths(tmp_path):
     path = write_mat73(tmp_path / "two.mat", {
         "run1": {"t": t, "q": q, "tau": tau}, "run2": {"t": t, "q": 2 * q, "tau": -tau},
         "joint_names": list(NAMES)})
-    with pytest.raises(DataError, match=r"ambiguous 't'.*run1/t.*--columns 't=run1/t'"):
+    with pytest.raises(DataError, match=r"ambiguous 't'.*run1/t.*`columns=\{'t': 'run1/t'\}`"):
         read_trajectory(path)
     cols = {"t": "run2/t", "q": "run2/q", "tau": "run2/tau"}
     with pytest.warns(DataWarning, match=r"variables not used: 'run1/q', 'run1/t', 'run1/tau'"):
@@ -147,6 +147,6 @@ def test_v5_numeric_or_mixed_joint_names_are_refused_like_v73(tmp_path):
         read_trajectory(tmp_path / "n73.mat")
     savemat(tmp_path / "three.mat", {"t": t, "q": q, "joint_names": np.array(NAMES, dtype=object)})
     with pytest.raises(ShapeMismatchError, match=r"joint names are 3 \('shoulder', 'elbow', 'wrist'\) but 'q' \('q'\) "
-                                                 r"has 2 columns.*--columns 'q=\.\.\.'") as err:
+                                                 r"has 2 columns.*`columns=\{'q': '\.\.\.'\}`") as err:
         read_trajectory(tmp_path / "three.mat")
     assert "pass joint_names" not in str(err.value)

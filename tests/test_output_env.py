@@ -116,7 +116,7 @@ def test_check_output_file_rules(tmp_path):
     with pytest.raises(OutputError, match="inside the input folder"):
         check_output_file(d / "out.npz", [d])
     (tmp_path / "f.npz").write_text("x")
-    with pytest.raises(OutputError, match="--force"):
+    with pytest.raises(OutputError, match="`force=True`"):
         check_output_file(tmp_path / "f.npz")
     assert check_output_file(tmp_path / "f.npz", force=True) == tmp_path / "f.npz"
     assert check_output_file(tmp_path / "g.npz", [d / "log.csv"]) == tmp_path / "g.npz"  # a plain folder's sibling file

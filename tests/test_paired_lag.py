@@ -121,7 +121,7 @@ def test_pair_logs_auto_pairs_by_time_unless_the_runs_share_one_grid_without_lag
     a, b, p = pair_logs(late, ref)
     assert p.mode == "time" and p.lag.seconds == pytest.approx(-1.234, abs=1e-3) and len(a) == len(b) == p.samples
     assert np.percentile(np.abs(a.q - b.q), 99) < 1e-4 and p.to_dict()["reference"] == "u.csv"  # (q has a kink at 2 s)
-    with pytest.raises(DataError, match=r"l.csv: has 2500 samples but u.csv has 3000.*--align auto"):
+    with pytest.raises(DataError, match=r"l.csv: has 2500 samples but u.csv has 3000.*`align='auto'`"):
         pair_logs(late.take(slice(0, 2500)), ref, "rows")
 
 

@@ -114,7 +114,7 @@ def test_a_log_without_the_passive_torque_column(acrobot_urdf):
     assert out.tau.shape == (len(log), 2) and np.all(out.tau[:, 0] == 0.0)
     nan = log.with_(tau=np.column_stack([np.full(len(log), np.nan), log.tau[:, 1]]))
     assert np.all(validate_trajectory(nan, r).tau[:, 0] == 0.0)  # no channel: anything there is ignored
-    with pytest.raises(ShapeMismatchError, match="--passive"):
+    with pytest.raises(ShapeMismatchError, match="`passive_joints=JOINT`"):
         validate_trajectory(short, load_robot(acrobot_urdf))
 
 

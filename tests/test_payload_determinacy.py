@@ -44,7 +44,7 @@ def test_fixed_origin_frame_refuses_mass_without_com_and_recovers_it_with_com(ca
     s, p, result = case
     log = _log(s, p, "rcm")
     for mode in ("auto", "com", "full"):
-        with pytest.raises(ExcitationError, match="--com") as exc:
+        with pytest.raises(ExcitationError, match="`com=X,Y,Z`") as exc:
             identify_payload(result, log, "rcm", mode=mode, n_boot=0)
         assert "origin does not move" in str(exc.value) and "'rcm'" in str(exc.value)
     est = identify_payload(result, log, "rcm", com=COM, n_boot=20)

@@ -169,7 +169,7 @@ def test_duplicate_stamps_are_merged_by_the_resampler_and_refused_when_off():
     assert out.provenance["resampled"]["duplicates_merged"] == 3
     assert np.all(np.diff(out.t) > 0)
     assert np.max(np.abs(out.q - np.sin(np.outer(out.t, w)))) < 0.05
-    with pytest.raises(TimestampError, match=r"duplicate timestamp at sample 100 .*--resample auto"):
+    with pytest.raises(TimestampError, match=r"duplicate timestamp at sample 100 .*`resample='auto'`"):
         prepare(tr, resample="off")
 
 
@@ -193,7 +193,7 @@ def test_backwards_time_is_still_an_error(tmp_path):
 
 def test_jitter_without_resampling_says_to_resample():
     tr, _ = _jittered()
-    with pytest.raises(DataError, match="resampling is off.*--resample auto"):
+    with pytest.raises(DataError, match="resampling is off.*`resample='auto'`"):
         prepare(tr.with_(v=None), resample="off")
 
 

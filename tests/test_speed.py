@@ -178,9 +178,9 @@ def test_example_robot_data_model_is_built_once_without_geometry(monkeypatch, na
 def test_cli_commands_run_blas_on_one_thread(monkeypatch):
     from threadpoolctl import threadpool_info
 
-    from sensorless.cli.common import _BLAS_ENV, blas_threads_for_command
+    from sensorless.cli.blas import BLAS_ENV, blas_threads_for_command
 
-    for v in _BLAS_ENV:
+    for v in BLAS_ENV:
         monkeypatch.delenv(v, raising=False)
     before = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
     with blas_threads_for_command():

@@ -48,7 +48,7 @@ def test_quiet_window_is_relative_like_trim():
         quiet_mask(t, "0:0.1", "log.npz", exclude=t < t[0] + 0.2)
     with pytest.raises(DataError, match="holds 0 samples"):
         quiet_mask(t, "50:60", "log.npz")
-    with pytest.raises(DataError, match="--quiet"):
+    with pytest.raises(DataError, match="`quiet`"):
         quiet_mask(t, "3", "log.npz")
 
 

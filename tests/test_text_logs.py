@@ -40,7 +40,7 @@ def test_one_whitespace_file_with_a_tick_column(tmp_path):
     header = "tick " + " ".join(f"q_{j}" for j in NAMES) + " " + " ".join(f"dq_{j}" for j in NAMES) + " " + \
         " ".join(f"effort_{j}" for j in NAMES)
     np.savetxt(tmp_path / "run.dat", np.column_stack([ticks, q, v, tau]), fmt="%.17g", header=header, comments="")
-    with pytest.raises(UnitsError, match=r"time column 'tick' counts controller ticks.*--time-unit tick --rate HZ"):
+    with pytest.raises(UnitsError, match=r"time column 'tick' counts controller ticks.*`time_unit='tick'` `rate=HZ`"):
         read_trajectory(tmp_path / "run.dat")
     tr = read_trajectory(tmp_path / "run.dat", time_unit="tick", rate=1000)
     assert tr.joint_names == NAMES and tr.rate == pytest.approx(500.0)
@@ -53,7 +53,7 @@ def test_an_integer_counter_under_a_time_name_is_refused_not_read_as_seconds(tmp
     """A column named 't' that counts 1000, 1002, ...: read as seconds it is a 0.5 Hz log."""
     ticks, t, q, _, _ = _log()
     np.savetxt(tmp_path / "c.txt", np.column_stack([ticks, q]), fmt="%.17g", header="t q_a q_b q_c", comments="")
-    with pytest.raises(UnitsError, match=r"time column 't' counts in whole steps.*--time-unit tick --rate HZ"):
+    with pytest.raises(UnitsError, match=r"time column 't' counts in whole steps.*`time_unit='tick'` `rate=HZ`"):
         read_trajectory(tmp_path / "c.txt")
 
 
@@ -84,9 +84,9 @@ def test_per_signal_folder_headerless_with_columns_naming_the_files(tmp_path):
     d.mkdir()
     _write(d / "enc.txt", ticks, q, header=None)
     _write(d / "mot.txt", ticks, tau, header=None)
-    with pytest.raises(DataError, match=r"no file of joint positions.*'enc', 'mot'.*--columns 'q=FILE'"):
+    with pytest.raises(DataError, match=r"no file of joint positions.*'enc', 'mot'.*`columns=\{'q': 'FILE'\}`"):
         read_trajectory(d)
-    with pytest.raises(UnitsError, match=r"time column 'column 0' counts in whole steps.*--time-unit tick --rate HZ"):
+    with pytest.raises(UnitsError, match=r"time column 'column 0' counts in whole steps.*`time_unit='tick'` `rate=HZ`"):
         read_trajectory(d, columns={"q": "enc", "tau": "mot.txt"})
     tr = read_trajectory(d, columns={"q": "enc", "tau": "mot.txt"}, time_unit="tick", rate=1000)
     np.testing.assert_array_equal(tr.t, t)
@@ -116,10 +116,10 @@ def test_per_signal_files_with_different_joint_counts_are_refused(tmp_path):
 def test_tick_unit_needs_a_rate_and_a_time_column(tmp_path):
     ticks, t, q, _, _ = _log()
     _write(tmp_path / "a.dat", ticks, q)
-    with pytest.raises(DataError, match=r"--time-unit tick needs the tick rate: --rate HZ"):
+    with pytest.raises(DataError, match=r"`time_unit='tick'` needs the tick rate: `rate=HZ`"):
         read_trajectory(tmp_path / "a.dat", time_unit="tick")
     np.savetxt(tmp_path / "b.dat", q, header="q_a q_b q_c", comments="")
-    with pytest.raises(DataError, match=r"--time-unit tick: the log has no time/tick column"):
+    with pytest.raises(DataError, match=r"`time_unit='tick'`: the log has no time/tick column"):
         _quiet(tmp_path / "b.dat", time_unit="tick", rate=1000)
 
 

@@ -192,7 +192,7 @@ def test_mesh_escapes_are_dropped_with_a_warning_and_never_read(tree, monkeypatc
     geom, msgs, text = _geometry(_urdf(tree / "desc", ["meshes/in.stl", *escapes]), monkeypatch)
     assert [Path(o.meshPath) for o in geom.geometryObjects] == [tree / "desc/meshes/in.stl"]
     assert len(msgs) == len(escapes) and all(e in " ".join(msgs) for e in escapes)
-    assert "package folder" in msgs[4] and "--package-path" in msgs[4]
+    assert "package folder" in msgs[4] and "`package_paths=DIR`" in msgs[4]
     assert "passwd" not in text and "outside" not in text and "secret_pkg" not in text  # never handed to the mesh loader
 
 
@@ -229,7 +229,7 @@ def test_mjcf_escapes_are_refused(tree, extra, what):
     (tree / "desc/sub.xml").write_text('<mujoco><include file="/etc/shadow"/></mujoco>')
     path = tree / "desc/m.xml"
     path.write_text(MJCF.format(extra=extra))
-    with pytest.raises(RobotModelError, match="--package-path") as err:
+    with pytest.raises(RobotModelError, match="`package_paths=DIR`") as err:
         load_robot(path)
     assert what in str(err.value) and "\n" not in str(err.value)
 

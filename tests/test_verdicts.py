@@ -250,7 +250,7 @@ def test_plausibility_errors_name_the_quantity(arm_logs, panda):
     total = doctored(lambda p: p.__setitem__(slice(0, 70, 10), 1.8 * p[0:70:10]))
     total.diagnostics["verdicts"]["robot"]["total_mass"]["verdict"] = "data"
     assert any("total mass" in m and "+80 %" in m for m in plausibility_problems(total))
-    with pytest.raises(PlausibilityError, match="--accept-implausible"):
+    with pytest.raises(PlausibilityError, match="`accept=True`"):
         check_plausibility(heavy, urdf_values="regularised")
     assert check_plausibility(heavy, accept=True, urdf_values="regularised")
 

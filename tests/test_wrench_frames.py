@@ -83,7 +83,7 @@ def test_frame_map_and_its_errors(legs, world_log):
         wrench_frame_map("left_sole_lnk,contact", FEET, legs)
     with pytest.raises(OptionError, match="gives 1 frame"):
         wrench_frame_map("left_ft", FEET, legs)
-    with pytest.raises(OptionError, match="--contact-frames"):
+    with pytest.raises(OptionError, match="`contact_frames`"):
         wrench_frame_map("contact", (), legs)
     with pytest.raises(DataError, match="no base pose"):
         express_wrenches(world_log.with_(base_q=None), legs, dict(zip(FEET, FEET)))

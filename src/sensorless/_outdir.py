@@ -162,7 +162,7 @@ def lock(out: Path) -> Iterator[None]:
             os.close(fd)
             who = f" (PID {pid})" if pid else ""
             raise OutputError(f"{out}: another sensorless run{who} is writing this output directory; wait for it "
-                              "to finish or choose another --out") from None
+                              "to finish or choose another output directory") from None
         if _same(fd, path):
             break
         os.close(fd)

@@ -2,9 +2,20 @@
 
 All derive from :class:`SensorlessError`, which the CLI turns into one line and a
 non-zero exit code.
+
+A message that suggests a configuration change names the setting by its field, written with
+:func:`setting` as `` `field` `` or `` `field=value` `` (the keyword of the Python call, e.g.
+`` `rate=HZ` ``, `` `lock_joints=['a', 'b']` ``). A Python caller reads the keyword; the CLI
+rewrites each such field into its own option (``--rate HZ``, ``--lock a --lock b``), so one
+message serves both. :func:`settings_in` lists the settings a message names; :func:`did_you_mean`
+words the nearest known names for an unknown one.
 """
 
 from __future__ import annotations
+
+import difflib
+import re
+from typing import Iterable
 
 __all__ = [
     "SensorlessError",
@@ -32,11 +43,58 @@ __all__ = [
     "IdentifiabilityWarning",
     "DataWarning",
     "RobotModelWarning",
+    "did_you_mean",
+    "python_only",
+    "setting",
+    "settings_in",
 ]
+
+_NO_VALUE = object()
+SETTING_PATTERN = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)(?:=([^`]*))?`")
+"""A setting named in a message: `` `field` `` or `` `field=value` `` (group 1: field, group 2: value text)."""
+
+
+def setting(field: str, value: object = _NO_VALUE, *, placeholder: str | None = None) -> str:
+    """The configuration setting ``field`` as a message names it: `` `field` ``, `` `field=value` ``
+    (``repr(value)``) or `` `field=PLACEHOLDER` `` (e.g. ``HZ``, ``FILE``: a value to fill in)."""
+    if placeholder is not None:
+        return f"`{field}={placeholder}`"
+    return f"`{field}`" if value is _NO_VALUE else f"`{field}={value!r}`"
+
+
+PYTHON_ONLY_PATTERN = re.compile(r" ?\(in Python: [^()]*(?:\([^()]*\)[^()]*)*\)")
+"""A note only a Python caller can act on (:func:`python_only`); the CLI leaves it out."""
+
+
+def python_only(note: str) -> str:
+    """``" (in Python: note)"``: advice about a call only a Python caller makes (the CLI leaves it out)."""
+    return f" (in Python: {note})"
+
+
+def settings_in(message: object) -> list[tuple[str, str | None]]:
+    """(field, value text or None) of every setting ``message`` names (written by :func:`setting`)."""
+    return [(m.group(1), m.group(2)) for m in SETTING_PATTERN.finditer(str(message))]
+
+
+def did_you_mean(name: object, known: Iterable[object], n: int = 3, cutoff: float = 0.6) -> str:
+    """``"did you mean 'a' or 'b'?"`` for the known names closest to ``name`` (difflib ratio ≥
+    ``cutoff``, case-insensitive), or ``""`` when none is close. One wording for robots, frames,
+    joints and columns."""
+    names = [str(k) for k in known]
+    lower: dict[str, str] = {}
+    for k in names:
+        lower.setdefault(k.lower(), k)
+    close = difflib.get_close_matches(str(name).lower(), list(lower), n=n, cutoff=cutoff)
+    return f"did you mean {' or '.join(repr(lower[c]) for c in close)}?" if close else ""
 
 
 class SensorlessError(Exception):
     """Base class of every error this package raises on purpose."""
+
+    @property
+    def settings(self) -> list[tuple[str, str | None]]:
+        """The settings the message suggests changing (:func:`settings_in`)."""
+        return settings_in(self)
 
 
 class RobotModelError(SensorlessError):

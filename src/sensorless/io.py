@@ -40,7 +40,7 @@ import numpy as np
 
 from . import _outdir
 from ._outdir import MANIFEST, TOOL, read_manifest, recover_output
-from .errors import InputError, OutputError
+from .errors import InputError, OutputError, setting
 
 __all__ = [
     "MANIFEST",
@@ -199,7 +199,7 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
     """
     path = Path(path)
     if path.is_dir():
-        raise OutputError(f"{path}: is a directory; --out needs a file name (e.g. {path / 'out.npz'})")
+        raise OutputError(f"{path}: is a directory; the output needs a file name (e.g. {path / 'out.npz'})")
     kind = _special_kind(path)
     if kind:
         raise OutputError(f"{path}: is {kind}, not a regular file; refusing to write over it")
@@ -213,9 +213,9 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
         folder = rp if rp.is_dir() else rp.parent if (rp.parent / MANIFEST).is_file() else None
         if folder is not None and _inside(real, folder) and ((folder / MANIFEST).is_file() or path.exists()):
             raise OutputError(f"{path}: lies inside the input folder {folder}; refusing to write into it "
-                              "(choose an --out outside it)")
+                              "(choose an output outside it)")
     if (path.exists() or path.is_symlink()) and not force:
-        raise OutputError(f"{path}: output file exists; pass --force to replace it")
+        raise OutputError(f"{path}: output file exists; replace it with {setting('force', True)}")
     return path
 
 
@@ -322,12 +322,13 @@ def _check_replaceable(out: Path, force: bool, inputs) -> None:
     if not out.exists():
         return
     if not force:
-        raise OutputError(f"{out}: output directory exists; pass --force to replace it (a previous sensorless output only)")
+        raise OutputError(f"{out}: output directory exists; replace it with {setting('force', True)} (a previous "
+                          "sensorless output only)")
     doc = read_manifest(out)
     if doc is None:
         raise OutputError(
             f"{out}: refusing to replace a directory sensorless did not create (no valid {MANIFEST}); "
-            "choose a new --out or remove it yourself"
+            "choose a new output directory or remove it yourself"
         )
     files, dirs = _outdir.tree(out)
     listed = {str(f) for f in doc["files"]}
@@ -343,7 +344,7 @@ def _check_replaceable(out: Path, force: bool, inputs) -> None:
     edited = _outdir.changed_file(out, doc, missing_ok=True)
     if edited is not None:
         raise OutputError(f"{out}: refusing to replace it: {edited} was changed since sensorless wrote it "
-                          "(its SHA-256 differs from the manifest); move it away or choose another --out")
+                          "(its SHA-256 differs from the manifest); move it away or choose another output directory")
 
 
 @contextlib.contextmanager

@@ -15,7 +15,6 @@ Conventions
 
 from __future__ import annotations
 
-import difflib
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Sequence
 import numpy as np
 import pinocchio as pin
 
-from .errors import JointNameError, RobotModelError
+from .errors import JointNameError, RobotModelError, did_you_mean, setting
 from .parameters import pin_inertia
 from .xacro_expand import expand_xacro
 
@@ -99,7 +98,8 @@ class Robot(Actuation):
         unknown = [j for j in self.passive_joints if j not in self.joint_names]
         if unknown:
             raise JointNameError(
-                f"unknown passive joint(s) {unknown}; the model has {list(self.joint_names)}", self.source or self.name)
+                f"unknown passive joint(s) {unknown}{_hint(unknown, self.joint_names)}; the model has "
+                f"{list(self.joint_names)}", self.source or self.name)
         if not self.actuated_joints:
             self.actuated_joints = tuple(j for j in self.joint_names if j not in self.passive_joints)
         unknown = [j for j in self.actuated_joints if j not in self.joint_names]
@@ -143,14 +143,16 @@ class Robot(Actuation):
             return self._jid[name]
         except KeyError:
             raise RobotModelError(
-                f"{self.source or self.name}: unknown joint '{name}'; known joints: {list(self.joint_names)}"
+                f"{self.source or self.name}: unknown joint '{name}'{_hint([name], self.joint_names)}; known joints: "
+                f"{list(self.joint_names)}"
             ) from None
 
     def frame_id(self, name: str) -> int:
         """Pinocchio frame index of ``name`` (RobotModelError if unknown)."""
         if not self.model.existFrame(name):
             frames = [f.name for f in self.model.frames]
-            raise RobotModelError(f"{self.source or self.name}: unknown frame '{name}'; known frames: {frames}")
+            raise RobotModelError(f"{self.source or self.name}: unknown frame '{name}'{_hint([name], frames)}; "
+                                  f"known frames: {frames}")
         return self.model.getFrameId(name)
 
     def v_index(self, joint: str) -> int:
@@ -206,14 +208,14 @@ class Robot(Actuation):
             if dup:
                 parts.append(f"duplicate joint(s) {dup}")
             hints = []
-            close = {n: m[0] for n in unknown if (m := difflib.get_close_matches(n, missing, n=1, cutoff=0.5))}
+            close = {n: m for n in unknown if (m := did_you_mean(n, missing, n=1, cutoff=0.5))}
             if close:
-                hints.append("did you mean " + ", ".join(f"{n!r} → {m!r}" for n, m in close.items())
-                             + " (rename them in the log, or list the columns in the robot's joint order: "
-                             "--columns 'q=COL|COL|...;v=...;tau=...')")
+                hints.append("; ".join(f"for {n!r}, {m}" for n, m in close.items())
+                             + " (rename them in the log, or name the log's columns of each joint in the robot's "
+                             f"joint order: {setting('joint_names', placeholder='...')})")
             if missing and not unknown:
                 hints.append("joints that do not move in the log (a gripper, a locked axis) can be locked: "
-                             + " ".join(f"--lock {n}" for n in missing) + " (lock_joints=[...] in Python)")
+                             + setting("lock_joints", list(missing)))
             raise JointNameError(
                 "; ".join(parts) + f" (robot '{self.name}' has {list(self.joint_names)})"
                 + "".join(f"; {h}" for h in hints), source
@@ -329,8 +331,8 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
 
     if spec not in erd.robots_loader.ROBOTS:
         known = sorted(erd.robots_loader.ROBOTS)
-        close = difflib.get_close_matches(str(spec).lower(), known + ["dvrk_psm"], n=3, cutoff=0.6)
-        hint = f"did you mean {' or '.join(repr(c) for c in close)}? " if close else ""
+        hint = did_you_mean(spec, known + ["dvrk_psm"])
+        hint = hint + " " if hint else ""
         raise RobotModelError(
             f"'{spec}': neither a .urdf/.xacro/.xml file nor an example-robot-data name; {hint}"
             f"(known names: {', '.join(known)}, and dvrk_psm)"
@@ -377,7 +379,8 @@ def load_robot(
         names = list(model.names)
         bad = [j for j in lock_joints if j not in names]
         if bad:
-            raise RobotModelError(f"{source}: cannot lock unknown joint(s) {bad}; known: {names[1:]}")
+            raise RobotModelError(f"{source}: cannot lock unknown joint(s) {bad}{_hint(bad, names[1:])}; "
+                                  f"known: {names[1:]}")
         ids = [names.index(j) for j in lock_joints]
         model = pin.buildReducedModel(model, ids, pin.neutral(model))
     locked = [j for j in passive_joints if j in lock_joints]
@@ -440,8 +443,9 @@ def add_frame(robot, name: str, parent: str, xyz: Sequence[float], rpy: Sequence
     if model.existFrame(name):
         raise RobotModelError(f"{label}: cannot add frame '{name}': the model already has a frame of that name")
     if not model.existFrame(parent):
-        raise RobotModelError(f"{label}: cannot add frame '{name}': unknown parent frame '{parent}'; known frames: "
-                              f"{[f.name for f in model.frames]}")
+        frames = [f.name for f in model.frames]
+        raise RobotModelError(f"{label}: cannot add frame '{name}': unknown parent frame '{parent}'"
+                              f"{_hint([parent], frames)}; known frames: {frames}")
     if xyz.shape != (3,) or rpy.shape != (3,) or not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(rpy))):
         raise RobotModelError(f"{label}: frame '{name}' needs a finite position x,y,z and rotation r,p,y, "
                               f"got {xyz.tolist()} and {rpy.tolist()}")
@@ -476,3 +480,12 @@ def frame_table(robot) -> list[dict]:
             "world_origin": w.translation.tolist(), "world_axes": w.rotation.T.tolist(),
         })
     return out
+
+
+def _hint(unknown: Sequence[str], known: Sequence[str]) -> str:
+    """"; for 'x', did you mean 'y'?" for each unknown name with a close known one (:func:`did_you_mean`)."""
+    parts = [(n, did_you_mean(n, known)) for n in unknown]
+    parts = [(n, h) for n, h in parts if h]
+    if len(parts) == 1 and len(unknown) == 1:
+        return f" ({parts[0][1]})"
+    return "".join(f"; for '{n}', {h}" for n, h in parts)

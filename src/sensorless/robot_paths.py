@@ -27,7 +27,7 @@ from .model_checks import read_xml
 
 __all__ = ["PathEscape", "check_mjcf_paths", "confine_urdf_meshes", "package_roots", "resolve_resource"]
 
-_HINT = "add its folder with --package-path (package_paths in Python)"
+_HINT = "add its folder to `package_paths=DIR`"
 
 
 class PathEscape(RobotModelError):

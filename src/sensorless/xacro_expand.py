@@ -28,7 +28,7 @@ DEFAULT_TIMEOUT = 30.0
 DEFAULT_MEMORY_MB = 1024
 
 
-def refuse_xacro(path: Path, how: str = "pass trust_xacro=True") -> None:
+def refuse_xacro(path: Path, how: str = "set `trust_xacro=True`") -> None:
     """UntrustedModelError: the file can run code when expanded; how to expand it yourself.
     Nothing of the file is read."""
     raise UntrustedModelError(

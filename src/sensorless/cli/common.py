@@ -20,8 +20,10 @@ from .console import console, err_console
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
+from .blas import blas_threads_for_command
+from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, BaseVelocity, TimeUnit
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -85,10 +87,15 @@ def _print_line(label: str, style: str, message: str) -> None:
     err_console.print(Text.assemble((label, style), " ", message), highlight=False, soft_wrap=True)
 
 
+def warn_line(message: object) -> None:
+    """One yellow ``warning:`` line on stderr, settings named in the command's flags (:func:`cli_words`)."""
+    _print_line("warning:", "yellow", one_line(cli_words(message)))
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     name = getattr(category, "__name__", "Warning")
     prefix = "" if name in ("UserWarning", "IdentifiabilityWarning", "DataWarning") else f"{name}: "
-    _print_line("warning:", "yellow", prefix + one_line(message))
+    _print_line("warning:", "yellow", prefix + one_line(cli_words(message)))
 
 
 def guarded(fn):
@@ -106,7 +113,7 @@ def guarded(fn):
             except typer.Exit:
                 raise
             except SensorlessError as exc:
-                _print_line("error:", "bold red", one_line(exc))
+                _print_line("error:", "bold red", one_line(cli_words(exc)))
                 raise typer.Exit(2) from None
             except Exception as exc:  # noqa: BLE001 - last line of defence for the user
                 if os.environ.get("SENSORLESS_DEBUG"):
@@ -116,31 +123,6 @@ def guarded(fn):
                 raise typer.Exit(3) from None
 
     return wrapper
-
-
-_BLAS_ENV = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
-
-
-@contextlib.contextmanager
-def blas_threads_for_command() -> Iterator[None]:
-    """BLAS on one thread while a command runs, unless the user set ``OPENBLAS_NUM_THREADS`` (or MKL/BLIS).
-
-    The commands' products and factorisations are small (p ≲ a few hundred); threaded BLAS only
-    adds synchronisation, and under CPU contention it was measured 39× slower (a 252×84 QR took
-    0.3 s). NumPy and SciPy each bundle their own OpenBLAS: the loaded ones are limited with
-    threadpoolctl, the ones loaded during the command read the environment variable set here.
-    """
-    if any(v in os.environ for v in _BLAS_ENV):
-        yield
-        return
-    from threadpoolctl import threadpool_limits
-
-    os.environ["OPENBLAS_NUM_THREADS"] = "1"
-    try:
-        with threadpool_limits(limits=1, user_api="blas"):
-            yield
-    finally:
-        os.environ.pop("OPENBLAS_NUM_THREADS", None)
 
 
 @contextlib.contextmanager
@@ -224,7 +206,10 @@ def model_preprocessing(model, **given) -> dict:
     ``--columns`` carrying ':gain=' drops the model's gains; ``--gains off`` drops them too."""
     from ..identification.artifact import ModelArtifact, read_preprocessing
 
+    from ..data.limits import current_options
+
     saved = model.preprocessing if isinstance(model, ModelArtifact) else read_preprocessing(model)
+    given = {"angle_unit": current_options().get("angle_unit"), **given}  # --angle-unit (log_reading_options)
     out = {k: (given.get(k) if given.get(k) is not None else saved.get(k)) for k in PREPROCESSING_KEYS}
     if isinstance(given.get("columns"), str) and ":gain=" in given["columns"] and given.get("gains") is None:
         out["gains"] = None
@@ -270,7 +255,7 @@ def load_robot_cli(spec, **kwargs):
         return load_robot(spec, trust_xacro=source.get("trust_xacro", False),
                           package_paths=source.get("package_paths", ()), **kwargs)
     except UntrustedModelError:
-        refuse_xacro(Path(str(spec)), "rerun with --trust-xacro")
+        refuse_xacro(Path(str(spec)), "rerun with `trust_xacro=True`")
 
 
 def robot_source_options(fn):
@@ -360,6 +345,9 @@ def add_options(options: dict, *, into: Optional[str] = None, first: bool = Fals
 
 
 _READING_OPTIONS = {
+    "angle_unit": (Optional[AngleUnit], lambda: typer.Option(
+        None, help="unit of the logged joint angles: rad | deg (q, v, v̇ of revolute joints converted from degrees; "
+                   "recorded in result.json; default rad, or the model's)")),
     "max_log_memory": (Optional[str], lambda: typer.Option(
         None, help="memory a log may expand to when read and preprocessed, e.g. 8GiB (default: a quarter of the "
                    "available memory, or $SENSORLESS_MAX_LOG_MEMORY); a larger log is refused before reading")),
@@ -375,7 +363,7 @@ _READING_OPTIONS = {
 
 
 def log_reading_options(skip_bad: bool = True):
-    """Decorator: ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
+    """Decorator: ``--angle-unit``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
     from ..data.limits import read_options
@@ -391,7 +379,8 @@ def log_reading_options(skip_bad: bool = True):
         def run(*args, reading: dict, **kwargs):
             with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
                               accept_implausible_gains=reading["accept_implausible_gains"],
-                              skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"]):
+                              skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"],
+                              angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"])):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)
@@ -477,7 +466,8 @@ def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> t
                       gains=opts["gains"], trim=log_trims(prep.get("trim"), paths), resample=opts["resample"],
                       velocity=opts["velocity"], max_gap=opts["max_gap"], outliers=outliers, rest=opts.get("rest"),
                       time_unit=opts.get("time_unit"), base_velocity=opts.get("base_velocity"),
-                      pose_max_gap=opts.get("pose_max_gap"), wrench_frames=opts.get("wrench_frames"))
+                      pose_max_gap=opts.get("pose_max_gap"), wrench_frames=opts.get("wrench_frames"),
+                      angle_unit=opts.get("angle_unit"))
     return trajs, opts
 
 

@@ -8,6 +8,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
+from ..data.limits import current_options
 from ..errors import DataError, OptionError
 from .common import (
     log_reading_options,
@@ -102,14 +103,15 @@ def drive_gains(
         elif not (np.isfinite(written[j]) and written[j] > 0):
             raise DataError(f"the pair does not identify the gain of '{j}' (no or too little payload torque there, "
                             "or no payload difference between the logs); "
-                            "pass --nominal-gains for it, or move the payload's CoM (--com) off that joint's axis",
+                            "give --nominal-gains for it, or move the payload's CoM (--com) off that joint's axis",
                             str(loaded))
     doc["gains"] = written
     doc["estimated_gains"] = dict(zip(res.joints, map(float, res.gains)))
     doc["from_nominal"] = missing if nominal is not None else []
     doc.update({"robot": r.name, "unloaded": str(unloaded), "loaded": str(loaded)})
     doc["settings"].update({"columns": columns, "resample": resample, "savgol_window": savgol_window,
-                            "lowpass": lowpass, **log_settings(trims, [unloaded, loaded], [u, lo])})
+                            "lowpass": lowpass, "angle_unit": current_options().get("angle_unit") or "rad",
+                            **log_settings(trims, [unloaded, loaded], [u, lo])})
     write_json_atomic(doc, out)
     _print(res, missing, nominal is not None)
     console.print(f"wrote {out}")

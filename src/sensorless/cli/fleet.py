@@ -16,7 +16,8 @@ def identify_on_dask(structure, files, scheduler: str, workers, reader, method: 
     from ..identification.stribeck import StribeckCandidates
 
     from ..identification.fleet import identify_fleet
-    from ..regressor.distributed import compress_files, connect
+    from ..regressor.dask_cluster import connect
+    from ..regressor.distributed import compress_files
 
     lmi_auto = method == "lmi" and lmi_kw.get("gamma") == "auto"
     with connect(scheduler, workers) as client:

@@ -17,6 +17,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
+from ..data.limits import current_options, read_options
 from ..errors import OptionError
 from .common import (
     MultiValueCommand,
@@ -37,19 +38,25 @@ from .options import FrictionState, TimeUnit, Velocity
 __all__ = ["bench_friction_state", "friction", "friction_model_log", "predict_friction", "read_bench_logs"]
 
 #: the preprocessing keys a friction model stores (settings.preprocessing) and predict reuses
-BENCH_KEYS = ("columns", "gains", "rate", "time_unit", "max_gap", "velocity", "savgol_window")
+BENCH_KEYS = ("columns", "gains", "rate", "time_unit", "max_gap", "velocity", "savgol_window", "angle_unit")
 
 
 def read_bench_logs(paths, prep: dict, *, joints=None, need_acceleration: bool = True) -> list:
     """Bench logs (:func:`~sensorless.data.bench_log.read_bench_log`) with the options ``prep``
     (:data:`BENCH_KEYS` and ``trim``)."""
-    from ..data.bench_log import DEFAULT_BENCH_GAP, read_bench_log
     from ..data.prepare import check_preprocessing, parse_columns
 
     check_preprocessing(prep.get("rate"), None, prep.get("savgol_window"), 1)
     cols = prep.get("columns")
     cols = parse_columns(cols) if isinstance(cols, str) else cols
     gap = prep.get("max_gap")
+    with read_options(angle_unit=prep.get("angle_unit")):  # --angle-unit, or the model's
+        return _read_bench_logs(paths, prep, cols, gap, joints, need_acceleration)
+
+
+def _read_bench_logs(paths, prep: dict, cols, gap, joints, need_acceleration: bool) -> list:
+    from ..data.bench_log import DEFAULT_BENCH_GAP, read_bench_log
+
     return [read_bench_log(p, columns=cols, joints=joints, gains=prep.get("gains"), rate=prep.get("rate"),
                            time_unit=None if prep.get("time_unit") is None else str(prep["time_unit"]),
                            trim=prep.get("trim"), max_gap=DEFAULT_BENCH_GAP if gap is None else float(gap),
@@ -103,7 +110,8 @@ def friction(
     term_list = tuple(t.strip() for t in terms.split(",") if t.strip()) or DEFAULT_TERMS
     names = [j.strip() for j in joints.split(",") if j.strip()] if joints else None
     prep = {"columns": columns, "gains": gains, "rate": rate, "time_unit": time_unit, "max_gap": max_gap,
-            "velocity": str(velocity), "savgol_window": savgol_window, "trim": trim}
+            "velocity": str(velocity), "savgol_window": savgol_window, "trim": trim,
+            "angle_unit": current_options().get("angle_unit") or "rad"}
     with atomic_outdir(out, force, inputs=path_inputs(data, test)) as tmp:
         need_a = "inertia" in term_list
         one = names if names and len(names) == 1 else None  # names the joint of a bare-column log
@@ -202,6 +210,7 @@ def friction_model_log(model: Path, data: Path, prep: dict, *, need_acceleration
     from ..identification.artifact import load_friction_model
 
     art = load_friction_model(model)
+    prep = {"angle_unit": current_options().get("angle_unit"), **prep}  # --angle-unit (log_reading_options)
     bad = [f"--{k}" for k in ("lowpass", "resample") if prep.get(k) is not None]
     if bad:
         raise OptionError(f"{' and '.join(bad)} {'does' if len(bad) == 1 else 'do'} not apply to a friction-only "

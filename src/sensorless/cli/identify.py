@@ -36,6 +36,7 @@ from .common import (
     lock_option,
     floating_base_option,
     robot_option,
+    warn_line,
 )
 from .options import (
     RATE_HELP,
@@ -196,7 +197,7 @@ def identify(
             if scheduler is None:
                 train = _imu_frame_logs(train, r, imu_frame, savgol_window)
         # on a cluster, wrench mode with --contact-rows auto: the first training log, read here, decides the rows
-        rows_from = _first_training_log(data, r, prep) if (scheduler is not None and contact_mode == "wrench"
+        rows_from = _first_training_log(data, r, prep, skip_bad) if (scheduler is not None and contact_mode == "wrench"
                                                            and contact_rows == "auto") else None
         structure = _structure(r, joint_terms, 0.0 if coulomb_smoothing == "auto" else coulomb_smoothing, contact_frames, contact_dims, contact_offset,
                                contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
@@ -211,10 +212,11 @@ def identify(
 
             friction_fit, first = None, rows_from
             if _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms):
-                first = _first_training_log(data, r, prep)
+                first = _first_training_log(data, r, prep, skip_bad)
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
-            reader = LogReader(**prep, imu_frame=imu_frame, skip_bad_rows=current_options().get("skip_bad_rows"))
+            reader = LogReader(**prep, imu_frame=imu_frame, skip_bad_rows=current_options().get("skip_bad_rows"),
+                               angle_unit=current_options().get("angle_unit"))
             result, fleet = identify_on_dask(structure, data, scheduler, workers, reader,
                                              method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
@@ -228,7 +230,7 @@ def identify(
                 result.settings["friction"] = _friction_settings(friction_fit, friction_fit, data[0])
             reuse = first is not None and fleet.files and Path(fleet.files[0]) == Path(data[0])
             data, skipped = [Path(p) for p in fleet.files], fleet.skipped
-            train = (first if reuse else _first_training_log(data, r, prep)) if not val else []
+            train = (first if reuse else _first_training_log(data, r, prep, True)) if not val else []
             if imu_frame:
                 train = _imu_frame_logs(train, r, imu_frame, savgol_window)
         else:
@@ -271,7 +273,7 @@ def identify(
         if scheduler is not None or skip_bad:
             result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
         for f, e in skipped:
-            err_console.print(f"[yellow]warning:[/] skipped {e}", highlight=False, soft_wrap=True)
+            warn_line(f"skipped {e}")
         _plausible(result, lmi_kw, accept_implausible, urdf_values)
         doc = result.to_dict()
         if scheduler is not None:  # identified on the workers: the same model, for scoring and plots
@@ -390,8 +392,8 @@ def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smooth
     Stribeck candidates, chosen on the client from the summed equations). Without a readable first
     log: sgn(v) (ε = 0) and a fixed vs, with a warning."""
     if not first:
-        err_console.print("[yellow]warning:[/] --scheduler: the first training log is not readable here; "
-                          "--coulomb-smoothing auto falls back to sgn(v) (ε = 0)", highlight=False)
+        warn_line(f"--scheduler: the first training log ({path}) is not usable on this machine; "
+                  "--coulomb-smoothing auto falls back to sgn(v) (ε = 0)")
         return structure, None
     s, fit = _first_log_friction(structure, first, path, r, prep, coulomb_smoothing, stribeck_velocity, lowpass)
     eps = ", ".join(f"{j} {e:.3g}" for j, e in fit.coulomb_smoothing.items())
@@ -401,14 +403,22 @@ def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smooth
     return s, fit
 
 
-def _first_training_log(data, r, prep: dict) -> list:
-    """The first training log for the torque plot, if this machine can read it (else no plot)."""
+def _first_training_log(data, r, prep: dict, skip_bad: bool = False) -> list:
+    """The first training log (friction law, contact rows, torque plot), if this machine has it; a file
+    here that fails raises its error, as the workers would (one line, as a single-process run), unless
+    ``skip_bad`` (then it is left to the workers to skip)."""
+    import os
+
     from .common import load_log
 
+    if not os.path.isfile(str(data[0])):
+        return []
     try:
         return [load_log(data[0], r, **prep)]
     except SensorlessError:
-        return []
+        if skip_bad:
+            return []
+        raise
 
 
 def _imu_frame_logs(logs, robot, frame: str, savgol_window):
@@ -441,5 +451,4 @@ def _plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -
     if problems:
         result.diagnostics["implausible_accepted"] = problems
         for p in problems:
-            err_console.print(f"[yellow]warning:[/] implausible (kept: --accept-implausible): {p}",
-                              highlight=False, soft_wrap=True)
+            warn_line(f"implausible (kept: --accept-implausible): {p}")

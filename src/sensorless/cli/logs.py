@@ -33,9 +33,10 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
                            decimate, max_gap, rest="auto", time_unit=None, base_velocity="auto", pose_max_gap=None,
                            wrench_frames=None, paths=(), log_paths=None) -> dict:
     """settings.preprocessing for result.json: the options (gains resolved per joint name,
-    column map parsed, gain suffix moved to ``gains``), the trim windows and dropped corrupt rows
-    of each log (:func:`log_settings`)."""
+    column map parsed, gain suffix moved to ``gains``, ``--angle-unit``), the trim windows and dropped
+    corrupt rows of each log (:func:`log_settings`)."""
     from ..data.gains import split_gain_modifiers
+    from ..data.limits import current_options
 
     cols = parse_columns(columns) if isinstance(columns, str) else columns
     cols, _, _ = split_gain_modifiers(cols, "--columns")
@@ -44,6 +45,7 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
             "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
             "decimate": decimate, "rest": rest, "time_unit": time_unit,
             "base_velocity": base_velocity, "pose_max_gap": pose_max_gap, "wrench_frames": wrench_frames,
+            "angle_unit": current_options().get("angle_unit") or "rad",
             **log_settings(trim, paths, logs, log_paths)}
 
 

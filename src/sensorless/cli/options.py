@@ -20,7 +20,7 @@ from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
            "WrenchOffset", "Rest", "Criterion", "ForceReference", "PayloadMode", "Align", "ALIGN_HELP",
-           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "FrictionState", "config_option", "check_config",
+           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "FrictionState", "config_option", "check_config",
            "resolved_options"]
 
 
@@ -52,6 +52,7 @@ Training = _choices("Training", ("rich", "stance"))
 Acceleration = _choices("Acceleration", ("simulator", "logged", "savgol", "savgol_imu", "none"))
 TauLog = _choices("TauLog", ("sample", "mean"))
 TimeUnit = _choices("TimeUnit", ("s", "ms", "us", "ns", "tick"))
+AngleUnit = _choices("AngleUnit", ("rad", "deg"))
 FrictionState = _choices("FrictionState", ("auto", "on", "off"))
 TIME_UNIT_HELP = ("unit of the logs' time column when it is not seconds: ms, us, ns, or tick (a controller's tick "
                   "counter, with --rate HZ); epoch stamps in ms/us/ns are recognised without it, a tick column is "

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import DataError
+from ..errors import DataError, setting
 from .trajectory import Trajectory
 
 __all__ = ["ALIGNMENTS", "Lag", "MIN_CORRELATION", "MIN_OVERLAP", "Pairing", "align_pair", "clock_offset",
@@ -77,7 +77,7 @@ def estimate_lag(load: Trajectory, ref: Trajectory, *, min_correlation: float = 
     i = int(np.argmax(c))
     if not np.isfinite(c[i]):
         raise DataError(f"does not overlap {ref.source} by half of the shorter log at any lag: the two are not "
-                        "runs of one trajectory (or one is mostly idle; trim it with --trim FILE=START:END)",
+                        f"runs of one trajectory (or one is mostly idle; trim it: {setting('trim', placeholder='FILE=START:END')})",
                         load.source)
     k = int(lags[i])
     sa = a[max(0, -k): max(0, -k) + overlap[i]]
@@ -186,8 +186,9 @@ def pair_logs(load: Trajectory, ref: Trajectory, align: str = "auto") -> tuple[T
         raise DataError(f"align must be one of {ALIGNMENTS}, got {align!r}")
     if align == "rows":
         if len(load) != len(ref):
-            raise DataError(f"has {len(load)} samples but {ref.source} has {len(ref)}: pairing row by row (--align "
-                            "rows) needs the same rows; trim them to the same rows, or pair by time (--align auto)",
+            raise DataError(f"has {len(load)} samples but {ref.source} has {len(ref)}: pairing row by row "
+                            f"({setting('align', 'rows')}) needs the same rows; trim them to the same rows, or pair by "
+                            f"time ({setting('align', 'auto')})",
                             load.source)
         return load, ref, Pairing(load.source, ref.source, "rows", None, len(load))
     lag = pair_lag(load, ref)

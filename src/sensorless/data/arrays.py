@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import DataError, InputError, ShapeMismatchError
+from ..errors import DataError, InputError, ShapeMismatchError, setting
 from .containers import check_hdf5, check_npz
 from .imu import IMU_KEY
 from .names import FIELD_NAMES, JOINT_NAME_KEYS, RawLog, pick_key, short_list
@@ -64,7 +64,7 @@ def joint_names_of(raw: Any, src: str, key: str = "joint_names") -> list[str]:
 
 def missing_q(keys: list[str], src: str) -> DataError:
     return DataError(f"no joint positions found (looked for {list(FIELD_NAMES['q'])}); available: {short_list(keys)}; "
-                     "say which array holds them: --columns 'q=NAME'", src)
+                     f"say which array holds them: {setting('columns', {'q': 'NAME'})}", src)
 
 
 def _pick_fields(keys: list[str], columns: Mapping | None, src: str, base=lambda k: k) -> dict[str, str]:

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..errors import DataError, DataWarning, ShapeMismatchError, TimestampError
+from ..errors import DataError, DataWarning, ShapeMismatchError, TimestampError, setting
 from .filtering import SavitzkyGolay, _note, default_savgol_window, butter_lowpass, sign_continuous
 from .trajectory import Trajectory
 
@@ -198,9 +198,10 @@ def clean_base_pose(
     worst = int(np.argmax(gaps))
     if gaps[worst] > limit:
         rule = (f"max_gap = {max_gap} s" if max_gap is not None else
-                f"{max_gap_periods:g} median pose periods ({limit:.3f} s; --pose-max-gap PERIODS raises it)")
+                f"{max_gap_periods:g} median pose periods ({limit:.3f} s; {setting('pose_max_gap', placeholder='PERIODS')} "
+                "raises it)")
         raise DataError(f"the base pose has a {gaps[worst]:.3f} s gap (held or missing) from t = {t[idx[worst]]:.3f} s "
-                        f"to {t[idx[worst + 1]]:.3f} s, longer than {rule}; or trim the log around it (--trim)", source)
+                        f"to {t[idx[worst + 1]]:.3f} s, longer than {rule}; or trim the log around it ({setting('trim')})", source)
     tv, pv, qv = t[idx], p[idx], quat[idx]
     h = 1.0 / rate if rate else period
     grid = np.minimum(tv[0] + h * np.arange(int(np.floor((tv[-1] - tv[0]) / h + 1e-9)) + 1), tv[-1])

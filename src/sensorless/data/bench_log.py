@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import DataError, DataWarning, OptionError, TimestampError
+from ..errors import DataError, DataWarning, OptionError, TimestampError, setting
 from .trajectory import Trajectory
 
 __all__ = ["DEFAULT_BENCH_GAP", "bare_columns", "read_bench_log"]
@@ -73,9 +73,9 @@ def read_bench_log(path: "str | Path", *, columns: "dict | None" = None, joints:
     from .readers import read_trajectory
 
     if velocity not in ("logged", "from-q"):
-        raise OptionError(f"--velocity must be 'logged' or 'from-q', got {velocity!r}")
+        raise OptionError(f"{setting('velocity')} must be 'logged' or 'from-q', got {velocity!r}")
     if not (np.isfinite(max_gap) and max_gap > 1):
-        raise OptionError(f"--max-gap must be a number of median periods > 1, got {max_gap!r}")
+        raise OptionError(f"{setting('max_gap')} must be a number of median periods > 1, got {max_gap!r}")
     src = str(path)
     bare = bare_columns(path) if columns is None else None
     names = list(joints) if joints else None
@@ -87,7 +87,7 @@ def read_bench_log(path: "str | Path", *, columns: "dict | None" = None, joints:
     traj = read_trajectory(path, columns=bare or columns, joint_names=names, rate=rate, time_unit=time_unit,
                            gains=gains, allow_duplicate_times=True)
     if traj.tau is None:
-        raise DataError("the log has no torque: give a 'tau' column, or currents with --gains", src)
+        raise DataError(f"the log has no torque: give a 'tau' column, or currents with {setting('gains')}", src)
     prov = dict(traj.provenance)
     if bare is not None and bare["q"] == bare.get("v"):
         traj = traj.with_(q=_integrate(traj.t, traj.v))
@@ -118,7 +118,7 @@ def read_bench_log(path: "str | Path", *, columns: "dict | None" = None, joints:
             v_new[lo:hi], a_new[lo:hi] = part
         if not keep.any():
             raise DataError(f"no stretch between gaps (steps over {max_gap:g} median periods) is long enough to "
-                            "differentiate; raise --max-gap or log the velocity and acceleration", src)
+                            f"differentiate; raise {setting('max_gap')} or log the velocity and acceleration", src)
         if not keep.all():
             warnings.warn(f"{src}: dropped {int((~keep).sum())} sample(s) in stretches between gaps too short to "
                           "differentiate", DataWarning, stacklevel=2)

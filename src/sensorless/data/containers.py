@@ -19,7 +19,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ..errors import DataError, InputError
+from ..errors import DataError, InputError, setting
 from .limits import FIXES, check_log_size, current_options, format_size, memory_budget
 
 __all__ = ["check_npz", "check_hdf5"]
@@ -81,9 +81,9 @@ def check_hdf5(f, keys: Iterable[str], src: str, allow_external: bool | None = N
         if not allow_external:
             if dset.is_virtual:
                 raise InputError(f"{src}: dataset '{key}' is a virtual dataset (its data live in other files; a "
-                                 "missing source reads as zeros); refused — pass --allow-hdf5-external to read it")
+                                 f"missing source reads as zeros); refused — read it with {setting('allow_external', True)}")
             if dset.id.get_create_plist().get_external_count() > 0:
                 raise InputError(f"{src}: dataset '{key}' has external raw storage (its bytes are read from another "
-                                 "file); refused — pass --allow-hdf5-external to read it")
+                                 f"file); refused — read it with {setting('allow_external', True)}")
         total += math.prod(dset.shape or ())
     check_log_size(src, total, f"its datasets ({total:.3g} numbers)", max_memory)

@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import DataError
+from ..errors import DataError, setting
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError, validate_trajectory
 
@@ -57,7 +57,7 @@ def _uniform_dt(traj: Trajectory, what: str) -> float:
     if not MIN_PERIOD <= med <= MAX_PERIOD:
         raise DataError(
             f"{what}: median sample period {med:.3g} s is outside [{MIN_PERIOD:g}, {MAX_PERIOD:g}] s; "
-            "is the time in the right unit (time_unit=...) or the rate right?", traj.source)
+            f"is the time in the right unit ({setting('time_unit')}) or the rate ({setting('rate')}) right?", traj.source)
     jitter = float(np.max(np.abs(dt - med)) / med)
     if jitter > MAX_JITTER:
         raise DataError(

@@ -26,7 +26,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DataError, JointNameError, ShapeMismatchError
+from ..errors import DataError, JointNameError, ShapeMismatchError, setting
 from .tabular import _is_number
 from .trajectory import Trajectory
 
@@ -198,13 +198,14 @@ def currents_to_torques(traj: Trajectory, gains: Any, current_field: str | None 
         if traj.tau is not None:
             raise DataError(
                 "the log has both torque and current columns; gains would replace the logged torque: "
-                "map only one of them (columns={'tau': ...} or {'current': ...})", src)
+                f"map only one of them ({setting('columns', {'tau': '...'})} or {setting('columns', {'current': '...'})})",
+                src)
         current = np.asarray(traj.extras["current"], dtype=float)
     else:
         if traj.tau is None:
             raise DataError(
                 "gains given but the log has no current columns; map them, e.g. "
-                "--columns 'q=pos_{joint};tau=i_{joint}:gain=...' or columns={'current': 'i_{joint}'}", src)
+                f"{setting('columns', {'q': 'pos_{joint}', 'current': 'i_{joint}'})}", src)
         current = np.asarray(traj.tau, dtype=float)
     if current.ndim == 1:
         current = current[:, None]

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DataError, RobotModelError, ShapeMismatchError
+from ..errors import DataError, RobotModelError, ShapeMismatchError, setting, did_you_mean
 from .filtering import SavitzkyGolay, _note, _uniform_dt, default_savgol_window
 from .trajectory import Trajectory
 
@@ -92,10 +92,13 @@ def imu_frame_base_acceleration(
     import pinocchio as pin  # imported on use (start-up time of the data layer)
 
     if not getattr(robot, "floating_base", False):
-        raise RobotModelError(f"{robot.name}: an IMU frame needs a floating-base robot (CLI: --floating-base)")
+        raise RobotModelError(f"{robot.name}: an IMU frame needs a floating-base robot ({setting('floating_base', True)})")
     if not robot.model.existFrame(frame):
-        near = [f.name for f in robot.model.frames if "imu" in f.name.lower()]
-        raise RobotModelError(f"{robot.name}: no frame '{frame}' for the IMU" + (f"; IMU-like frames: {near}" if near else ""))
+        names = [f.name for f in robot.model.frames]
+        near = [n for n in names if "imu" in n.lower()]
+        close = did_you_mean(frame, names)
+        raise RobotModelError(f"{robot.name}: no frame '{frame}' for the IMU" + (f"; {close}" if close else "")
+                              + (f"; IMU-like frames: {near}" if near else ""))
     model, data = robot.model, robot.data
     fid = model.getFrameId(frame)
     on_base = model.frames[fid].parentJoint == 1
@@ -154,7 +157,7 @@ def base_acceleration(
             raise DataError(f"'{IMU_KEY}' has a non-finite value at sample {bad[0][0]}", traj.source)
         if imu_frame is not None:
             if robot is None:
-                raise RobotModelError("imu_frame needs the robot model (robot=...)")
+                raise RobotModelError(f"{setting('imu_frame')} needs the robot model ({setting('robot')})")
             base_a = imu_frame_base_acceleration(robot, traj, imu_frame, dv[:, 3:])
         else:
             base_a = imu_base_acceleration(traj.base_q, traj.base_v, imu, dv[:, 3:], imu_offset, rotation=imu_rotation)

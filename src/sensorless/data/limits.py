@@ -27,7 +27,7 @@ import re
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import InputError, OptionError
+from ..errors import InputError, OptionError, setting
 
 __all__ = ["memory_budget", "parse_size", "format_size", "check_log_size", "prescan_text", "read_options",
            "current_options", "read_small_text", "FIXES", "ENV_VAR", "DEFAULT_FRACTION", "DEFAULT_CAP", "PIPELINE_FACTOR", "MAX_LINE_BYTES", "MAX_FIELDS"]
@@ -50,11 +50,12 @@ _UNITS = {"": 1, "b": 1, "k": 1000, "kb": 1000, "m": 1000**2, "mb": 1000**2, "g"
           "t": 1000**4, "tb": 1000**4, "kib": 1 << 10, "mib": 1 << 20, "gib": 1 << 30, "tib": 1 << 40}
 
 #: what a user can do about a log over budget
-FIXES = f"raise --max-log-memory (or {ENV_VAR}), or split the log (then --decimate N to thin each part)"
+FIXES = (f"raise {setting('max_memory', placeholder='SIZE')} (or {ENV_VAR}), or split the log (then "
+         f"{setting('decimate', placeholder='N')} to thin each part)")
 _OPTIONS: contextvars.ContextVar[dict] = contextvars.ContextVar("sensorless_read_options", default={})
 
 
-def parse_size(text: "str | int | float", what: str = "--max-log-memory") -> int:
+def parse_size(text: "str | int | float", what: str = "`max_memory`") -> int:
     """``'8GiB'``, ``'500MB'``, ``'2g'``, ``1e9`` → bytes (OptionError if not a positive size)."""
     if isinstance(text, (int, float)) and not isinstance(text, bool):
         val, unit = float(text), ""
@@ -112,7 +113,7 @@ def memory_budget(max_memory: "str | int | None" = None) -> tuple[int, str]:
     """(bytes a log may expand to, where that limit comes from)."""
     given = max_memory if max_memory is not None else _OPTIONS.get().get("max_memory")
     if given is not None:
-        return parse_size(given), "--max-log-memory"
+        return parse_size(given), setting("max_memory")
     env = os.environ.get(ENV_VAR)
     if env:
         return parse_size(env, ENV_VAR), ENV_VAR

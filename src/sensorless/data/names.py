@@ -17,7 +17,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DataError, DataWarning
+from ..errors import DataError, DataWarning, setting, did_you_mean
 
 __all__ = ["FIELD_NAMES", "TICK_NAMES", "JOINT_NAME_KEYS", "RawLog", "normalise", "field_of", "is_tick_name", "pick_key",
            "warn_unused", "short_list"]
@@ -86,16 +86,17 @@ def pick_key(fld: str, keys: Sequence[str], columns: Mapping | None, src: str,
     if columns is not None and fld in columns:
         key = columns[fld]
         if not isinstance(key, str):
-            raise DataError(f"--columns {fld}=... must name one array for this format (e.g. {fld}=data/{fld}), "
-                            f"got {key!r}", src)
+            raise DataError(f"{setting('columns', {fld: '...'})} must name one array for this format (e.g. "
+                            f"{setting('columns', {fld: f'data/{fld}'})}), got {key!r}", src)
         key = key.strip().lstrip("/")
         if key in keys:
             return key
         hits = [k for k in keys if base(k) == key] or [k for k in keys if normalise(k) == normalise(key)]
         if len(hits) == 1:
             return hits[0]
+        close = "" if hits else did_you_mean(key, keys)
         raise DataError(f"no array '{key}' (for '{fld}'" + (f"; several end in it: {hits}" if hits else "")
-                        + f"); available: {short_list(keys)}", src)
+                        + f"); {close + ' ' if close else ''}available: {short_list(keys)}", src)
     for alias in (FIELD_NAMES[fld] if names is None else names):
         hits = [k for k in keys if normalise(base(k)) == normalise(alias)]
         if hits:
@@ -103,7 +104,7 @@ def pick_key(fld: str, keys: Sequence[str], columns: Mapping | None, src: str,
             top = [h for h in hits if h.count("/") == depth]
             if len(top) > 1:
                 raise DataError(f"ambiguous '{fld}': several arrays named '{alias}' ({top}); "
-                                f"say which with --columns '{fld}={top[0]}'", src)
+                                f"say which with {setting('columns', {fld: top[0]})}", src)
             return top[0]
     return None
 
@@ -115,4 +116,4 @@ def warn_unused(src: str, unused: Sequence[str], what: str = "arrays") -> None:
     shown = ", ".join(f"'{u}'" for u in list(unused)[:20]) + (f" ... ({len(unused) - 20} more)" if len(unused) > 20
                                                             else "")
     warnings.warn(f"{src}: {what} not used: {shown} (no field has such a name; recognised names: docs/logs.md; "
-                  "map one with --columns FIELD=NAME)", DataWarning, stacklevel=3)
+                  f"map one with {setting('columns', {'FIELD': 'NAME'})})", DataWarning, stacklevel=3)

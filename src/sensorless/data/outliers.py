@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DataWarning, OptionError, OutlierError
+from ..errors import DataWarning, OptionError, OutlierError, setting
 from .trajectory import Trajectory
 
 __all__ = [
@@ -120,7 +120,7 @@ def check_outliers(traj: Trajectory, threshold: float = OUTLIER_THRESHOLD) -> Tr
         first = min(found, key=lambda o: int(o.samples[0]))
         others = f"; {len(found) - 1} other column(s) too" if len(found) > 1 else ""
         raise OutlierError(f"{first.describe()}{others}; fix the log or drop such samples "
-                           "(--outliers drop / outliers='drop')", traj.source)
+                           f"({setting('outliers', 'drop')})", traj.source)
     return traj
 
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import UnitsError
+from ..errors import UnitsError, setting
 from .trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -64,5 +64,5 @@ def check_gain_plausibility(traj: Trajectory, robot: "Robot | None") -> None:
             raise UnitsError(
                 f"joint '{name}': drive gain {gains[name]:g} makes torques of RMS {rms[j]:.3g} N·m, "
                 f"{ratio:.3g}× the torque scale the robot model predicts over this log ({scale[j]:.3g} N·m); "
-                f"outside 1/{RATIO:g}..{RATIO:g}×: a gain in the wrong unit? Check --gains, or pass "
-                "--accept-implausible-gains", traj.source)
+                f"outside 1/{RATIO:g}..{RATIO:g}×: a gain in the wrong unit? Check {setting('gains')}, or keep it "
+                f"with {setting('accept_implausible_gains', True)}", traj.source)

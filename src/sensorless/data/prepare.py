@@ -47,7 +47,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import DataError, DataWarning, OptionError, TimestampError
+from ..errors import DataError, DataWarning, OptionError, TimestampError, setting
 from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_derivatives
 from .filtering import DEFAULT_DERIVATIVE_SECONDS, DEFAULT_SAVGOL_WINDOW, default_savgol_window
 from .filtering import decimate as _decimate
@@ -108,9 +108,11 @@ def _from_pose(base_velocity: str, traj: Trajectory, robot) -> bool:
     a log with ``base_q`` and no ``base_v``, unless ``robot`` is fixed-base)."""
     mode = str(base_velocity).strip().lower().replace("_", "-")
     if mode not in BASE_VELOCITY_SOURCES:
-        raise OptionError(f"--base-velocity must be one of {', '.join(BASE_VELOCITY_SOURCES)}, got {base_velocity!r}")
+        raise OptionError(f"{setting('base_velocity')} must be one of {', '.join(BASE_VELOCITY_SOURCES)}, got "
+                          f"{base_velocity!r}")
     if mode == "from-pose" and traj.base_q is None:
-        raise DataError("--base-velocity from-pose: the log has no base pose ('base_q': x y z qx qy qz qw)", traj.source)
+        raise DataError(f"{setting('base_velocity', 'from-pose')}: the log has no base pose ('base_q': x y z qx qy qz qw)",
+                        traj.source)
     floating = robot is None or getattr(robot, "floating_base", False)
     return traj.base_q is not None and (mode == "from-pose" or (mode == "auto" and traj.base_v is None and floating))
 
@@ -170,19 +172,20 @@ def prepare(
             i = int(np.flatnonzero(dt == 0)[0]) + 1
             raise TimestampError(
                 f"duplicate timestamp at sample {i} (t={traj.t[i]:.6f} s; {info.duplicates} in total) and "
-                "resampling is off; use --resample auto (resample='auto') to merge duplicates", src)
+                f"resampling is off; use {setting('resample', 'auto')} to merge duplicates", src)
     elif mode == "auto":
         if info.duplicates > MAX_DUPLICATE_SHARE * (len(traj.t) - 1):
             raise TimestampError(
                 f"{info.duplicates} of {len(traj.t) - 1} time steps ({100 * info.duplicates / (len(traj.t) - 1):.0f} %) "
                 "repeat the previous stamp: the time column is coarser than the sampling, or every sample is logged "
-                "more than once; --resample auto will not guess which. Give the rate: --resample RATE_HZ merges the "
-                "duplicates and interpolates at that rate; if the samples themselves are uniform (a clock too coarse "
-                "for the rate), remove the time column and pass --rate HZ", src)
+                f"more than once; {setting('resample', 'auto')} will not guess which. Give the rate: "
+                f"{setting('resample', placeholder='RATE_HZ')} merges the duplicates and interpolates at that rate; if "
+                "the samples themselves are uniform (a clock too coarse for the rate), remove the time column and give "
+                f"{setting('rate', placeholder='HZ')}", src)
         if not info.is_uniform(jitter_tolerance):
             traj = _resample(traj, max_gap=max_gap)
             r = traj.provenance["resampled"]
-            warnings.warn(f"{src}: --resample auto: the time stamps are not uniform ({info.duplicates} duplicate(s), "
+            warnings.warn(f"{src}: {setting('resample', 'auto')}: the time stamps are not uniform ({info.duplicates} duplicate(s), "
                           f"max step deviation {100 * info.max_deviation:.0f} %); merged {info.duplicates} duplicate "
                           f"sample(s) and interpolated {info.n_samples - info.duplicates} onto {len(traj.t)} samples at "
                           f"{r['rate_hz']:.6g} Hz", DataWarning, stacklevel=2)
@@ -202,10 +205,10 @@ def prepare(
         if not now.is_uniform(jitter_tolerance):
             raise DataError(
                 f"{' and '.join(steps)} need(s) uniform sampling but resampling is off and the time stamps are not "
-                f"uniform ({now}); use --resample auto (resample='auto') or a rate in Hz", src)
+                f"uniform ({now}); use {setting('resample', 'auto')} or a rate in Hz", src)
 
     if rest not in REST_MODES:
-        raise OptionError(f"--rest must be one of {', '.join(REST_MODES)}, got {rest!r}")
+        raise OptionError(f"{setting('rest')} must be one of {', '.join(REST_MODES)}, got {rest!r}")
     sigma_v = None
     if rest == "auto" and not derive_v and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:
         sigma_v = signal_noise(traj.v)  # before the low-pass colours it (sensorless.data.rest)
@@ -219,7 +222,7 @@ def prepare(
         elif w > 2 * fit:
             warnings.warn(f"{src}: the derivative window ({w} samples) spans more than half of the log's median "
                           f"contact phase: the accelerations mix stance and flight (the default here would be {fit} "
-                          "samples; leave --savgol-window out)", DataWarning, stacklevel=2)
+                          f"samples; leave {setting('savgol_window')} unset)", DataWarning, stacklevel=2)
     if from_pose:  # from the pose samples as logged, low-passed at the same cut-off, the same derivative window
         traj = base_motion_from_pose(traj.with_(base_a=None) if imu else traj, *pose_samples, cutoff_hz=lowpass,
                                      window=w, keep_base_a=imu,
@@ -322,7 +325,7 @@ def parse_columns(spec: "str | None") -> "dict | None":
 
 
 PREPROCESSING_KEYS = ("columns", "gains", "rate", "resample", "lowpass", "savgol_window", "velocity", "max_gap",
-                      "rest", "time_unit", "base_velocity", "pose_max_gap", "wrench_frames")
+                      "rest", "time_unit", "base_velocity", "pose_max_gap", "wrench_frames", "angle_unit")
 """Options a model remembers in result.json (settings.preprocessing) and predict/estimate-force reuse.
 The trim window and decimation belong to one log and are recorded but not reused."""
 
@@ -332,13 +335,13 @@ def check_preprocessing(rate, lowpass, savgol_window, decimate) -> None:
     from .timebase import MAX_RATE, MIN_RATE
 
     if rate is not None and not (math.isfinite(rate) and MIN_RATE <= rate <= MAX_RATE):
-        raise OptionError(f"--rate must be a sample rate in [{MIN_RATE:g}, {MAX_RATE:g}] Hz, got {rate!r}")
+        raise OptionError(f"{setting('rate')} must be a sample rate in [{MIN_RATE:g}, {MAX_RATE:g}] Hz, got {rate!r}")
     if lowpass is not None and not (math.isfinite(lowpass) and lowpass > 0):
-        raise OptionError(f"--lowpass must be a cut-off frequency > 0 Hz, got {lowpass!r}")
+        raise OptionError(f"{setting('lowpass')} must be a cut-off frequency > 0 Hz, got {lowpass!r}")
     if savgol_window is not None and (savgol_window < 5 or savgol_window % 2 == 0):
-        raise OptionError(f"--savgol-window must be an odd number of samples >= 5, got {savgol_window!r}")
+        raise OptionError(f"{setting('savgol_window')} must be an odd number of samples >= 5, got {savgol_window!r}")
     if decimate is not None and decimate < 1:
-        raise OptionError(f"--decimate must be an integer >= 1, got {decimate!r}")
+        raise OptionError(f"{setting('decimate')} must be an integer >= 1, got {decimate!r}")
 
 
 def with_imu_frame(traj: Trajectory, robot, frame: str, savgol_window: int | None = None) -> Trajectory:
@@ -354,7 +357,8 @@ def with_imu_frame(traj: Trajectory, robot, frame: str, savgol_window: int | Non
 def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, gains=None, trim=None,
              resample="auto", velocity="logged", max_gap=None, outliers: str = "error", rest=None, time_unit=None,
              base_velocity=None, pose_max_gap=None, wrench_frames=None,
-             max_memory=None, allow_external=None, skip_bad=None, accept_implausible_gains=None, skip_bad_rows=None):
+             max_memory=None, allow_external=None, skip_bad=None, accept_implausible_gains=None, skip_bad_rows=None,
+             angle_unit=None):
     """Read, validate and preprocess one log (:func:`sensorless.data.prepare`).
 
     ``trim`` (a window, or a :class:`~sensorless.data.LogTrims` holding this log's) is cut and
@@ -365,13 +369,15 @@ def load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, *, ga
     workers (:class:`sensorless.regressor.distributed.LogReader`), so both see the same samples.
     ``outliers`` ("error" | "drop" | "keep") is applied to the raw log; a log that lost samples
     that way is resampled onto its uniform grid even with ``resample="off"``. ``max_memory``,
-    ``allow_external``, ``skip_bad``, ``accept_implausible_gains`` and ``skip_bad_rows``:
+    ``allow_external``, ``skip_bad``, ``accept_implausible_gains``, ``skip_bad_rows`` and ``angle_unit``
+    ("deg": joint angles logged in degrees, :mod:`~sensorless.data.angles`):
     :func:`sensorless.data.limits.read_options`.
     """
     if isinstance(trim, LogTrims):
         trim = trim.window_for(path)
     with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
-                      accept_implausible_gains=accept_implausible_gains, skip_bad_rows=skip_bad_rows):
+                      accept_implausible_gains=accept_implausible_gains, skip_bad_rows=skip_bad_rows,
+                      angle_unit=angle_unit):
         return _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample,
                          velocity, max_gap, outliers, rest, time_unit, base_velocity, pose_max_gap, wrench_frames)
 
@@ -383,9 +389,9 @@ def _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gain
 
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if outliers not in OUTLIER_MODES:
-        raise OptionError(f"--outliers must be one of {', '.join(OUTLIER_MODES)}, got {outliers!r}")
+        raise OptionError(f"{setting('outliers')} must be one of {', '.join(OUTLIER_MODES)}, got {outliers!r}")
     if pose_max_gap is not None and not (math.isfinite(pose_max_gap) and pose_max_gap > 1):
-        raise OptionError(f"--pose-max-gap must be a number of median pose periods > 1, got {pose_max_gap!r}")
+        raise OptionError(f"{setting('pose_max_gap')} must be a number of median pose periods > 1, got {pose_max_gap!r}")
     mode = parse_resample(resample)
     cols = parse_columns(columns) if isinstance(columns, str) else columns
     if isinstance(gains, str) and gains.strip().lower() in ("off", "none"):

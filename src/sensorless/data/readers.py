@@ -38,8 +38,9 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from ..errors import DataError, ShapeMismatchError
+from ..errors import DataError, ShapeMismatchError, setting
 from ..io import check_input_file
+from .angles import check_angle_unit, to_radians
 from .arrays import EXTRA_KEYS, as_float, read_hdf5, read_npz
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
@@ -90,6 +91,7 @@ def read_trajectory(
     skip_bad: bool | None = None,
     trim=None,
     skip_bad_rows: bool | None = None,
+    angle_unit: str | None = None,
 ) -> Trajectory:
     """Read a log and return it validated (and reordered to ``robot.joint_names``).
 
@@ -105,17 +107,21 @@ def read_trajectory(
     datasets), ``skip_bad`` (corrupt bag/MCAP chunks) and ``skip_bad_rows`` (default False) are
     :mod:`sensorless.data.limits` options. ``skip_bad_rows`` drops a corrupt prefix/suffix of rows
     and ``trim`` (a :class:`~sensorless.data.TrimWindow`) cuts a time window, both before the checks
-    (:func:`~sensorless.data.validate_trajectory`).
+    (:func:`~sensorless.data.validate_trajectory`). ``angle_unit="deg"``: q, v, v̇ of the revolute
+    joints are logged in degrees and converted (:mod:`~sensorless.data.angles`; default "rad", or the
+    ``angle_unit`` of :func:`~sensorless.data.limits.read_options`).
     """
     with read_options(max_memory=max_memory, allow_external=allow_external, skip_bad=skip_bad,
                       skip_bad_rows=skip_bad_rows):
         return _read_trajectory(Path(path), joint_names, columns, rate, robot, time_unit, gains,
-                                allow_duplicate_times, outliers, trim)
+                                allow_duplicate_times, outliers, trim, angle_unit)
 
 
 def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, gains, allow_duplicate_times,
-                     outliers, trim=None) -> Trajectory:
+                     outliers, trim=None, angle_unit=None) -> Trajectory:
     rows = {"trim": trim, "skip_bad_rows": bool(current_options().get("skip_bad_rows"))}
+    angle_unit = check_angle_unit(angle_unit if angle_unit is not None else current_options().get("angle_unit"),
+                                  str(path))
     src = str(path)
     if not path.exists():
         raise DataError("no such file", src)
@@ -124,14 +130,15 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
     if not path.is_dir():
         check_input_file(path, "log file")  # a FIFO or device would block or never end
     if is_rosbag(path):  # ROS 1/2 bag or MCAP: topics instead of columns (sensorless.data.rosbag)
-        if gains is not None or rate is not None or time_unit is not None:
-            raise DataError("gains, rate and time_unit do not apply to a ROS bag (its stamps are in seconds)", src)
+        if gains is not None or rate is not None or time_unit is not None or angle_unit != "rad":
+            raise DataError("gains, rate, time_unit and angle_unit do not apply to a ROS bag (its stamps are in "
+                            "seconds, its joint positions in radians)", src)
         return read_rosbag(path, joint_names=joint_names, robot=robot, allow_duplicate_times=allow_duplicate_times,
                            outliers=outliers, **rows, **rosbag_options(columns, src))
     columns, column_gains, gain_field = split_gain_modifiers(columns, src)
     if column_gains is not None:
         if gains is not None:
-            raise DataError("gains are given twice (in the column map and as gains=...); give them once", src)
+            raise DataError(f"gains are given twice (in the column map and as {setting('gains')}); give them once", src)
         gains = column_gains
     if columns is not None:
         unknown = [k for k in columns if k not in FIELDS]
@@ -150,6 +157,7 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         traj = currents_to_torques(traj, gains, gain_field)
     if raw.extras:
         traj = traj.with_(extras={**traj.extras, **_sample_extras(raw.extras, src, len(traj))})
+    traj = to_radians(traj, angle_unit, robot)
     return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers, **rows)
 
 
@@ -254,15 +262,14 @@ def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: fl
             raise ShapeMismatchError(
                 f"the file's joint names are {len(raw.names)} ({', '.join(map(repr, list(raw.names)[:8]))}) but 'q' "
                 f"('{raw.origin.get('q', 'q')}') has {n} columns; store one name per q "
-                "column, or pick the q columns of those joints with --columns 'q=...' "
-                "(library: joint_names=[...] in column order)", src)
+                f"column, or pick the q columns of those joints: {setting('columns', {'q': '...'})}", src)
         names = list(raw.names)
     elif robot is not None:
         if len(robot.joint_names) != n:
             raise ShapeMismatchError(
                 f"'q' has {n} columns but robot '{robot.name}' has {len(robot.joint_names)} joints "
-                f"{list(robot.joint_names)}; pick the q columns of those joints with --columns 'q=...' "
-                "(library: joint_names=[...] in column order)",
+                f"{list(robot.joint_names)}; pick the q columns of those joints: "
+                f"{setting('columns', {'q': '...'})}",
                 src,
             )
         names = list(robot.joint_names)
@@ -279,10 +286,10 @@ def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: fl
         t, units["t"] = to_seconds(t, time_unit, rate, raw.origin.get("t", "t"), src)
     else:
         if time_unit == "tick":
-            raise DataError("--time-unit tick: the log has no time/tick column (name it t, time or tick, or map it "
-                            "with --columns t=NAME)", src)
+            raise DataError(f"{setting('time_unit', 'tick')}: the log has no time/tick column (name it t, time or "
+                            f"tick, or map it: {setting('columns', {'t': 'NAME'})})", src)
         if rate is None:
-            raise DataError(f"no time column in {src}; pass rate=... (Hz) (command line: --rate HZ)", src)
+            raise DataError(f"no time column in {src}; give the sampling rate: {setting('rate', placeholder='HZ')}", src)
         rate = check_rate(rate, src)
         t = np.arange(q.shape[0]) / rate
         units["t"] = f"s (built from rate={rate:g} Hz)"

@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..errors import DataError, TimestampError
+from ..errors import DataError, TimestampError, setting
 from .filtering import MAX_JITTER, _rebuild, sign_continuous
 from .trajectory import Trajectory
 from .validation import TooFewSamplesError
@@ -142,9 +142,9 @@ def resample(
         a, b = int(first[k]), int(first[k + 1])
         raise TimestampError(
             f"gap of {1e3 * steps[k]:.1f} ms between sample {a} (t={tu[k]:.6f} s) and sample {b} "
-            f"(t={tu[k + 1]:.6f} s), more than max_gap={max_gap:g} × the median period "
-            f"({1e3 * info.period:.3f} ms; {big.size} such gap(s)); trim the log around it (--trim) "
-            "or raise the tolerance (--max-gap)", src)
+            f"(t={tu[k + 1]:.6f} s), more than {max_gap:g} × the median period "
+            f"({1e3 * info.period:.3f} ms; {big.size} such gap(s)); trim the log around it ({setting('trim')}) "
+            f"or raise the tolerance ({setting('max_gap')})", src)
     if tu.size < 2:
         raise TooFewSamplesError("resample: fewer than 2 distinct time stamps", src)
     from scipy.interpolate import interp1d, make_interp_spline  # imported on use (start-up time)

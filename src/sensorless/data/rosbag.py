@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DataError, DataWarning, JointNameError
+from ..errors import DataError, DataWarning, JointNameError, setting
 from .imu import IMU_KEY
 from .trajectory import Trajectory
 from .validation import validate_trajectory
@@ -202,7 +202,8 @@ def _pick(topics: dict[str, str], msgtype: str, given: str | None, what: str, sr
     if required:
         if not of_type:
             raise DataError(f"no {msgtype} topic in the bag; topics: {_listing(topics)}", src)
-        raise DataError(f"several {msgtype} topics {of_type}; choose one (columns 'joint_states=TOPIC')", src)
+        raise DataError(f"several {msgtype} topics {of_type}; choose one ({setting('columns', {'joint_states': 'TOPIC'})})",
+                        src)
     return None
 
 
@@ -265,7 +266,7 @@ def _joint_arrays(msgs: list, wanted: list[str], rename, topic: str, src: str):
             elif len(have) < len(wanted):
                 missing = [w for w in wanted if w not in model_names]
                 raise JointNameError(f"topic '{topic}' message {k} (t = {stamp:.6f} s) has joints {list(names)} but "
-                                     f"not {missing}; map bag names with joint_map / columns 'joints=BAG:MODEL'", src)
+                                     f"not {missing}; map bag names: {setting('columns', {'joints': 'BAG:MODEL'})}", src)
             else:
                 cache[names] = np.array([model_names.index(w) for w in wanted])
         idx = cache[names]
@@ -278,7 +279,7 @@ def _joint_arrays(msgs: list, wanted: list[str], rename, topic: str, src: str):
             rows[field].append(vals[idx] if vals.size == len(names) else None)
     if not rows_t:
         raise JointNameError(f"topic '{topic}' never publishes the joints {wanted}; it has {sorted(seen)} "
-                             "(map names with joint_map / columns 'joints=BAG:MODEL')", src)
+                             f"(map names: {setting('columns', {'joints': 'BAG:MODEL'})})", src)
     out = {}
     for field, vals in rows.items():
         if all(r is not None for r in vals):
@@ -348,7 +349,7 @@ def _check_counts(reader, conns, got: dict, src: str) -> None:
              else "unreadable data")
     counts = "; ".join(f"'{t}': {k} of {declared[t]} messages lost" for t, k in sorted(lost.items()))
     if current_options().get("skip_bad"):
-        warnings.warn(f"{src}: --skip-bad: skipped {len(chunks) or 'some'} {where} ({counts})", DataWarning,
+        warnings.warn(f"{src}: {setting('skip_bad', True)}: skipped {len(chunks) or 'some'} {where} ({counts})", DataWarning,
                       stacklevel=3)
         return
-    raise DataError(f"{where} ({counts}); pass --skip-bad to read the rest", src)
+    raise DataError(f"{where} ({counts}); read the rest with {setting('skip_bad', True)}", src)

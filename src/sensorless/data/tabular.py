@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DataError
+from ..errors import DataError, setting, did_you_mean
 from .names import FIELD_NAMES, TICK_NAMES, RawLog, normalise, short_list
 from .bad_rows import max_edge_rows
 from .limits import current_options
@@ -202,9 +202,9 @@ def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header:
         if not header:
             raise DataError(f"pattern {spec!r} for '{field}' needs a header row; use an index range like '0:7'", src)
         if not names:
-            raise DataError(f"pattern {spec!r} for '{field}' needs joint names: give the robot (--robot, whose joint "
-                            "names fill the pattern) or name the columns, e.g. --columns 'q=pos_a|pos_b' (library: "
-                            "joint_names=...)", src)
+            raise DataError(f"pattern {spec!r} for '{field}' needs joint names: give the robot ({setting('robot')}, "
+                            "whose joint names fill the pattern) or name the columns, e.g. "
+                            f"{setting('columns', {'q': 'pos_a|pos_b'})}", src)
         labels = [spec.replace("{joint}", j) for j in names]
     elif isinstance(spec, str) and (m := _RANGE.match(spec)):
         start = int(m.group(1) or 0)
@@ -221,8 +221,9 @@ def _labels(field: str, spec: Any, avail: list, names: list[str] | None, header:
     missing = [c for c in labels if c not in avail]
     if missing:
         listed = any("," in str(c) and all(p.strip() in avail for p in str(c).split(",")) for c in missing)
-        raise DataError(f"no column(s) {missing} (for '{field}'); available columns: {short_list(avail)}"
-                        + ("; a list of columns is separated by '|' (q=a|b|c)" if listed else ""), src)
+        close = did_you_mean(missing[0], [str(a) for a in avail])
+        raise DataError(f"no column(s) {missing} (for '{field}'); {close + ' ' if close else ''}available columns: "
+                        f"{short_list(avail)}" + ("; a list of columns is separated by '|' (q=a|b|c)" if listed else ""), src)
     return labels
 
 
@@ -254,8 +255,8 @@ def numeric_columns(df: "pd.DataFrame", labels: list, field: str, src: str) -> n
             at_edges = bool(np.all((rows < edge) | (rows >= len(bad) - edge)))
             if not (at_edges and current_options().get("skip_bad_rows")):  # else NaN: bad_rows drops the row
                 i = int(rows[0])
-                hint = ("; it is near the start or end of the log: rerun with --skip-bad-rows to drop corrupt rows there"
-                        if at_edges else "")
+                hint = (f"; it is near the start or end of the log: rerun with {setting('skip_bad_rows', True)} to drop "
+                        "corrupt rows there" if at_edges else "")
                 raise DataError(
                     f"non-numeric value {s.iloc[i]!r} in column '{c}' (for '{field}') at row {i} "
                     f"(0-based data row; {int(bad.sum())} bad cell(s) in this column){hint}",
@@ -277,7 +278,8 @@ def fields_from_frame(
     if columns is None and not header:
         raise DataError(
             "has no header row; say which columns hold what, e.g. "
-            "columns={'q': '0:7', 'v': '7:14', 'tau': '14:21'} (and rate=... Hz if there is no time column)",
+            f"{setting('columns', {'q': '0:7', 'v': '7:14', 'tau': '14:21'})} (and {setting('rate', placeholder='HZ')} "
+            "if there is no time column)",
             src,
         )
     optional: set[str] = set()
@@ -309,10 +311,12 @@ def fields_from_frame(
                 tried = "" if columns is not None else (
                     " (no header convention found either: a word for the field before or after the joint name, "
                     f"e.g. q_J, pos_J, J_position, J.pos; words {dict(FIELD_WORDS)})")
+                close = did_you_mean(spec[patterns[0]], avail, cutoff=0.5) if columns is not None else ""
                 raise DataError(
-                    f"no column matches {spec[patterns[0]]!r} (for '{patterns[0]}'){tried}; available columns: "
-                    f"{short_list(avail)}; say which columns hold what: columns={{'q': 'pos_{{joint}}', 'v': ..., "
-                    f"'tau': ...}} (command line: --columns 'q=pos_{{joint}};v=vel_{{joint}};tau=eff_{{joint}}')",
+                    f"no column matches {spec[patterns[0]]!r} (for '{patterns[0]}'){tried}; "
+                    f"{close + ' ' if close else ''}available columns: "
+                    f"{short_list(avail)}; say which columns hold what: "
+                    f"{setting('columns', {'q': 'pos_{joint}', 'v': 'vel_{joint}', 'tau': 'eff_{joint}'})}",
                     src,
                 )
 

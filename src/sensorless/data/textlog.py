@@ -28,7 +28,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..errors import DataError, DataWarning, ShapeMismatchError, TimestampError
+from ..errors import DataError, DataWarning, ShapeMismatchError, TimestampError, setting, did_you_mean
 from .limits import prescan_text
 from .names import FIELD_NAMES, RawLog, field_of, normalise, pick_key, short_list
 from .tabular import TIME_COLUMNS, numeric_columns, read_text_table
@@ -64,7 +64,7 @@ def _choose(files: dict[str, Path], columns: Mapping | None, src: str) -> dict[s
         if columns is not None and fld in columns:
             spec = columns[fld]
             if not isinstance(spec, str):
-                raise DataError(f"--columns {fld}=... must name one file of the folder, got {spec!r}", src)
+                raise DataError(f"{setting('columns', {fld: '...'})} must name one file of the folder, got {spec!r}", src)
             hit = next((f for f in files.values() if spec.strip() in (f.name, f.stem)), None)
             if hit is None:
                 raise DataError(f"no file '{spec}' (for '{fld}') in the folder; files: {short_list(stems)}", src)
@@ -73,7 +73,7 @@ def _choose(files: dict[str, Path], columns: Mapping | None, src: str) -> dict[s
             chosen[fld] = files[stem]
     if "q" not in chosen:
         raise DataError(f"no file of joint positions (looked for {[n + '.dat' for n in FIELD_NAMES['q'][:4]]}...); "
-                        f"files: {short_list(stems)}; name it with --columns 'q=FILE'", src)
+                        f"files: {short_list(stems)}; name it with {setting('columns', {'q': 'FILE'})}", src)
     return chosen
 
 
@@ -83,7 +83,8 @@ def _time_label(df, header: bool, columns: Mapping | None, name: str):
         for c in df.columns:
             if str(c) == want or (not header and want.isdigit() and c == int(want)):
                 return c
-        raise DataError(f"no time column '{want}' (--columns t=...); columns: {short_list(list(df.columns))}", name)
+        raise DataError(f"no time column '{want}' ({setting('columns', {'t': '...'})}); "
+                        f"{_close(want, list(map(str, df.columns)))}columns: {short_list(list(df.columns))}", name)
     if not header:
         return df.columns[0]
     lower = {normalise(c): c for c in df.columns}
@@ -168,3 +169,8 @@ def read_signal_folder(path: Path, columns: Mapping | None) -> RawLog:
     if names is not None and any(field_of(n) is not None for n in names):
         names = None  # a header of field words (q1?) is not joint names
     return RawLog(arrays, names, origin, {}, unused)
+
+
+def _close(name: str, known) -> str:
+    hint = did_you_mean(name, known)
+    return f"{hint} " if hint else ""

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DataError, UnitsError
+from ..errors import DataError, UnitsError, setting
 from .names import is_tick_name
 
 __all__ = ["TIME_UNITS", "TIME_SCALE", "MIN_RATE", "MAX_RATE", "to_seconds", "check_time_unit", "check_rate"]
@@ -44,18 +44,18 @@ def check_time_unit(time_unit: str | None, rate, src: str) -> None:
     if time_unit is None:
         return
     if time_unit not in TIME_UNITS:
-        raise DataError(f"time_unit must be one of {list(TIME_UNITS)} (--time-unit), got {time_unit!r}", src)
+        raise DataError(f"{setting('time_unit')} must be one of {list(TIME_UNITS)}, got {time_unit!r}", src)
     if time_unit == "tick":
         if rate is None:
-            raise DataError("--time-unit tick needs the tick rate: --rate HZ (library: rate=HZ), e.g. --rate 1000 "
-                            "for a 1 kHz controller", src)
-        check_rate(rate, src, "the tick rate (--rate)")
+            raise DataError(f"{setting('time_unit', 'tick')} needs the tick rate: {setting('rate', placeholder='HZ')}, "
+                            "e.g. 1000 for a 1 kHz controller", src)
+        check_rate(rate, src, f"the tick rate ({setting('rate')})")
 
 
 def _flag_hint(guess: str) -> str:
     if guess == "tick":
-        return "--time-unit tick --rate HZ with the controller's tick rate (library: time_unit='tick', rate=HZ)"
-    return f"--time-unit {guess} (library: time_unit='{guess}')"
+        return f"{setting('time_unit', 'tick')} {setting('rate', placeholder='HZ')} with the controller's tick rate"
+    return setting("time_unit", guess)
 
 
 def _guess_unit(t: np.ndarray, column: str, src: str) -> str:
@@ -82,10 +82,10 @@ def _guess_unit(t: np.ndarray, column: str, src: str) -> str:
             raise UnitsError(
                 f"time column '{column}' counts in whole steps (median {step:g}, {finite[0]:g}..{finite[-1]:g}): read "
                 f"as seconds, a {1 / step:.3g} Hz log, too slow for dynamics; the stamps look like {looks} or controller "
-                f"ticks. For {guess} pass {_flag_hint(guess)}; for ticks pass {_flag_hint('tick')}", src)
+                f"ticks. For {guess} set {_flag_hint(guess)}; for ticks set {_flag_hint('tick')}", src)
         raise UnitsError(
             f"time column '{column}' steps by {step:.6g} (median): a {1 / step:.3g} Hz log, too slow for dynamics; "
-            f"the stamps look like {looks}. Store seconds, or pass {_flag_hint(guess)}", src)
+            f"the stamps look like {looks}. Store seconds, or set {_flag_hint(guess)}", src)
     return "s"
 
 

@@ -16,7 +16,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from ..errors import DataError, OptionError, TimestampError, TooFewSamplesError
+from ..errors import DataError, OptionError, TimestampError, TooFewSamplesError, setting
 from .trajectory import Trajectory
 
 __all__ = ["TrimWindow", "trim_window", "LogTrims"]
@@ -97,8 +97,9 @@ def trim_window(traj: Trajectory, window: "str | tuple | TrimWindow") -> Traject
     t = np.asarray(traj.t, dtype=float)
     if not win.absolute and not (np.isfinite(t[0]) and np.isfinite(t[-1])):
         raise DataError(f"trim window '{win}' counts from the first/last sample, whose stamp is not finite "
-                        f"({t[0]:.6g} .. {t[-1]:.6g}); drop corrupt rows at the ends with --skip-bad-rows "
-                        "(skip_bad_rows=True), or give the log's own stamps: --trim abs:T0:T1", src)
+                        f"({t[0]:.6g} .. {t[-1]:.6g}); drop corrupt rows at the ends with "
+                        f"{setting('skip_bad_rows', True)}, or give the log's own stamps: {setting('trim', 'abs:T0:T1')}",
+                        src)
     lo, hi = win.bounds(t)
     first, last = float(np.nanmin(t)), float(np.nanmax(t))
     span = f"the log spans {first:.6g}..{last:.6g} s ({last - first:.3f} s)"

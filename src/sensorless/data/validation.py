@@ -25,6 +25,8 @@ from ..errors import (
     TimestampError,
     TooFewSamplesError,
     UnitsError,
+    python_only,
+    setting,
 )
 from .bad_rows import max_edge_rows, scan_rows
 from .trajectory import Trajectory, as_float_array
@@ -114,7 +116,7 @@ def validate_trajectory(
             raise ShapeMismatchError(f"row count of '{name}' is {arr.shape[0]} but 't' has {n} samples", src)
         if arr.shape[1] != cols:
             what = f"there are {cols} joint names" if name in _JOINT_FIELDS else f"'{name}' needs {cols}"
-            hint = ("; a joint without an actuator has no torque column: declare it passive (--passive JOINT)"
+            hint = (f"; a joint without an actuator has no torque column: declare it passive ({setting('passive_joints', placeholder='JOINT')})"
                     if name == "tau" and arr.shape[1] < cols else "")
             raise ShapeMismatchError(f"column count of '{name}' is {arr.shape[1]} but {what}{hint}", src)
         arrays[name] = arr
@@ -136,7 +138,7 @@ def validate_trajectory(
             rows = rows[scan.start:scan.stop]
             traj = traj.take(slice(scan.start, scan.stop))
             traj = traj.with_(provenance={**traj.provenance, "rows_dropped": scan.to_dict()})
-            warnings.warn(f"{src}: --skip-bad-rows dropped {scan.describe()}", DataWarning, stacklevel=2)
+            warnings.warn(f"{src}: {setting('skip_bad_rows', True)} dropped {scan.describe()}", DataWarning, stacklevel=2)
     if trim is not None:
         keep = trim_window(traj.with_(extras={**traj.extras, _ROWS: rows}), trim)
         rows = keep.extras.pop(_ROWS)
@@ -204,18 +206,18 @@ def _with_hint(exc: DataError, scan, rescan, checked: np.ndarray) -> DataError:
         inside = any(np.any((checked >= e.first) & (checked <= e.last)) for e in scan.edges)
         if not inside:
             return exc
-        hint = f"; the log has {scan.describe()}: rerun with --skip-bad-rows (skip_bad_rows=True) to drop them"
+        hint = f"; the log has {scan.describe()}: rerun with {setting('skip_bad_rows', True)} to drop them"
         if scan.window is not None:
             lo, hi = scan.window
             name = os.path.basename(str(exc.source)) if exc.source else "FILE"
             lost = f", which also leaves out {scan.window_loses} clean row(s)" if scan.window_loses else ""
-            hint += f", or cut them away with --trim {name}=abs:{lo:.6f}:{hi:.6f}{lost}"
+            hint += f", or cut them away with {setting('trim', f'{name}=abs:{lo:.6f}:{hi:.6f}')}{lost}"
         if scan.middle:
-            hint += f"; it is corrupt in the middle too, at {scan.middle}, which --skip-bad-rows does not drop"
+            hint += f"; it is corrupt in the middle too, at {scan.middle}, which {setting('skip_bad_rows')} does not drop"
     else:
         dropped = f" (it dropped {scan.describe()})" if scan.edges else ""
-        hint = (f"; --skip-bad-rows drops only a corrupt prefix or suffix of at most {max_edge_rows(scan.n)} rows"
-                f"{dropped}, and this is in the middle of the log: cut the log there with --trim (or split it)")
+        hint = (f"; {setting('skip_bad_rows')} drops only a corrupt prefix or suffix of at most {max_edge_rows(scan.n)} "
+                f"rows{dropped}, and this is in the middle of the log: cut the log there with {setting('trim')} (or split it)")
     msg = str(exc)
     if exc.source and msg.startswith(f"{exc.source}: "):
         msg = msg[len(exc.source) + 2:]
@@ -287,14 +289,22 @@ def _check_time(t: np.ndarray, src: str, allow_duplicates: bool = False, row: "n
     k = i if row is None else int(row[i])
     p = i - 1 if row is None else int(row[i - 1])
     kind = "duplicate timestamp" if dt[i - 1] == 0 else "time goes backwards"
-    hint = ("; resampling merges duplicate stamps: --resample auto on the command line, or "
-            "read_trajectory(..., allow_duplicate_times=True) then sensorless.data.prepare(traj, resample='auto')"
-            if kind == "duplicate timestamp" else "")
+    hint = (f"; resampling merges duplicate stamps: {setting('resample', 'auto')}" + python_only(
+        "read_trajectory(..., allow_duplicate_times=True), then sensorless.data.prepare(traj, resample='auto')")
+        if kind == "duplicate timestamp" else "")
     raise TimestampError(
         f"{kind} at sample {k}: t[{k}]={t[i]:.6f} s after t[{p}]={t[i - 1]:.6f} s "
         f"({bad.size} non-increasing step(s) in total); time must be strictly increasing{hint}",
         src,
     )
+
+
+def _degrees_fix(traj: Trajectory, unit: str = "radians") -> str:
+    """How to read a log whose angles look like degrees: ``angle_unit='deg'``, or, when they were
+    already converted from degrees, that the unit is another."""
+    if "angles" in traj.units:
+        return f"they were read as degrees ({setting('angle_unit', 'deg')}) and still look wrong: encoder counts?"
+    return f"if the log is in degrees, read it with {setting('angle_unit', 'deg')}, else convert to {unit}"
 
 
 def _check_units(traj: Trajectory, robot: "Robot") -> None:
@@ -311,13 +321,13 @@ def _check_units(traj: Trajectory, robot: "Robot") -> None:
             if q_rad.min() >= lo[j] - _LIMIT_MARGIN and q_rad.max() <= hi[j] + _LIMIT_MARGIN:
                 raise UnitsError(
                     f"joint '{name}' positions reach {q[k]:.1f}, beyond its limits "
-                    f"[{lo[j]:.2f}, {hi[j]:.2f}] rad: they look like degrees; convert to radians (np.deg2rad)",
+                    f"[{lo[j]:.2f}, {hi[j]:.2f}] rad: they look like degrees; {_degrees_fix(traj)}",
                     traj.source,
                 )
         if qmax > _MAX_REVOLUTE_Q:
             raise UnitsError(
                 f"joint '{name}' positions reach {q[k]:.1f} rad (> {_MAX_REVOLUTE_Q:.0f} rad): "
-                "they look like degrees or encoder counts; convert to radians",
+                f"they look like degrees or encoder counts; {_degrees_fix(traj)}",
                 traj.source,
             )
         if traj.v is not None:
@@ -326,6 +336,6 @@ def _check_units(traj: Trajectory, robot: "Robot") -> None:
             if abs(v[k]) > _MAX_REVOLUTE_V:
                 raise UnitsError(
                     f"joint '{name}' velocities reach {v[k]:.1f} rad/s (> {_MAX_REVOLUTE_V:.0f} rad/s): "
-                    "they look like deg/s or encoder counts per second; convert to rad/s",
+                    f"they look like deg/s or encoder counts per second; {_degrees_fix(traj, 'rad/s')}",
                     traj.source,
                 )

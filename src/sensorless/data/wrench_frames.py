@@ -18,12 +18,11 @@ the command-line spec (one frame per contact frame, ``contact`` = each contact's
 
 from __future__ import annotations
 
-import difflib
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DataError, OptionError, RobotModelError
+from ..errors import DataError, OptionError, RobotModelError, setting, did_you_mean
 from .trajectory import Trajectory
 
 __all__ = ["WORLD", "CONTACT", "check_frame", "wrench_frame_map", "express_wrenches"]
@@ -42,14 +41,14 @@ def _items(spec: "str | Sequence[str] | None") -> list[str]:
     return [p.strip() for s in parts for p in str(s).split(",") if p.strip()]
 
 
-def check_frame(robot, name: str, what: str = "--wrench-frame") -> int:
+def check_frame(robot, name: str, what: str = "`wrench_frames`") -> int:
     """Frame id of ``name`` in ``robot``; a RobotModelError with the closest frame names otherwise."""
     model = robot.model
     if model.existFrame(name):
         return model.getFrameId(name)
     names = [f.name for f in model.frames]
-    close = difflib.get_close_matches(name, names, n=3, cutoff=0.5)
-    hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+    hint = did_you_mean(name, names, cutoff=0.5)
+    hint = f"; {hint}" if hint else ""
     raise RobotModelError(f"{what}: the model {robot.name} has no frame '{name}'{hint} "
                           f"(`sensorless frames --robot ...` lists its {len(names)} frames)")
 
@@ -70,17 +69,18 @@ def wrench_frame_map(spec: "str | Sequence[str] | Mapping[str, str] | None", con
     if not items:
         return None
     if not contact_frames:
-        raise OptionError("--wrench-frame needs --contact-frames (one wrench frame per contact frame, in that order)")
+        raise OptionError(f"{setting('wrench_frames')} needs {setting('contact_frames')} (one wrench frame per contact "
+                          "frame, in that order)")
     if len(items) == 1 and items[0] in (WORLD, CONTACT):
         items = items * len(contact_frames)
     if len(items) != len(contact_frames):
-        raise OptionError(f"--wrench-frame gives {len(items)} frame(s) {items} for {len(contact_frames)} contact "
+        raise OptionError(f"{setting('wrench_frames')} gives {len(items)} frame(s) {items} for {len(contact_frames)} contact "
                           f"frame(s) {contact_frames}: give one per contact frame, in the same order (or 'contact' "
                           "for each contact's own frame, 'world' for world-aligned wrenches)")
     out = {c: (c if s == CONTACT else s) for c, s in zip(contact_frames, items)}
     if robot is not None:
         for c, s in out.items():
-            check_frame(robot, c, "--contact-frames")
+            check_frame(robot, c, setting("contact_frames"))
             if s != WORLD:
                 check_frame(robot, s)
     return out
@@ -89,14 +89,14 @@ def wrench_frame_map(spec: "str | Sequence[str] | Mapping[str, str] | None", con
 def _wrench_array(traj: Trajectory, n_c: int) -> tuple[str, np.ndarray]:
     key = next((k for k in _KEYS if traj.extras.get(k) is not None), None)
     if key is None:
-        raise DataError("--wrench-frame was given but the log has no measured wrenches ('contact_forces', or a ROS "
+        raise DataError(f"{setting('wrench_frames')} was given but the log has no measured wrenches ('contact_forces', or a ROS "
                         "bag's 'wrench' topics)", traj.source)
     f = np.asarray(traj.extras[key], dtype=float)
     n = len(traj)
     if f.ndim == 2 and f.shape[0] == n and f.shape[1] in (3 * n_c, 6 * n_c):
         f = f.reshape(n, n_c, f.shape[1] // n_c)
     if not (f.ndim == 3 and f.shape[:2] == (n, n_c) and f.shape[2] in (3, 6)):
-        raise DataError(f"'{key}' has shape {np.shape(traj.extras[key])}; with --wrench-frame for {n_c} contact "
+        raise DataError(f"'{key}' has shape {np.shape(traj.extras[key])}; with {setting('wrench_frames')} for {n_c} contact "
                         f"frame(s) expected ({n}, {n_c}, 3 or 6) or ({n}, {n_c}·3 or {n_c}·6)", traj.source)
     return key, f
 
@@ -110,12 +110,12 @@ def express_wrenches(traj: Trajectory, robot, frames: Mapping[str, str]) -> Traj
 
     frames = dict(frames)
     contacts = list(frames)
-    cids = [check_frame(robot, c, "--contact-frames") for c in contacts]
+    cids = [check_frame(robot, c, setting("contact_frames")) for c in contacts]
     sids = [None if s == WORLD else check_frame(robot, s) for s in frames.values()]
     key, f = _wrench_array(traj, len(contacts))
     moving = any(sid is not None for sid in sids)
     if moving and getattr(robot, "floating_base", False) and traj.base_q is None:
-        raise DataError("--wrench-frame: the sensor frames move with the floating base, but the log has no base pose "
+        raise DataError(f"{setting('wrench_frames')}: the sensor frames move with the floating base, but the log has no base pose "
                         "('base_q'); log the base pose (position + quaternion) or give world-aligned wrenches",
                         traj.source)
     perm = robot.joint_order(traj.joint_names, traj.source)

@@ -29,7 +29,7 @@ from scipy import stats
 
 from ..data.integral_filter import observer_filter
 from ..data.trims import TrimWindow
-from ..errors import DataError
+from ..errors import DataError, setting
 
 __all__ = ["ContactInterval", "Thresholds", "contact_intervals", "detect_contacts", "observer_warmup", "quiet_mask",
            "threshold_multiplier",
@@ -80,7 +80,7 @@ def quiet_mask(t: np.ndarray, window: "str | tuple | TrimWindow", source: str = 
     try:
         win = TrimWindow.parse(window)
     except DataError as e:
-        raise DataError(f"--quiet: {e.args[0]}", source) from None
+        raise DataError(f"{setting('quiet')}: {e.args[0]}", source) from None
     lo, hi = win.bounds(t)
     inside = (t >= lo) & (t <= hi)
     mask = inside & (True if exclude is None else ~np.asarray(exclude, bool))

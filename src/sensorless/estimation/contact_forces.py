@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..data.trajectory import Trajectory
-from ..errors import DataError, RobotModelError
+from ..errors import DataError, RobotModelError, setting
 from ..regressor.contact import contact_jacobians
 from .momentum import MomentumDynamics, MomentumObserver
 
@@ -108,7 +108,7 @@ def estimate_contact_forces(
     if flags is None:
         flags = traj.extras.get("contact")
         if flags is None:
-            raise DataError("the log has no contact flags (extras['contact']); pass flags='detect'", traj.source)
+            raise DataError(f"the log has no contact flags (extras['contact']); detect them: {setting('flags', 'detect')}", traj.source)
     if detect:
         flags = np.ones((N, len(frames)), bool)
     flags = np.asarray(flags, bool)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..errors import ExcitationError
+from ..errors import ExcitationError, setting
 from .fourier import FourierTrajectory
 
 __all__ = [
@@ -68,8 +68,10 @@ class ExcitationLimits:
         the model's limit. ``0 < position_fraction ≤ 1`` (a fraction above 1 would leave the
         joint range); the velocity and acceleration limits must be finite and > 0."""
         if not (np.isfinite(position_fraction) and 0.0 < position_fraction <= 1.0):
-            raise ExcitationError(f"position fraction (--position-fraction) must be in (0, 1], got {position_fraction}")
-        for name, val in (("velocity (--max-velocity)", max_velocity), ("acceleration (--max-acceleration)", max_acceleration)):
+            raise ExcitationError(f"position fraction ({setting('position_fraction')}) must be in (0, 1], got "
+                                  f"{position_fraction}")
+        for name, val in ((f"velocity ({setting('max_velocity')})", max_velocity),
+                          (f"acceleration ({setting('max_acceleration')})", max_acceleration)):
             arr = np.asarray(val, dtype=float)
             if not (np.all(np.isfinite(arr)) and np.all(arr > 0)):
                 raise ExcitationError(f"maximum {name} must be finite and > 0, got {val}")
@@ -154,19 +156,20 @@ def check_export(rate: float, periods: float, harmonics: int, base_freq: float, 
     most :data:`MAX_RATE_HZ`; ``periods`` an integer ≥ 1; the sample count at most ``max_samples``.
     """
     if not (isinstance(rate, (int, float, np.floating, np.integer)) and np.isfinite(rate) and 0 < rate <= MAX_RATE_HZ):
-        raise ExcitationError(f"sample rate (--rate) must be a finite number in (0, {MAX_RATE_HZ:g}] Hz, got {rate}")
+        raise ExcitationError(f"sample rate ({setting('rate')}) must be a finite number in (0, {MAX_RATE_HZ:g}] Hz, got {rate}")
     nyquist = 2.0 * harmonics * base_freq
     if rate <= nyquist:
         raise ExcitationError(
-            f"sample rate (--rate) {rate:g} Hz must exceed twice the highest harmonic ({harmonics} × {base_freq:g} Hz), "
+            f"sample rate ({setting('rate')}) {rate:g} Hz must exceed twice the highest harmonic ({harmonics} × {base_freq:g} Hz), "
             f"i.e. > {nyquist:g} Hz"
         )
     if not (np.isfinite(periods) and float(periods).is_integer() and periods >= 1):
-        raise ExcitationError(f"periods (--periods) must be a whole number ≥ 1, got {periods}")
+        raise ExcitationError(f"periods ({setting('periods')}) must be a whole number ≥ 1, got {periods}")
     n = int(round(periods * rate / base_freq))
     if n > max_samples:
         raise ExcitationError(
-            f"the export would hold {n:,} samples (--periods {periods:g} × --rate {rate:g} Hz × period {1 / base_freq:g} s); "
+            f"the export would hold {n:,} samples ({periods:g} periods × {rate:g} Hz × period {1 / base_freq:g} s; "
+            f"{setting('periods')}, {setting('rate')}); "
             f"at most {max_samples:,}"
         )
     return n

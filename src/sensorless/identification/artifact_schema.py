@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 from typing import Any, Mapping
 
+from ..data.angles import ANGLE_UNITS
 from ..errors import ParameterError
 
 __all__ = ["Checker", "summary", "check_friction_law", "check_preprocessing_settings", "check_robot_settings",
@@ -238,6 +239,7 @@ def check_preprocessing_settings(c: Checker, pre: Any, key: str = "settings.prep
     out["wrench_frames"] = opt("wrench_frames", lambda kk, v: {c.string(f"{kk} key", f, max_len=256):
                                                                c.string(f"{kk}.{f}", s, max_len=256)
                                                                for f, s in c.mapping(kk, v).items()})
+    out["angle_unit"] = opt("angle_unit", lambda kk, v: c.string(kk, v, ANGLE_UNITS))
     out["decimate"] = opt("decimate", lambda kk, v: c.number(kk, v, 1, MAX_DECIMATE, integer=True))
     out["trim"] = _trim(c, k("trim"), pre.get("trim"))
     if pre.get("trims") is not None:  # each log's own window (sensorless.data.trims.LogTrims.settings)

@@ -32,7 +32,7 @@ from typing import Any, Iterator, Mapping, Protocol, Sequence
 import cvxpy as cp
 import numpy as np
 
-from ..errors import RobotModelError
+from ..errors import RobotModelError, setting
 from ..parameters import as_bodies, pseudo_inertia, pseudo_inertia_basis
 from ..regressor.terms import ModelStructure
 from .ellipsoids import BoundingEllipsoid
@@ -192,7 +192,8 @@ class DensityRealizable:
     """``tr(J_k Q_k) ≥ 0`` for every body that has an ellipsoid in the context."""
 
     name: str = "density_in_ellipsoid"
-    hint: str = "enlarge the bounding ellipsoids (ellipsoid margin, contain_prior=True) or pass ellipsoids=False"
+    hint: str = (f"enlarge the bounding ellipsoids (grown around the prior: {setting('contain_prior', True)}) or "
+                 f"drop them ({setting('ellipsoids', False)})")
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
         # tr(Ĵ Q̂) = qᵀ x_k with q = B₁₆ᵀ vec(Q̂)

@@ -109,7 +109,7 @@ def _currents(robot: Robot, traj: Trajectory) -> np.ndarray:
     if cur is None:
         cur = traj.tau
     if cur is None:
-        raise DataError("the log has no currents (map them to 'tau' or 'current', without --gains)", traj.source)
+        raise DataError("the log has no currents (map them to 'tau' or 'current', with no drive gains)", traj.source)
     names = list(traj.joint_names)
     missing = [j for j in robot.actuated_joints if j not in names]
     if missing:

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
-from ..errors import DataError, ExcitationError, OptionError
+from ..errors import DataError, ExcitationError, OptionError, setting
 from .friction import coulomb_smoothing_from_noise, stribeck_grid
 from ..regressor.friction_state import STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
 
@@ -202,7 +202,7 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         raise OptionError(f"friction terms of '{joint}' must include fc and be among fc, stribeck, damping, fv, "
                           f"offset, inertia; got {list(terms)}")
     if state not in STATE_MODES:
-        raise OptionError(f"--state must be one of {', '.join(STATE_MODES)}, got {state!r}")
+        raise OptionError(f"{setting('state')} must be one of {', '.join(STATE_MODES)}, got {state!r}")
     series = [s for s in series if len(s)]
     if not series or sum(len(s) for s in series) < 50:
         raise DataError(f"joint '{joint}': fewer than 50 samples to fit friction on")
@@ -266,7 +266,7 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     lengths = noise["median_stroke"] * PRESLIDING_GRID if strokes.size else np.zeros(0)
     lengths = lengths[lengths >= 2 * h]
     if state == "off":
-        why_not = "state off (--state off)"
+        why_not = f"state off ({setting('state', 'off')})"
     elif strokes.size < 2:
         why_not = "fewer than two strokes between reversals: presliding cannot be seen"
     elif lengths.size < 3:
@@ -296,10 +296,10 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
                        and c.vs == state_best.vs), key=lambda c: -c.k)
         profile = {"presliding_distance": [1.0 / c.k for c in same], "bic": [float(c.bic) for c in same]}
     if state == "on" and state_best is None:
-        raise ExcitationError(f"joint '{joint}': --state on, but {why_not}")
+        raise ExcitationError(f"joint '{joint}': {setting('state', 'on')}, but {why_not}")
     if state_best is not None and (state == "on" or state_best.bic < static_best.bic):
         chosen = state_best
-        reason = ("state (--state on)" if state == "on" else
+        reason = ("state (chosen: on)" if state == "on" else
                   f"state: BIC {state_best.bic:.1f} below the static law's {static_best.bic:.1f}")
     else:
         chosen = static_best

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..data.rest import REST_SIGMAS, signal_noise
 from ..data.trajectory import Trajectory
-from ..errors import DataError, JointNameError, OptionError
+from ..errors import DataError, JointNameError, OptionError, setting
 from .friction_fit import DEFAULT_TERMS, STATE_MODES, JointFit, fit_joint_friction, joint_series
 from ..regressor.friction_state import FrictionLaw, FrictionStateIntegrator
 
@@ -44,10 +44,10 @@ class FrictionModel:
     def __init__(self, terms: Sequence[str] = DEFAULT_TERMS, state: str = "auto",
                  coulomb_smoothing: "str | float" = "auto", joints: "Sequence[str] | None" = None) -> None:
         if state not in STATE_MODES:
-            raise OptionError(f"--state must be one of {', '.join(STATE_MODES)}, got {state!r}")
+            raise OptionError(f"{setting('state')} must be one of {', '.join(STATE_MODES)}, got {state!r}")
         if not (coulomb_smoothing == "auto" or (isinstance(coulomb_smoothing, (int, float))
                                                 and np.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0)):
-            raise OptionError(f"--coulomb-smoothing must be 'auto' or a number >= 0, got {coulomb_smoothing!r}")
+            raise OptionError(f"{setting('coulomb_smoothing')} must be 'auto' or a number >= 0, got {coulomb_smoothing!r}")
         self.terms, self.state, self.coulomb_smoothing = tuple(terms), state, coulomb_smoothing
         self.joints = None if joints is None else tuple(joints)
 

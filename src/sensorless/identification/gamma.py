@@ -171,7 +171,7 @@ def _split_folds(
                 if np.any(block == f):
                     parts.append(t.take(block == f))
             if not parts:
-                raise DataError(f"no sample falls in phase block {f} of {n_folds}; is period={period} s right?")
+                raise DataError(f"no sample falls in phase block {f} of {n_folds}; is the period of {period} s right?")
             folds.append(compress(structure, parts, chunk=chunk))
         return folds
     edges = np.linspace(0, total, n_folds + 1).round().astype(int)

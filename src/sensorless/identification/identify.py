@@ -16,7 +16,7 @@ import numpy as np
 from ..data.outliers import OUTLIER_MODES
 from ..data.trajectory import Trajectory
 from ..data.validation import validate_trajectory
-from ..errors import DataError, ExcitationError, IdentifiabilityWarning, OptionError, SolverError
+from ..errors import DataError, ExcitationError, IdentifiabilityWarning, OptionError, SolverError, setting
 from ..regressor.compress import NormalEquations, compress
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
@@ -136,11 +136,12 @@ def identify(
     if method == "lmi" and prior is None and regularization is not None and _massless_prior(structure):
         regularization, gamma = None, 0.0  # a pull toward zero mass everywhere is no prior
         prior_note = (f"'{structure.robot.name}' has no inertial prior (every identified body is massless): "
-                      "ran without regularisation (regularization=None, gamma=0); pass prior=... to regularise")
+                      "ran without regularisation; give a prior to regularise: "
+                      f"{setting('prior', placeholder='...')}")
         warnings.warn(prior_note, stacklevel=2)
     if method == "lmi" and gamma == "auto":
         if isinstance(data, NormalEquations):
-            raise SolverError("gamma='auto' needs the training trajectories, not precompressed equations")
+            raise SolverError(f"{setting('gamma', 'auto')} needs the training trajectories, not precompressed equations")
         data = list(data)
     cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
     t0 = time.perf_counter()
@@ -297,8 +298,8 @@ def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dic
     warn = bool(active) and ratio > CONSTRAINT_RESIDUAL_RISE
     msg = (f"the bounding-ellipsoid (density) constraints are active on {', '.join(active)} and the training "
            f"residual is {ratio:.3g}× that of an unconstrained fit: the ellipsoids probably exclude the real "
-           "bodies; use the automatic ellipsoids grown around the prior (contain_prior=True, i.e. drop "
-           "--no-contain-prior) or none (ellipsoids=False, --ellipsoids none)"
+           f"bodies; use the automatic ellipsoids grown around the prior ({setting('contain_prior', True)}) or none "
+           f"({setting('ellipsoids', False)})"
            if warn else None)
     return {"residual_ratio": ratio, "active_bodies": active, "warn": warn, "message": msg}
 
@@ -308,7 +309,7 @@ def _collinear_note(collinear: dict[str, float], n_samples: int) -> str:
     return (f"{len(collinear)} joint term(s) cannot be told apart from the other parameters on this log "
             f"({n_samples} samples; variance inflation > {JOINT_TERM_MAX_VIF:.0f}): {worst}"
             + (" ..." if len(collinear) > 6 else "")
-            + "; log a longer or richer motion, or drop them (joint_terms / --joint-terms)")
+            + f"; log a longer or richer motion, or drop them ({setting('joint_terms')})")
 
 
 def _massless_prior(structure: ModelStructure) -> bool:

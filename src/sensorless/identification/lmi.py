@@ -47,7 +47,7 @@ import cvxpy as cp
 import numpy as np
 
 from ..data.periodicity import excitation_period
-from ..errors import DataError, ExcitationError, SolverError
+from ..errors import DataError, ExcitationError, SolverError, python_only, setting
 from ..parameters import (
     ConsistencyReport,
     check_physical_consistency,
@@ -304,9 +304,10 @@ class LmiProblem:
             raise SolverError(self._infeasible_message("/".join(order)))
         tried = ", ".join(f"{n}: {s}" for n, s in attempts)
         raise SolverError(
-            f"the physically consistent solve did not converge ({tried}). Try a larger gamma "
-            f"(now {gamma:g}), regularization='pullback', row weights that bring joints to similar "
-            "torque scales, fewer joint terms, accept_inaccurate=True, or install MOSEK"
+            f"the physically consistent solve did not converge ({tried}). Try a larger {setting('gamma')} "
+            f"(now {gamma:g}), {setting('regularization', 'pullback')}, row weights that bring joints to similar "
+            f"torque scales ({setting('weights')}), fewer joint terms ({setting('joint_terms')}), or install MOSEK"
+            + python_only("accept_inaccurate=True keeps the inaccurate solution")
         )
 
     def _infeasible_message(self, solver: str) -> str:
@@ -321,7 +322,7 @@ class LmiProblem:
         hints = "; ".join(f"{b.name}: {b.hint}" for b in self.builders)
         return (
             f"{solver} reports infeasibility although the prior satisfies every constraint: a numerical "
-            f"failure. Try another solver (solver='SCS'/'CLARABEL'), or relax: {hints}"
+            "failure. Try another solver" + python_only("solver='SCS' or 'CLARABEL'") + f", or relax: {hints}"
         )
 
     def _solution(self, solver: str, status: str, gamma: float, t_setup: float, t_solve: float, attempts) -> LmiSolution:

@@ -64,7 +64,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..errors import DataError, ExcitationError
+from ..errors import DataError, ExcitationError, setting
 from ..parameters import pseudo_inertia
 from ..regressor.compress import iter_trajectories
 from ..regressor.terms import ModelStructure
@@ -254,8 +254,8 @@ def identify_payload(
             if not com_given and used != "mass":
                 raise ExcitationError(
                     f"the payload mass at frame '{frame}' is not determined by the log: {why} (only m·c, the first "
-                    "moment, is); give the payload's CoM in the frame with --com X,Y,Z to compute m from m·c, or "
-                    "choose a frame whose origin moves")
+                    f"moment, is); give the payload's CoM in the frame ({setting('com', placeholder='X,Y,Z')}) to compute "
+                    "m from m·c, or choose a frame whose origin moves")
             g = point_mass_parameters(1.0, com_arr)
             if np.sqrt(max(float(g @ system.Ar @ g), 0.0) / np.linalg.eigvalsh(system.Ar[:4, :4])[-1]) < LEVER_TOL:
                 raise ExcitationError(f"the payload mass at frame '{frame}' is not determined: {why}, and at the CoM "

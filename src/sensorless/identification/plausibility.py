@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import PlausibilityError
+from ..errors import PlausibilityError, setting
 
 __all__ = ["COM_SIZE_FACTOR", "TOTAL_MASS_TOLERANCE", "check_plausibility", "plausibility_problems"]
 
@@ -80,5 +80,5 @@ def check_plausibility(result, prior: np.ndarray | None = None, ellipsoids=None,
     if problems and not accept:
         more = f" (+{len(problems) - 3} more)" if len(problems) > 3 else ""
         raise PlausibilityError("implausible model: " + "; ".join(problems[:3]) + more
-                                + "; check the log's units and excitation, or pass --accept-implausible to keep it")
+                                + f"; check the log's units and excitation, or keep it with {setting('accept', True)}")
     return problems

@@ -22,7 +22,7 @@ import dataclasses
 
 import numpy as np
 
-from ..errors import OptionError
+from ..errors import OptionError, setting
 from ..regressor.terms import ModelStructure
 from .friction import friction_residual
 from .friction_fit import JointSeries, fit_joint_friction
@@ -51,7 +51,7 @@ def search_presliding(identify, structure: ModelStructure, data, kwargs: dict):
     docstring); ``identify(model, data, **kwargs)`` is the identification to run."""
     if type(structure) is not ModelStructure:
         raise OptionError(f"the 'presliding' joint term needs a per-joint model without contacts or coupled "
-                          f"joints (got {type(structure).__name__}); remove presliding from --joint-terms")
+                          f"joints (got {type(structure).__name__}); remove presliding from {setting('joint_terms')}")
     logs = list(data)
     given = structure.presliding or {}
     asked = [j for j in structure.robot.term_joints if "presliding" in structure.terms_of(j) and j not in given]

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import setting
 from ..parameters import pseudo_inertia
 from ..regressor.compress import NormalEquations
 from .least_squares import MIN_SINGULAR_RATIO, solve_truncated_svd
@@ -55,7 +56,7 @@ def gamma_guard(ne: NormalEquations, row_weights, gamma_cv: float, report: dict 
         out["reason"] = why
         out["message"] = (f"cross-validation chose γ = {gamma_cv:g} but {why}: γ raised to the floor {floor:.3g} "
                           f"(the relative residual ρ = {rho:.3g}: a prior trusted to its own size); "
-                          "give --gamma to override")
+                          f"give {setting('gamma')} to override")
     return out
 
 

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..errors import DataError, UnitsError
+from ..errors import DataError, UnitsError, setting
 
 __all__ = ["SCALE_FACTOR", "DEAD_SECONDS", "MIN_PROJECTED_ENERGY", "TorqueChannels", "check_information",
            "check_torque_channels"]
@@ -54,7 +54,8 @@ MIN_PROJECTED_ENERGY = 1e-3
 #: a joint the prior loads: rms(τ̂_j) ≥ LOADED · max_k rms(τ̂_k)
 LOADED = 0.05
 SUBSAMPLE = 2000  # prior torques per log for the scale rule (RNEA on a subsample)
-_FIX = "check the log's torque columns (--columns) and units (--gains for currents)"
+_ANYWAY = f"{setting('check_torques', False)} fits it anyway"
+_FIX = f"check the log's torque columns ({setting('columns')}) and units ({setting('gains')} for currents)"
 
 
 @dataclass
@@ -154,11 +155,12 @@ def check_torque_channels(ch: TorqueChannels) -> None:
         if not span > 1e-12 * max(1.0, abs(ch.hi[i]), abs(ch.lo[i])):
             what = "zero" if ch.hi[i] == 0 and ch.lo[i] == 0 else f"constant ({ch.hi[i]:.6g})"
             raise DataError(f"joint '{row}': the torque channel is {what} in every log, so it says nothing "
-                            f"about the joint; {_FIX}, lock the joint (--lock {row}), or, if it has no actuator "
-                            f"(a rail, a free pivot), declare it passive (--passive {row}): its torque is then known to be 0")
+                            f"about the joint; {_FIX}, lock the joint ({setting('lock_joints', [row])}), or, if it has no "
+                            f"actuator (a rail, a free pivot), declare it passive ({setting('passive_joints', [row])}): "
+                            "its torque is then known to be 0")
     for row, (secs, src, t0, val) in ch.dead.items():
         raise DataError(f"joint '{row}': the torque channel holds {val:.6g} for {secs:.3g} s from t = {t0:.6g} s "
-                        f"while the joint moves (a dead sensor?); {_FIX}, or trim the log (--trim)", src)
+                        f"while the joint moves (a dead sensor?); {_FIX}, or trim the log ({setting('trim')})", src)
     if ch.n_sub == 0:
         return
     rms_meas = np.sqrt(ch.ss_meas / ch.n_sub)
@@ -176,7 +178,7 @@ def check_torque_channels(ch: TorqueChannels) -> None:
             f"joint '{row}': the logged torque (rms {rms_meas[i]:.3g}) is {ratio:.3g}× what the prior model "
             f"predicts on the same samples (rms {rms_prior[i]:.3g}{'' if small else f'; the largest joint: {top:.3g}'}), "
             f"more than {SMALL_FACTOR if small else SCALE_FACTOR:g}× off: a unit or gain mistake? {_FIX}; "
-            "--accept-implausible fits it anyway")
+            f"{_ANYWAY}")
     _check_signs_and_order(ch, rms_meas, rms_prior, top)
 
 
@@ -193,7 +195,7 @@ def check_information(ne, ch: TorqueChannels, motion) -> None:
                 f"the contact projection keeps {100 * ratio:.2g} % of the logged torques' energy: the contacts "
                 f"({frames}) constrain every direction the joint torques act in, so nothing is left to identify "
                 "(a clamped or passive joint held by an unmodelled force, a robot fixed to the ground?); check "
-                "--contact-frames/--contact-dims, or log motion with fewer contacts")
+                f"{setting('contact_frames')}/{setting('contact_dims')}, or log motion with fewer contacts")
     ranges = motion.ranges if motion is not None and motion.n_samples else {}
     if ranges and all(r < 1e-3 for r in ranges.values()):
         raise ExcitationError(
@@ -216,9 +218,9 @@ def _check_signs_and_order(ch: TorqueChannels, rms_meas: np.ndarray, rms_prior: 
             pairs = ", ".join(f"'{a}' looks like '{b}'" for a, b in moved)
             raise DataError(f"the logged torques match the prior model's torques of other joints (mean cosine "
                             f"{best:.2f} against {ident:.2f} as logged: {pairs}): swapped columns? {_FIX}; "
-                            "--accept-implausible fits it anyway")
+                            f"{_ANYWAY}")
     for n, i in enumerate(idx):
         if cos[n, n] < -0.5:
             raise DataError(f"joint '{ch.rows[i]}': the logged torque runs against what the prior model predicts "
                             f"(cosine {cos[n, n]:.2f} over the log): a reversed sign convention? {_FIX}; "
-                            "--accept-implausible fits it anyway")
+                            f"{_ANYWAY}")

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..errors import ExcitationError
+from ..errors import ExcitationError, setting
 from ..regressor.compress import NormalEquations
 from .base import BaseParameters
 
@@ -100,8 +100,8 @@ def check_joint_motion(motion: JointMotion, robot, joint_terms: "tuple[str, ...]
                          for j, r in still.items())
         raise ExcitationError(
             f"the data do not excite joint(s) {desc}: they do not move over the {motion.n_samples} samples, so their "
-            f"{'/'.join(needs)} terms cannot be identified; lock them (--lock JOINT), drop those terms "
-            "(--joint-terms), or log a trajectory that moves every joint"
+            f"{'/'.join(needs)} terms cannot be identified; lock them ({setting('lock_joints', list(still))}), drop "
+            f"those terms ({setting('joint_terms')}), or log a trajectory that moves every joint"
         )
     return {j: r for j, r in ranges.items() if r < LOW_MOTION[_kind(robot, j)]}
 

@@ -57,7 +57,7 @@ from typing import Iterable, Literal
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..errors import DataError, RobotModelError
+from ..errors import DataError, RobotModelError, setting
 from .compress import NormalEquations
 # re-exported: sensorless.regressor.contact.null_space_projector etc. keep working
 from .contact_inference import infer_contacts, normal_forces
@@ -99,8 +99,8 @@ def choose_contact_rows(trajectories: Trajectory | Iterable[Trajectory]) -> tupl
                         "only (mass, CoM and the other base-identifiable parameters; no joint friction)")
     if without:
         raise DataError(
-            f"some logs have joint torques and some have none ({without}); use contact_rows='base' "
-            "(--contact-rows base) to ignore the torques, or give torques for every log"
+            f"some logs have joint torques and some have none ({without}); use {setting('contact_rows', 'base')} "
+            "to ignore the torques, or give torques for every log"
         )
     return "all", "joint torques present: fitting the floating-base rows and the joint torque rows"
 
@@ -145,8 +145,8 @@ class ContactStructure(ModelStructure):
     def __post_init__(self) -> None:
         if not self.robot.floating_base and self.contact_rows == "base":
             raise RobotModelError(
-                f"{self.robot.name}: contact_rows='base' fits the 6 floating-base rows, but the robot has a fixed base; "
-                "load it with floating_base=True (CLI: --floating-base)")
+                f"{self.robot.name}: {setting('contact_rows', 'base')} fits the 6 floating-base rows, but the robot "
+                f"has a fixed base; load it with {setting('floating_base', True)}")
         self.rows = "all"
         super().__post_init__()
         if not self.contact_frames:
@@ -166,7 +166,8 @@ class ContactStructure(ModelStructure):
         if self.wrench_offset not in WRENCH_OFFSETS:
             raise RobotModelError(f"unknown wrench_offset '{self.wrench_offset}'; choose from {WRENCH_OFFSETS}")
         if self.mode == "projected" and (self.contact_rows == "base" or self.wrench_offset != "none"):
-            raise RobotModelError("contact_rows='base' and wrench_offset need measured wrenches (mode='wrench')")
+            raise RobotModelError(f"{setting('contact_rows', 'base')} and {setting('wrench_offset')} need measured "
+                                  f"wrenches ({setting('mode', 'wrench')})")
         axes = "".join(a for a in _AXES if a in self.offset_axes)
         if not axes or set(self.offset_axes) - set(_AXES):
             raise RobotModelError(f"offset_axes must be a non-empty subset of 'xyz', got '{self.offset_axes}'")
@@ -314,10 +315,10 @@ class ContactStructure(ModelStructure):
 
     def _joint_target(self, traj: Trajectory) -> np.ndarray:
         """Sᵀ τ on all nv rows; a typed error (naming the fix) when torques are missing or all zero."""
-        hint = ("use contact_rows='base' (CLI: --contact-rows base) to fit the 6 floating-base rows to the "
+        hint = (f"use {setting('contact_rows', 'base')} to fit the 6 floating-base rows to the "
                 "measured wrenches only" if self.mode == "wrench" else
                 "projected contact identification needs joint torques; with measured contact wrenches use "
-                "mode='wrench' (--contact-mode wrench)")
+                f"{setting('mode', 'wrench')}")
         if traj.tau is None:
             raise DataError(f"the log has no joint torques ('tau'); {hint}", traj.source)
         y = super().target(traj)

@@ -15,9 +15,11 @@ once per worker thread because a Pinocchio ``Data`` is per-thread scratch space)
 reader settings travel; the arrays never leave the worker that read them.
 
 Dask does the scheduling: tasks of a worker that dies are rerun elsewhere, a task that
-raises is retried ``retries`` times. A file that cannot be used raises its typed error
-(naming the file) or, with ``skip_bad``, is skipped and listed in
-:attr:`FleetEquations.skipped`.
+raises is retried ``retries`` times. A file that cannot be used is not such a failure: its task
+returns the typed error (naming the file) as a value, which the client raises, the same one-line
+error as a single-process run, with no retry and nothing in the workers' logs; with ``skip_bad``
+the file is skipped and listed in :attr:`FleetEquations.skipped`. The client comes from
+:func:`sensorless.regressor.dask_cluster.connect`.
 
 Two-step WLS needs no second pass over the files: the per-row equations give every row's
 OLS residual ‖W_r π − y_r‖² = πᵀA_rπ − 2πᵀb_r + c_r exactly. LMI with γ chosen by
@@ -28,11 +30,9 @@ period, pass 2 folds each file's samples into ``n_folds`` partial equations.
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import glob
 import hashlib
-import logging
 import os
 import pickle
 import threading
@@ -40,7 +40,7 @@ import time
 import uuid
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -49,7 +49,7 @@ from ..errors import DataError, DistributedError, SensorlessError
 from .compress import NormalEquations, compress
 from .terms import ModelStructure
 
-__all__ = ["DistributedError", "FleetEquations", "LogReader", "compress_files", "connect", "expand_paths"]
+__all__ = ["DistributedError", "FleetEquations", "LogReader", "compress_files", "expand_paths"]
 
 _GLOB_CHARS = frozenset("*?[")
 
@@ -83,6 +83,7 @@ class LogReader:
     wrench_frames: dict | None = None  # {contact frame: frame its wrench is logged in} (data.wrench_frames)
     imu_frame: str | None = None  # base_a from the accelerometer in this model frame (data.prepare.with_imu_frame)
     skip_bad_rows: bool | None = None  # drop a corrupt prefix/suffix of rows (data.bad_rows)
+    angle_unit: str | None = None  # "deg": joint angles logged in degrees (data.angles)
 
     def __call__(self, path: str | Path, robot) -> Trajectory:
         from ..data.prepare import load_log, with_imu_frame
@@ -92,7 +93,7 @@ class LogReader:
                         max_gap=self.max_gap, outliers=self.outliers, rest=self.rest, time_unit=self.time_unit,
                         base_velocity=self.base_velocity, pose_max_gap=self.pose_max_gap,
                         wrench_frames=self.wrench_frames,
-                        skip_bad_rows=self.skip_bad_rows)
+                        skip_bad_rows=self.skip_bad_rows, angle_unit=self.angle_unit)
         return with_imu_frame(traj, robot, self.imu_frame, self.savgol_window) if self.imu_frame else traj
 
     def settings(self) -> dict:
@@ -149,12 +150,27 @@ class _Part:
     skipped: list[tuple[str, str]]
 
 
+@dataclass
+class _Failed:
+    """What a task returns for a file that cannot be used (without ``skip_bad``): its typed error."""
+
+    error: SensorlessError
+
+
+def _failure(part) -> SensorlessError | None:
+    """The error a task returned (a probe run next to the task's result: only the error travels)."""
+    return part.error if isinstance(part, _Failed) else None
+
+
 def _add(a: NormalEquations | None, b: NormalEquations | None) -> NormalEquations | None:
     return b if a is None else a if b is None else a.merge(b)
 
 
-def _merge(*parts: _Part) -> _Part:
-    """Sum of partial results, in argument order (a node of the reduction tree)."""
+def _merge(*parts: "_Part | _Failed") -> "_Part | _Failed":
+    """Sum of partial results, in argument order (a node of the reduction tree); the first failure wins."""
+    failed = next((p for p in parts if isinstance(p, _Failed)), None)
+    if failed is not None:
+        return failed
     out = _Part(None, None, [], [])
     for p in parts:
         out.ne = _add(out.ne, p.ne)
@@ -191,7 +207,7 @@ def _fold_parts(traj: Trajectory, n_folds: int, period: float | None, offset: in
     return out
 
 
-def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple | None) -> _Part:
+def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple | None) -> "_Part | _Failed":
     """Map step: read + preprocess one file on this worker and fold it into normal equations.
 
     ``plan = (n_folds, period, offset, total)`` also splits it into cross-validation folds
@@ -206,11 +222,11 @@ def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple
         return _Part(functools.reduce(_add, folds), folds, [path], [])
     except SensorlessError as exc:
         if not skip_bad:
-            raise _named(exc, path) from None
+            return _Failed(_named(exc, path))
         return _Part(None, None if plan is None else [None] * plan[0], [], [(path, str(_named(exc, path)))])
 
 
-def _length_task(model, reader, path: str, skip_bad: bool) -> tuple[int | None, float | None, str | None]:
+def _length_task(model, reader, path: str, skip_bad: bool) -> "tuple[int | None, float | None, str | None] | _Failed":
     """Pass 1 of cross-validation folds: (samples after preprocessing, excitation period, error)."""
     from ..data.periodicity import excitation_period
 
@@ -219,7 +235,7 @@ def _length_task(model, reader, path: str, skip_bad: bool) -> tuple[int | None, 
         traj = reader(path, structure.robot)
     except SensorlessError as exc:
         if not skip_bad:
-            raise _named(exc, path) from None
+            return _Failed(_named(exc, path))
         return None, None, str(_named(exc, path))
     return len(traj), excitation_period(traj), None
 
@@ -337,7 +353,7 @@ def compress_files(
     if n_folds is not None:
         empty = [f for f, ne in enumerate(part.folds or []) if ne is None]
         if empty:
-            raise DataError(f"no sample falls in phase block {empty[0]} of {n_folds}; is period={found_period} s right?")
+            raise DataError(f"no sample falls in phase block {empty[0]} of {n_folds}; is the period of {found_period} s right?")
         folds = part.folds
     return FleetEquations(part.ne, part.files, part.skipped, folds, found_period, time.perf_counter() - t0)
 
@@ -355,16 +371,22 @@ class _Local:
     def lengths(self, reader, paths, skip_bad):
         out = []
         for p in paths:
-            out.append(_length_task(self.model, reader, p, skip_bad))
+            out.append(_raise_failed(_length_task(self.model, reader, p, skip_bad)))
             self._tick()
         return out
 
     def run(self, reader, paths, chunk, skip_bad, plans) -> _Part:
         acc = _Part(None, None, [], [])
         for p, plan in zip(paths, plans):
-            acc = _merge(acc, _file_task(self.model, reader, p, chunk, skip_bad, plan))
+            acc = _merge(acc, _raise_failed(_file_task(self.model, reader, p, chunk, skip_bad, plan)))
             self._tick()
         return acc
+
+
+def _raise_failed(part):
+    if isinstance(part, _Failed):
+        raise part.error
+    return part
 
 
 class _Dask:
@@ -380,7 +402,7 @@ class _Dask:
         futs = [self.client.submit(_length_task, self.model, reader, p, skip_bad, key=f"sensorless-length-{self.tag}-{i}",
                                    retries=self.retries, pure=False) for i, p in enumerate(paths)]
         self._wait(futs, paths)
-        return self.client.gather(futs)
+        return [_raise_failed(x) for x in self.client.gather(futs)]
 
     def run(self, reader, paths, chunk, skip_bad, plans) -> _Part:
         futs = [self.client.submit(_file_task, self.model, reader, p, chunk, skip_bad, plan,
@@ -394,19 +416,21 @@ class _Dask:
             level += 1
         self._wait(futs, paths, extra=nodes)
         try:
-            return nodes[0].result()
+            return _raise_failed(nodes[0].result())
         except SensorlessError:
             raise
         except Exception as exc:  # noqa: BLE001
             raise DistributedError(f"the reduction of the partial equations failed ({type(exc).__name__}: {exc})") from exc
 
     def _wait(self, futs, paths, extra=()):
-        """Follow the file tasks as they finish; stop everything at the first failure."""
+        """Follow the file tasks as they finish (through probes that fetch only a returned error);
+        stop everything at the first failure."""
         from distributed import as_completed
 
-        index = {f.key: p for f, p in zip(futs, paths)}
+        probes = [self.client.submit(_failure, f, key=f"{f.key}-probe", pure=False) for f in futs]
+        index = {pr.key: p for pr, p in zip(probes, paths)}
         try:
-            for fut in as_completed(futs):
+            for fut in as_completed(probes):
                 if fut.status == "error":
                     exc = fut.exception()
                     if isinstance(exc, SensorlessError):
@@ -415,45 +439,11 @@ class _Dask:
                                            f"({type(exc).__name__}: {exc})")
                 if fut.status == "cancelled":
                     raise DistributedError(f"{index[fut.key]}: the task was cancelled (scheduler or client lost?)")
+                error = fut.result()
+                if error is not None:
+                    raise error
                 if self.progress is not None:
                     self.progress(1)
         except BaseException:
-            self.client.cancel(list(futs) + list(extra))
+            self.client.cancel(list(futs) + list(extra) + probes)
             raise
-
-
-@contextlib.contextmanager
-def connect(scheduler: str, workers: int | None = None, *, timeout: float = 30.0) -> Iterator[Any]:
-    """A ``distributed.Client`` for ``scheduler``: ``"local"`` starts a ``LocalCluster`` of
-    ``workers`` processes (default: one per core, one thread each: the regressor loop holds
-    the GIL); any other value is a scheduler address (``tcp://host:8786``) of an existing
-    cluster, and ``workers`` then waits until that many workers are connected."""
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError:
-        raise DistributedError("--scheduler needs dask.distributed: pip install 'sensorless[dist]'") from None
-    if workers is not None and workers < 1:
-        raise DistributedError(f"--workers must be >= 1, got {workers}")
-    cluster = None
-    try:
-        if scheduler == "local":
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                                   dashboard_address=":0", silence_logs=logging.ERROR)
-            client = Client(cluster)
-        else:
-            client = Client(scheduler, timeout=timeout)
-    except (OSError, TimeoutError, ValueError) as exc:
-        if cluster is not None:
-            cluster.close()
-        raise DistributedError(f"{scheduler}: cannot reach the Dask scheduler ({type(exc).__name__}: {exc})") from None
-    try:
-        if workers and cluster is None:
-            try:
-                client.wait_for_workers(workers, timeout=timeout)
-            except TimeoutError:
-                raise DistributedError(f"{scheduler}: fewer than {workers} workers connected after {timeout:.0f} s") from None
-        yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()

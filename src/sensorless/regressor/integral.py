@@ -50,7 +50,7 @@ import pinocchio as pin
 from ..data.filtering import _uniform_dt
 from ..data.integral_filter import LowpassChain
 from ..data.trajectory import Trajectory
-from ..errors import DataError, RobotModelError
+from ..errors import DataError, RobotModelError, setting
 from .terms import ModelStructure, _in_robot_order
 
 __all__ = ["FilteredRows", "filtered_rows", "filtered_target", "momentum_regressors", "projection_rate_error"]
@@ -162,7 +162,8 @@ def filtered_rows(structure: ModelStructure, traj: Trajectory, cutoff: float = 4
     flags = None
     if structure.row_map.per_sample:  # contacts: P(q) before filtering
         if not structure.row_map.projected:
-            raise RobotModelError("acceleration-free identification supports mode='projected' contact structures")
+            raise RobotModelError(f"acceleration-free identification supports {setting('mode', 'projected')} contact "
+                                  "structures")
         flags = structure.contacts(traj)
         P, Pd = _projectors(structure, Q, V, flags, eps)
         Yp_m = np.matmul(P, Yp)

@@ -11,7 +11,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..errors import RobotModelError
+from ..errors import RobotModelError, did_you_mean
 
 __all__ = ["DEFAULT_STRIBECK_VELOCITY", "FRICTION_LAWS", "JOINT_TERMS", "PASSIVE_TERMS", "parse_joint_terms",
            "parse_presliding",
@@ -90,7 +90,9 @@ def parse_presliding(value, joints, need) -> "dict | None":
     out = {}
     for j, p in value.items():
         if j not in joints:
-            raise RobotModelError(f"presliding given for unknown joint '{j}'; term joints are {list(joints)}")
+            close = did_you_mean(j, joints)
+            raise RobotModelError(f"presliding given for unknown joint '{j}'{f' ({close})' if close else ''}; term joints "
+                                  f"are {list(joints)}")
         if j not in need:
             continue
         k, h = (p.get("k"), p.get("play", 0.0)) if isinstance(p, Mapping) else (p, 0.0)
@@ -106,7 +108,8 @@ def _by_joint(value, joints, what: str) -> Mapping:
         value = {"*": value}
     unknown = [j for j in value if j != "*" and j not in joints]
     if unknown:
-        raise RobotModelError(f"{what} names unknown joint(s) {unknown}; actuated joints are {list(joints)}")
+        close = "".join(f"; for '{j}', {h}" for j in unknown if (h := did_you_mean(j, joints)))
+        raise RobotModelError(f"{what} names unknown joint(s) {unknown}{close}; actuated joints are {list(joints)}")
     return value
 
 

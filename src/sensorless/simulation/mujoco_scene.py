@@ -42,7 +42,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
-from ..errors import RobotModelError, ShapeMismatchError
+from ..errors import RobotModelError, ShapeMismatchError, setting
 from ..robot import Robot
 
 __all__ = [
@@ -62,7 +62,7 @@ def default_foot_frames(robot: Robot) -> tuple[str, ...]:
     feet = tuple(f.name for f in robot.model.frames if f.name.endswith("_FOOT"))
     if not feet:
         raise RobotModelError(
-            f"{robot.source or robot.name}: no frame named '*_FOOT'; pass foot_frames=(...) explicitly"
+            f"{robot.source or robot.name}: no frame named '*_FOOT'; give them: {setting('foot_frames', placeholder='(...)')}"
         )
     return feet
 

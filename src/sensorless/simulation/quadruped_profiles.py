@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..errors import RobotModelError
+from ..errors import RobotModelError, setting
 from ..robot import Robot, load_robot
 
 __all__ = ["PROFILES", "ControllerGains", "QuadrupedProfile", "TruthRanges", "profile_for", "quadruped_robot", "spot_mjcf"]
@@ -114,7 +114,7 @@ def profile_for(robot: Robot, profile: QuadrupedProfile | None) -> QuadrupedProf
         if robot.name.startswith(key):
             return prof
     raise RobotModelError(
-        f"no quadruped profile for robot '{robot.name}'; known: {sorted(PROFILES)} (pass profile=QuadrupedProfile(...))"
+        f"no quadruped profile for robot '{robot.name}'; known: {sorted(PROFILES)} (give one: {setting('profile', placeholder='QuadrupedProfile(...)')})"
     )
 
 
