@@ -18,6 +18,10 @@ __all__ = ["EXAMPLES", "example_names", "example_summary", "write_example"]
 #: name → module (under this package) that writes it
 EXAMPLES: dict[str, str] = {
     "friction-bench": "friction_bench",
+    "rail-leg": "rail_leg",
+    "solo12-walk": "solo12_walk",
+    "talos-leg-drive": "talos_leg_drive",
+    "talos-walk": "talos_walk",
 }
 
 
