@@ -21,8 +21,10 @@ EXAMPLES: dict[str, str] = {
     "current-arm": "current_arm",
     "drive-gains": "drive_gains",
     "friction-bench": "friction_bench",
-    "paired-runs": "paired_runs",
-    "ros2-bag": "ros2_bag",
+    "rail-leg": "rail_leg",
+    "solo12-walk": "solo12_walk",
+    "talos-leg-drive": "talos_leg_drive",
+    "talos-walk": "talos_walk",
 }
 
 

@@ -24,7 +24,7 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..robot import Robot
 
-__all__ = ["wrench_log", "walking_flags"]
+__all__ = ["accelerometer_reading", "wrench_log", "walking_flags"]
 
 
 def _ramp(t: np.ndarray, t0: float, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -160,6 +160,27 @@ def wrench_log(
         joint_names=truth.joint_names, extras={"contact": flags, "contact_forces": measured},
         source=f"<wrench_log {truth.name}>",
     )
+
+
+def accelerometer_reading(robot: Robot, traj: Trajectory, frame: str, g: float = 9.81) -> np.ndarray:
+    """(N, 3) specific force f_s = R_sᵀ (p̈_s − g) [m/s²] an accelerometer at model frame ``frame`` reads,
+    in that frame's axes, from a floating-base log with q, v, a, base_q, base_v, base_a (base twist
+    LOCAL); p̈_s is the frame's classical acceleration (Pinocchio). It reads +g up at rest;
+    :func:`sensorless.data.imu_frame_base_acceleration` inverts it."""
+    model = robot.model.copy()
+    data = model.createData()
+    fid = model.getFrameId(frame)
+    perm = robot.joint_order(traj.joint_names, traj.source)
+    Q = robot.full_configuration(traj.q[:, perm], traj.base_q)
+    V = robot.full_velocity(traj.v[:, perm], traj.base_v)
+    A = robot.full_velocity(traj.a[:, perm], traj.base_a)
+    gvec = np.array([0.0, 0.0, -g])
+    out = np.empty((len(Q), 3))
+    for i in range(len(Q)):
+        pin.forwardKinematics(model, data, Q[i], V[i], A[i])
+        R = pin.updateFramePlacement(model, data, fid).rotation
+        out[i] = R.T @ (pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).linear - gvec)
+    return out
 
 
 def _in_frames(model, data, Q, contacts, sensors, w):
