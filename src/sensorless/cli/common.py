@@ -1,4 +1,4 @@
-"""Shared CLI pieces: the typer apps, error guard, atomic output directories, progress bars."""
+"""Shared CLI pieces: the typer apps, error guard, atomic output directories (progress bars: :mod:`.progress`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,6 @@ from typing import Iterable, Iterator, List, Optional
 import typer
 from typer.core import TyperCommand
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
 
 from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
@@ -187,13 +186,6 @@ def path_inputs(*values) -> list:
     return out
 
 
-def progress_bar() -> Progress:
-    return Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=err_console, transient=True,
-    )
-
-
 def gains_option():
     return typer.Option(None, help="per-joint drive gains τ = K·i for logs of motor currents: a .json/.csv file "
                                    "(joint → gain), 'K1,K2,...' in column order, or 'joint=K,...'; "
@@ -298,14 +290,20 @@ PACKAGE_PATH_HELP = ("folder the robot description may read meshes/includes from
                      "looks here; repeatable; ROS_PACKAGE_PATH counts too)")
 
 
-def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, trim=None, **options):
+def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, trim=None, progress=None, **options):
     """Read, validate and preprocess logs given on the command line (:func:`load_log` each); ``trim``:
-    the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window)."""
+    the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window);
+    ``progress(1)`` after each file."""
     from ..data.trims import LogTrims
 
     trims = LogTrims.parse(trim)
-    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, trim=trims.window_for(p), **options)
-            for p in paths]
+    logs = []
+    for p in paths:
+        logs.append(load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, trim=trims.window_for(p),
+                             **options))
+        if progress is not None:
+            progress(1)
+    return logs
 
 
 ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"

@@ -14,7 +14,6 @@ from .common import (
     app,
     atomic_outdir,
     console,
-    err_console,
     guarded,
     load_robot_arg,
     path_inputs,
@@ -23,6 +22,7 @@ from .common import (
     robot_option,
 )
 from .options import Criterion
+from .progress import progress_bars
 
 from ..robots.names import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
 
@@ -109,11 +109,13 @@ def excite(
         limits = ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration)
     boxes = [_parse_box(b) for b in box]
     with atomic_outdir(out, force, inputs=path_inputs(robot)) as tmp:
-        with err_console.status("optimising excitation …") as status:
+        with progress_bars() as bars:
+            step = bars.step("optimising excitation (SLSQP iterations)", total=maxiter)
+            note = "cond {:.4g}" if criterion == "cond" else "−log det {:.4g}"
             design = design_excitation(
                 structure, limits, harmonics=harmonics, base_freq=base_freq, criterion=criterion,
                 n_samples=n_samples, cartesian=boxes, start_at_rest=start_at_rest, seed=seed, maxiter=maxiter,
-                progress=lambda i, f: status.update(f"optimising excitation … iteration {i}, objective {f:.4g}"),
+                progress=lambda i, f: step.update(i, note=note.format(np.exp(f) if criterion == "cond" else f)),
             )
         design.save(tmp, rate=rate, periods=periods)
     m, b = design.metrics, design.random_metrics
