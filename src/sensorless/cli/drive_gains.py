@@ -29,6 +29,7 @@ from .common import (
 )
 from .logs import log_settings, log_trims, print_pairing, trim_option
 from .options import ALIGN_HELP, RATE_HELP, Align, TimeUnit
+from .progress import progress_bars
 
 __all__ = ["drive_gains"]
 
@@ -86,8 +87,10 @@ def drive_gains(
     trims = log_trims(trim, [unloaded, loaded])
     u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trims, resample=resample,
                       time_unit=time_unit)
-    res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c, offset=offset,
-                               align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed)
+    with progress_bars() as bars:
+        res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c,
+                                   offset=offset, align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed,
+                                   progress=bars.callback("drive-gain block bootstrap (resamples)"))
     print_pairing(res.diagnostics["alignment"])
     doc = res.to_dict()
     written = dict(doc["gains"])

@@ -33,6 +33,7 @@ from .common import (
     trim_option,
 )
 from .options import FrictionState, TimeUnit, Velocity
+from .progress import progress_bars
 
 __all__ = ["bench_friction_state", "friction", "friction_model_log", "predict_friction", "read_bench_logs"]
 
@@ -109,7 +110,9 @@ def friction(
         one = names if names and len(names) == 1 else None  # names the joint of a bare-column log
         train = read_bench_logs(data, prep, joints=one, need_acceleration=need_a)
         held = read_bench_logs(test, prep, joints=one, need_acceleration=need_a)
-        model = FrictionModel(term_list, str(state), smoothing, joints=names).fit(train)
+        with progress_bars() as bars:
+            model = FrictionModel(term_list, str(state), smoothing, joints=names).fit(
+                train, progress=bars.callback("friction laws (joints)"))
         validation = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(test, held)}
         training = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(data, train)}
         doc = {"settings": {"data": [str(p) for p in data], "test": [str(p) for p in test],

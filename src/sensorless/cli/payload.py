@@ -27,6 +27,7 @@ from .common import (
 )
 from .logs import log_settings, print_pairing
 from .options import ALIGN_HELP, Align, PayloadMode
+from .progress import progress_bars
 
 __all__ = ["payload"]
 
@@ -102,9 +103,11 @@ def payload(
             print_pairing(p.to_dict())
     off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
-    est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
-                           com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
-                           flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
+    with progress_bars() as bars:
+        est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
+                               com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
+                               flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed,
+                               progress=bars.callback("payload block bootstrap (resamples)"))
     if est.mass_at_bound and not accept_bound:
         raise ExcitationError(
             f"payload at '{frame}': the mass is at its bound 0 (least squares without the bound: "
