@@ -207,6 +207,8 @@ def identify(
         sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
         cond, base_std = condition_number(ne, base, row_w), []
         extra["lmi"] = lmi.summary()
+        extra["ellipsoid_sources"] = {b: e.get("source", "given") for b, e in
+                                      (extra["lmi"].get("settings") or {}).get("ellipsoids", {}).items()}
         extra["gamma"] = float(gamma)
         cost = _constraint_cost(ne, params, lmi, row_w)
         if cost is not None:
