@@ -15,7 +15,6 @@ from typer.core import TyperCommand
 from rich.console import Console
 from rich.text import Text
 
-from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
 from .logs import log_trims, trim_option
@@ -215,6 +214,7 @@ def model_preprocessing(model, **given) -> dict:
     command line (not None) wins, else the model's (result.json settings.preprocessing, validated:
     :mod:`sensorless.identification.artifact`; ``model`` is a loaded ModelArtifact or a path).
     ``--columns`` carrying ':gain=' drops the model's gains; ``--gains off`` drops them too."""
+    from ..data.prepare import PREPROCESSING_KEYS
     from ..identification.artifact import ModelArtifact, read_preprocessing
 
     saved = model.preprocessing if isinstance(model, ModelArtifact) else read_preprocessing(model)
@@ -294,6 +294,7 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, 
     """Read, validate and preprocess logs given on the command line (:func:`load_log` each); ``trim``:
     the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window);
     ``progress(1)`` after each file."""
+    from ..data.prepare import load_log
     from ..data.trims import LogTrims
 
     trims = LogTrims.parse(trim)
@@ -377,8 +378,6 @@ def log_reading_options(skip_bad: bool = True):
     """Decorator: ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
-    from ..data.limits import read_options
-
     options = dict(_READING_OPTIONS)
     if skip_bad:
         options["skip_bad"] = (bool, lambda: typer.Option(
@@ -388,6 +387,8 @@ def log_reading_options(skip_bad: bool = True):
     def deco(fn):
         @functools.wraps(fn)
         def run(*args, reading: dict, **kwargs):
+            from ..data.limits import read_options
+
             with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
                               accept_implausible_gains=reading["accept_implausible_gains"],
                               skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"]):

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import DataError, OptionError
@@ -70,6 +69,7 @@ def drive_gains(
     with a known payload: K_j (i_loaded − i_unloaded)_j = τ_payload,j, least squares on
     the currents, 95 % intervals from a moving-block bootstrap and HAC (correlated noise).
     The output JSON is a gains file for --gains of identify, predict, payload, monitor."""
+    import numpy as np
     from ..data.gains import resolve_gains
     from ..identification.drive_gains import identify_drive_gains
     from ..identification.result import write_json_atomic

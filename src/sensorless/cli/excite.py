@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import ExcitationError
@@ -29,6 +28,7 @@ from ..robots.names import PSM_NAMES  # noqa: E402  (re-exported: names `--robot
 
 def _parse_box(spec: str):
     """'FRAME:xmin,ymin,zmin:xmax,ymax,zmax' with '-' for an open side."""
+    import numpy as np
     from ..excitation import CartesianBox
 
     parts = spec.split(":")
@@ -49,6 +49,7 @@ def _parse_box(spec: str):
 
 def _check_options(**opts) -> None:
     """Numeric options of `excite`: whole numbers in range, finite positive reals."""
+    import numpy as np
     whole = {"harmonics": (1, 100), "n_samples": (4, 100_000), "maxiter": (1, 100_000), "seed": (0, 2**63 - 1)}
     for name, (lo, hi) in whole.items():
         if not lo <= opts[name] <= hi:
@@ -90,6 +91,7 @@ def excite(
 
     The samples written are checked against the excitation limits and the robot model's own
     limits; a trajectory that leaves them is refused (exit 2, nothing written)."""
+    import numpy as np
     from ..excitation import ExcitationLimits, check_export, design_excitation
     from ..regressor import ModelStructure
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import OptionError
@@ -94,6 +93,7 @@ def friction(
     """Identify joint friction from test-bench logs, without a robot model: static law (Coulomb,
     Stribeck, viscous, offset, inertia) or a Dahl/LuGre-type state for presliding and hysteresis,
     chosen per joint by BIC; terms with 95 % intervals; held-out error near reversals."""
+    import numpy as np
     from ..identification.artifact import save_friction_model
     from ..identification.friction_fit import DEFAULT_TERMS
     from ..identification.friction_model import FrictionModel
@@ -138,6 +138,7 @@ def friction(
 
 
 def _smoothing(text: str):
+    import numpy as np
     if text == "auto":
         return "auto"
     try:
@@ -223,6 +224,8 @@ def predict_friction(model: Path, data: Path, out: Path, prep: dict) -> None:
     """`sensorless predict` with a friction-only model: τ̂ of the log (states from zero), the
     measured τ, the best static law's τ̂ when the model has a state; metrics overall and near reversals."""
     import json
+
+    import numpy as np
 
     from ..identification.metrics import torque_metrics
     from ..io import write_npz_atomic

@@ -8,7 +8,6 @@ from typing import List, Optional
 
 import typer
 
-from ..data.limits import current_options
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option, wrench_frame_option
 from .frames import frame_options
@@ -19,7 +18,6 @@ from .common import (
     MultiValueCommand,
     app,
     atomic_outdir,
-    check_preprocessing,
     console,
     err_console,
     gains_option,
@@ -164,6 +162,8 @@ def identify(
         raise OptionError(f"--urdf-values must be one of {', '.join(URDF_VALUES)}, got '{urdf_values}'")
     coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
+    from ..data.prepare import check_preprocessing
+
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
         raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
@@ -215,6 +215,8 @@ def identify(
                 first = _first_training_log(data, r, prep)
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
+            from ..data.limits import current_options
+
             reader = LogReader(**prep, imu_frame=imu_frame, skip_bad_rows=current_options().get("skip_bad_rows"))
             result, fleet = identify_on_dask(structure, data, scheduler, workers, reader,
                                              method, skip_bad,
@@ -339,7 +341,7 @@ def _load_training(data, r, prep: dict, skip_bad: bool, progress=None):
 
 
 def _load_each(data, r, prep: dict, progress=None):
-    from .common import load_log
+    from ..data.prepare import load_log
 
     train, used, skipped = [], [], []
     for p in data:
@@ -407,7 +409,7 @@ def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smooth
 
 def _first_training_log(data, r, prep: dict) -> list:
     """The first training log for the torque plot, if this machine can read it (else no plot)."""
-    from .common import load_log
+    from ..data.prepare import load_log
 
     try:
         return [load_log(data[0], r, **prep)]

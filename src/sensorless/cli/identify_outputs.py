@@ -5,8 +5,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
-
 from .common import (
     console,
     err_console,
@@ -20,6 +18,7 @@ PLOT_POINTS = 2_000  # points per curve after decimation
 def _plot_window(traj, structure, models: dict, path: Path, title: str) -> None:
     """torques.png: measured vs predicted effort on the first ``PLOT_WINDOW`` samples, every k-th sample
     (≤ ``PLOT_POINTS`` points). Only those samples are predicted (the model is pointwise in q, v, v̇)."""
+    import numpy as np
     from ..report import plot_torques
 
     n = min(len(traj), PLOT_WINDOW)

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import ExcitationError, SensorlessError
@@ -33,6 +32,7 @@ __all__ = ["payload"]
 
 
 def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
+    import numpy as np
     if text is None:
         return None
     try:
@@ -81,6 +81,7 @@ def payload(
     """Identify a payload at FRAME from the torque the robot's model does not explain:
     τ − Wπ̂ = Gᵀ J_fᵀ Φ_f φ (+ per-joint offsets), paired with a no-load log when given.
     Reports mass (and m·g), CoM, uncertainty (HAC / block bootstrap) and per-joint consistency."""
+    import numpy as np
     from ..identification.payload import identify_payload
     from .applied_model import robot_and_model
     from ..identification.result import write_json_atomic
@@ -142,6 +143,7 @@ def payload(
 def _check_payload_mass(est, robot, frame: str, accept: bool) -> None:
     """PlausibilityError for a payload mass that is not finite or heavier than the whole robot model
     (no model states a payload rating; a robot that carries more than itself is a unit or model error)."""
+    import numpy as np
     from ..errors import PlausibilityError
 
     total = float(sum(robot.model.inertias[j].mass for j in range(1, robot.model.njoints)))
@@ -159,6 +161,7 @@ def _check_payload_mass(est, robot, frame: str, accept: bool) -> None:
 
 def _gain_std(gains, robot):
     """Relative std per actuated joint of gains from a `sensorless drive-gains` file, else None."""
+    import numpy as np
     from ..io import read_json
 
     if not isinstance(gains, (str, Path)) or not str(gains).lower().endswith(".json") or not Path(gains).is_file():
@@ -174,6 +177,7 @@ def _gain_std(gains, robot):
 
 def _scaled(traj, robot, scale):
     """``traj`` with the torque of actuated joint k scaled by ``scale[k]`` (a gain perturbed)."""
+    import numpy as np
     names = list(traj.joint_names)
     f = np.ones(len(names))
     for k, j in enumerate(robot.actuated_joints):

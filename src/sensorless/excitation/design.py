@@ -156,7 +156,8 @@ def design_excitation(
     (``seed … seed + n_random − 1``). Figures are evaluated on one period sampled at
     ``eval_rate`` (default ``max(n_samples·f0, 20 × highest harmonic)`` Hz); limits are
     checked on a 4× denser grid. SLSQP runs at most ``maxiter`` iterations and stops earlier on a
-    plateau (:data:`PLATEAU_ITERATIONS`, :data:`PLATEAU_TOL`; ``settings["stopped_by"]``).
+    plateau (:data:`PLATEAU_ITERATIONS`, :data:`PLATEAU_TOL`; ``settings["stopped_by"]``); each iterate
+    is brought inside the limits and, without Cartesian boxes, the best of them is returned.
     ``progress(iteration, criterion)`` is called after each SLSQP iteration.
     """
     if criterion not in CRITERIA:
@@ -217,10 +218,17 @@ def design_excitation(
             values[key], grads[key] = prob.value_and_grad(x)
         return grads[key]
 
-    history: list[float] = []  # criterion of each iterate brought inside the limits (what would be returned)
+    # SLSQP's iterates may lie marginally outside the (analytic) limits: each is brought inside by
+    # shrinking amplitudes (_fit_if_needed), and the best of those is returned (without Cartesian boxes,
+    # which the shrinking does not check: then the last iterate, as SLSQP leaves it)
+    history: list[float] = []
+    best: list = [np.inf, None]
 
     def callback(xk):
-        history.append(prob.value(prob.pack(_fit_if_needed(prob.fourier(xk), limits))))
+        fitted = _fit_if_needed(prob.fourier(xk), limits)
+        history.append(prob.value(prob.pack(fitted)))
+        if history[-1] < best[0]:
+            best[:] = [history[-1], fitted]
         if progress is not None:
             progress(len(history), history[-1])
         if _settled(history):
@@ -228,10 +236,10 @@ def design_excitation(
 
     res = minimize(fun, x0, jac=jac, method="SLSQP", constraints=cons, callback=callback,
                    options={"maxiter": maxiter, "ftol": 1e-6})
-    x = res.x
     stopped = "plateau" if res.status == 99 else "optimizer"
-    # SLSQP may end marginally outside the (analytic) limits: shrink amplitudes to be exact
-    opt = _fit_if_needed(prob.fourier(x), limits)
+    opt = _fit_if_needed(prob.fourier(res.x), limits)
+    if not cartesian and best[1] is not None and best[0] < prob.value(prob.pack(opt)):
+        opt = best[1]
     if prob.value(prob.pack(opt)) > prob.value(x0):  # never return worse than the start
         opt = prob.fourier(x0)
     seconds = time.perf_counter() - t0
