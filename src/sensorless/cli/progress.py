@@ -57,12 +57,6 @@ class Step:
             self._bar.update(self._task, completed=done, **({} if total is None else {"total": total}),
                              **({} if note is None else {"note": note}))
 
-    def finish(self) -> None:
-        """Mark the step complete (its bar full)."""
-        if self._bar is not None:
-            total = next(t.total for t in self._bar.tasks if t.id == self._task) or 1
-            self._bar.update(self._task, completed=total, total=total)
-
 
 class _Bars:
     def __init__(self, bar) -> None:
