@@ -23,7 +23,7 @@ from sensorless.excitation import (
     random_excitation,
     random_fourier,
 )
-from sensorless.excitation.design import _Problem
+from sensorless.excitation.problem import FourierProblem
 from sensorless.identification import base_parameters
 from sensorless.regressor import ModelStructure
 
@@ -108,7 +108,7 @@ def test_save_exports_parameters_and_samples(design, tmp_path):
 def test_gradient_matches_central_differences(structure, ur5):
     limits = ExcitationLimits.from_robot(ur5)
     for crit in ("cond", "dopt"):
-        prob = _Problem(structure, limits, 2, 0.2, 40, crit, (), 0.05)
+        prob = FourierProblem(structure, limits, 2, 0.2, 40, crit, (), 0.05)
         x = prob.pack(random_excitation(limits, harmonics=2, base_freq=0.2, rng=1, fill=0.9))
         _, g = prob.value_and_grad(x, h=1e-7)
         d = np.random.default_rng(0).normal(size=x.size)

@@ -55,7 +55,9 @@ def test_lugre_joint_gets_a_state_that_halves_the_error_near_reversals(lugre_fit
 
 def test_joint_without_presliding_keeps_the_static_law():
     train, _ = simulate_lugre_joint(STATIC, duration=60.0, seed=2)
-    model = FrictionModel().fit([train])
+    calls = []
+    model = FrictionModel().fit([train], progress=lambda *a: calls.append(a))
+    assert calls == [(1, 1)]  # one joint
     fit, law = model.fits_["joint"], model.laws_["joint"]
     assert law.kind == "static" and fit.bic["state"] is not None and fit.bic["state"] > fit.bic["static"]
     assert "static" in fit.reason

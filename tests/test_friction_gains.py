@@ -142,8 +142,10 @@ def test_identify_cli_per_joint_terms_auto_friction_saved_and_reloaded(ur10_logs
 def test_drive_gains_from_a_pair_within_2_percent_and_cli_output_is_a_gains_file(ur10_logs, tmp_path):
     d, robot, truth, K = ur10_logs
     u, lo = (load_log(d / f, robot, COLS, None, None, 21, 1, trim="1.5:-1") for f in ("u.csv", "l.csv"))
+    calls = []
     res = identify_drive_gains(robot, u, lo, payload_mass=4.0, payload_frame="tool0", payload_com=(0.06, 0.02, 0.05),
-                               n_boot=200)
+                               n_boot=250, progress=lambda *a: calls.append(a))
+    assert calls == [(100, 250), (200, 250), (250, 250)]
     assert np.all(np.abs(res.gains / K - 1) < 0.02), res.gains / K
     assert res.identified.all() and np.all(res.std > 0)
     used = res.diagnostics["samples_used"]  # samples near velocity reversals are left out, per joint

@@ -346,15 +346,19 @@ def test_gamma_selection_and_cross_validation(panda, panda_case):
     grid = [1e-5, 1e-3, 1e-1, 1e1]
     sel = select_gamma(ne, val, s, grid)
     assert sel.gamma in grid and sel.scores.shape == (4,) and np.all(np.isfinite(sel.scores))
-    cv = cross_validate_gamma(s, train, grid, n_folds=3, score="nrmse")
+    calls = []
+    cv = cross_validate_gamma(s, train, grid, n_folds=3, score="nrmse", progress=lambda *a: calls.append(a))
     assert cv.gamma in grid and cv.fold_scores.shape == (4, 3)
+    assert calls == [(k, 15) for k in range(1, 16)]  # 3 folds compressed, then 3 × 4 solves
     # folds are additive: the merged folds are the whole log's normal equations
     folds = [compress(s, train.take(slice(a, b))) for a, b in [(0, 150), (150, 320), (320, 500)]]
     merged = functools.reduce(NormalEquations.merge, folds)
     np.testing.assert_allclose(merged.A, ne.A, rtol=1e-10, atol=1e-9)
     np.testing.assert_allclose(merged.c, ne.c, rtol=1e-12)
-    cv2 = cross_validate_gamma(s, folds, grid)
+    calls.clear()
+    cv2 = cross_validate_gamma(s, folds, grid, progress=lambda *a: calls.append(a))
     assert cv2.fold_scores.shape == (4, 3)
+    assert calls == [(k, 12) for k in range(1, 13)]  # precompressed folds: the solves only
     assert validation_score(val, truth.parameters(s.joint_terms)) < validation_score(val, s.prior())
 
 

@@ -59,8 +59,10 @@ def test_known_payload_recovered_on_the_panda(panda, panda_case):
     truth, result = panda_case
     log = synthetic_trajectory(_with_payload(truth, FRAME, PAYLOAD), random_fourier(panda, rng=5, base_freq=0.1).sample(200, 30.0),
                                noise_std=0.2, rng=6)
-    est = identify_payload(result, log, FRAME, n_boot=50)
+    calls = []
+    est = identify_payload(result, log, FRAME, n_boot=50, progress=lambda *a: calls.append(a))
     assert est.mode == "full" and est.consistent
+    assert calls[-50:] == [(k, 50) for k in range(1, 51)]  # one call per bootstrap resample
     assert abs(est.mass - 1.5) / 1.5 < 0.05
     assert np.linalg.norm(est.com - PAYLOAD.lever) < 0.005
     assert 0 < est.mass_std < 0.05 and 0 < est.mass_std_analytic < 0.05

@@ -10,7 +10,8 @@ is looked up as ``ROOT/pkg/rest`` (or ``ROOT/rest`` for a root named ``pkg``) in
 folders only. Absolute paths and ``..`` that leave the roots are refused.
 
 URDF meshes only feed the bounding ellipsoids: :func:`confine_urdf_meshes` drops a geometry
-whose mesh is outside the roots, with a warning naming it. MJCF is parsed by MuJoCo/Pinocchio,
+whose mesh is outside the roots or missing, and reports it (the ellipsoids' warning names each
+file and the ellipsoid used instead). MJCF is parsed by MuJoCo/Pinocchio,
 which may read what it names: :func:`check_mjcf_paths` refuses any escape with an error.
 """
 
@@ -84,9 +85,11 @@ def resolve_resource(ref: str, base: str | os.PathLike, packages: Sequence[Path]
     return real
 
 
-def confine_urdf_meshes(text: str, base: str | os.PathLike, packages: Sequence[Path] = (), src: str = "") -> str:
+def confine_urdf_meshes(text: str, base: str | os.PathLike, packages: Sequence[Path] = (), src: str = "",
+                        dropped: list | None = None) -> str:
     """URDF ``text`` with each ``<mesh filename>`` replaced by its resolved real path; a visual or
-    collision whose mesh leaves the roots (or is missing) is dropped with a RobotModelWarning."""
+    collision whose mesh leaves the roots (or is missing) is dropped: recorded in ``dropped``
+    (``{"link", "kind", "file", "reason"}`` each) when a list is given, else one RobotModelWarning each."""
     root = ET.fromstring(text)
     for link in root.iter("link"):
         for kind in ("visual", "collision"):
@@ -94,14 +97,21 @@ def confine_urdf_meshes(text: str, base: str | os.PathLike, packages: Sequence[P
                 mesh = geom.find("geometry/mesh")
                 if mesh is None:
                     continue
+                fn, real = mesh.get("filename", ""), None
                 try:
-                    real = resolve_resource(mesh.get("filename", ""), base, packages, src)
+                    real = resolve_resource(fn, base, packages, src)
                     if not real.is_file():
-                        raise PathEscape(f"{src}: mesh {mesh.get('filename')!r} not found ({real})")
+                        raise PathEscape(f"{src}: mesh {fn!r} not found ({real})")
                 except PathEscape as exc:
-                    warnings.warn(f"{exc}; link '{link.get('name')}' {kind} mesh ignored (the bounding "
-                                  "ellipsoid uses the other geometry and the joints)", RobotModelWarning,
-                                  stacklevel=3)
+                    if dropped is not None:  # the reason without the file, the source and the hint
+                        why = (f"not found ({real})" if real is not None else
+                               str(exc).removeprefix(f"{src}: " if src else "").removeprefix(repr(fn.strip()))
+                               .replace(f"; {_HINT}", "").lstrip(": "))
+                        dropped.append({"link": link.get("name"), "kind": kind, "file": fn, "reason": why})
+                    else:
+                        warnings.warn(f"{exc}; link '{link.get('name')}' {kind} mesh ignored (the bounding "
+                                      "ellipsoid uses the other geometry and the joints)", RobotModelWarning,
+                                      stacklevel=3)
                     link.remove(geom)
                     continue
                 mesh.set("filename", str(real))

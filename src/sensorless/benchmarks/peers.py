@@ -261,10 +261,12 @@ def run_peers(
     train_samples: int | None = None,
     console=None,
     log: Callable[[str], None] | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> dict:
     """Run the recipe: every case × seed × variant; per case the mean and worst nRMSE over
     seeds, whether every body was consistent in every run, and the acceptance verdict of the
-    "lmi" variant (mean over seeds ≤ the case's ``acceptance_percent`` and all consistent)."""
+    "lmi" variant (mean over seeds ≤ the case's ``acceptance_percent`` and all consistent).
+    ``progress(done, total)`` after each fit."""
     say = log or (console.print if console is not None else (lambda _m: None))
     seeds = recipe.seeds if seeds is None else tuple(seeds)
     cases = tuple(recipe.cases) if cases is None else tuple(cases)
@@ -281,6 +283,7 @@ def run_peers(
         "machine": {"platform": platform.platform(), "python": platform.python_version(),
                     "pinocchio": pin.__version__},
     }
+    done, total = 0, len(cases) * len(seeds) * len(variants)
     for name in cases:
         runs: dict[str, list] = {v: [] for v in variants}
         for seed in seeds:
@@ -289,6 +292,9 @@ def run_peers(
                 method, overrides = VARIANTS[v]
                 r = _fit(case, robot, method, overrides)
                 runs[v].append({"seed": seed, **r})
+                done += 1
+                if progress is not None:
+                    progress(done, total)
                 say(f"{name} seed {seed} {v:15s} nRMSE {r['nrmse_percent']:.3f} %  consistent {r['all_consistent']}"
                     + (f"  γ {r['gamma']:.3g}" if r["gamma"] is not None else "") + f"  ({r['seconds']:.1f} s)")
         summary = {}

@@ -176,13 +176,16 @@ def one_seed(work: Path, seed: int) -> dict:
     }
 
 
-def run(out: Path, *, seeds: int = 20, seed: int = 0, console=None) -> dict:
-    """All seeds; writes ``out/results.json`` (per seed and the acceptance summary)."""
+def run(out: Path, *, seeds: int = 20, seed: int = 0, console=None, progress=None) -> dict:
+    """All seeds; writes ``out/results.json`` (per seed and the acceptance summary); ``progress(done, seeds)``
+    after each seed."""
     out = Path(out)
     per = []
     for s in range(seed, seed + seeds):
         r = one_seed(out / f"seed{s}", s)
         per.append(r)
+        if progress is not None:
+            progress(len(per), seeds)
         if console is not None:
             console.print(f"seed {s}: NRMSE ratio max {max(r['nrmse_ratio']):.3f} (motion only "
                           f"{max(r['nrmse_ratio_motion_only']):.3f}), gains |err| max "

@@ -14,6 +14,7 @@ from .common import (
     console,
 )
 from .options import LinearMethod
+from .progress import progress_bars
 
 
 @bench_command("identify")
@@ -111,8 +112,10 @@ def bench_peers_cmd(
         seed_list = tuple(int(s) for s in seeds.split(",")) if seeds else None
     except ValueError:
         raise OptionError(f"--seeds must be comma-separated integers, got '{seeds}'") from None
-    res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None,
-                    variants=tuple(v for v in variants.split(",") if v), console=console)
+    with progress_bars() as bars:
+        res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None,
+                        variants=tuple(v for v in variants.split(",") if v), console=console,
+                        progress=bars.callback("peer fits (case × seed × variant)"))
     res["recipe"]["file"] = "built-in (sensorless.benchmarks.peers.DEFAULT_RECIPE)" if default else str(recipe)
     for name, c in res["cases"].items():
         peers = ", ".join(f"{k} {v} %" for k, v in rec.peers.get(name, {}).items())
@@ -138,7 +141,8 @@ def bench_real_arm_cmd(
 
     if seeds < 1:
         raise OptionError("--seeds must be >= 1")
-    res = run(work, seeds=seeds, seed=seed, console=console)
+    with progress_bars() as bars:
+        res = run(work, seeds=seeds, seed=seed, console=console, progress=bars.callback("simulated arms (seeds)"))
     a = res["acceptance"]
     console.print(f"NRMSE / true model: whole log max {a['nrmse_ratio_max']:.3f} (mean {a['nrmse_ratio_mean']:.3f}), "
                   f"motion only max {a['nrmse_ratio_motion_only_max']:.3f} (mean {a['nrmse_ratio_motion_only_mean']:.3f}); "

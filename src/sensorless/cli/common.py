@@ -1,4 +1,4 @@
-"""Shared CLI pieces: the typer apps, error guard, atomic output directories, progress bars."""
+"""Shared CLI pieces: the typer apps, error guard, atomic output directories (progress bars: :mod:`.progress`)."""
 
 from __future__ import annotations
 
@@ -12,12 +12,10 @@ from typing import Iterable, Iterator, List, Optional
 
 import typer
 from typer.core import TyperCommand
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.text import Text
 
 from .console import console, err_console
 
-from ..data.prepare import PREPROCESSING_KEYS, check_preprocessing, load_log, parse_columns  # noqa: F401 (re-exported)
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
 from .blas import blas_threads_for_command
@@ -168,13 +166,6 @@ def path_inputs(*values) -> list:
     return out
 
 
-def progress_bar() -> Progress:
-    return Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=err_console, transient=True,
-    )
-
-
 def gains_option():
     return typer.Option(None, help="per-joint drive gains τ = K·i for logs of motor currents: a .json/.csv file "
                                    "(joint → gain), 'K1,K2,...' in column order, or 'joint=K,...'; "
@@ -204,6 +195,7 @@ def model_preprocessing(model, **given) -> dict:
     command line (not None) wins, else the model's (result.json settings.preprocessing, validated:
     :mod:`sensorless.identification.artifact`; ``model`` is a loaded ModelArtifact or a path).
     ``--columns`` carrying ':gain=' drops the model's gains; ``--gains off`` drops them too."""
+    from ..data.prepare import PREPROCESSING_KEYS
     from ..identification.artifact import ModelArtifact, read_preprocessing
 
     from ..data.limits import current_options
@@ -282,14 +274,21 @@ PACKAGE_PATH_HELP = ("folder the robot description may read meshes/includes from
                      "looks here; repeatable; ROS_PACKAGE_PATH counts too)")
 
 
-def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, trim=None, **options):
+def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, trim=None, progress=None, **options):
     """Read, validate and preprocess logs given on the command line (:func:`load_log` each); ``trim``:
-    the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window)."""
+    the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window);
+    ``progress(1)`` after each file."""
+    from ..data.prepare import load_log
     from ..data.trims import LogTrims
 
     trims = LogTrims.parse(trim)
-    return [load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, trim=trims.window_for(p), **options)
-            for p in paths]
+    logs = []
+    for p in paths:
+        logs.append(load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, trim=trims.window_for(p),
+                             **options))
+        if progress is not None:
+            progress(1)
+    return logs
 
 
 ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
@@ -366,8 +365,6 @@ def log_reading_options(skip_bad: bool = True):
     """Decorator: ``--angle-unit``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
-    from ..data.limits import read_options
-
     options = dict(_READING_OPTIONS)
     if skip_bad:
         options["skip_bad"] = (bool, lambda: typer.Option(
@@ -377,6 +374,8 @@ def log_reading_options(skip_bad: bool = True):
     def deco(fn):
         @functools.wraps(fn)
         def run(*args, reading: dict, **kwargs):
+            from ..data.limits import read_options
+
             with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
                               accept_implausible_gains=reading["accept_implausible_gains"],
                               skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"],

@@ -5,10 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
-from ..data.limits import current_options
 from ..errors import DataError, OptionError
 from .common import (
     log_reading_options,
@@ -30,6 +28,7 @@ from .common import (
 )
 from .logs import log_settings, log_trims, print_pairing, trim_option
 from .options import ALIGN_HELP, RATE_HELP, Align, TimeUnit
+from .progress import progress_bars
 
 __all__ = ["drive_gains"]
 
@@ -72,7 +71,10 @@ def drive_gains(
     with a known payload: K_j (i_loaded − i_unloaded)_j = τ_payload,j, least squares on
     the currents, 95 % intervals from a moving-block bootstrap and HAC (correlated noise).
     The output JSON is a gains file for --gains of identify, predict, payload, monitor."""
+    import numpy as np
+
     from ..data.gains import resolve_gains
+    from ..data.limits import current_options
     from ..identification.drive_gains import identify_drive_gains
     from ..identification.result import write_json_atomic
     from .payload import _vector
@@ -89,8 +91,10 @@ def drive_gains(
     trims = log_trims(trim, [unloaded, loaded])
     u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trims, resample=resample,
                       time_unit=time_unit)
-    res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c, offset=offset,
-                               align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed)
+    with progress_bars() as bars:
+        res = identify_drive_gains(r, u, lo, payload_mass=payload_mass, payload_frame=frame, payload_com=c,
+                                   offset=offset, align=align, block_seconds=block_seconds, n_boot=n_boot, seed=seed,
+                                   progress=bars.callback("drive-gain block bootstrap (resamples)"))
     print_pairing(res.diagnostics["alignment"])
     _check_misfit(res, loaded, accept_misfit)
     doc = res.to_dict()

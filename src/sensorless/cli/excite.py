@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import ExcitationError
@@ -14,7 +13,6 @@ from .common import (
     app,
     atomic_outdir,
     console,
-    err_console,
     guarded,
     load_robot_arg,
     path_inputs,
@@ -23,12 +21,14 @@ from .common import (
     robot_option,
 )
 from .options import Criterion
+from .progress import progress_bars
 
 from ..robots.names import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
 
 
 def _parse_box(spec: str):
     """'FRAME:xmin,ymin,zmin:xmax,ymax,zmax' with '-' for an open side."""
+    import numpy as np
     from ..excitation import CartesianBox
 
     parts = spec.split(":")
@@ -49,6 +49,7 @@ def _parse_box(spec: str):
 
 def _check_options(**opts) -> None:
     """Numeric options of `excite`: whole numbers in range, finite positive reals."""
+    import numpy as np
     whole = {"harmonics": (1, 100), "n_samples": (4, 100_000), "maxiter": (1, 100_000), "seed": (0, 2**63 - 1)}
     for name, (lo, hi) in whole.items():
         if not lo <= opts[name] <= hi:
@@ -93,6 +94,7 @@ def excite(
 
     The samples written are checked against the excitation limits and the robot model's own
     limits; a trajectory that leaves them is refused (exit 2, nothing written)."""
+    import numpy as np
     from ..excitation import ExcitationLimits, check_export, design_excitation
     from ..regressor import ModelStructure
 
@@ -112,11 +114,13 @@ def excite(
         limits = ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration)
     boxes = [_parse_box(b) for b in box]
     with atomic_outdir(out, force, inputs=path_inputs(robot)) as tmp:
-        with err_console.status("optimising excitation …") as status:
+        with progress_bars() as bars:
+            step = bars.step("optimising excitation (SLSQP iterations)", total=maxiter)
+            note = "cond {:.4g}" if criterion == "cond" else "−log det {:.4g}"
             design = design_excitation(
                 structure, limits, harmonics=harmonics, base_freq=base_freq, criterion=criterion,
                 n_samples=n_samples, cartesian=boxes, start_at_rest=start_at_rest, seed=seed, maxiter=maxiter,
-                progress=lambda i, f: status.update(f"optimising excitation … iteration {i}, objective {f:.4g}"),
+                progress=lambda i, f: step.update(i, note=note.format(np.exp(f) if criterion == "cond" else f)),
             )
         design.save(tmp, rate=rate, periods=periods)
         if plot:

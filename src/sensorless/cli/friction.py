@@ -14,10 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
-from ..data.limits import current_options, read_options
 from ..errors import OptionError
 from .common import (
     MultiValueCommand,
@@ -34,6 +32,7 @@ from .common import (
     trim_option,
 )
 from .options import FrictionState, TimeUnit, Velocity
+from .progress import progress_bars
 
 __all__ = ["bench_friction_state", "friction", "friction_model_log", "predict_friction", "read_bench_logs"]
 
@@ -50,6 +49,8 @@ def read_bench_logs(paths, prep: dict, *, joints=None, need_acceleration: bool =
     cols = prep.get("columns")
     cols = parse_columns(cols) if isinstance(cols, str) else cols
     gap = prep.get("max_gap")
+    from ..data.limits import current_options, read_options
+
     with read_options(angle_unit=prep.get("angle_unit")):  # --angle-unit, or the model's
         return _read_bench_logs(paths, prep, cols, gap, joints, need_acceleration)
 
@@ -100,6 +101,7 @@ def friction(
     """Identify joint friction from test-bench logs, without a robot model: static law (Coulomb,
     Stribeck, viscous, offset, inertia) or a Dahl/LuGre-type state for presliding and hysteresis,
     chosen per joint by BIC; terms with 95 % intervals; held-out error near reversals."""
+    import numpy as np
     from ..identification.artifact import save_friction_model
     from ..identification.friction_fit import DEFAULT_TERMS
     from ..identification.friction_model import FrictionModel
@@ -107,6 +109,8 @@ def friction(
     smoothing = _smoothing(coulomb_smoothing)
     if not (np.isfinite(reversal_window) and reversal_window > 0):
         raise OptionError(f"--reversal-window must be > 0 s, got {reversal_window}")
+    from ..data.limits import current_options
+
     term_list = tuple(t.strip() for t in terms.split(",") if t.strip()) or DEFAULT_TERMS
     names = [j.strip() for j in joints.split(",") if j.strip()] if joints else None
     prep = {"columns": columns, "gains": gains, "rate": rate, "time_unit": time_unit, "max_gap": max_gap,
@@ -117,7 +121,9 @@ def friction(
         one = names if names and len(names) == 1 else None  # names the joint of a bare-column log
         train = read_bench_logs(data, prep, joints=one, need_acceleration=need_a)
         held = read_bench_logs(test, prep, joints=one, need_acceleration=need_a)
-        model = FrictionModel(term_list, str(state), smoothing, joints=names).fit(train)
+        with progress_bars() as bars:
+            model = FrictionModel(term_list, str(state), smoothing, joints=names).fit(
+                train, progress=bars.callback("friction laws (joints)"))
         validation = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(test, held)}
         training = {str(p): _errors(model, tr, reversal_window) for p, tr in zip(data, train)}
         doc = {"settings": {"data": [str(p) for p in data], "test": [str(p) for p in test],
@@ -143,6 +149,7 @@ def friction(
 
 
 def _smoothing(text: str):
+    import numpy as np
     if text == "auto":
         return "auto"
     try:
@@ -210,6 +217,8 @@ def friction_model_log(model: Path, data: Path, prep: dict, *, need_acceleration
     from ..identification.artifact import load_friction_model
 
     art = load_friction_model(model)
+    from ..data.limits import current_options
+
     prep = {"angle_unit": current_options().get("angle_unit"), **prep}  # --angle-unit (log_reading_options)
     bad = [f"--{k}" for k in ("lowpass", "resample") if prep.get(k) is not None]
     if bad:
@@ -229,6 +238,8 @@ def predict_friction(model: Path, data: Path, out: Path, prep: dict) -> None:
     """`sensorless predict` with a friction-only model: τ̂ of the log (states from zero), the
     measured τ, the best static law's τ̂ when the model has a state; metrics overall and near reversals."""
     import json
+
+    import numpy as np
 
     from ..identification.metrics import torque_metrics
     from ..io import write_npz_atomic

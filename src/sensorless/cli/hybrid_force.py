@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from ..errors import SensorlessError
-from ..io import write_npz_atomic
 from .frames import frame_options
 from .common import (
     robot_source_options,
@@ -82,7 +80,10 @@ def estimate_force(
     generalized force: the actuated joints, and 0 on passive joints and a floating base (a contact model
     is evaluated without its projection). The robot is loaded as the model was identified; without
     --model (or with --model ROBOT.urdf) the description's own parameters are the model (the prior)."""
+    import numpy as np
+
     from ..estimation.force import CartesianForceEstimator
+    from ..io import write_npz_atomic
     from ..estimators import PhysicalModel
 
     output_file(out, path_inputs(robot, model, data, residual), force)

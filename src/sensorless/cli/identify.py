@@ -8,7 +8,6 @@ from typing import List, Optional
 
 import typer
 
-from ..data.limits import current_options
 from ..errors import ExcitationError, OptionError, SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option, wrench_frame_option
 from .frames import frame_options
@@ -19,7 +18,6 @@ from .common import (
     MultiValueCommand,
     app,
     atomic_outdir,
-    check_preprocessing,
     console,
     err_console,
     gains_option,
@@ -28,7 +26,6 @@ from .common import (
     load_robot_arg,
     max_gap_option,
     path_inputs,
-    progress_bar,
     resample_option,
     time_unit_option,
     velocity_option,
@@ -57,6 +54,7 @@ from .options import (
 )
 from .identify_model import _check_identify_options, _friction_options, _lmi_kwargs, _plain, _structure
 from .identify_outputs import _floating_base_checks, _plot_window, _print_bodies
+from .progress import progress_bars
 
 
 @app.command(cls=MultiValueCommand)
@@ -166,6 +164,8 @@ def identify(
         raise OptionError(f"--urdf-values must be one of {', '.join(URDF_VALUES)}, got '{urdf_values}'")
     coulomb_smoothing, stribeck_velocity = _friction_options(coulomb_smoothing, stribeck_velocity)
     _check_identify_options(method, gamma, regularization, coulomb_smoothing, outliers, weights)
+    from ..data.prepare import check_preprocessing
+
     check_preprocessing(rate, lowpass, savgol_window, decimate)
     if workers is not None and scheduler is None:
         raise OptionError("--workers needs --scheduler (local or tcp://HOST:PORT)")
@@ -187,11 +187,13 @@ def identify(
                 gains=gains, trim=trims, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
                 rest=rest, time_unit=time_unit, base_velocity=base_velocity, pose_max_gap=pose_max_gap,
                 wrench_frames=wrench_frames)
-    with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp:
+    with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp, \
+            progress_bars() as bars:
         skipped: list = []
+        reading = bars.step("reading logs", total=len(validate) + (len(data) if scheduler is None else 0))
         if scheduler is None:
-            train, data, skipped = _load_training(data, r, prep, skip_bad)
-        val = load_logs(validate, r, **prep)
+            train, data, skipped = _load_training(data, r, prep, skip_bad, reading.advance)
+        val = load_logs(validate, r, **prep, progress=reading.advance)
         if imu_frame:  # on a cluster the workers do it (LogReader.imu_frame)
             val = _imu_frame_logs(val, r, imu_frame, savgol_window)
             if scheduler is None:
@@ -215,13 +217,15 @@ def identify(
                 first = _first_training_log(data, r, prep, skip_bad)
                 structure, friction_fit = _client_friction(structure, first, data[0], r, prep, coulomb_smoothing,
                                                            stribeck_velocity, lowpass)
+            from ..data.limits import current_options
+
             reader = LogReader(**prep, imu_frame=imu_frame, skip_bad_rows=current_options().get("skip_bad_rows"),
                                angle_unit=current_options().get("angle_unit"))
             result, fleet = identify_on_dask(structure, data, scheduler, workers, reader,
                                              method, skip_bad,
                                              {**lmi_kw, "weights": row_sigma},
                                              friction_fit.stribeck_grid if friction_fit is not None else None,
-                                             friction_fit.width_grid if friction_fit is not None else None)
+                                             friction_fit.width_grid if friction_fit is not None else None, bars)
             structure = result.structure  # with the chosen Stribeck terms and transition widths
             if friction_fit is not None:
                 from ..identification.friction import record_search
@@ -236,27 +240,26 @@ def identify(
         else:
             total = sum(len(t) for t in train)
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
-            with progress_bar() as bar:
-                task = bar.add_task("regressor", total=total)
-                kw = dict(progress=lambda n: bar.advance(task, n), outliers="keep", weights=row_sigma,
-                          check_torques=not accept_implausible, **lmi_kw)
-                fric, law = None, None
-                if friction:  # ε and the Stribeck candidates from the first training log, as on a cluster,
-                    # or from every training log when the first leaves a joint still (each joint where it moves)
-                    logs, paths = _friction_logs(structure, train, data)
-                    _, law = _first_log_friction(structure, logs, paths, r, prep, coulomb_smoothing,
-                                                 stribeck_velocity, lowpass)
-                    fric = dict(coulomb_smoothing=law.coulomb_smoothing if coulomb_smoothing == "auto"
-                                else coulomb_smoothing,
-                                stribeck_velocity=law.stribeck_grid or stribeck_velocity,
-                                width_grid=law.width_grid)
-                try:  # the logs' outliers were handled on reading
-                    model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
-                except ExcitationError as exc:
-                    raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
-                result, structure = model.result_, model.structure_
-                if friction:
-                    result.settings["friction"] = _friction_settings(model.friction_fit_, law, paths)
+            kw = dict(progress=bars.step("regressor (samples)", total=total).advance, outliers="keep",
+                      weights=row_sigma, check_torques=not accept_implausible,
+                      gamma_progress=bars.callback("γ cross-validation (folds, solves)"), **lmi_kw)
+            fric, law = None, None
+            if friction:  # ε and the Stribeck candidates from the first training log, as on a cluster,
+                # or from every training log when the first leaves a joint still (each joint where it moves)
+                logs, paths = _friction_logs(structure, train, data)
+                _, law = _first_log_friction(structure, logs, paths, r, prep, coulomb_smoothing,
+                                             stribeck_velocity, lowpass)
+                fric = dict(coulomb_smoothing=law.coulomb_smoothing if coulomb_smoothing == "auto"
+                            else coulomb_smoothing,
+                            stribeck_velocity=law.stribeck_grid or stribeck_velocity,
+                            width_grid=law.width_grid)
+            try:  # the logs' outliers were handled on reading
+                model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
+            except ExcitationError as exc:
+                raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
+            result, structure = model.result_, model.structure_
+            if friction:
+                result.settings["friction"] = _friction_settings(model.friction_fit_, law, paths)
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
                                 "lowpass_hz": lowpass, "savgol_window": savgol_window, "decimate": decimate,
                                 "columns": columns, "rate": rate,
@@ -285,9 +288,12 @@ def identify(
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
                     baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
-                                             check_torques=False).fit(fleet.equations if fleet is not None else train)
+                                             check_torques=False, progress=bars.step(
+                                                 "OLS baseline (samples)", total=sum(map(len, train))).advance
+                                             ).fit(fleet.equations if fleet is not None else train)
             except SensorlessError:
                 baseline = None
+        bars.close()  # the tables follow
         doc["validation"] = {}
         for p, traj in zip(validate, val):
             m_id, m_cad = model.score(traj), cad.score(traj)
@@ -327,19 +333,19 @@ def identify(
     console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
 
 
-def _load_training(data, r, prep: dict, skip_bad: bool):
-    """Local path: every training log in memory; with --skip-bad a file that fails is left out and reported."""
+def _load_training(data, r, prep: dict, skip_bad: bool, progress=None):
+    """Local path: every training log in memory; with --skip-bad a file that fails is left out and reported.
+    ``progress(1)`` after each file."""
     if not skip_bad:
-        return load_logs(data, r, **prep), data, []
+        return load_logs(data, r, **prep, progress=progress), data, []
     from ..data.limits import read_options
-    from .common import load_log
 
     with read_options(skip_bad=True):  # corrupt bag/MCAP chunks: the rest of the file is read, with a warning
-        return _load_each(data, r, prep)
+        return _load_each(data, r, prep, progress)
 
 
-def _load_each(data, r, prep: dict):
-    from .common import load_log
+def _load_each(data, r, prep: dict, progress=None):
+    from ..data.prepare import load_log
 
     train, used, skipped = [], [], []
     for p in data:
@@ -348,6 +354,8 @@ def _load_each(data, r, prep: dict):
             used.append(p)
         except SensorlessError as exc:
             skipped.append((str(p), str(exc) if str(p) in str(exc) else f"{p}: {exc}"))
+        if progress is not None:
+            progress(1)
     if not train:
         raise SensorlessError("every --data file was skipped: " + "; ".join(e for _, e in skipped))
     return train, used, skipped
@@ -409,7 +417,7 @@ def _first_training_log(data, r, prep: dict, skip_bad: bool = False) -> list:
     ``skip_bad`` (then it is left to the workers to skip)."""
     import os
 
-    from .common import load_log
+    from ..data.prepare import load_log
 
     if not os.path.isfile(str(data[0])):
         return []

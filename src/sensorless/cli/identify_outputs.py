@@ -5,8 +5,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
-
 from .common import (
     console,
     err_console,
@@ -21,6 +19,8 @@ def _plot_window(traj, structure, models: dict, out_dir: Path, title: str) -> li
     """torques.png (or torques_<limb>.png per limb of a robot with several): measured vs predicted effort
     and the residuals on the first ``PLOT_WINDOW`` samples, every k-th sample (≤ ``PLOT_POINTS`` points).
     Only those samples are predicted (the model is pointwise in q, v, v̇)."""
+    import numpy as np
+
     from .. import report
 
     n = min(len(traj), PLOT_WINDOW)

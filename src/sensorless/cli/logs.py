@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import typer
 
-from ..data.prepare import parse_columns
 
 __all__ = ["log_settings", "log_trims", "preprocessing_settings", "print_pairing", "trim_option"]
 
@@ -37,6 +36,7 @@ def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpas
     corrupt rows of each log (:func:`log_settings`)."""
     from ..data.gains import split_gain_modifiers
     from ..data.limits import current_options
+    from ..data.prepare import parse_columns
 
     cols = parse_columns(columns) if isinstance(columns, str) else columns
     cols, _, _ = split_gain_modifiers(cols, "--columns")

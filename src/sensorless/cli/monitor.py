@@ -8,7 +8,6 @@ import json
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import SensorlessError
@@ -37,6 +36,7 @@ __all__ = ["monitor", "bench_observer", "bench_held_monitor"]
 
 def _parse_static_friction(spec: str, names: list[str]):
     """'model' | 'off' | one value for every joint | 'V1,V2,…' in joint order | 'joint=V,…' [N·m]."""
+    import numpy as np
     text = spec.strip()
     if text.lower() in ("model", "off"):
         return text.lower()
@@ -115,6 +115,7 @@ def monitor(
     contacts, it is the part the contacts cannot explain, P(q) r on every row. The robot is loaded
     as the model was identified; without --model the description's own parameters are the model
     (the prior)."""
+    import numpy as np
     from ..data.trims import TrimWindow
     from ..errors import DataError
     from ..estimation.momentum import MomentumDynamics
@@ -253,6 +254,7 @@ def _interval_doc(iv, names: list[str], t0: float, dead_zone: str) -> dict:
 
 
 def _peak_force(F: np.ndarray, t: np.ndarray, iv) -> dict:
+    import numpy as np
     seg = F[iv.start_index : iv.end_index + 1]
     norm = np.linalg.norm(seg, axis=1)  # NaN on samples with an unobservable component
     if not np.any(np.isfinite(norm)):

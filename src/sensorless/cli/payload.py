@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import ExcitationError, SensorlessError
@@ -27,11 +26,13 @@ from .common import (
 )
 from .logs import log_settings, print_pairing
 from .options import ALIGN_HELP, Align, PayloadMode
+from .progress import progress_bars
 
 __all__ = ["payload"]
 
 
 def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
+    import numpy as np
     if text is None:
         return None
     try:
@@ -80,6 +81,7 @@ def payload(
     """Identify a payload at FRAME from the torque the robot's model does not explain:
     τ − Wπ̂ = Gᵀ J_fᵀ Φ_f φ (+ per-joint offsets), paired with a no-load log when given.
     Reports mass (and m·g), CoM, uncertainty (HAC / block bootstrap) and per-joint consistency."""
+    import numpy as np
     from ..identification.payload import identify_payload
     from .applied_model import robot_and_model
     from ..identification.result import write_json_atomic
@@ -102,9 +104,11 @@ def payload(
             print_pairing(p.to_dict())
     off = {"auto": "auto", "all": True, "none": False}.get(offsets.strip().lower(),
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
-    est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
-                           com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
-                           flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed)
+    with progress_bars() as bars:
+        est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
+                               com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
+                               flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed,
+                               progress=bars.callback("payload block bootstrap (resamples)"))
     if est.mass_at_bound and not accept_bound:
         raise ExcitationError(
             f"payload at '{frame}': the mass is at its bound 0 (least squares without the bound: "
@@ -139,6 +143,7 @@ def payload(
 def _check_payload_mass(est, robot, frame: str, accept: bool) -> None:
     """PlausibilityError for a payload mass that is not finite or heavier than the whole robot model
     (no model states a payload rating; a robot that carries more than itself is a unit or model error)."""
+    import numpy as np
     from ..errors import PlausibilityError
 
     total = float(sum(robot.model.inertias[j].mass for j in range(1, robot.model.njoints)))
@@ -156,6 +161,7 @@ def _check_payload_mass(est, robot, frame: str, accept: bool) -> None:
 
 def _gain_std(gains, robot):
     """Relative std per actuated joint of gains from a `sensorless drive-gains` file, else None."""
+    import numpy as np
     from ..io import read_json
 
     if not isinstance(gains, (str, Path)) or not str(gains).lower().endswith(".json") or not Path(gains).is_file():
@@ -171,6 +177,7 @@ def _gain_std(gains, robot):
 
 def _scaled(traj, robot, scale):
     """``traj`` with the torque of actuated joint k scaled by ``scale[k]`` (a gain perturbed)."""
+    import numpy as np
     names = list(traj.joint_names)
     f = np.ones(len(names))
     for k, j in enumerate(robot.actuated_joints):

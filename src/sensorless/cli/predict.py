@@ -6,11 +6,9 @@ import json
 from pathlib import Path
 from typing import List, Optional
 
-import numpy as np
 import typer
 
 from ..errors import OptionError, SensorlessError
-from ..io import write_npz_atomic
 from .options import Outliers
 from .common import (
     robot_source_options,
@@ -19,7 +17,6 @@ from .common import (
     model_preprocessing_options,
     app,
     atomic_outdir,
-    check_preprocessing,
     console,
     guarded,
     output_file,
@@ -57,8 +54,12 @@ def predict(
     Without --model (or with --model ROBOT.urdf) the robot description's own parameters are the model
     (the prior, labelled so). A friction-only model (`sensorless friction`) needs no --robot; its
     friction states are integrated along the log from zero."""
+    import numpy as np
+
+    from ..data.prepare import check_preprocessing
     from ..identification.artifact import is_friction_model
     from ..identification.metrics import torque_metrics
+    from ..io import write_npz_atomic
     from ..report import metrics_table
 
     check_preprocessing(prep["rate"], prep["lowpass"], prep["savgol_window"], 1)

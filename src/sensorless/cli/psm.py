@@ -10,8 +10,9 @@ from typing import Optional
 import typer
 
 from ..errors import OptionError
-from .common import atomic_outdir, console, err_console, experiment_app, guarded, path_inputs, force_option
+from .common import atomic_outdir, console, experiment_app, guarded, path_inputs, force_option
 from .options import PsmModel
+from .progress import progress_bars
 
 
 
@@ -51,7 +52,8 @@ def psm_identify(
             raise OptionError(f"--smoothing must be a number or 'cv', got '{smoothing}'") from None
     with atomic_outdir(out, force, inputs=path_inputs(data, train, test, params)) as tmp:
         results: dict = {}
-        with err_console.status("identifying the PSM (smoothing chosen by cross-validation on the training log) …"):
+        with progress_bars() as bars:
+            bars.step("identifying the PSM (smoothing by cross-validation on the training log)")
             report = psm_identification_study(
                 data, train=train, test=test, params=params, results=results, cutoff_hz=cutoff, smoothing=smoothing,
                 lmi={"ellipsoids": False, "regularization": None, "gamma": 0.0} if (lmi or save == "lmi") else None,

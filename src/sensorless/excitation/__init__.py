@@ -1,6 +1,6 @@
 """Excitation trajectories: finite Fourier series (:mod:`.fourier`), their limits and random
 baseline (:mod:`.limits`), conditioning criteria (:mod:`.criteria`) and the optimised design
-(:mod:`.design`)."""
+(:mod:`.design`, solving the problem of :mod:`.problem`)."""
 
 from . import criteria, design, fourier, limits
 from .criteria import *  # noqa: F403

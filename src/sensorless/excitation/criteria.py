@@ -30,12 +30,12 @@ def _log_cond(M: np.ndarray, equilibrate: bool = True) -> np.ndarray:
     return 0.5 * (np.log(ev[..., -1]) - np.log(lo))
 
 
-def _neg_logdet(M: np.ndarray, n_eq: int) -> np.ndarray:
+def neg_logdet(M: np.ndarray, n_eq: int) -> np.ndarray:
     sign, logdet = np.linalg.slogdet(M / max(n_eq, 1))
     return np.where(sign > 0, -logdet, np.inf)
 
 
-def _evaluate(structure, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+def regressor_at(structure, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
     """Regressor at joint-space samples (N, n) in ``structure.robot.joint_names`` order."""
     r = structure.robot
     return structure.evaluate(r.full_configuration(q), r.full_velocity(v), r.full_velocity(a))
@@ -45,13 +45,13 @@ def excitation_metrics(structure, q: np.ndarray, v: np.ndarray, a: np.ndarray, i
     """Condition numbers (column-equilibrated and raw) and −log det of the base regressor
     at joint-space samples q, v, v̇ (N, n), in ``structure.robot.joint_names`` order."""
     ind = base_parameters(structure).independent if independent is None else independent
-    W1 = _evaluate(structure, q, v, a)[:, :, ind]
+    W1 = regressor_at(structure, q, v, a)[:, :, ind]
     M = _gram(W1)
     n_eq = W1.shape[0] * W1.shape[1]
     return {
         "cond": float(np.exp(_log_cond(M, True))),
         "cond_raw": float(np.exp(_log_cond(M, False))),
-        "neg_logdet": float(_neg_logdet(M, n_eq)),
+        "neg_logdet": float(neg_logdet(M, n_eq)),
         "n_samples": int(W1.shape[0]),
         "n_base": int(W1.shape[2]),
     }

@@ -44,6 +44,7 @@ a joint whose residual RMS exceeds :data:`MAX_MISFIT` σ_n is a misfit (``misfit
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -189,9 +190,11 @@ def identify_drive_gains(
     n_boot: int = 1000,
     seed: int = 0,
     reversal_seconds: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> DriveGains:
     """Drive gains from an unloaded/loaded pair of logs holding currents (module docstring);
-    ``align`` pairs them (:func:`~sensorless.data.align.pair_logs`, one of ``ALIGNMENTS``)."""
+    ``align`` pairs them (:func:`~sensorless.data.align.pair_logs`, one of ``ALIGNMENTS``).
+    ``progress(done, n_boot)`` is called every 100 bootstrap resamples and at the last."""
     if not (np.isfinite(payload_mass) and payload_mass > 0):
         raise DataError(f"payload mass must be a positive number of kg, got {payload_mass!r}")
     if align not in ALIGNMENTS:
@@ -250,6 +253,8 @@ def identify_drive_gains(
             boot_c[i] = (sn * syd - sy * sd) / np.maximum(sn * syy - sy**2, 1e-300)
         else:
             boot_c[i] = syd / np.maximum(syy, 1e-300)
+        if progress is not None and ((i + 1) % 100 == 0 or i + 1 == n_boot):
+            progress(i + 1, n_boot)
     std_c_boot = boot_c.std(axis=0, ddof=1)
     np_err.__exit__(None, None, None)
     std_c = np.maximum(std_c_hac, std_c_boot)

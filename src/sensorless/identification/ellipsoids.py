@@ -48,13 +48,14 @@ is the smallest scaling that makes the prior realisable.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 import pinocchio as pin
 
-from ..errors import RobotModelError
+from ..errors import RobotModelError, RobotModelWarning, setting
 from ..parameters import as_bodies, pseudo_inertia
 from ..robot import Robot
 
@@ -66,7 +67,9 @@ __all__ = [
     "BoundingEllipsoid",
     "auto_ellipsoids",
     "body_points",
+    "ellipsoid_source",
     "load_geometry",
+    "missing_meshes",
     "resolve_ellipsoids",
 ]
 
@@ -85,6 +88,8 @@ class BoundingEllipsoid:
     center: np.ndarray
     semi_axes: np.ndarray
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    #: what it was built from (:func:`auto_ellipsoids`: "collision geometry", "kinematics (...)"; "given")
+    source: str = ""
 
     def __post_init__(self) -> None:
         c = np.asarray(self.center, dtype=float).reshape(3)
@@ -104,16 +109,16 @@ class BoundingEllipsoid:
         if isinstance(spec, BoundingEllipsoid):
             return spec
         if isinstance(spec, Mapping):
-            return cls(spec["center"], spec["semi_axes"], spec.get("rotation", np.eye(3)))
-        return cls(*spec)
+            return cls(spec["center"], spec["semi_axes"], spec.get("rotation", np.eye(3)), spec.get("source", "given"))
+        return cls(*spec[:3], source="given")
 
     @classmethod
-    def from_shape_matrix(cls, center: np.ndarray, shape: np.ndarray) -> BoundingEllipsoid:
+    def from_shape_matrix(cls, center: np.ndarray, shape: np.ndarray, source: str = "") -> BoundingEllipsoid:
         """From ``Σ_E`` (symmetric positive definite)."""
         lam, R = np.linalg.eigh(0.5 * (shape + shape.T))
         if np.linalg.det(R) < 0:
             R[:, 0] = -R[:, 0]
-        return cls(center, np.sqrt(np.maximum(lam, 1e-12)), R)
+        return cls(center, np.sqrt(np.maximum(lam, 1e-12)), R, source)
 
     @property
     def shape_matrix(self) -> np.ndarray:
@@ -148,10 +153,11 @@ class BoundingEllipsoid:
 
     def scaled(self, factor: float) -> BoundingEllipsoid:
         """Semi-axes multiplied by ``factor`` (same centre and axes)."""
-        return BoundingEllipsoid(self.center, self.semi_axes * factor, self.rotation)
+        return BoundingEllipsoid(self.center, self.semi_axes * factor, self.rotation, self.source)
 
     def to_dict(self) -> dict:
-        return {"center": self.center.tolist(), "semi_axes": self.semi_axes.tolist(), "rotation": self.rotation.tolist()}
+        return {"center": self.center.tolist(), "semi_axes": self.semi_axes.tolist(), "rotation": self.rotation.tolist(),
+                **({"source": self.source} if self.source else {})}
 
 
 # ---- point clouds -------------------------------------------------------------
@@ -234,13 +240,24 @@ def body_points(robot: Robot, geometry: pin.GeometryModel | None = None) -> dict
     return {b: np.unique(np.round(np.array(pts[tree_names.index(b)]), 12), axis=0) for b in robot.body_names}
 
 
-_GEOMETRY_CACHE: dict[tuple, pin.GeometryModel | None] = {}
+_GEOMETRY_CACHE: dict[tuple, tuple[pin.GeometryModel | None, list[dict]]] = {}
 
 
 def load_geometry(robot: Robot, kind: str = "collision") -> pin.GeometryModel | None:
-    """The robot's collision (or visual) ``GeometryModel`` from its URDF, or None if the
-    URDF or its meshes cannot be found (e.g. unresolved ``package://`` paths). Cached
-    per (URDF and its modification time, bodies, kind, package folders)."""
+    """The robot's collision (or visual) ``GeometryModel`` from its URDF, or None if the URDF
+    cannot be read. A mesh that is missing or outside the allowed folders is left out, and one
+    RobotModelWarning (when the robot's geometry is first loaded) names each such file and the
+    ellipsoid its body gets instead (:func:`missing_meshes`). Cached per (URDF and its modification time, bodies, kind, package folders)."""
+    return _cached_geometry(robot, kind)[0]
+
+
+def missing_meshes(robot: Robot, kind: str = "collision") -> list[dict]:
+    """The meshes :func:`load_geometry` left out: ``{"link", "body", "file", "reason"}`` each
+    (``body``: the identified body the link belongs to, or None)."""
+    return _cached_geometry(robot, kind)[1]
+
+
+def _cached_geometry(robot: Robot, kind: str) -> tuple[pin.GeometryModel | None, list[dict]]:
     urdf = getattr(robot, "urdf_path", None)
     try:
         stamp = (os.stat(urdf).st_mtime_ns, os.stat(urdf).st_size) if urdf else None
@@ -252,15 +269,15 @@ def load_geometry(robot: Robot, kind: str = "collision") -> pin.GeometryModel | 
     return _GEOMETRY_CACHE[key]
 
 
-def _load_geometry(robot: Robot, kind: str) -> pin.GeometryModel | None:
+def _load_geometry(robot: Robot, kind: str) -> tuple[pin.GeometryModel | None, list[dict]]:
     """Meshes are read only under the description's folder and its package folders
-    (:func:`~sensorless.robot_paths.confine_urdf_meshes`: others are dropped with a warning);
+    (:func:`~sensorless.robot_paths.confine_urdf_meshes`: others are left out and reported);
     an example-robot-data robot's own package tree is one of them."""
     from ..robot_paths import confine_urdf_meshes
 
     urdf = getattr(robot, "urdf_path", None) or (robot.source if str(robot.source).endswith(".urdf") else None)
     if not urdf or not os.path.exists(urdf):
-        return None
+        return None, []
     path = os.path.normpath(urdf)
     packages = list(getattr(robot, "package_paths", ()))
     base = getattr(robot, "description_dir", None) or os.path.dirname(path)
@@ -269,12 +286,65 @@ def _load_geometry(robot: Robot, kind: str) -> pin.GeometryModel | None:
         if "/example-robot-data/" in path:
             packages.insert(0, path.split("/example-robot-data/")[0])
     gtype = pin.GeometryType.COLLISION if kind == "collision" else pin.GeometryType.VISUAL
+    src, dropped = str(robot.source or path), []
     try:
         with open(path, encoding="utf-8") as f:
-            text = confine_urdf_meshes(f.read(), base, packages, str(robot.source or path))
-        return pin.buildGeomFromUrdfString(robot.model, text, gtype, package_dirs=[])
-    except Exception:  # noqa: BLE001 - unreadable file, unknown links: fall back to kinematics
+            text = confine_urdf_meshes(f.read(), base, packages, src, dropped)
+        geom = pin.buildGeomFromUrdfString(robot.model, text, gtype, package_dirs=[])
+    except Exception as exc:  # noqa: BLE001 - unreadable file or mesh, unknown links: fall back to kinematics
+        warnings.warn(f"{src}: its {kind} geometry could not be read ({' '.join(str(exc).split())[:300]}); every "
+                      f"bounding ellipsoid comes from {_KINEMATIC_TEXT}", RobotModelWarning, stacklevel=2)
+        return None, []
+    missing = [{**d, "body": _body_of(robot, d["link"])} for d in dropped if d["kind"] == kind]
+    if missing:
+        warnings.warn(_missing_message(src, kind, missing, _geometry_bodies(robot, geom)), RobotModelWarning,
+                      stacklevel=2)
+    return geom, missing
+
+
+_KINEMATIC_TEXT = f"the kinematics (joint positions and frames, {100 * KINEMATIC_MARGIN:g} cm margin)"
+
+
+def _body_of(robot: Robot, link: str | None) -> str | None:
+    m = robot.model
+    if link is None or not m.existFrame(link):
         return None
+    name = m.names[m.frames[m.getFrameId(link)].parentJoint]
+    return name if name in robot.body_names else None
+
+
+def _geometry_bodies(robot: Robot, geometry: pin.GeometryModel | None) -> set[str]:
+    """The identified bodies with at least one shape in ``geometry``."""
+    if geometry is None:
+        return set()
+    return {robot.model.names[go.parentJoint] for go in geometry.geometryObjects
+            if 1 <= go.parentJoint < robot.model.njoints} & set(robot.body_names)
+
+
+def _missing_message(src: str, kind: str, missing: list[dict], with_geometry: set[str]) -> str:
+    """One warning for every mesh left out: the files grouped by reason, then each body's ellipsoid."""
+    by_reason: dict[str, list[str]] = {}
+    for m in missing:
+        by_reason.setdefault(m["reason"], []).append(f"{m['file']!r} (link {m['link']})")
+    files = "; ".join(f"{', '.join(f)}: {why}" for why, f in by_reason.items())
+    bodies = list(dict.fromkeys(m["body"] for m in missing if m["body"] is not None))
+    kin = [b for b in bodies if b not in with_geometry]
+    part = [b for b in bodies if b in with_geometry]
+    instead = "; ".join(([f"from {_KINEMATIC_TEXT} for {', '.join(kin)}"] if kin else [])
+                        + ([f"from their other {kind} shapes and joint positions for {', '.join(part)}"] if part else []))
+    return (f"{src}: {len(missing)} {kind} mesh(es) left out of the bounding ellipsoids: {files}. "
+            + (f"Bounding ellipsoids used instead: {instead}; the identified masses depend on them (source per body "
+               "in result.json diagnostics.ellipsoid_sources). " if bodies else "No identified body uses them. ")
+            + f"Add the meshes' folder with {setting('package_paths', placeholder='DIR')}")
+
+
+def ellipsoid_source(has_geometry: bool, lost_mesh: bool, geometry_loaded: bool = True) -> str:
+    """The ``source`` of an automatic ellipsoid (:attr:`BoundingEllipsoid.source`)."""
+    if not geometry_loaded:
+        return "kinematics"
+    if has_geometry:
+        return "collision geometry (partial: mesh missing)" if lost_mesh else "collision geometry"
+    return "kinematics (collision mesh missing)" if lost_mesh else "kinematics (no collision geometry)"
 
 
 def _prior_scale(E: BoundingEllipsoid, pi: np.ndarray, slack: float = 1.0, com_margin: float = 0.0) -> float:
@@ -302,8 +372,9 @@ def auto_ellipsoids(
     """One bounding ellipsoid per body (see module docstring).
 
     ``geometry``: a ``GeometryModel``, ``"auto"`` (load the URDF's collision geometry when
-    possible) or None (kinematic points only). ``margin`` defaults to
-    :data:`GEOMETRY_MARGIN` with geometry and :data:`KINEMATIC_MARGIN` without.
+    possible) or None (kinematic points only). ``margin`` defaults, per body, to
+    :data:`GEOMETRY_MARGIN` for a body with collision shapes and :data:`KINEMATIC_MARGIN` for one
+    without (no geometry, or its meshes missing). Each ellipsoid's ``source`` says which.
     ``prior`` (10·n_bodies) defaults to the model's inertials; with ``contain_prior`` each
     ellipsoid is grown to hold any body within ``prior_slack`` (≥ 1) and ``com_margin`` [m]
     of it.
@@ -312,22 +383,25 @@ def auto_ellipsoids(
         raise ValueError(f"prior_slack must be a number >= 1, got {prior_slack}")
     if not (np.isfinite(com_margin) and com_margin >= 0.0):
         raise ValueError(f"com_margin must be a number >= 0, got {com_margin}")
+    lost: set = set()
     if isinstance(geometry, str):
         if geometry != "auto":
             raise RobotModelError(f"geometry must be a GeometryModel, 'auto' or None, got {geometry!r}")
         geometry = load_geometry(robot)
-    if margin is None:
-        margin = GEOMETRY_MARGIN if geometry is not None else KINEMATIC_MARGIN
-    if margin <= 0:
+        lost = {m["body"] for m in missing_meshes(robot)}
+    if margin is not None and margin <= 0:
         raise ValueError("ellipsoid margin must be positive (a point cloud can be flat)")
+    shaped = _geometry_bodies(robot, geometry)
     P0 = as_bodies(robot.inertial_parameters() if prior is None else np.asarray(prior)[: 10 * robot.n_bodies])
     out = {}
     for k, (name, pts) in enumerate(body_points(robot, geometry).items()):
         if P0[k, 0] > 0:
             com = P0[k, 1:4] / P0[k, 0]
             pts = np.vstack([pts, com] + ([com + com_margin * _DIRS] if contain_prior and com_margin > 0 else []))
-        cloud = _hull((pts[:, None, :] + margin * _DIRS[None]).reshape(-1, 3))
-        E = BoundingEllipsoid.from_shape_matrix(*_mvee(cloud))
+        m = margin if margin is not None else GEOMETRY_MARGIN if name in shaped else KINEMATIC_MARGIN
+        cloud = _hull((pts[:, None, :] + m * _DIRS[None]).reshape(-1, 3))
+        E = BoundingEllipsoid.from_shape_matrix(*_mvee(cloud), source=ellipsoid_source(
+            name in shaped, name in lost, geometry is not None))
         if contain_prior:
             E = E.scaled(_prior_scale(E, P0[k], prior_slack, com_margin))
         out[name] = E

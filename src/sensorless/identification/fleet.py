@@ -80,7 +80,8 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
         row_w = row_weights(fleet.equations, check_weights(kw.get("weights", "auto"), structure.row_names))
         cv = cross_validate_gamma(structure, fleet.folds, prior=kw.get("prior"),
                                   regularization=kw.get("regularization", "pullback"),
-                                  ellipsoids=kw.get("ellipsoids"), row_weights=row_w, **dict(kw.get("lmi_options") or {}))
+                                  ellipsoids=kw.get("ellipsoids"), row_weights=row_w,
+                                  progress=kw.get("gamma_progress"), **dict(kw.get("lmi_options") or {}))
         kw["gamma"] = cv.gamma
     result = identify(structure, fleet.equations, method=method, **kw)
     if cv is not None:

@@ -15,7 +15,7 @@ sample before the reversal to the first one after it are *near the reversal*
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -55,7 +55,9 @@ class FrictionModel:
         return {"terms": list(self.terms), "state": self.state, "coulomb_smoothing": self.coulomb_smoothing,
                 "joints": None if self.joints is None else list(self.joints)}
 
-    def fit(self, trajectories: Iterable[Trajectory]) -> "FrictionModel":
+    def fit(self, trajectories: Iterable[Trajectory], progress: Callable[[int, int], None] | None = None
+            ) -> "FrictionModel":
+        """Fit each joint's law on every log; ``progress(done, n_joints)`` after each joint."""
         logs = list(trajectories)
         if not logs:
             raise DataError("no log to fit the friction on")
@@ -69,9 +71,11 @@ class FrictionModel:
 
         self.fits_: dict[str, JointFit] = {}
         with one_blas_thread():
-            for j in joints:
+            for k, j in enumerate(joints):
                 self.fits_[j] = fit_joint_friction([joint_series(tr, j) for tr in logs], joint=j, terms=self.terms,
                                                    state=self.state, coulomb_smoothing=self.coulomb_smoothing)
+                if progress is not None:
+                    progress(k + 1, len(joints))
         self.joint_names_ = tuple(joints)
         self.laws_ = {j: f.law for j, f in self.fits_.items()}
         self.static_laws_ = {j: f.static for j, f in self.fits_.items()}

@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -94,7 +94,8 @@ def validation_score(ne: NormalEquations, params: np.ndarray, score: str = "resi
 
 
 def _scan(
-    problem: LmiProblem, ne_val: NormalEquations, gammas: np.ndarray, score: str, row_weights, solver, failures
+    problem: LmiProblem, ne_val: NormalEquations, gammas: np.ndarray, score: str, row_weights, solver, failures,
+    tick: Callable[[], None] = lambda: None,
 ) -> np.ndarray:
     out = np.full(len(gammas), np.inf)
     for i, g in enumerate(gammas):
@@ -103,6 +104,8 @@ def _scan(
         except SolverError as exc:
             failures[float(g)] = str(exc)
             continue
+        finally:
+            tick()
         out[i] = validation_score(ne_val, sol.params, score, row_weights)
     return out
 
@@ -148,6 +151,7 @@ def _split_folds(
     n_folds: int,
     chunk: int,
     period: float | str | None,
+    tick: Callable[[], None] = lambda: None,
 ) -> list[NormalEquations]:
     items = [data] if isinstance(data, Trajectory) else list(data)
     if items and all(isinstance(i, NormalEquations) for i in items):
@@ -173,6 +177,7 @@ def _split_folds(
             if not parts:
                 raise DataError(f"no sample falls in phase block {f} of {n_folds}; is the period of {period} s right?")
             folds.append(compress(structure, parts, chunk=chunk))
+            tick()
         return folds
     edges = np.linspace(0, total, n_folds + 1).round().astype(int)
     starts = np.cumsum([0] + [len(t) for t in trajs])
@@ -184,6 +189,7 @@ def _split_folds(
             if hi > lo:
                 parts.append(t.take(slice(lo, hi)))
         folds.append(compress(structure, parts, chunk=chunk))
+        tick()
     return folds
 
 
@@ -198,6 +204,7 @@ def cross_validate_gamma(
     solver: str | None = None,
     chunk: int = 2048,
     warn: bool = True,
+    progress: Callable[[int, int], None] | None = None,
     **build_kwargs: Any,
 ) -> GammaSelection:
     """K-fold cross-validation of γ on contiguous folds (what ``--gamma auto`` runs).
@@ -213,10 +220,21 @@ def cross_validate_gamma(
     ``(t − t0) mod period`` instead. Precompressed folds may be passed instead of trajectories. The returned γ
     minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`. The default
     grid starts at γ = 0 (no prior); a winner at an edge of the grid warns (``warn``, see
-    :func:`select_gamma`).
+    :func:`select_gamma`). ``progress(done, total)`` is called after each fold is compressed and
+    each γ solved (total = n_folds · (1 + n_γ); n_folds · n_γ for precompressed folds).
     """
     gammas = np.asarray(gammas, dtype=float)
-    folds = _split_folds(structure, data, n_folds, chunk, period)
+    items = [data] if isinstance(data, Trajectory) else list(data)
+    given = bool(items) and all(isinstance(i, NormalEquations) for i in items)
+    total = (len(items) if given else n_folds) * len(gammas) + (0 if given else n_folds)
+    done = [0]
+
+    def tick() -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], total)
+
+    folds = _split_folds(structure, items, n_folds, chunk, period, tick)
     ellipsoids = build_kwargs.pop("ellipsoids", None)
     prior = build_kwargs.get("prior")
     ell = resolve_ellipsoids(structure.robot, ellipsoids, prior=structure.prior() if prior is None else prior)
@@ -225,5 +243,5 @@ def cross_validate_gamma(
     for f in range(len(folds)):
         train = functools.reduce(NormalEquations.merge, [folds[i] for i in range(len(folds)) if i != f])
         prob = build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs)
-        cols.append(_scan(prob, folds[f], gammas, score, build_kwargs.get("row_weights"), solver, failures))
+        cols.append(_scan(prob, folds[f], gammas, score, build_kwargs.get("row_weights"), solver, failures, tick))
     return _pick(gammas, np.stack(cols, axis=1), score, failures, warn)

@@ -71,6 +71,7 @@ def identify(
     stribeck_grid: Mapping[str, Sequence[float]] | None = None,
     width_grid: Mapping[str, Sequence[float]] | None = None,
     check_torques: bool = True,
+    gamma_progress: Callable[[int, int], None] | None = None,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
@@ -88,7 +89,9 @@ def identify(
     (physically consistent convex program, :func:`~.lmi.solve_lmi`, regularised toward
     ``prior`` — default the model's own inertials — with ``regularization`` and weight
     ``gamma``; ``gamma="auto"`` picks it by 5-fold cross-validation on the training data,
-    :func:`~.gamma.cross_validate_gamma`). ``ellipsoids`` and ``lmi_options`` go to the solver.
+    :func:`~.gamma.cross_validate_gamma`, which calls ``gamma_progress(done, total)`` as it goes).
+    ``progress(n)`` is called as n more samples are folded into the normal equations.
+    ``ellipsoids`` and ``lmi_options`` go to the solver.
     The γ grid of ``gamma="auto"`` starts at 0; a winner at an edge of the grid, bounding
     ellipsoids that cost training residual (:data:`CONSTRAINT_RESIDUAL_RISE`, naming the
     bodies) and joint terms the log cannot separate (:data:`JOINT_TERM_MAX_VIF`) are
@@ -187,7 +190,8 @@ def identify(
         extra = {}
         if gamma == "auto":
             cv = cross_validate_gamma(structure, data, period="auto", prior=prior, regularization=regularization,
-                                      ellipsoids=ellipsoids, row_weights=row_w, warn=False, **opts)
+                                      ellipsoids=ellipsoids, row_weights=row_w, warn=False,
+                                      progress=gamma_progress, **opts)
             gamma = cv.gamma
             extra["gamma_selection"] = cv.to_dict()
             if cv.edge is not None:
@@ -204,6 +208,8 @@ def identify(
         sigma = np.sqrt(ne.residual_ss(params) / max(ne.n_samples, 1))
         cond, base_std = condition_number(ne, base, row_w), []
         extra["lmi"] = lmi.summary()
+        extra["ellipsoid_sources"] = {b: e.get("source", "given") for b, e in
+                                      (extra["lmi"].get("settings") or {}).get("ellipsoids", {}).items()}
         extra["gamma"] = float(gamma)
         cost = _constraint_cost(ne, params, lmi, row_w)
         if cost is not None:

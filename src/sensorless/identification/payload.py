@@ -59,7 +59,7 @@ first), the shape refitted without them and the others re-checked;
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -140,6 +140,7 @@ def identify_payload(
     max_offset_inflation: float = 2.0,
     seed: int = 0,
     chunk: int = 2048,
+    progress: Callable[[int, int], None] | None = None,
 ) -> PayloadEstimate:
     """Estimate a payload at ``frame`` (a link's joint frame or any frame of the model) from
     logs taken with it attached (see module docstring).
@@ -155,6 +156,8 @@ def identify_payload(
     by less than ``max_offset_inflation`` (an offset on a joint that carries the payload's
     weight at a nearly constant angle, such as a vertical insertion axis, would absorb m·g).
     ``weights``: "auto" (per-joint inverse residual variance) or None (ordinary LS).
+    ``progress(done, n_boot)`` is called after each bootstrap resample (again from 1 if flagged joints
+    are left out and the fit is repeated).
     """
     if mode not in MODES:
         raise DataError(f"unknown payload mode '{mode}'; choose from {MODES}")
@@ -283,10 +286,12 @@ def identify_payload(
         if n_boot > 0 and nb >= 4:
             rng = np.random.default_rng(seed)
             samples = []
-            for _ in range(n_boot):
+            for k in range(n_boot):
                 Ab, bb, _, _ = blocks.total(rng.integers(0, nb, nb))
                 sb = _System(Ab, bb, wts, off_mask)
                 samples.append(solver(sb.Ar, sb.br)[0])
+                if progress is not None:
+                    progress(k + 1, n_boot)
             samples = np.array(samples)
             boot = float(samples[:, 0].std(ddof=1))
             ok = samples[:, 0] > 0
