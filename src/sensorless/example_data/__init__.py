@@ -17,7 +17,10 @@ __all__ = ["EXAMPLES", "example_names", "example_summary", "write_example"]
 
 #: name → module (under this package) that writes it
 EXAMPLES: dict[str, str] = {
+    "fleet-logs": "fleet_logs",
     "friction-bench": "friction_bench",
+    "held-arm": "held_arm",
+    "pushed-arm": "pushed_arm",
 }
 
 
