@@ -13,8 +13,7 @@ from sensorless.data import write_npz
 from sensorless.errors import DataError
 from sensorless.estimation.collision import detect_contacts, quiet_mask, quiet_thresholds, score_detection
 from sensorless.robot import load_robot
-from sensorless.simulation.arm_push import Push, simulate_pushes
-from sensorless.simulation.synthetic import NoiseSpec, perturbed_truth
+from sensorless.simulation.arm_push import pushed_arm_scenario
 
 
 def test_false_alarm_rate_threshold_on_white_noise():
@@ -52,13 +51,8 @@ def test_threshold_input_errors():
 @pytest.fixture(scope="module")
 def arm_logs(tmp_path_factory):
     d = tmp_path_factory.mktemp("monitor")
-    nom = load_robot("ur5")
-    truth = perturbed_truth(nom, rng=1)
-    noise = dict(noise=NoiseSpec(q=1e-4, v=1e-2, tau=0.2), log_rate=200.0)
-    train, _ = simulate_pushes(truth, nom, [], duration=20.0, seed=10, base_freq=0.05, **noise)
+    train, log, gt = pushed_arm_scenario(0)
     write_npz(train, d / "train.npz")
-    pushes = [Push(12.0, 12.8, (0.0, 0.0, -25.0), "tool0"), Push(16.0, 16.5, (15.0, -10.0, 0.0), "tool0")]
-    log, gt = simulate_pushes(truth, nom, pushes, duration=19.0, seed=11, **noise)
     write_npz(log, d / "pushed.npz")
     res = CliRunner().invoke(app, ["identify", "--robot", "ur5", "--data", str(d / "train.npz"), "--out", str(d / "id"),
                                    "--coulomb-smoothing", "0.05"])

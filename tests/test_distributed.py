@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 distributed = pytest.importorskip("distributed")
 
-from sensorless.benchmarks.fleet import write_fleet_logs  # noqa: E402
+from sensorless.simulation.fleet_logs import write_fleet_logs  # noqa: E402
 from sensorless.cli import app  # noqa: E402
 from sensorless.cli.common import load_logs  # noqa: E402
 from sensorless.errors import DataError, JointNameError  # noqa: E402
@@ -106,6 +106,20 @@ def test_compress_with_client_equals_compress_of_loaded_logs(fleet, structure, c
         np.testing.assert_allclose(getattr(ne_dask, k), getattr(ne_local, k), rtol=1e-12, atol=1e-12 * np.abs(ne_local.A).max())
     with pytest.raises(DataError, match="pass file paths"):  # arrays never travel
         compress(structure, load_logs(files[:1], structure.robot, None, None, None, None, 1), client=client)
+
+
+def test_compress_of_file_paths_without_a_client_runs_in_this_process(fleet, structure):
+    """client=None with paths or a glob (docs/fleet.md's snippet): the same sums as the loaded logs,
+    read in this process; items that are neither trajectories nor paths are a typed error."""
+    d, files = fleet
+    ne_local = compress(structure, load_logs(files, structure.robot, None, None, None, None, 1))
+    ne_glob = compress(structure, [str(d / "**" / "*.parquet")], client=None)
+    assert ne_glob.n_samples == ne_local.n_samples == 12_000
+    np.testing.assert_allclose(ne_glob.A, ne_local.A, rtol=1e-12, atol=1e-12 * np.abs(ne_local.A).max())
+    np.testing.assert_allclose(ne_glob.b, ne_local.b, rtol=1e-12, atol=1e-12 * np.abs(ne_local.b).max())
+    for bad, what in (([{"q": 1}], "got dict"), (3, "got int")):
+        with pytest.raises(DataError, match=what):
+            compress(structure, bad)
 
 
 @pytest.mark.parametrize("period", [2.0, None])

@@ -204,11 +204,24 @@ class NormalEquations:
 
 
 def iter_trajectories(data: Trajectory | Iterable[Trajectory]) -> Iterator[Trajectory]:
-    """Yield trajectories from one trajectory, a list, or a generator of chunks."""
+    """Yield trajectories from one trajectory, a list, or a generator of chunks; anything else
+    is a :class:`~sensorless.errors.DataError` naming what was given."""
     if isinstance(data, Trajectory):
         yield data
         return
-    yield from data
+    if not isinstance(data, Iterable) or isinstance(data, (str, bytes, os.PathLike)):
+        raise DataError(f"expected a Trajectory or an iterable of them, got {type(data).__name__}")
+    for item in data:
+        if not isinstance(item, Trajectory):
+            raise DataError(f"expected Trajectory items (or file paths), got {type(item).__name__}")
+        yield item
+
+
+def _file_paths(data) -> bool:
+    """``data`` names files (a path, a glob pattern, or a list/tuple of them) rather than trajectories."""
+    if isinstance(data, (str, os.PathLike)):
+        return True
+    return isinstance(data, (list, tuple)) and any(isinstance(d, (str, os.PathLike)) for d in data)
 
 
 def compress(
@@ -226,18 +239,19 @@ def compress(
     ``data`` may be a generator, so arbitrarily long logs never sit in memory whole.
     ``progress(n)`` is called with the number of samples folded after each chunk.
 
-    With a Dask ``client`` (``distributed.Client``), ``data`` are file paths or glob patterns:
-    each worker reads and preprocesses its own files (``reader``, default
-    :class:`~.distributed.LogReader`) and returns partial sums, added by a tree reduction
-    (:func:`~.distributed.compress_files`; ``progress(1)`` per finished file). A file that
-    cannot be used raises its typed error; to skip such files instead, use ``compress_files``.
+    ``data`` may also be file paths or glob patterns (a path, or a list of them): each file is
+    read and preprocessed by ``reader`` (default :class:`~.distributed.LogReader`: the CLI's
+    defaults) and folded, one after another in this process with ``client=None``, or by the
+    workers of a Dask ``client`` (``distributed.Client``) that return partial sums added by a
+    tree reduction (:func:`~.distributed.compress_files`; ``progress(1)`` per finished file). A
+    file that cannot be used raises its typed error; to skip such files instead, use ``compress_files``.
 
     BLAS runs on one thread throughout; ``overlap`` folds chunk k in a helper thread while
     chunk k + 1 is evaluated (see the module docstring). ``None``: overlap when a core is idle
     (1-min load average below cores − 1); on a busy machine the thread only competes for the GIL.
     The sums do not depend on it (same folds, same order).
     """
-    if client is not None:
+    if client is not None or _file_paths(data):
         from .distributed import compress_files
 
         return compress_files(structure, data, client=client, reader=reader, chunk=chunk, progress=progress).equations

@@ -26,7 +26,7 @@ from ..excitation import random_fourier
 from ..robot import Robot
 from .synthetic import NoiseSpec, TruthModel, add_white_noise
 
-__all__ = ["Push", "PushTruth", "log_decimation", "noisy_joint_log", "push_torques", "simulate_pushes"]
+__all__ = ["Push", "PushTruth", "log_decimation", "noisy_joint_log", "push_torques", "pushed_arm_scenario", "simulate_pushes"]
 
 
 @dataclass(frozen=True)
@@ -145,3 +145,21 @@ def noisy_joint_log(arr: dict, robot: Robot, noise: NoiseSpec | None, seed: int,
         tau=add_white_noise(arr["tau"], noise.tau, rng), joint_names=robot.joint_names, source=source,
         units={"t": "s", "q": "rad", "v": "rad/s", "tau": "N·m"},
     )
+
+
+def pushed_arm_scenario(seed: int = 0, *, robot: str = "ur5", frame: str = "tool0", train_duration: float = 20.0,
+                        ) -> tuple[Trajectory, Trajectory, PushTruth]:
+    """(training log, pushed log, truth) of a perturbed arm (truth ``perturbed_truth(rng=seed + 1)``)
+    tracking Fourier references: a push-free training log of ``train_duration`` s and a 19 s log
+    pushed twice at ``frame``, (0, 0, −25) N over 12–12.8 s and (15, −10, 0) N over 16–16.5 s (the
+    first 10 s are contact-free); 200 Hz, noise σ_q = 1e-4 rad, σ_v = 1e-2 rad/s, σ_τ = 0.2 N·m."""
+    from ..robot import load_robot
+    from .synthetic import perturbed_truth
+
+    nom = load_robot(robot)
+    truth = perturbed_truth(nom, rng=seed + 1)
+    noise = dict(noise=NoiseSpec(q=1e-4, v=1e-2, tau=0.2), log_rate=200.0)
+    train, _ = simulate_pushes(truth, nom, [], duration=train_duration, seed=seed + 10, base_freq=0.05, **noise)
+    pushes = [Push(12.0, 12.8, (0.0, 0.0, -25.0), frame), Push(16.0, 16.5, (15.0, -10.0, 0.0), frame)]
+    log, gt = simulate_pushes(truth, nom, pushes, duration=19.0, seed=seed + 11, **noise)
+    return train, log, gt
