@@ -17,7 +17,9 @@ __all__ = ["EXAMPLES", "example_names", "example_summary", "write_example"]
 
 #: name → module (under this package) that writes it
 EXAMPLES: dict[str, str] = {
+    "dvrk-psm": "dvrk_psm",
     "friction-bench": "friction_bench",
+    "trocar-arm": "trocar_arm",
 }
 
 
