@@ -13,7 +13,7 @@ from doc_blocks import ROOT, blocks, doc_files, environment, hidden_commands, ru
 
 #: files whose blocks are being made runnable (issue #24); each is removed when its doc runs as printed
 PENDING = {"README.md", "docs/arm.md", "docs/fleet.md", "docs/friction.md", "docs/legged-robot.md", "docs/monitoring.md",
-           "docs/position-controlled.md", "docs/speed.md", "docs/surgical-arm.md", "examples/README.md"}
+           "docs/position-controlled.md", "docs/speed.md", "examples/README.md"}
 FILES = [p for p in doc_files() if blocks(p) and str(p.relative_to(ROOT)) not in PENDING]
 
 
