@@ -10,11 +10,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import REALDATA, realdata
-from test_dvrk_psm import psm_motion, psm_truth
 from typer.testing import CliRunner
 
 from sensorless.cli import app
 from sensorless.experiments.psm_identification import paired_payload_logs, write_psm_csv
+from sensorless.simulation.psm_logs import psm_motion, psm_truth, tip_force_efforts
 
 COLS = ["--columns", "q=0:7;v=7:14;tau=14:21", "--rate", "200"]
 NOISE = 0.003
@@ -24,22 +24,6 @@ WPI = REALDATA / "dvrk_psm_wpi" / "data" / "psm" / "measured_trajectory"
 def _run(args):
     r = CliRunner().invoke(app, [str(a) for a in args])
     return r.exit_code, r.output
-
-
-def _tip_torques(s, mot, F):
-    """Gᵀ of the tree torques balancing a force F (world axes) at the tool tip (RNEA with fext)."""
-    model, data = s.tree.model, s.tree.model.createData()
-    fid = s.tree.frame_id("tool_tip")
-    fr = model.frames[fid]
-    out = []
-    for q, f in zip(s.joint_values(mot.q), F):
-        pin.framesForwardKinematics(model, data, q)
-        R = data.oMf[fid].rotation
-        fext = [pin.Force.Zero() for _ in range(model.njoints)]
-        fext[fr.parentJoint] = -fr.placement.act(pin.Force(R.T @ f, np.zeros(3)))
-        z = np.zeros(model.nv)
-        out.append(s.G.T @ (pin.rnea(model, data, q, z, z, fext) - pin.rnea(model, data, q, z, z)))
-    return np.array(out)
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +79,7 @@ def test_estimate_force_on_the_psm_tool_tip(psm_files):
     d, s, p = psm_files
     mot = psm_motion(5, 4.0, rate=200.0)
     F = np.stack([np.sin(mot.t), 0.5 * np.cos(2 * mot.t), -1.0 + 0 * mot.t], axis=1)
-    write_psm_csv(mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + _tip_torques(s, mot, F)), d / "push.csv")
+    write_psm_csv(mot.with_(tau=s.evaluate(mot.q, mot.v, mot.a) @ p + tip_force_efforts(s, mot, F)), d / "push.csv")
     code, out = _run(["estimate-force", "--robot", "dvrk_psm", "--model", d / "model", "--data", d / "push.csv",
                       *COLS, "--frame", "tool_tip", "--out", d / "force.npz"])
     assert code == 0, out

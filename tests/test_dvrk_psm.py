@@ -18,6 +18,7 @@ from sensorless.robots import (
     read_psm_log,
 )
 from sensorless.experiments.psm_identification import select_smoothing
+from sensorless.simulation.psm_logs import psm_motion, psm_truth
 
 WPI = REALDATA / "dvrk_psm_wpi"
 RNG = np.random.default_rng(11)
@@ -120,24 +121,6 @@ def test_real_psm_held_out_nrmse_beats_published_parameters():
 
 
 # ---- issue 11: the PSM as a robot of every command and estimator ------------------------------
-def psm_truth(rng, coulomb_smoothing: float = 0.05):
-    """(structure, parameters) of a physically consistent "true" PSM: random masses, CoMs and
-    inertias on the authors' bodies, small drive terms."""
-    s = psm_structure(coulomb_smoothing=coulomb_smoothing)
-    p = np.zeros(s.n_params)
-    for k in range(s.robot.n_bodies):
-        p[10 * k : 10 * k + 10] = pin.Inertia(rng.uniform(0.2, 1.0), rng.uniform(-0.1, 0.1, 3),
-                                               np.diag(rng.uniform(1e-3, 1e-2, 3))).toDynamicParameters()
-    p[s.n_body_params :] = rng.normal(size=s.n_params - s.n_body_params) * 0.01
-    return s, p
-
-
-def psm_motion(seed: int = 1, duration: float = 20.0, rate: float = 100.0):
-    from sensorless.excitation import random_fourier
-
-    return random_fourier(psm_structure().robot, rng=seed, base_freq=0.2, harmonics=4).sample(rate, duration)
-
-
 def test_psm_has_rcm_and_tool_tip_frames():
     """rcm: fixed in space for every (q1..q4) and on the instrument axis; tool_tip: on the
     jaw axis, l_p2y past the wrist-pitch axis, at the end of the shaft."""

@@ -135,6 +135,26 @@ def test_all_joint_types_and_joint_terms(tmp_path):
     compare_rnea(robot.with_inertial_parameters(pi), reloaded, rng)
 
 
+def test_operational_frames_are_kept_with_frames_true(tmp_path):
+    """The RCM arm's tool_tip and shaft_tip (OP frames added in code) reload at the same pose."""
+    from sensorless.simulation.surgical_arm import build_surgical_arm
+
+    robot = build_surgical_arm(armature=False)  # URDF has no rotor inertia
+    pi = robot.inertial_parameters()
+    assert "tool_tip" not in {f.name for f in load_robot(write_urdf(robot, pi, tmp_path / "a.urdf")).model.frames}
+    reloaded = load_robot(write_urdf(robot, pi, tmp_path / "b.urdf", frames=True))
+    assert reloaded.n_bodies == robot.n_bodies
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        q = rng.uniform(-0.5, 0.5, robot.model.nq)
+        for r in (robot, reloaded):
+            pin.framesForwardKinematics(r.model, r.data, q)
+        for name in ("tool_tip", "shaft_tip"):
+            a, b = robot.data.oMf[robot.model.getFrameId(name)], reloaded.data.oMf[reloaded.model.getFrameId(name)]
+            np.testing.assert_allclose(b.homogeneous, a.homogeneous, atol=1e-12)
+    compare_rnea(robot, reloaded, rng)
+
+
 def test_nonpositive_mass_is_rejected(tmp_path):
     robot = load_robot("ur5")
     pi = robot.inertial_parameters()

@@ -122,7 +122,7 @@ def test_bad_inputs(panda, panda_case):
 
 
 # ---- issue 11: payload on the dVRK PSM (coupled joints), paired no-load log, offsets, per-joint check ----
-from test_dvrk_psm import psm_motion, psm_truth  # noqa: E402
+from sensorless.simulation.psm_logs import psm_motion, psm_truth  # noqa: E402
 
 PSM_LINK = "pitch_end"  # the instrument (moved by q1, q2, q3)
 

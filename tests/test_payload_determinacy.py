@@ -10,7 +10,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from test_cli_psm import COLS, _run
-from test_dvrk_psm import psm_motion, psm_truth
+from sensorless.simulation.psm_logs import psm_motion, psm_truth
 from test_payload import _psm_payload_torques
 
 from sensorless.errors import ExcitationError

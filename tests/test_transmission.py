@@ -241,3 +241,19 @@ def test_identify_and_compress_work_unchanged_and_recover_torques(arm):
     assert res.diagnostics["rank"] == base_parameters(s).rank < s.n_params
     pred = res.predict(test)
     assert np.max(np.abs(pred - test.tau)) < 1e-7 * np.abs(test.tau).max()
+
+
+def test_structure_without_limits_on_a_tree_without_limits_identifies(arm):
+    """Regression (docs/surgical-arm.md §2): joints added in code have Pinocchio's ±float-max "no
+    limit"; the coordinate box overflowed the random states of base_parameters (OverflowError)."""
+    tree, G, coords = arm
+    lo, hi = tree.position_limits()
+    assert np.all(np.isneginf(lo)) and np.all(np.isposinf(hi))  # "unlimited" is inf, as documented
+    s = TransmissionStructure(tree, G, coords, drives=drives())
+    clo, chi = s.robot.position_limits()
+    assert np.allclose(clo, -np.pi) and np.allclose(chi, np.pi)
+    f = FourierTrajectory(0.2, RNG.normal(size=(5, 4)) * 0.3, RNG.normal(size=(5, 4)) * 0.3, np.zeros(5), coords)
+    tr = f.sample(100.0, 5.0)
+    truth = random_params(s)
+    res = identify(s, tr.with_(tau=s.regressor(tr) @ truth))
+    assert np.max(np.abs(res.predict(tr) - s.regressor(tr) @ truth)) < 1e-7 * np.abs(s.regressor(tr) @ truth).max()

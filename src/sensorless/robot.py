@@ -252,7 +252,8 @@ class Robot(Actuation):
         return V
 
     def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper position limits of ``joint_names`` (inf where unlimited)."""
+        """Lower and upper position limits of ``joint_names`` (inf where unlimited, also for
+        Pinocchio's "no limit" ±float max of a joint added without limits)."""
         lo, hi = [], []
         for n in self.joint_names:
             iq = self.q_index(n)
@@ -262,7 +263,9 @@ class Robot(Actuation):
             else:
                 lo.append(self.model.lowerPositionLimit[iq])
                 hi.append(self.model.upperPositionLimit[iq])
-        return np.array(lo), np.array(hi)
+        big = np.finfo(float).max
+        lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+        return np.where(lo <= -big, -np.inf, lo), np.where(hi >= big, np.inf, hi)
 
     def velocity_limits(self) -> np.ndarray:
         return np.array([self.model.velocityLimit[self.v_index(n)] for n in self.joint_names])

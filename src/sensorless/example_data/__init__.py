@@ -20,6 +20,7 @@ EXAMPLES: dict[str, str] = {
     "arm": "arm",
     "current-arm": "current_arm",
     "drive-gains": "drive_gains",
+    "dvrk-psm": "dvrk_psm",
     "fleet-logs": "fleet_logs",
     "friction-bench": "friction_bench",
     "held-arm": "held_arm",
@@ -28,6 +29,7 @@ EXAMPLES: dict[str, str] = {
     "solo12-walk": "solo12_walk",
     "talos-leg-drive": "talos_leg_drive",
     "talos-walk": "talos_walk",
+    "trocar-arm": "trocar_arm",
 }
 
 
