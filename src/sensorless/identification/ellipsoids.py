@@ -373,8 +373,8 @@ def auto_ellipsoids(
 
     ``geometry``: a ``GeometryModel``, ``"auto"`` (load the URDF's collision geometry when
     possible) or None (kinematic points only). ``margin`` defaults, per body, to
-    :data:`GEOMETRY_MARGIN` for a body with collision shapes and :data:`KINEMATIC_MARGIN` for one
-    without (no geometry, or its meshes missing). Each ellipsoid's ``source`` says which.
+    :data:`KINEMATIC_MARGIN` where its shape is unknown (no geometry, or its meshes missing) and
+    :data:`GEOMETRY_MARGIN` otherwise. Each ellipsoid's ``source`` says which.
     ``prior`` (10·n_bodies) defaults to the model's inertials; with ``contain_prior`` each
     ellipsoid is grown to hold any body within ``prior_slack`` (≥ 1) and ``com_margin`` [m]
     of it.
@@ -398,7 +398,10 @@ def auto_ellipsoids(
         if P0[k, 0] > 0:
             com = P0[k, 1:4] / P0[k, 0]
             pts = np.vstack([pts, com] + ([com + com_margin * _DIRS] if contain_prior and com_margin > 0 else []))
-        m = margin if margin is not None else GEOMETRY_MARGIN if name in shaped else KINEMATIC_MARGIN
+        # the kinematic margin where the body's shape is unknown: no geometry at all, or its meshes missing;
+        # a body the description gives no shape (authored in code, e.g. the PSM's links) keeps the geometry margin
+        unknown = geometry is None or (name in lost and name not in shaped)
+        m = margin if margin is not None else KINEMATIC_MARGIN if unknown else GEOMETRY_MARGIN
         cloud = _hull((pts[:, None, :] + m * _DIRS[None]).reshape(-1, 3))
         E = BoundingEllipsoid.from_shape_matrix(*_mvee(cloud), source=ellipsoid_source(
             name in shaped, name in lost, geometry is not None))

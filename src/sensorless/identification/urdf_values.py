@@ -56,6 +56,8 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     if mode == "regularised" or not verdicts:
         return pi, info
     P0 = _prior_bodies(verdicts, names)
+    if not (P0[:, 0] > 0).any():  # no inertial prior (e.g. a robot authored without masses): nothing to move toward
+        return pi, info
     fix = [k for k, b in enumerate(names) if verdicts["bodies"][b]["mass"]["verdict"] != "data" and P0[k, 0] > 0]
     blind = any(q.get("verdict") != "data" for v in verdicts["bodies"].values() for q in v.values()
                 if isinstance(q, dict))
