@@ -204,8 +204,8 @@ def monitor(
             Fq = fe.F[mask]
             nq = np.linalg.norm(Fq, axis=1)
             doc["noise"]["force_rms_quiet"] = float(np.sqrt(np.nanmean(nq**2))) if np.isfinite(nq).any() else None
-            doc["noise"]["force_sigma_quiet"] = [float(x) if np.isfinite(x) else None for x in np.nanstd(Fq, axis=0)] \
-                if np.isfinite(Fq).any() else None
+            doc["noise"]["force_sigma_quiet"] = [  # a component never observable in the window: None
+                float(np.nanstd(c)) if np.isfinite(c).sum() > 1 else None for c in Fq.T] if np.isfinite(Fq).any() else None
             for ivs, docs in ((intervals, doc["contacts"]), (band_ivs, doc["static_band"])):
                 for iv, d in zip(ivs, docs):
                     d.update(_peak_force(fe.F, t, iv))
