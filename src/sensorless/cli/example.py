@@ -10,7 +10,7 @@ from typing import Optional
 
 import typer
 
-from ..errors import OptionError
+from ..errors import OptionError, did_you_mean
 from .common import app, atomic_outdir, console, force_option, guarded
 
 __all__ = ["example"]
@@ -37,11 +37,8 @@ def example(
                               f"{example_names()[0]} --out DIR`")
         return
     if name not in EXAMPLES:
-        import difflib
-
-        close = difflib.get_close_matches(name, example_names(), n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
-        raise OptionError(f"unknown example '{name}'{hint} (`sensorless example --list`)")
+        hint = did_you_mean(name, example_names())
+        raise OptionError(f"unknown example '{name}'{'; ' + hint if hint else ''} (`sensorless example --list`)")
     if out is None:
         raise OptionError(f"--out DIR is required (e.g. `sensorless example {name} --out {name}`)")
     with atomic_outdir(out, force) as tmp:

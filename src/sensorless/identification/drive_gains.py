@@ -35,8 +35,8 @@ Misfit. With the right payload description the residual ε is the current noise 
 misalignment), whatever the gains; a wrong mass, CoM or frame, or two runs that are not one
 trajectory, leave the payload torque's shape in ε, and the fitted K absorb part of it (a CoM
 off by 10 cm gave gains 0.4–1.2× the truth with every interval narrow). The noise floor σ_n of
-each joint's d is measured on the log itself, from second differences (for white noise
-Var Δ²d = 6 σ_n², the smooth signal contributes (2π f Δt)² of its amplitude), robustly (MAD);
+each joint's d is measured on the log itself, from its Savitzky–Golay residual, robustly
+(:func:`~sensorless.data.rest.signal_noise`);
 a joint whose residual RMS exceeds :data:`MAX_MISFIT` σ_n is a misfit (``misfit``,
 ``diagnostics["residual_over_noise"]``).
 """
@@ -49,6 +49,7 @@ from typing import Callable
 import numpy as np
 
 from ..data.align import ALIGNMENTS, pair_logs
+from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
@@ -168,14 +169,6 @@ def _hac_var(y: np.ndarray, e: np.ndarray, L: int, offset: bool, use: "np.ndarra
     return float((Xi @ S @ Xi)[0, 0])
 
 
-def _noise_floor(x: np.ndarray) -> float:
-    """White-noise std of ``x`` from its second differences, robustly: 1.4826 MAD(Δ²x) / √6."""
-    if len(x) < 5:
-        return float("nan")
-    d2 = np.diff(x, 2)
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
-
-
 def identify_drive_gains(
     robot: Robot,
     unloaded: Trajectory,
@@ -265,7 +258,7 @@ def identify_drive_gains(
         hi = np.where(c - 1.96 * std_c > 0, 1.0 / (c - 1.96 * std_c), np.inf)
     ident = seen & (c > 0) & (std_c < MAX_RELATIVE_STD * np.abs(c))
     yrms = np.sqrt(np.mean(y**2, axis=0))
-    noise = np.array([_noise_floor(d[use[:, k], k]) for k in range(nj)])
+    noise = np.array([float(signal_noise(d[use[:, k], k])[0]) if use[:, k].sum() > 13 else np.nan for k in range(nj)])
     res_rms = np.array([float(np.sqrt(np.mean(res[use[:, k], k] ** 2))) if use[:, k].any() else np.nan
                         for k in range(nj)])
     with np.errstate(divide="ignore", invalid="ignore"):
