@@ -26,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NativeRegressor", "available", "build", "library_path", "native_regressor", "threads"]
+__all__ = ["NativeRegressor", "available", "build", "library", "library_path", "native_regressor", "threads"]
 
-_SOURCE = Path(__file__).with_name("native_kernel.cpp")
+#: the kernel's sources, one library: the regressor and the observer step (observer_kernel.cpp)
+_SOURCES = (Path(__file__).with_name("native_kernel.cpp"), Path(__file__).with_name("observer_kernel.cpp"))
 _LIB_NAME = "libsensorless_regressor.so"
 #: Pinocchio joint model → (kernel type code, fixed unit axis or None) (native_kernel.cpp): an axis-aligned
 #: joint is passed as its unaligned form
@@ -69,7 +70,7 @@ def _prefix() -> Path:
 
 
 def build(verbose: bool = False) -> Path:
-    """Compile ``native_kernel.cpp`` (g++ or $CXX, C++17). Returns the library path; raises
+    """Compile ``native_kernel.cpp`` and ``observer_kernel.cpp`` (g++ or $CXX, C++17). Returns the library path; raises
     RuntimeError with the compiler output on failure."""
     prefix = _prefix()
     include = prefix / "include"
@@ -86,7 +87,7 @@ def build(verbose: bool = False) -> Path:
             continue
         tmp = target.with_suffix(f".{os.getpid()}.tmp")
         cmd = [cxx, "-O3", "-std=c++17", "-shared", "-fPIC", *(f"-D{d}" for d in _DEFINES), f"-I{include}",
-               f"-I{eigen}", str(_SOURCE), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
+               f"-I{eigen}", *map(str, _SOURCES), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
                f"-Wl,-rpath,{prefix / 'lib'}", "-pthread"]
         if verbose:
             print(" ".join(cmd), file=sys.stderr)
@@ -96,7 +97,7 @@ def build(verbose: bool = False) -> Path:
             raise RuntimeError(f"cannot run the C++ compiler '{cxx}': {exc}") from None
         if res.returncode != 0:
             tmp.unlink(missing_ok=True)
-            raise RuntimeError(f"compiling {_SOURCE.name} failed:\n{res.stderr[-4000:]}")
+            raise RuntimeError(f"compiling {', '.join(p.name for p in _SOURCES)} failed:\n{res.stderr[-4000:]}")
         os.replace(tmp, target)
         _lib.cache_clear()
         return target
@@ -119,6 +120,12 @@ def _lib():
     lib.slr_regressor.restype = i
     lib.slr_regressor.argtypes = [p, i, p, p, p, i, p, p, i]
     return lib
+
+
+def library() -> "ctypes.CDLL | None":
+    """The loaded kernel (None when it is not built, cannot be loaded or ``SENSORLESS_NATIVE=0``); other
+    modules declare the signatures of the functions they call (e.g. the observer step)."""
+    return _lib()
 
 
 def available() -> bool:
