@@ -26,14 +26,12 @@ from .momentum import (
     MomentumDynamics,
     MomentumObserver,
     ObserverResult,
-    benchmark_observer,
     depth_first_model,
     observer_filter,
 )
 
 __all__ = [
     "REFERENCES",
-    "benchmark_observer",
     "CartesianForceEstimator",
     "ContactForceEstimate",
     "ContactInterval",

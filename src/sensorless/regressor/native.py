@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NativeRegressor", "available", "build", "library", "library_path", "native_regressor", "threads"]
+__all__ = ["NativeRegressor", "available", "build", "library", "library_path", "native_regressor", "threads", "tree_model",
+           "unavailable_reason"]
 
 #: the kernel's sources, one library: the regressor and the observer step (observer_kernel.cpp)
 _SOURCES = (Path(__file__).with_name("native_kernel.cpp"), Path(__file__).with_name("observer_kernel.cpp"))
@@ -179,14 +180,18 @@ def native_regressor(model) -> "NativeRegressor | None":
     return reg
 
 
-def _make(lib, model) -> "NativeRegressor | None":
-    import pinocchio as pin
-
+def tree_model(model) -> "int | str":
+    """The kernel's copy of the kinematic tree of a ``pin.Model`` (a handle the caller owns: the
+    observer kernel takes it over), or the reason it cannot be made (a joint type the kernel lacks)."""
+    lib = _lib()
+    if lib is None:
+        return unavailable_reason()
     n = model.njoints - 1
     try:
         kinds = [JOINT_CODES[model.joints[j].shortname()] for j in range(1, model.njoints)]
     except KeyError:
-        return None
+        bad = sorted({model.joints[j].shortname() for j in range(1, model.njoints)} - set(JOINT_CODES))
+        return f"the kernel has no joint type {', '.join(bad)}"
     codes = np.array([c for c, _ in kinds], dtype=np.int32)
     parents = np.array([model.parents[j] for j in range(1, model.njoints)], dtype=np.int32)
     placements = np.array([np.concatenate([model.jointPlacements[j].rotation.ravel(), model.jointPlacements[j].translation])
@@ -198,7 +203,24 @@ def _make(lib, model) -> "NativeRegressor | None":
             axes[k] = np.asarray(axis, dtype=float).ravel()[:3]
     placements, axes = np.ascontiguousarray(placements), np.ascontiguousarray(axes)
     handle = lib.slr_model_new(n, codes.ctypes.data, parents.ctypes.data, placements.ctypes.data, axes.ctypes.data)
-    if not handle:
+    return handle or "the kernel could not rebuild the kinematic tree"
+
+
+def unavailable_reason() -> str:
+    """Why :func:`library` is None (or "" when the kernel is loaded)."""
+    if os.environ.get("SENSORLESS_NATIVE", "1") == "0":
+        return "the C++ kernel is turned off (SENSORLESS_NATIVE=0)"
+    if library_path() is None:
+        return "the C++ kernel is not built (python -m sensorless.regressor.native_build)"
+    return "" if _lib() is not None else f"the C++ kernel {library_path()} cannot be loaded"
+
+
+def _make(lib, model) -> "NativeRegressor | None":
+    import pinocchio as pin
+
+    n = model.njoints - 1
+    handle = tree_model(model)
+    if isinstance(handle, str):
         return None
     reg = NativeRegressor(lib, handle, model.nq, model.nv, 10 * n)
     # accepted only if it reproduces Pinocchio's Python regressor
