@@ -10,6 +10,7 @@ from .collision import (
     quiet_thresholds,
     score_detection,
 )
+from .contact_stream import ContactStream
 from .contact_forces import ContactForceEstimate, estimate_contact_forces, solve_contact_forces
 from .force import (
     REFERENCES,
@@ -35,6 +36,7 @@ __all__ = [
     "CartesianForceEstimator",
     "ContactForceEstimate",
     "ContactInterval",
+    "ContactStream",
     "FTSensor",
     "ForceEstimate",
     "ImuSpec",
