@@ -128,7 +128,7 @@ def _robot(dyn, samples: int, python_samples: int, rounds: int, rng: np.random.G
     return res
 
 
-def run(samples: int = 100_000, python_samples: int = 2000, rounds: int = 10, seed: int = 0,
+def run(samples: int = 100_000, python_samples: int = 2000, rounds: int = 100, seed: int = 0,
         robots=ROBOTS) -> dict:
     """The benchmark (module docstring) as a JSON-able dict."""
     import pinocchio as pin

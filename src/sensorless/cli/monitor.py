@@ -267,7 +267,7 @@ def _peak_force(F: np.ndarray, t: np.ndarray, iv) -> dict:
 def bench_observer(
     samples: int = typer.Option(100_000, help="compiled steps per robot (timed one by one)"),
     python_samples: int = typer.Option(2000, help="Python steps per robot, for comparison"),
-    rounds: int = typer.Option(10, help="rounds interleaving the compiled step and the bare C++ loop"),
+    rounds: int = typer.Option(100, help="rounds interleaving the compiled step and the bare C++ loop"),
     robot: List[str] = typer.Option(["ur5", "solo12", "dvrk_psm"], help="robots (repeat the option)"),
 ) -> dict:
     """Per-sample cost of the momentum observer's step, compiled (C++ kernel) and in Python, against the

@@ -17,7 +17,8 @@ The second-order (filtered) variant uses L(s) = ω² / (s² + 2ζω s + ω²) (�
 identity with a steeper roll-off on measurement noise. Both are discretised by the
 bilinear (Tustin) transform — the trapezoidal rule of the integral above — and run either
 on a whole log (:meth:`MomentumObserver.run`, scipy ``lfilter``) or one sample at a time
-(:meth:`MomentumObserver.step`); the two give the same numbers.
+(:meth:`MomentumObserver.step`, in the C++ kernel when it is built: :mod:`.native_observer`); all give
+the same numbers.
 
 M, C and g come from Pinocchio (``crba``, ``computeCoriolisMatrix``,
 ``computeGeneralizedGravity``) on a copy of the model whose inertias and armature are the
