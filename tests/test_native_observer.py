@@ -159,6 +159,17 @@ def test_contact_flag_same_compiled_and_python():
         assert mon.compiled == (compiled is None)
     np.testing.assert_array_equal(flags[0], flags[1])
     assert flags[0][260:300].all() and not flags[0][: mon.warmup_steps].any()
+    # the offline observer and detect_contacts' test give the same flags after the warm-up
+    from sensorless.data.trajectory import Trajectory
+    from sensorless.estimation.collision import Thresholds, detect_contacts
+
+    robot = dyn.structure.robot
+    traj = Trajectory(t=np.arange(400) * 1e-3, q=Q, v=V, tau=T, joint_names=list(robot.joint_names))
+    raw = -MomentumObserver(dyn, gain=50.0).run(traj).tau_ext
+    th = Thresholds(names, np.zeros(6), np.full(6, 1.0), 2.0, 100)
+    offline, _ = detect_contacts(raw, traj.t, th)
+    offline[: mon.warmup_steps] = False
+    np.testing.assert_array_equal(flags[0], offline)
     np.testing.assert_allclose(taus[0], taus[1], atol=1e-10 * max(1.0, np.abs(taus[1]).max()))
 
 
@@ -202,3 +213,17 @@ def _wrong_friction(describe):
             lib.slo_add_joint_friction(h, 0, 0.0, 0.0, 1.0, 0, 0.0, 0.0, 0.0, 0.7)
         return h, reason, sizes
     return wrapped
+
+
+def test_benchmark_record():
+    from sensorless.benchmarks.observer import run
+
+    res = run(samples=400, python_samples=20, rounds=2, robots=("ur5", "dvrk_psm"))
+    for name in ("ur5", "dvrk_psm"):
+        r = res["robots"][name]
+        assert r["compiled"] and r["reason"] is None and r["step"]["samples"] == 400
+        for part in ("step", "step_into", "kernel_loop", "bare_cpp", "python_step"):
+            s = r[part]
+            assert 0 < s["p50_us"] <= s["p99_us"] <= s["p999_us"] <= s["max_us"] and s["over_1ms"] >= 0
+        assert len(r["ratio_rounds"]) == 2 and r["ratio"] > 0 and r["speedup_vs_python"] > 0
+    assert len(res["load_average_before"]) == 3 and res["kernel"]
