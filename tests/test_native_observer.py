@@ -192,6 +192,11 @@ def test_fallbacks_name_their_reason(monkeypatch):
     monkeypatch.setattr(mod, "_describe", _wrong_friction(mod._describe))
     nat, reason = native_observer(dyn)
     assert nat is None and "differs from the Python step" in reason
+    # a kernel built before the observer step
+    monkeypatch.setattr(mod, "_lib", lambda: None)
+    nat, reason = native_observer(dyn)
+    assert nat is None and "built before the observer step" in reason
+    monkeypatch.undo()
     # the kernel turned off
     monkeypatch.setenv("SENSORLESS_NATIVE", "0")
     native._lib.cache_clear()

@@ -13,6 +13,8 @@ missing, cannot be built, or a model has a joint type it does not know, everythi
 the Python loop with the same results. A model is accepted only after its kernel regressor equals
 Pinocchio's Python one on random states (relative 1e-12). ``SENSORLESS_NATIVE=0`` turns it off;
 ``SENSORLESS_NATIVE_THREADS`` sets its threads (default 1: the fold already runs beside it).
+The same library holds the momentum observer's compiled step (``observer_kernel.cpp``,
+:mod:`sensorless.estimation.native_observer`), which starts from :func:`tree_model`.
 """
 
 from __future__ import annotations
