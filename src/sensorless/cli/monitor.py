@@ -276,7 +276,9 @@ def bench_observer(
 
     bad = [r for r in robot if r not in ROBOTS]
     if bad:
-        raise typer.BadParameter(f"unknown robot(s) {bad}; choose from {list(ROBOTS)}", param_hint="--robot")
+        from ..errors import OptionError
+
+        raise OptionError(f"--robot {' '.join(bad)}: not a benchmark robot; choose from {', '.join(ROBOTS)}")
     res = run(samples, python_samples, rounds, robots=robot)
     if res["kernel"] is None:
         console.print(f"compiled step not measured: {res['kernel_reason']}")
