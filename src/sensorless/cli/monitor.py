@@ -265,14 +265,35 @@ def _peak_force(F: np.ndarray, t: np.ndarray, iv) -> dict:
 
 @bench_command("observer")
 def bench_observer(
-    samples: int = typer.Option(2000, help="streaming steps per robot"),
+    samples: int = typer.Option(100_000, help="compiled steps per robot (timed one by one)"),
+    python_samples: int = typer.Option(2000, help="Python steps per robot, for comparison"),
+    rounds: int = typer.Option(100, help="rounds interleaving the compiled step and the bare C++ loop"),
+    robot: List[str] = typer.Option(["ur5", "solo12", "dvrk_psm"], help="robots (repeat the option)"),
 ) -> dict:
-    """Per-sample cost of MomentumObserver.step (streaming) and .run (offline) on UR5, Solo12, dVRK PSM."""
-    from ..estimation.momentum import benchmark_observer
+    """Per-sample cost of the momentum observer's step, compiled (C++ kernel) and in Python, against the
+    bare C++ computation of M, Cᵀv and g over the same states (UR5, Solo12, dVRK PSM; JSON)."""
+    from ..benchmarks.observer import ROBOTS, run
 
-    res = benchmark_observer(samples)
+    bad = [r for r in robot if r not in ROBOTS]
+    if bad:
+        from ..errors import OptionError
+
+        raise OptionError(f"--robot {' '.join(bad)}: not a benchmark robot; choose from {', '.join(ROBOTS)}")
+    res = run(samples, python_samples, rounds, robots=robot)
+    if res["kernel"] is None:
+        console.print(f"compiled step not measured: {res['kernel_reason']}")
     for name, v in res["robots"].items():
-        console.print(f"{name} (n = {v['n']}): step {v['step_us']:.1f} µs/sample, run {v['run_us']:.1f} µs/sample")
+        py = v["python_step"]
+        line = f"{name} (n = {v['n']}): Python step p50 {py['p50_us']:.1f} µs"
+        if v.get("compiled"):
+            s, b = v["step"], v["bare_cpp"]
+            line += (f"; compiled step mean {s['mean_us']:.2f} µs, p50 {s['p50_us']:.2f}, p99 {s['p99_us']:.2f}, "
+                     f"p99.9 {s['p999_us']:.1f}, max {s['max_us']:.0f} µs, {s['over_1ms']} over 1 ms; bare C++ "
+                     f"M, Cᵀv, g mean {b['mean_us']:.2f} µs; ratio {v['ratio']:.2f} (p50s {v['ratio_p50']:.2f})")
+        elif v.get("reason"):
+            line += f"; Python only: {v['reason']}"
+        console.print(line)
+    console.print(f"load average {res['load_average_before'][0]:.2f} before, {res['load_average_after'][0]:.2f} after")
     return res
 
 

@@ -10,6 +10,7 @@ from .collision import (
     quiet_thresholds,
     score_detection,
 )
+from .contact_stream import ContactStream
 from .contact_forces import ContactForceEstimate, estimate_contact_forces, solve_contact_forces
 from .force import (
     REFERENCES,
@@ -26,17 +27,16 @@ from .momentum import (
     MomentumDynamics,
     MomentumObserver,
     ObserverResult,
-    benchmark_observer,
     depth_first_model,
     observer_filter,
 )
 
 __all__ = [
     "REFERENCES",
-    "benchmark_observer",
     "CartesianForceEstimator",
     "ContactForceEstimate",
     "ContactInterval",
+    "ContactStream",
     "FTSensor",
     "ForceEstimate",
     "ImuSpec",

@@ -17,7 +17,8 @@ The second-order (filtered) variant uses L(s) = ω² / (s² + 2ζω s + ω²) (�
 identity with a steeper roll-off on measurement noise. Both are discretised by the
 bilinear (Tustin) transform — the trapezoidal rule of the integral above — and run either
 on a whole log (:meth:`MomentumObserver.run`, scipy ``lfilter``) or one sample at a time
-(:meth:`MomentumObserver.step`); the two give the same numbers.
+(:meth:`MomentumObserver.step`, in the C++ kernel when it is built: :mod:`.native_observer`); all give
+the same numbers.
 
 M, C and g come from Pinocchio (``crba``, ``computeCoriolisMatrix``,
 ``computeGeneralizedGravity``) on a copy of the model whose inertias and armature are the
@@ -49,7 +50,7 @@ from ..regressor.friction_state import FrictionLaw, FrictionStateIntegrator
 from ..errors import DataError, RobotModelError, ShapeMismatchError, TimestampError
 from ..parameters import pin_inertia
 
-__all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "benchmark_observer", "depth_first_model", "observer_filter"]
+__all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "depth_first_model", "observer_filter"]
 
 
 def depth_first_model(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
@@ -273,6 +274,14 @@ class MomentumDynamics:
                                                   in zip(self._state_laws, self._iq, self._terms)])
         return P, B
 
+    def kernel_spec(self) -> dict:
+        """What the compiled step (:mod:`.native_observer`) needs besides ``model``: the transmission's
+        maps and drive values, or the joint-term rows and coefficients and the presliding laws."""
+        if self.transmission:
+            return {"perm": self._perm, "G": self.G, "M_drive": self._M_drive, "drive_values": self._drive_values}
+        laws = self._state_laws or []
+        return {"term_rows": self._terms, "phi": self._phi, "presliding": list(zip(laws, self._iq, self._terms))}
+
     def friction_integrator(self) -> "_StateFriction | None":
         """The presliding friction, streaming from the zero state, for :meth:`MomentumObserver.step`
         (None without a ``presliding`` term): the same numbers as :meth:`momentum_series`."""
@@ -330,15 +339,40 @@ class MomentumObserver:
 
     ``gain`` K [1/s] is the bandwidth of L(s); ``order`` 1 or 2; ``damping`` ζ of order 2.
     ``dt`` fixes the sample period of :meth:`step` (default: taken from the log in
-    :meth:`run`, or required at the first :meth:`step`).
+    :meth:`run`, or required at the first :meth:`step`). ``compiled``: None runs :meth:`step` in
+    the C++ kernel when it is built and accepts the model (:mod:`.native_observer`; same numbers),
+    False forces Python, True requires the kernel (RobotModelError with the reason otherwise).
     """
 
     def __init__(self, dynamics: MomentumDynamics, gain: float = 50.0, order: int = 1, damping: float = 1.0,
-                 dt: float | None = None) -> None:
+                 dt: float | None = None, compiled: bool | None = None) -> None:
         self.dynamics, self.gain, self.order, self.damping = dynamics, float(gain), int(order), float(damping)
         observer_filter(self.gain, self.order, 1e-3, self.damping)  # validate settings now
         self.dt = dt
+        self._want, self._native, self.compiled_reason = compiled, None, None
+        self._fast = None
+        if compiled:
+            self.kernel()
         self.reset()
+
+    @property
+    def compiled(self) -> bool:
+        """True when :meth:`step` runs in the C++ kernel (else ``compiled_reason`` says why). The first
+        access builds and checks the kernel's copy of the model (milliseconds): do it before a loop."""
+        return self.kernel() is not None
+
+    def kernel(self):
+        """The kernel's observer (:class:`~.native_observer.NativeObserver`), or None (Python step)."""
+        if self._native is None and self.compiled_reason is None:
+            if self._want is False:
+                self.compiled_reason = "the Python step was asked for (compiled=False)"
+            else:
+                from .native_observer import native_observer
+
+                self._native, self.compiled_reason = native_observer(self.dynamics)
+            if self._want and self._native is None:
+                raise RobotModelError(f"the compiled observer step is not available: {self.compiled_reason}")
+        return self._native
 
     def get_params(self) -> dict:
         return {"gain": self.gain, "order": self.order, "damping": self.damping, "dt": self.dt}
@@ -364,20 +398,53 @@ class MomentumObserver:
         self._p0 = None
         self._zp = self._zu = None
         self._coef = None
+        self._fast = None
+        if self._native is not None:
+            self._native.reset()
         make = getattr(self.dynamics, "friction_integrator", None)
         self._friction = make() if make is not None else None
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, base_q: np.ndarray | None = None,
              base_v: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
         """One sample (joint arrays in the robot's ``joint_names`` order; τ of the actuated
-        joints, or of all coordinates for a transmission) → r (n,)."""
-        dyn = self.dynamics
+        joints, or of all coordinates for a transmission) → r (n,). In the C++ kernel when
+        :attr:`compiled`, else in Python: the same numbers (to 1e-10)."""
+        fast = self._fast if self._fast is not None else self.prepare(dt)
+        if fast is not None:
+            fast.step(q, v, tau, base_q, base_v)
+            return fast.r.copy()
+        return self._step_python(q, v, tau, base_q, base_v)
+
+    def step_into(self, out: np.ndarray, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                  base_q: np.ndarray | None = None, base_v: np.ndarray | None = None,
+                  dt: float | None = None) -> np.ndarray:
+        """:meth:`step` writing r into ``out`` (a float64 array of n) and returning it: no allocation
+        per call on the compiled path, the fastest entry point for a control loop."""
+        fast = self._fast if self._fast is not None else self.prepare(dt)
+        if fast is not None:
+            fast.step(q, v, tau, base_q, base_v)
+            out[:] = fast.r
+        else:
+            out[:] = self._step_python(q, v, tau, base_q, base_v)
+        return out
+
+    def prepare(self, dt: float | None = None):
+        """Settle what the first step would: the sample period ``dt`` (or the observer's), the filter and
+        the kernel's copy of the model. Returns the kernel's observer when compiled, else None."""
         if self._coef is None:
             dt = dt or self.dt
             if not dt or dt <= 0:
                 raise TimestampError("MomentumObserver.step needs the sample period dt at the first call")
             self.dt = dt
             self._coef = observer_filter(self.gain, self.order, dt, self.damping)
+            kernel = self.kernel()
+            if kernel is not None:
+                kernel.set_filter(*self._coef)
+                self._fast = kernel
+        return self._fast
+
+    def _step_python(self, q, v, tau, base_q=None, base_v=None) -> np.ndarray:
+        dyn = self.dynamics
         qf, vf, tf = dyn.step_arrays(q, v, tau, base_q, base_v)
         p, beta = dyn.momentum_terms(qf, vf)
         if self._friction is not None:  # a friction state, integrated sample by sample
@@ -416,50 +483,3 @@ def _uniform_dt(traj: Trajectory, tol: float = 0.25) -> float:
             f"one (median period {dt:.4g} s)"
         )
     return dt
-
-
-def benchmark_observer(samples: int = 2000, seed: int = 0) -> dict:
-    """Wall time per sample of :meth:`MomentumObserver.step` and :meth:`MomentumObserver.run`
-    (UR5, Solo12 floating base, dVRK PSM transmission; random states). JSON-able."""
-    import platform
-    import time
-
-    from ..regressor.terms import ModelStructure
-    from ..robot import load_robot
-    from ..robots.dvrk_psm import psm_structure
-
-    rng = np.random.default_rng(seed)
-    cases = {}
-    ur5 = ModelStructure(load_robot("ur5"), coulomb_smoothing=0.05)
-    cases["ur5"] = (ur5, ur5.prior())
-    solo = ModelStructure(load_robot("solo12", floating_base=True), joint_terms=("fv", "fc", "armature"))
-    cases["solo12"] = (solo, solo.prior())
-    psm = psm_structure(drives="motors")
-    p = np.zeros(psm.n_params)
-    for k in range(psm.robot.n_bodies):
-        p[10 * k : 10 * k + 10] = pin.Inertia.Random().toDynamicParameters()
-    cases["dvrk_psm"] = (psm, p)
-    out = {"samples": samples, "python": platform.python_version(), "pinocchio": pin.__version__, "robots": {}}
-    for name, (st, params) in cases.items():
-        dyn = MomentumDynamics(st, params)
-        robot = st.robot
-        nj = len(robot.joint_names)
-        q = rng.uniform(-1, 1, (samples, nj)) * 0.3
-        v = rng.normal(size=(samples, nj)) * 0.3
-        tau = rng.normal(size=(samples, robot.n_actuated))
-        base_q = np.tile([0, 0, 0.3, 0, 0, 0, 1.0], (samples, 1)) if dyn.floating_base else None
-        base_v = rng.normal(size=(samples, 6)) * 0.1 if dyn.floating_base else None
-        obs = MomentumObserver(dyn, gain=50.0, dt=1e-3)
-        t0 = time.perf_counter()
-        for i in range(samples):
-            obs.step(q[i], v[i], tau[i], None if base_q is None else base_q[i], None if base_v is None else base_v[i])
-        step = (time.perf_counter() - t0) / samples
-        full_tau = np.zeros((samples, nj))
-        full_tau[:, [robot.joint_names.index(j) for j in robot.actuated_joints]] = tau
-        traj = Trajectory(t=np.arange(samples) * 1e-3, q=q, v=v, tau=full_tau, base_q=base_q, base_v=base_v,
-                          joint_names=robot.joint_names)
-        t0 = time.perf_counter()
-        MomentumObserver(dyn, gain=50.0).run(traj)
-        run = (time.perf_counter() - t0) / samples
-        out["robots"][name] = {"n": dyn.n, "step_us": step * 1e6, "run_us": run * 1e6}
-    return out

@@ -13,6 +13,8 @@ missing, cannot be built, or a model has a joint type it does not know, everythi
 the Python loop with the same results. A model is accepted only after its kernel regressor equals
 Pinocchio's Python one on random states (relative 1e-12). ``SENSORLESS_NATIVE=0`` turns it off;
 ``SENSORLESS_NATIVE_THREADS`` sets its threads (default 1: the fold already runs beside it).
+The same library holds the momentum observer's compiled step (``observer_kernel.cpp``,
+:mod:`sensorless.estimation.native_observer`), which starts from :func:`tree_model`.
 """
 
 from __future__ import annotations
@@ -26,9 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NativeRegressor", "available", "build", "library_path", "native_regressor", "threads"]
+__all__ = ["NativeRegressor", "available", "build", "library", "library_path", "native_regressor", "threads", "tree_model",
+           "unavailable_reason"]
 
-_SOURCE = Path(__file__).with_name("native_kernel.cpp")
+#: the kernel's sources, one library: the regressor and the observer step (observer_kernel.cpp)
+_SOURCES = (Path(__file__).with_name("native_kernel.cpp"), Path(__file__).with_name("observer_kernel.cpp"))
 _LIB_NAME = "libsensorless_regressor.so"
 #: Pinocchio joint model → (kernel type code, fixed unit axis or None) (native_kernel.cpp): an axis-aligned
 #: joint is passed as its unaligned form
@@ -69,7 +73,7 @@ def _prefix() -> Path:
 
 
 def build(verbose: bool = False) -> Path:
-    """Compile ``native_kernel.cpp`` (g++ or $CXX, C++17). Returns the library path; raises
+    """Compile ``native_kernel.cpp`` and ``observer_kernel.cpp`` (g++ or $CXX, C++17). Returns the library path; raises
     RuntimeError with the compiler output on failure."""
     prefix = _prefix()
     include = prefix / "include"
@@ -86,7 +90,7 @@ def build(verbose: bool = False) -> Path:
             continue
         tmp = target.with_suffix(f".{os.getpid()}.tmp")
         cmd = [cxx, "-O3", "-std=c++17", "-shared", "-fPIC", *(f"-D{d}" for d in _DEFINES), f"-I{include}",
-               f"-I{eigen}", str(_SOURCE), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
+               f"-I{eigen}", *map(str, _SOURCES), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
                f"-Wl,-rpath,{prefix / 'lib'}", "-pthread"]
         if verbose:
             print(" ".join(cmd), file=sys.stderr)
@@ -96,7 +100,7 @@ def build(verbose: bool = False) -> Path:
             raise RuntimeError(f"cannot run the C++ compiler '{cxx}': {exc}") from None
         if res.returncode != 0:
             tmp.unlink(missing_ok=True)
-            raise RuntimeError(f"compiling {_SOURCE.name} failed:\n{res.stderr[-4000:]}")
+            raise RuntimeError(f"compiling {', '.join(p.name for p in _SOURCES)} failed:\n{res.stderr[-4000:]}")
         os.replace(tmp, target)
         _lib.cache_clear()
         return target
@@ -119,6 +123,12 @@ def _lib():
     lib.slr_regressor.restype = i
     lib.slr_regressor.argtypes = [p, i, p, p, p, i, p, p, i]
     return lib
+
+
+def library() -> "ctypes.CDLL | None":
+    """The loaded kernel (None when it is not built, cannot be loaded or ``SENSORLESS_NATIVE=0``); other
+    modules declare the signatures of the functions they call (e.g. the observer step)."""
+    return _lib()
 
 
 def available() -> bool:
@@ -172,14 +182,18 @@ def native_regressor(model) -> "NativeRegressor | None":
     return reg
 
 
-def _make(lib, model) -> "NativeRegressor | None":
-    import pinocchio as pin
-
+def tree_model(model) -> "int | str":
+    """The kernel's copy of the kinematic tree of a ``pin.Model`` (a handle the caller owns: the
+    observer kernel takes it over), or the reason it cannot be made (a joint type the kernel lacks)."""
+    lib = _lib()
+    if lib is None:
+        return unavailable_reason()
     n = model.njoints - 1
     try:
         kinds = [JOINT_CODES[model.joints[j].shortname()] for j in range(1, model.njoints)]
     except KeyError:
-        return None
+        bad = sorted({model.joints[j].shortname() for j in range(1, model.njoints)} - set(JOINT_CODES))
+        return f"the kernel has no joint type {', '.join(bad)}"
     codes = np.array([c for c, _ in kinds], dtype=np.int32)
     parents = np.array([model.parents[j] for j in range(1, model.njoints)], dtype=np.int32)
     placements = np.array([np.concatenate([model.jointPlacements[j].rotation.ravel(), model.jointPlacements[j].translation])
@@ -191,7 +205,24 @@ def _make(lib, model) -> "NativeRegressor | None":
             axes[k] = np.asarray(axis, dtype=float).ravel()[:3]
     placements, axes = np.ascontiguousarray(placements), np.ascontiguousarray(axes)
     handle = lib.slr_model_new(n, codes.ctypes.data, parents.ctypes.data, placements.ctypes.data, axes.ctypes.data)
-    if not handle:
+    return handle or "the kernel could not rebuild the kinematic tree"
+
+
+def unavailable_reason() -> str:
+    """Why :func:`library` is None (or "" when the kernel is loaded)."""
+    if os.environ.get("SENSORLESS_NATIVE", "1") == "0":
+        return "the C++ kernel is turned off (SENSORLESS_NATIVE=0)"
+    if library_path() is None:
+        return "the C++ kernel is not built (python -m sensorless.regressor.native_build)"
+    return "" if _lib() is not None else f"the C++ kernel {library_path()} cannot be loaded"
+
+
+def _make(lib, model) -> "NativeRegressor | None":
+    import pinocchio as pin
+
+    n = model.njoints - 1
+    handle = tree_model(model)
+    if isinstance(handle, str):
         return None
     reg = NativeRegressor(lib, handle, model.nq, model.nv, 10 * n)
     # accepted only if it reproduces Pinocchio's Python regressor

@@ -1,4 +1,4 @@
-"""Build the optional C++ regressor kernel: ``python -m sensorless.regressor.native_build [-v]``
+"""Build the optional C++ kernel (the regressor and the momentum-observer step): ``python -m sensorless.regressor.native_build [-v]``
 (the Makefile runs it after installing; see :mod:`sensorless.regressor.native`). Exit status 1,
 with the reason, when it cannot be built: the pure-Python path is then used."""
 
@@ -13,10 +13,10 @@ def main(argv: list[str]) -> int:
     try:
         path = build(verbose="-v" in argv)
     except (RuntimeError, FileNotFoundError) as exc:
-        print(f"sensorless: native regressor kernel not built ({exc}); the pure-Python path is used",
+        print(f"sensorless: native C++ kernel (regressor, observer step) not built ({exc}); the pure-Python path is used",
               file=sys.stderr)
         return 1
-    print(f"sensorless: native regressor kernel built: {path}")
+    print(f"sensorless: native C++ kernel (regressor, observer step) built: {path}")
     return 0
 
 
