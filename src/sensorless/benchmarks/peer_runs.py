@@ -14,7 +14,7 @@ orientation, :func:`_boxes`).
 The driver writes OUT (``.npz``) with ``params``: 10 inertial parameters per body in ``body_names``
 order, Pinocchio's convention (m, m·c, Ixx Ixy Iyy Ixz Iyz Izz about the joint frame), and optionally
 ``info`` (a JSON string). Every fit is scored on our side the same way: τ̂ = W(q, q̇, q̈) π on the
-held-out log (:func:`~.peers.held_out_nrmse`) and per-body physical consistency of π
+held-out log (:func:`held_out_nrmse`) and per-body physical consistency of π
 (:func:`~sensorless.parameters.check_physical_consistency`).
 
 Wall time ``seconds``: from just before the process is started to the result file's modification
@@ -38,8 +38,8 @@ from ..parameters import check_physical_consistency
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
 
-__all__ = ["KNOWN_PEERS", "default_drivers", "default_venv", "peer_python", "run_identify", "run_peer",
-           "score_parameters", "write_case"]
+__all__ = ["KNOWN_PEERS", "default_drivers", "default_venv", "held_out_nrmse", "peer_python", "peer_skip_reason",
+           "run_identify", "run_peer", "score_parameters", "write_case"]
 
 #: peers with a driver in ``benchmarks/peer_drivers`` and a ``make peers`` recipe (name: pip requirement)
 KNOWN_PEERS = {"figaroh": "figaroh==1.0.2", "rigeo": "rigeo==0.2.0 pin==4.1.0"}
@@ -121,10 +121,15 @@ def _timed(argv: list[str], result: Path, env: dict, timeout: float) -> dict:
     return {"seconds": (result.stat().st_mtime_ns - start) / 1e9, "exit_seconds": (end - start) / 1e9}
 
 
-def score_parameters(structure: ModelStructure, params: np.ndarray, case) -> dict:
-    """Held-out nRMSE of τ̂ = W π (:func:`~.peers.held_out_nrmse`) and per-body consistency of π."""
-    from .peers import held_out_nrmse
+def held_out_nrmse(pred: np.ndarray, case) -> np.ndarray:
+    """Per-joint ``RMSE(τ̂ − τ_true) / std(τ_true)`` on the held-out log of a
+    :class:`~.peers.PeerCase` (noise-free torques), in %."""
+    tau = case.test.tau
+    return 100.0 * np.sqrt(np.mean((pred - tau) ** 2, axis=0)) / tau.std(axis=0)
 
+
+def score_parameters(structure: ModelStructure, params: np.ndarray, case) -> dict:
+    """Held-out nRMSE of τ̂ = W π (:func:`held_out_nrmse`) and per-body consistency of π."""
     e = held_out_nrmse(structure.torques(params, case.test), case)
     robot = structure.robot
     reports = check_physical_consistency(params[: structure.n_body_params], list(robot.body_names))
@@ -152,16 +157,24 @@ def run_identify(log: Path, out: Path, robot: Robot, robot_spec: str, case, flag
             "gamma_edge": (d.get("gamma_selection") or {}).get("edge")}
 
 
+def peer_skip_reason(name: str, venv: Path, drivers: Path) -> str | None:
+    """Why peer ``name`` cannot run (no venv python, no driver), or None."""
+    if not peer_python(venv).exists():
+        hint = f" (`make peers` creates it: pip install {KNOWN_PEERS[name]})" if name in KNOWN_PEERS else ""
+        return f"no virtual environment at {venv}{hint}; --peer-venv {name}=PATH to use another"
+    if not (drivers / f"{name}_driver.py").is_file():
+        return f"no driver {drivers / f'{name}_driver.py'}; --drivers DIR to use another folder"
+    return None
+
+
 def run_peer(name: str, venv: Path, drivers: Path, case_file: Path, out: Path, robot: Robot, case,
              timeout: float = 600.0) -> dict:
     """Peer ``name``'s driver in its venv on ``case_file`` (module docstring), scored; ``skipped``
     when its venv or driver is absent, ``error`` when it fails or returns unusable parameters."""
+    reason = peer_skip_reason(name, venv, drivers)
+    if reason is not None:
+        return {"skipped": reason}
     python, driver = peer_python(venv), drivers / f"{name}_driver.py"
-    if not python.exists():
-        hint = f" (`make peers` creates it: pip install {KNOWN_PEERS[name]})" if name in KNOWN_PEERS else ""
-        return {"skipped": f"no virtual environment at {venv}{hint}; --peer-venv {name}=PATH to use another"}
-    if not driver.is_file():
-        return {"skipped": f"no driver {driver}; --drivers DIR to use another folder"}
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     res = {"python": str(python), "driver": str(driver),
            **_timed([str(python), str(driver), str(case_file), str(out)], out, env, timeout)}
