@@ -1,7 +1,7 @@
 """Fits of a `sensorless benchmark peers` case as separate processes, timed from process start to result file.
 
 * ``sensorless identify --robot ROBOT --data log.npz --out DIR --force [FLAGS]``: a fresh process of
-  this Python (same ``sys.path``); its model is read back with :func:`~sensorless.estimators.load_parameters`.
+  this Python (same ``sys.path``); its model is read back with :func:`~sensorless.identification.artifact.load_model_folder`.
 * a peer NAME (figaroh, rigeo, ...): ``VENV/bin/python DRIVER CASE.npz OUT.npz``, the peer's own virtual
   environment (default ``$XDG_CACHE_HOME/sensorless-peers/NAME``, else ``~/.cache/...``; ``make peers``
   creates them) running ``DRIVER = DRIVERS/NAME_driver.py`` (``benchmarks/peer_drivers/`` of the source
@@ -142,7 +142,7 @@ def score_parameters(structure: ModelStructure, params: np.ndarray, case) -> dic
 def run_identify(log: Path, out: Path, robot: Robot, robot_spec: str, case, flags: list[str],
                  timeout: float = 600.0) -> dict:
     """``sensorless identify`` on ``log`` as a fresh process (module docstring), scored."""
-    from ..estimators import load_parameters
+    from ..identification.artifact import load_model_folder
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
     argv = [sys.executable, "-c", "from sensorless.cli import app; app()", "identify", "--robot", robot_spec,
@@ -150,10 +150,9 @@ def run_identify(log: Path, out: Path, robot: Robot, robot_spec: str, case, flag
     res = {"command": " ".join(["sensorless", *argv[3:]]), **_timed(argv, out / "result.json", env, timeout)}
     if "error" in res:
         return res
-    structure, params = load_parameters(out / "result.json", robot)
-    doc = json.loads((out / "result.json").read_text())
-    d = doc.get("diagnostics") or {}
-    return {**res, **score_parameters(structure, params, case), "gamma": d.get("gamma"),
+    model = load_model_folder(out, robot)
+    d = model.doc.get("diagnostics") or {}
+    return {**res, **score_parameters(model.structure, model.parameters, case), "gamma": d.get("gamma"),
             "gamma_edge": (d.get("gamma_selection") or {}).get("edge")}
 
 
