@@ -154,3 +154,27 @@ def test_peer_harness_scores_a_driver_that_returns_the_truth(tmp_path):
 def test_recipe_override_changes_the_case(ur5):
     short = Recipe(rate=200.0)
     assert np.isclose(peer_case("hard", 0, ur5, short).train.t[-1], 599 / 200.0)
+
+
+def test_case_file_boxes_hold_the_recipe_truths(tmp_path, ur5):
+    """The per-body boxes given to the peers (rigeo's realisability shape) contain the link meshes and
+    leave room for every recipe truth: each body's second moment about the joint frame, diag(½ tr(I) 1 − I),
+    is at most m · max(lo², hi²) per axis (a body outside could not be realised in its box). The URDF's
+    UR5 wrists alone need up to 60× what their meshes' box allows."""
+    from sensorless.benchmarks.peer_runs import write_case
+    from sensorless.identification.ellipsoids import body_points, load_geometry
+
+    pts = body_points(ur5, load_geometry(ur5))
+    for seed in DEFAULT_RECIPE.seeds:
+        case = peer_case("hard", seed, ur5, train_samples=20)
+        case_file, log = write_case(tmp_path / str(seed), case, ur5)
+        z = np.load(case_file)
+        assert list(z["body_names"]) == list(ur5.body_names) and z["q"].shape == (20, 6) and log.is_file()
+        lo, hi = z["box_center"] - z["box_half_extents"], z["box_center"] + z["box_half_extents"]
+        P = case.truth.robot.inertial_parameters().reshape(-1, 10)
+        for k, b in enumerate(ur5.body_names):
+            assert np.all(pts[b] >= lo[k] - 1e-12) and np.all(pts[b] <= hi[k] + 1e-12)
+            m, p = P[k, 0], P[k]
+            inertia = np.array([[p[4], p[5], p[7]], [p[5], p[6], p[8]], [p[7], p[8], p[9]]])
+            second = np.diag(0.5 * np.trace(inertia) * np.eye(3) - inertia)
+            assert np.all(second <= m * np.maximum(lo[k] ** 2, hi[k] ** 2)), (seed, b)
