@@ -68,6 +68,7 @@ def test_case_truth_is_physical_and_noise_is_as_specified(ur5):
 def test_benchmark_uses_the_cli_defaults():
     d = cli_defaults()
     assert d["gamma"] == "auto" and d["weights"] == "auto" and d["ellipsoids"] == "auto" and d["contain_prior"]
+    assert getattr(d["method"], "value", d["method"]) == "lmi"  # the "lmi" variant runs `identify` with no flags
 
 
 def test_reduced_benchmark_meets_the_acceptance_thresholds():
