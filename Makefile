@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-all bench venv clean
+.PHONY: demo test test-all bench peers venv clean
 
 venv: $(STAMP)
 
@@ -31,6 +31,15 @@ test-all: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/sensorless benchmark identify --out benchmarks/results/identify.json
+
+# The peers of `sensorless benchmark peers --against figaroh,rigeo`, each in its own venv outside the
+# repository (rigeo ships no regressor: its driver uses Pinocchio). PEERS_DIR must match --peer-venv.
+PEERS_DIR ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/sensorless-peers
+peers:
+	test -x $(PEERS_DIR)/figaroh/bin/python || $(PYTHON) -m venv $(PEERS_DIR)/figaroh
+	$(PEERS_DIR)/figaroh/bin/python -m pip install --quiet figaroh==1.0.2
+	test -x $(PEERS_DIR)/rigeo/bin/python || $(PYTHON) -m venv $(PEERS_DIR)/rigeo
+	$(PEERS_DIR)/rigeo/bin/python -m pip install --quiet rigeo==0.2.0 pin==4.1.0
 
 clean:
 	rm -rf $(VENV) demo_output

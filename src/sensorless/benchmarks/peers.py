@@ -14,19 +14,19 @@ Fixed recipe (``benchmarks/peers.toml``, :data:`DEFAULT_RECIPE`), per seed ``s``
 * metric: on the held-out trajectory, ``RMSE_j(τ̂ − τ_true) / std_j(τ_true)`` against the
   noise-free torque, mean over joints, in %.
 
-Cases: "main" (1 % noise, 2000 samples) and "hard" (5 % noise, 600 samples). Each is fitted
-by ``sensorless identify --method lmi`` and ``--method ols`` with every other option at its
-command-line default (read from the command's signature, so the benchmark follows the
-defaults), and, for reference, LMI with ``--weights none``.
+Cases: "main" (1 % noise, 2000 samples) and "hard" (5 % noise, 600 samples). Each case is given,
+as the same training samples (q, q̇, q̈, τ), to ``sensorless identify`` with every option at its
+command-line default ("lmi"), ``--method ols`` and, for reference, ``--weights none``, each a fresh
+process timed from its start to its ``result.json``; and, with ``--against figaroh,rigeo``, to the
+peers run from their own virtual environments (:mod:`.peer_runs`, ``make peers``), timed the same
+way. Every fit is scored on our side: held-out nRMSE of τ̂ = W π and per-body consistency of π.
 """
 
 from __future__ import annotations
 
 import inspect
 import platform
-import time
 import tomllib
-import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -37,7 +37,6 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..errors import OptionError
 from ..excitation import random_fourier
-from ..parameters import check_physical_consistency
 from ..robot import Robot, load_robot
 from ..simulation import TruthModel, map_body_inertias, synthetic_trajectory
 
@@ -49,7 +48,6 @@ __all__ = [
     "InertialPerturbation",
     "Recipe",
     "cli_defaults",
-    "held_out_nrmse",
     "load_recipe",
     "peer_case",
     "perturb_inertials",
@@ -92,6 +90,7 @@ class Recipe:
         "main": CaseSpec(noise=0.01, train_samples=2000, acceptance_percent=0.53),
         "hard": CaseSpec(noise=0.05, train_samples=600, acceptance_percent=8.0),
     })
+    speed: dict[str, Any] = field(default_factory=lambda: {"case": "hard", "defaults_seconds": 1.5, "ols_seconds": 1.0})
     peers: dict[str, Any] = field(default_factory=lambda: {
         "source": "side-by-side run quoted in issue #13 (figaroh 1.0.2, rigeo 0.2.0)",
         "main": {"figaroh_1.0.2": 0.53, "rigeo_0.2.0": 0.53},
@@ -184,12 +183,6 @@ def peer_case(name: str, seed: int, robot: Robot | None = None, recipe: Recipe =
     return PeerCase(name, int(seed), truth, train, test, sigma)
 
 
-def held_out_nrmse(pred: np.ndarray, case: PeerCase) -> np.ndarray:
-    """Per-joint ``RMSE(τ̂ − τ_true) / std(τ_true)`` on the held-out log, in %."""
-    tau = case.test.tau
-    return 100.0 * np.sqrt(np.mean((pred - tau) ** 2, axis=0)) / tau.std(axis=0)
-
-
 def cli_defaults() -> dict[str, Any]:
     """The default value of every option of ``sensorless identify`` (from its signature)."""
     from ..cli.identify import identify as command
@@ -202,54 +195,46 @@ def cli_defaults() -> dict[str, Any]:
     return out
 
 
-def _fit(case: PeerCase, robot: Robot, method: str, overrides: dict[str, Any] | None = None):
-    """``sensorless identify --method METHOD`` with the command-line defaults (plus
-    ``overrides``), in process on the generated logs: the same option handling
-    (``_structure``, ``_lmi_kwargs``, ``weights_option``) and the same ``identify`` call."""
-    from ..cli.identify_model import _friction_options, _lmi_kwargs, _structure
-    from ..identification.friction import identify_friction
-    from ..identification import identify
-    from ..identification.weights import weights_option
-
-    o = {**cli_defaults(), **(overrides or {}), "method": method}
-    eps, vs = _friction_options(o["coulomb_smoothing"], o["stribeck_velocity"])
-    structure = _structure(robot, o["joint_terms"], 0.0 if eps == "auto" else eps, None, None, 0.0, o["contact_mode"])
-    lmi_kw = _lmi_kwargs(robot, structure, method, None, o["regularization"], o["gamma"], o["ellipsoids"],
-                         o["contain_prior"])
-    weights = weights_option(o["weights"], structure.row_names)
-    t0 = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        kw = dict(method=method, weights=weights, outliers=o["outliers"], **lmi_kw)
-        if eps == "auto" or "stribeck" in structure.joint_terms:  # what `identify` does for plain arms
-            res, _ = identify_friction(structure, [case.train], coulomb_smoothing=eps, stribeck_velocity=vs,
-                                       identify_kwargs=kw)
-        else:
-            res = identify(structure, [case.train], **kw)
-    seconds = time.perf_counter() - t0
-    e = held_out_nrmse(res.predict(case.test), case)
-    reports = check_physical_consistency(res.inertial_parameters, list(robot.body_names))
-    d = res.diagnostics
-    return {
-        "nrmse_percent": float(e.mean()),
-        "nrmse_percent_per_joint": dict(zip(structure.row_names, map(float, e))),
-        "consistent_bodies": {r.name: bool(r.consistent) for r in reports},
-        "all_consistent": all(r.consistent for r in reports),
-        "stribeck_joints": [j for j in robot.actuated_joints if "stribeck" in res.structure.terms_of(j)],
-        "gamma": d.get("gamma"),
-        "gamma_edge": (d.get("gamma_selection") or {}).get("edge"),
-        "seconds": seconds,
-        "warnings": [str(w.message) for w in caught],
-    }
-
-
-VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
-    "lmi": ("lmi", {}),  # the CLI defaults with --method lmi
-    "ols": ("ols", {}),
-    "lmi_unweighted": ("lmi", {"weights": "none"}),  # reference: the pre-issue-13 weighting
-    "lmi_no_contain_prior": ("lmi", {"contain_prior": False}),  # geometry-only ellipsoids (warns)
+#: fits of `sensorless identify` the benchmark runs (name: extra command-line flags; "lmi" = the defaults)
+VARIANTS: dict[str, tuple[str, ...]] = {
+    "lmi": (),  # the CLI defaults (--method lmi)
+    "ols": ("--method", "ols"),
+    "lmi_unweighted": ("--weights", "none"),  # reference: the pre-issue-13 weighting
+    "lmi_no_contain_prior": ("--no-contain-prior",),  # geometry-only ellipsoids (warns)
 }
 DEFAULT_VARIANTS = ("lmi", "ols", "lmi_unweighted")
+
+
+def _summary(rs: list[dict], skipped: str | None = None) -> dict:
+    """Mean/worst nRMSE, consistency and wall times (median, min, max) over the runs without error."""
+    if skipped is not None:
+        return {"skipped": skipped, "runs": []}
+    ok = [r for r in rs if "error" not in r]
+    out: dict[str, Any] = {"n_runs": len(rs), "n_errors": len(rs) - len(ok), "runs": rs}
+    if ok:
+        e, t = np.array([r["nrmse_percent"] for r in ok]), np.array([r["seconds"] for r in ok])
+        out.update(mean_nrmse_percent=float(e.mean()), worst_nrmse_percent=float(e.max()),
+                   all_consistent=all(r["all_consistent"] for r in ok), median_seconds=float(np.median(t)),
+                   min_seconds=float(t.min()), max_seconds=float(t.max()))
+    return out
+
+
+def _speed_verdict(recipe: Recipe, cases: dict, against: tuple[str, ...]) -> dict:
+    """Issue #28: on ``recipe.speed["case"]``, the defaults' median wall time (process start to
+    result.json) against the faster peer's median in the same run and the absolute limits."""
+    sp = recipe.speed
+    c = cases.get(sp["case"], {})
+    median = {k: v.get("median_seconds") for k, v in c.items() if isinstance(v, dict)}
+    peers = {p: median.get(p) for p in against if median.get(p) is not None}
+    fastest = min(peers, key=peers.get) if peers else None
+    d, o = median.get("lmi"), median.get("ols")
+    checks = {"defaults_le_fastest_peer": None if d is None or fastest is None else bool(d <= peers[fastest]),
+              "defaults_le_limit": None if d is None else bool(d <= sp["defaults_seconds"]),
+              "ols_le_limit": None if o is None else bool(o <= sp["ols_seconds"])}
+    known = [v for v in checks.values() if v is not None]
+    return {**sp, "defaults_median_seconds": d, "ols_median_seconds": o, "peer_median_seconds": peers,
+            "fastest_peer": fastest, "defaults_over_fastest_peer": None if d is None or fastest is None
+            else d / peers[fastest], **checks, "passed": all(known) if len(known) == len(checks) else None}
 
 
 def run_peers(
@@ -258,56 +243,93 @@ def run_peers(
     seeds: tuple[int, ...] | None = None,
     cases: tuple[str, ...] | None = None,
     variants: tuple[str, ...] = DEFAULT_VARIANTS,
+    against: tuple[str, ...] = (),
+    peer_venvs: dict[str, str | Path] | None = None,
+    drivers: str | Path | None = None,
+    work: str | Path | None = None,
     train_samples: int | None = None,
+    timeout: float = 600.0,
     console=None,
     log: Callable[[str], None] | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> dict:
-    """Run the recipe: every case × seed × variant; per case the mean and worst nRMSE over
-    seeds, whether every body was consistent in every run, and the acceptance verdict of the
-    "lmi" variant (mean over seeds ≤ the case's ``acceptance_percent`` and all consistent).
-    ``progress(done, total)`` after each fit."""
+    """Run the recipe: per case × seed, one generated case given to every fit, each a separate process
+    timed from its start to its result file (:mod:`.peer_runs`): ``sensorless identify`` per variant,
+    then each peer in ``against`` from its venv (``peer_venvs[name]``, default
+    :func:`~.peer_runs.default_venv`) with its driver in ``drivers``. Per case and fit: mean and worst
+    nRMSE over seeds, consistency of every body in every run, wall times; the acceptance verdict of
+    "lmi" (mean and worst ≤ the case's ``acceptance_percent``, all consistent) and the speed verdict
+    (:func:`_speed_verdict`). A peer without venv or driver is skipped with the reason, a failing fit
+    is recorded with its error. ``work``: keep the logs and outputs there (default: a temporary
+    folder, deleted). ``progress(done, total)`` after each fit."""
+    import os
+    import tempfile
+
+    from .peer_runs import default_drivers, default_venv, peer_skip_reason, run_identify, run_peer, write_case
+
     say = log or (console.print if console is not None else (lambda _m: None))
     seeds = recipe.seeds if seeds is None else tuple(seeds)
     cases = tuple(recipe.cases) if cases is None else tuple(cases)
     unknown = [c for c in cases if c not in recipe.cases] + [v for v in variants if v not in VARIANTS]
     if unknown:
         raise OptionError(f"unknown case(s)/variant(s) {unknown}; cases {list(recipe.cases)}, variants {list(VARIANTS)}")
+    venvs = {p: Path(peer_venvs[p]) if peer_venvs and p in peer_venvs else default_venv(p) for p in against}
+    drivers = default_drivers() if drivers is None else Path(drivers)
+    skipped = {p: peer_skip_reason(p, venvs[p], drivers) for p in against}
+    live = [p for p in against if skipped[p] is None]
+    for p in against:
+        if skipped[p]:
+            say(f"{p}: skipped, {skipped[p]}")
     robot = load_robot(recipe.robot)
     out: dict[str, Any] = {
         "recipe": {**{k: v for k, v in asdict(recipe).items() if k != "peers"}, "seeds": list(seeds),
                    **({"train_samples_override": train_samples} if train_samples else {})},
         "cli_defaults": {k: v for k, v in cli_defaults().items() if isinstance(v, (str, int, float, bool))},
-        "peers": recipe.peers,
+        "variants": {v: ["sensorless", "identify", "--robot", recipe.robot, "--data", "LOG", "--out", "DIR", "--force",
+                         *VARIANTS[v]] for v in variants},
+        "against": {p: {"venv": str(venvs[p]), "driver": str(drivers / f"{p}_driver.py"), "skipped": skipped[p]}
+                    for p in against},
+        "published": recipe.peers,
+        "timing": "seconds: process start to its result file (result.json / the driver's OUT); fits run one "
+                  "after another, interleaved per seed",
         "cases": {},
         "machine": {"platform": platform.platform(), "python": platform.python_version(),
-                    "pinocchio": pin.__version__},
+                    "pinocchio": pin.__version__, "cpus": os.cpu_count(), "load_average_before": os.getloadavg(),
+                    "thread_env": {k: os.environ[k] for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
+                                                              "MKL_NUM_THREADS") if k in os.environ}},
     }
-    done, total = 0, len(cases) * len(seeds) * len(variants)
-    for name in cases:
-        runs: dict[str, list] = {v: [] for v in variants}
-        for seed in seeds:
-            case = peer_case(name, seed, robot, recipe, train_samples)
-            for v in variants:
-                method, overrides = VARIANTS[v]
-                r = _fit(case, robot, method, overrides)
-                runs[v].append({"seed": seed, **r})
-                done += 1
-                if progress is not None:
-                    progress(done, total)
-                say(f"{name} seed {seed} {v:15s} nRMSE {r['nrmse_percent']:.3f} %  consistent {r['all_consistent']}"
-                    + (f"  γ {r['gamma']:.3g}" if r["gamma"] is not None else "") + f"  ({r['seconds']:.1f} s)")
-        summary = {}
-        for v, rs in runs.items():
-            e = np.array([r["nrmse_percent"] for r in rs])
-            summary[v] = {"mean_nrmse_percent": float(e.mean()), "worst_nrmse_percent": float(e.max()),
-                          "all_consistent": all(r["all_consistent"] for r in rs), "runs": rs}
-        limit = recipe.cases[name].acceptance_percent
-        lmi = summary.get("lmi")
-        out["cases"][name] = {
-            **summary,
-            "acceptance_percent": limit,
-            "passed": None if lmi is None or limit is None else
-            bool(lmi["mean_nrmse_percent"] <= limit and lmi["worst_nrmse_percent"] <= limit and lmi["all_consistent"]),
-        }
+    done, total = 0, len(cases) * len(seeds) * (len(variants) + len(live))
+    with tempfile.TemporaryDirectory(prefix="sensorless-peers-") as tmp:
+        root = Path(work) if work is not None else Path(tmp)
+        for name in cases:
+            runs: dict[str, list] = {v: [] for v in (*variants, *against)}
+            for seed in seeds:
+                case = peer_case(name, seed, robot, recipe, train_samples)
+                folder = root / name / f"seed{seed}"
+                case_file, log_file = write_case(folder, case, robot)
+                fits = [(v, lambda v=v: run_identify(log_file, folder / v, robot, recipe.robot, case,
+                                                     list(VARIANTS[v]), timeout)) for v in variants]
+                fits += [(p, lambda p=p: run_peer(p, venvs[p], drivers, case_file, folder / f"{p}.npz", robot,
+                                                  case, timeout)) for p in live]
+                for key, fit in fits:
+                    r = {"seed": seed, **fit()}
+                    runs[key].append(r)
+                    done += 1
+                    if progress is not None:
+                        progress(done, total)
+                    say(f"{name} seed {seed} {key:15s} " + (f"error: {r['error']}" if "error" in r else
+                        f"nRMSE {r['nrmse_percent']:.3f} %  consistent {r['all_consistent']}  {r['seconds']:.2f} s"
+                        + (f"  γ {r['gamma']:.3g}" if r.get("gamma") is not None else "")))
+            summary = {k: _summary(rs, skipped.get(k)) for k, rs in runs.items()}
+            limit = recipe.cases[name].acceptance_percent
+            lmi = summary.get("lmi", {})
+            out["cases"][name] = {
+                **summary,
+                "acceptance_percent": limit,
+                "passed": None if "mean_nrmse_percent" not in lmi or limit is None else
+                bool(lmi["mean_nrmse_percent"] <= limit and lmi["worst_nrmse_percent"] <= limit
+                     and lmi["all_consistent"] and lmi["n_errors"] == 0),
+            }
+    out["speed"] = _speed_verdict(recipe, out["cases"], against)
+    out["machine"]["load_average_after"] = os.getloadavg()
     return out

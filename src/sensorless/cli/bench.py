@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
@@ -98,12 +98,22 @@ def bench_peers_cmd(
                                 "the default file is absent"),
     seeds: Optional[str] = typer.Option(None, help="comma-separated seeds (default: the recipe's)"),
     cases: Optional[str] = typer.Option(None, help="comma-separated cases (default: all, main,hard)"),
-    variants: str = typer.Option("lmi,ols,lmi_unweighted", help="fits: lmi (CLI defaults, --method lmi), ols "
-                                 "(--method ols), lmi_unweighted (--method lmi --weights none), lmi_no_contain_prior"),
+    variants: str = typer.Option("lmi,ols,lmi_unweighted", help="`sensorless identify` fits: lmi (CLI defaults), ols "
+                                 "(--method ols), lmi_unweighted (--weights none), lmi_no_contain_prior; '' for none"),
+    against: str = typer.Option("figaroh,rigeo", help="peers run from their own virtual environments on the same "
+                                "data (each skipped, with the reason, when its venv is absent; `make peers`); '' for none"),
+    peer_venv: Optional[List[str]] = typer.Option(None, help="NAME=PATH: the virtual environment of peer NAME "
+                                                  "(default $XDG_CACHE_HOME/sensorless-peers/NAME, else ~/.cache/...); repeatable"),
+    drivers: Optional[Path] = typer.Option(None, help="folder of the peers' driver scripts NAME_driver.py "
+                                           "(default: benchmarks/peer_drivers of the source tree)"),
+    work: Optional[Path] = typer.Option(None, help="keep the generated logs and every fit's output here "
+                                        "(default: a temporary folder, deleted)"),
+    timeout: float = typer.Option(600.0, help="seconds allowed to one fit's process"),
 ) -> dict:
-    """UR5 accuracy vs figaroh/rigeo's published figures: perturbed-truth inertials, random Fourier
-    excitation, 1 % (main) and 5 %/600 samples (hard) noise; `identify` with its CLI defaults
-    (--method lmi and ols). Held-out nRMSE vs the noise-free torque, mean and worst over seeds."""
+    """UR5 accuracy and wall time side by side: perturbed-truth inertials, random Fourier excitation,
+    1 % (main) and 5 %/600 samples (hard) noise; `sensorless identify` (CLI defaults, --method ols) and the
+    peers (figaroh, rigeo) from their own venvs, each a fresh process on the same samples, timed from
+    process start to its result file. Held-out nRMSE vs the noise-free torque, per-body consistency."""
     from ..benchmarks.peers import load_recipe, run_peers
 
     default = recipe == Path("benchmarks/peers.toml") and not recipe.exists()
@@ -112,19 +122,45 @@ def bench_peers_cmd(
         seed_list = tuple(int(s) for s in seeds.split(",")) if seeds else None
     except ValueError:
         raise OptionError(f"--seeds must be comma-separated integers, got '{seeds}'") from None
+    venvs = {}
+    for item in peer_venv or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise OptionError(f"--peer-venv must be NAME=PATH, got '{item}'")
+        venvs[name.strip()] = Path(path)
+    peers = tuple(p.strip() for p in against.split(",") if p.strip())
+    if unknown := sorted(set(venvs) - set(peers)):
+        raise OptionError(f"--peer-venv names {unknown} are not in --against '{','.join(peers)}'")
+    if timeout <= 0:
+        raise OptionError("--timeout must be > 0 seconds")
     with progress_bars() as bars:
         res = run_peers(rec, seeds=seed_list, cases=tuple(cases.split(",")) if cases else None,
-                        variants=tuple(v for v in variants.split(",") if v), console=console,
-                        progress=bars.callback("peer fits (case × seed × variant)"))
+                        variants=tuple(v for v in variants.split(",") if v), against=peers, peer_venvs=venvs,
+                        drivers=drivers, work=work, timeout=timeout, console=console,
+                        progress=bars.callback("fits (case × seed × fit)"))
     res["recipe"]["file"] = "built-in (sensorless.benchmarks.peers.DEFAULT_RECIPE)" if default else str(recipe)
+    console.print("case fit             nRMSE mean (worst)     consistent  wall s median (min–max)")
     for name, c in res["cases"].items():
-        peers = ", ".join(f"{k} {v} %" for k, v in rec.peers.get(name, {}).items())
-        for v in c:
-            if isinstance(c[v], dict) and "mean_nrmse_percent" in c[v]:
-                console.print(f"{name:4s} {v:15s} mean {c[v]['mean_nrmse_percent']:.3f} %, worst "
-                              f"{c[v]['worst_nrmse_percent']:.3f} %, all bodies consistent: {c[v]['all_consistent']}")
+        for k, v in c.items():
+            if not isinstance(v, dict):
+                continue
+            if "skipped" in v:
+                console.print(f"{name:4s} {k:15s} skipped: {v['skipped']}")
+            elif "mean_nrmse_percent" in v:
+                console.print(f"{name:4s} {k:15s} {v['mean_nrmse_percent']:7.3f} % ({v['worst_nrmse_percent']:.3f} %)"
+                              f"  {str(v['all_consistent']):10s}  {v['median_seconds']:.2f} ({v['min_seconds']:.2f}–"
+                              f"{v['max_seconds']:.2f})" + (f"  [{v['n_errors']} failed]" if v["n_errors"] else ""))
+            else:
+                console.print(f"{name:4s} {k:15s} every run failed: {v['runs'][0].get('error') if v['runs'] else '?'}")
         verdict = {True: "[green]PASS[/]", False: "[red]FAIL[/]", None: "—"}[c["passed"]]
-        console.print(f"{name:4s} acceptance (lmi ≤ {c['acceptance_percent']} %, consistent): {verdict}; peers: {peers}")
+        console.print(f"{name:4s} accuracy (lmi ≤ {c['acceptance_percent']} %, consistent): {verdict}")
+    sp = res["speed"]
+    f = lambda x: "—" if x is None else f"{x:.2f} s"  # noqa: E731
+    verdict = {True: "[green]PASS[/]", False: "[red]FAIL[/]", None: "—"}[sp["passed"]]
+    console.print(f"speed ({sp['case']}, median): defaults {f(sp['defaults_median_seconds'])}, ols "
+                  f"{f(sp['ols_median_seconds'])}, fastest peer {sp['fastest_peer'] or '—'} "
+                  f"{f(sp['peer_median_seconds'].get(sp['fastest_peer']))} (limits {sp['defaults_seconds']} s, "
+                  f"{sp['ols_seconds']} s): {verdict}")
     return res
 
 
