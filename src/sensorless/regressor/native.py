@@ -13,6 +13,9 @@ missing, cannot be built, or a model has a joint type it does not know, everythi
 the Python loop with the same results. A model is accepted only after its kernel regressor equals
 Pinocchio's Python one on random states (relative 1e-12). ``SENSORLESS_NATIVE=0`` turns it off;
 ``SENSORLESS_NATIVE_THREADS`` sets its threads (default 1: the fold already runs beside it).
+
+The same library holds the batched contact null-space projector (``native_contact.cpp``, used by
+:func:`~.contact_kinematics.null_space_projector` through :func:`contact_projector`).
 """
 
 from __future__ import annotations
@@ -26,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NativeRegressor", "available", "build", "library_path", "native_regressor", "threads"]
+__all__ = ["NativeRegressor", "available", "build", "contact_projector", "library_path", "native_regressor", "threads"]
 
 _SOURCE = Path(__file__).with_name("native_kernel.cpp")
+_SOURCES = (_SOURCE, Path(__file__).with_name("native_contact.cpp"))
 _LIB_NAME = "libsensorless_regressor.so"
 #: Pinocchio joint model → (kernel type code, fixed unit axis or None) (native_kernel.cpp): an axis-aligned
 #: joint is passed as its unaligned form
@@ -86,7 +90,7 @@ def build(verbose: bool = False) -> Path:
             continue
         tmp = target.with_suffix(f".{os.getpid()}.tmp")
         cmd = [cxx, "-O3", "-std=c++17", "-shared", "-fPIC", *(f"-D{d}" for d in _DEFINES), f"-I{include}",
-               f"-I{eigen}", str(_SOURCE), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
+               f"-I{eigen}", *map(str, _SOURCES), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
                f"-Wl,-rpath,{prefix / 'lib'}", "-pthread"]
         if verbose:
             print(" ".join(cmd), file=sys.stderr)
@@ -96,7 +100,7 @@ def build(verbose: bool = False) -> Path:
             raise RuntimeError(f"cannot run the C++ compiler '{cxx}': {exc}") from None
         if res.returncode != 0:
             tmp.unlink(missing_ok=True)
-            raise RuntimeError(f"compiling {_SOURCE.name} failed:\n{res.stderr[-4000:]}")
+            raise RuntimeError(f"compiling {' + '.join(p.name for p in _SOURCES)} failed:\n{res.stderr[-4000:]}")
         os.replace(tmp, target)
         _lib.cache_clear()
         return target
@@ -118,6 +122,10 @@ def _lib():
     lib.slr_model_free.argtypes = [p]
     lib.slr_regressor.restype = i
     lib.slr_regressor.argtypes = [p, i, p, p, p, i, p, p, i]
+    if hasattr(lib, "slr_null_space_projector"):  # absent from a library built before it existed
+        d = ctypes.c_double
+        lib.slr_null_space_projector.restype = None
+        lib.slr_null_space_projector.argtypes = [ctypes.c_long, i, i, p, d, d, p, p]
     return lib
 
 
@@ -207,6 +215,13 @@ def _make(lib, model) -> "NativeRegressor | None":
     if not np.allclose(out, ref, rtol=1e-12, atol=1e-12 * max(np.abs(ref).max(), 1.0)):
         return None
     return reg
+
+
+def contact_projector():
+    """The kernel's batched projector ``f(n, m, nv, J, rcond, max_cond, P, ok)`` (``native_contact.cpp``),
+    or None when the kernel is not built, disabled, or built before the projector was added."""
+    lib = _lib()
+    return getattr(lib, "slr_null_space_projector", None) if lib is not None else None
 
 
 def threads() -> int:
