@@ -104,3 +104,8 @@ def test_non_finite_jacobians_give_nan_projectors_only_where_they_are(route):
     J[3, 2, 5] = np.nan
     P = null_space_projector(J, RCOND)
     assert np.isnan(P[3]).all() and np.isfinite(np.delete(P, 3, axis=0)).all()
+
+
+@pytest.mark.skipif(not native.available(), reason="C++ kernel not built (pure-Python path)")
+def test_the_built_kernel_has_the_projector():
+    assert native.contact_projector() is not None, "stale kernel: run `python -m sensorless.regressor.native_build`"
