@@ -132,9 +132,9 @@ def null_space_basis(Jc: np.ndarray, rcond: float = 1e-7) -> tuple[np.ndarray, n
 
     Householder QR of Jcᵀ = Q R (LAPACK, batched over samples): B is the last nv − m columns of Q,
     so Jc B = 0, BᵀB = I and B Bᵀ = I − Jc⁺Jc for Jc of full row rank. ``exact`` (N,) marks the
-    samples where B Bᵀ also equals :func:`null_space_projector` (damping ε = rcond²·‖Jc‖²_F) to
-    1e-8: σ_min(Jc) ≥ 1/‖R⁻¹‖_F ≥ 1e4·rcond·‖Jc‖_F, so ε/σ²_min ≤ 1e-8. Elsewhere (dependent or
-    nearly dependent rows, m ≥ nv) B spans only part of the null space: use the projector there.
+    samples where B Bᵀ also equals :func:`null_space_projector` (pinv keeps every row), with a margin:
+    σ_min(Jc) ≥ 1/‖R⁻¹‖_F ≥ 1e4·rcond·‖Jc‖_F. Elsewhere (dependent or nearly dependent rows,
+    m ≥ nv) B may span only part of the null space: use the projector there.
     """
     N, m, nv = Jc.shape
     if m == 0:
