@@ -23,6 +23,8 @@ __all__ = ["contact_jacobians", "contact_rotations", "detect_contacts", "null_sp
 #: Largest condition bound ‖Jc‖_F ‖L⁻¹‖_F taken through the normal equations: their error is about
 #: eps·κ² (2e-11 at κ = 10³) against the SVD's eps·κ; worse-conditioned samples go to the SVD.
 FAST_CONDITION = 1e3
+#: Work-array budget of one NumPy chunk (doubles, 2 MiB): J, P, G and L⁻¹ of the chunk stay in cache.
+_CHUNK_DOUBLES = 1 << 18
 
 
 def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8, method: str = "cholesky") -> np.ndarray:
@@ -56,7 +58,7 @@ def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8, method: str = "cho
         kernel(N, m, nv, J.ctypes.data, float(rcond), FAST_CONDITION, P.ctypes.data, ok.ctypes.data)
         slow = np.flatnonzero(ok == 0)
     else:
-        step = max(32, (1 << 17) // (m * nv + nv * nv + m * m))  # about 1 MiB of work arrays per chunk
+        step = max(32, _CHUNK_DOUBLES // (m * nv + nv * nv + m * m))
         slow = [a + np.flatnonzero(~_normal_projector(Jc[a : a + step], rcond, P[a : a + step]))
                 for a in range(0, N, step)]
         slow = np.concatenate(slow) if slow else np.zeros(0, int)
