@@ -247,3 +247,8 @@ def test_blockwise_fold_on_a_tree_numbered_breadth_first():
     dense.add(W, y)
     blocks.add_blocks(s.body_regressor(Q, V, A), s.joint_features(V, A), s.actuated_rows, y, s.row_body_columns())
     assert _rel(blocks.A, dense.A) < 1e-12 and _rel(blocks.b, dense.b) < 1e-12
+
+
+def test_benchmark_speed_refuses_an_unknown_part():
+    r = CliRunner().invoke(app, ["benchmark", "speed", "--parts", "contact,warp"])
+    assert r.exit_code == 2 and "warp" in r.output and "startup" in r.output

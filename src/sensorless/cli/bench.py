@@ -60,10 +60,16 @@ def bench_speed_cmd(
     contact_samples: int = typer.Option(100_000, help="Solo12 samples for projector vs pinv loop"),
     identify_samples: int = typer.Option(100_000, help="samples of the UR5 log given to `sensorless identify`"),
     repeats: int = typer.Option(3, help="interleaved repetitions (best of)"),
+    parts: str = typer.Option("compression,memory,contact,startup,identify",
+                              help="comma-separated parts to run: compression, memory, contact, startup, identify"),
 ) -> dict:
     """Compression vs a bare regressor call, peak memory, contact projector vs pinv, CLI start-up and identify."""
-    from ..benchmarks.speed import bench_speed
+    from ..benchmarks.speed import PARTS, bench_speed
 
+    chosen = tuple(p.strip() for p in parts.split(",") if p.strip())
+    unknown = sorted(set(chosen) - set(PARTS))
+    if unknown or not chosen:
+        raise OptionError(f"--parts: unknown part(s) {unknown or [parts]}; choose from {', '.join(PARTS)}")
     if min(samples, contact_samples, identify_samples, repeats) < 1:
         raise OptionError("--samples, --contact-samples, --identify-samples and --repeats must be >= 1")
     try:
@@ -71,7 +77,7 @@ def bench_speed_cmd(
     except ValueError:
         raise OptionError(f"--memory-sizes must be comma-separated sample counts, got '{memory_sizes}'") from None
     return bench_speed(n_compress=samples, memory_sizes=sizes, n_contact=contact_samples, n_identify=identify_samples,
-                       repeats=repeats, console=console)
+                       repeats=repeats, parts=chosen, console=console)
 
 
 @bench_command("lmi")

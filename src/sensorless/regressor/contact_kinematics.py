@@ -15,42 +15,118 @@ import pinocchio as pin
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError
+from . import native
 
 __all__ = ["contact_jacobians", "contact_rotations", "detect_contacts", "null_space_basis", "null_space_projector"]
 
 
-def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8, method: str = "cholesky") -> np.ndarray:
-    """Batched P = I − Jc⁺Jc for Jc of shape (N, m, nv); zero or dependent rows are allowed.
+#: Largest condition bound ‖Jc‖_F ‖L⁻¹‖_F taken through the normal equations: their error is about
+#: eps·κ² (2e-11 at κ = 10³) against the SVD's eps·κ; worse-conditioned samples go to the SVD.
+FAST_CONDITION = 1e3
+#: Work-array budget of one NumPy chunk (doubles, 2 MiB): J, P, G and L⁻¹ of the chunk stay in cache.
+_CHUNK_DOUBLES = 1 << 18
 
-    ``method="cholesky"`` (default, fast): G = Jc Jcᵀ + ε I with ε = rcond²·tr(G), G = L Lᵀ,
-    X = L⁻¹ Jc, P = I − XᵀX. The damping gives each singular direction the weight
-    s²/(s² + ε): exact for s = 0 (dependent rows, inactive feet) and for s² ≫ ε, a smooth
-    blend in between. Vectorised over samples (loop over the m contact rows only).
-    ``method="svd"``: P = I − V_r V_rᵀ with singular values above rcond·σ_max (exact cut-off).
+
+def null_space_projector(Jc: np.ndarray, rcond: float = 1e-8, method: str = "cholesky") -> np.ndarray:
+    """Batched P = I − Jc⁺Jc for Jc of shape (N, m, nv), with the rank cut-off of
+    ``numpy.linalg.pinv(Jc[i], rcond)``: singular values ≤ rcond·σ_max are dropped.
+
+    ``method="cholesky"`` (default, fast): G = Jc Jcᵀ = L Lᵀ (batched LAPACK), L⁻¹ by a
+    forward substitution vectorised over samples, X = L⁻¹ Jc and P = I − XᵀX (= I − Jcᵀ G⁻¹ Jc).
+    Exactly zero rows (inactive contacts) get G_jj = ‖Jc‖²_F, so they add nothing. A sample is
+    taken this way only when σ_min ≥ 1/‖L⁻¹‖_F certifies that pinv keeps every row
+    (‖Jc‖_F ‖L⁻¹‖_F < 1/rcond) and that the normal equations are accurate
+    (≤ :data:`FAST_CONDITION`); the others (dependent or nearly dependent rows) get the SVD.
+    ``method="svd"``: P = I − V_r V_rᵀ for every sample, V_r the right singular vectors kept.
+    Both equal the per-sample pinv to about 1e-11. The Cholesky route runs in the optional C++ kernel
+    (:func:`~.native.contact_projector`) when it is built, else in NumPy over cache-sized chunks.
     """
+    Jc = np.asarray(Jc, dtype=float)
+    if method not in ("cholesky", "svd"):
+        raise ValueError(f"unknown projector method '{method}'; use 'cholesky' or 'svd'")
     N, m, nv = Jc.shape
+    P = np.empty((N, nv, nv))
     if m == 0:
-        return np.broadcast_to(np.eye(nv), (N, nv, nv)).copy()
+        P[:] = np.eye(nv)
+        return P
+    kernel = native.contact_projector() if method == "cholesky" else None
     if method == "svd":
-        _, s, Vt = np.linalg.svd(Jc, full_matrices=False)
-        smax = s[:, :1]
-        keep = (s > rcond * np.maximum(smax, 1e-300)) & (smax > 0)
-        Vr = Vt * keep[:, :, None]
-        return np.eye(nv) - np.einsum("nki,nkj->nij", Vr, Vr)
-    G = np.matmul(Jc, Jc.transpose(0, 2, 1))
-    eps = rcond**2 * np.maximum(np.trace(G, axis1=1, axis2=2), 1e-300)
-    L = np.zeros_like(G)
-    X = np.empty_like(Jc)
-    for j in range(m):  # column-wise Cholesky and forward substitution, vectorised over N (batched matmul:
-        Lj = L[:, j, None, :j]  # several times faster than einsum on these small stacked matrices)
-        ljj = np.sqrt(np.maximum(G[:, j, j] + eps - np.matmul(Lj, Lj.transpose(0, 2, 1))[:, 0, 0], eps))
-        L[:, j, j] = ljj
-        if j + 1 < m:
-            L[:, j + 1 :, j] = (G[:, j + 1 :, j] - np.matmul(L[:, j + 1 :, :j], Lj.transpose(0, 2, 1))[:, :, 0]) / ljj[:, None]
-        X[:, j] = (Jc[:, j] - np.matmul(Lj, X[:, :j])[:, 0]) / ljj[:, None]
-    P = -np.matmul(X.transpose(0, 2, 1), X)
-    P[:, np.arange(nv), np.arange(nv)] += 1.0
+        slow = np.arange(N)
+    elif kernel is not None:  # the same computation in C++ (native_contact.cpp)
+        J = np.ascontiguousarray(Jc)
+        ok = np.empty(N, np.uint8)
+        kernel(N, m, nv, J.ctypes.data, float(rcond), FAST_CONDITION, P.ctypes.data, ok.ctypes.data)
+        slow = np.flatnonzero(ok == 0)
+    else:
+        step = max(32, _CHUNK_DOUBLES // (m * nv + nv * nv + m * m))
+        slow = [a + np.flatnonzero(~_normal_projector(Jc[a : a + step], rcond, P[a : a + step]))
+                for a in range(0, N, step)]
+        slow = np.concatenate(slow) if slow else np.zeros(0, int)
+    if len(slow):
+        P[slow] = _svd_projector(Jc[slow], rcond)
     return P
+
+
+def _svd_projector(J: np.ndarray, rcond: float) -> np.ndarray:
+    """I − V_r V_rᵀ with pinv's cut-off; NaN for samples with non-finite entries."""
+    nv = J.shape[2]
+    finite = np.isfinite(J).all(axis=(1, 2))
+    P = np.full((len(J), nv, nv), np.nan)
+    if finite.any():
+        _, s, Vt = np.linalg.svd(J[finite], full_matrices=False)
+        smax = s[:, :1]
+        Vr = Vt * ((s > rcond * smax) & (smax > 0))[:, :, None]
+        P[finite] = np.eye(nv) - np.matmul(Vr.transpose(0, 2, 1), Vr)
+    return P
+
+
+def _lower_inverse(L: np.ndarray) -> np.ndarray:
+    """L⁻¹ for lower-triangular L (N, m, m): row j of L⁻¹ = (e_j − Σ_{k<j} L_jk row_k)/L_jj, each
+    step one vector operation over all samples (samples last, contiguous)."""
+    n, m, _ = L.shape
+    Lt = np.ascontiguousarray(L.transpose(1, 2, 0))
+    R = np.zeros((m, m, n))
+    d = np.arange(m)
+    R[d, d] = 1.0 / Lt[d, d]
+    for j in range(1, m):  # R[j] = (e_j − Σ_k L_jk R[k]) / L_jj: right-looking, column k = j − 1
+        R[j:, :j] -= Lt[j:, j - 1, None, :] * R[j - 1, None, :j]
+        R[j, :j] *= R[j, j]
+    return R.transpose(2, 0, 1)
+
+
+def _normal_projector(J: np.ndarray, rcond: float, out: np.ndarray, damped: bool = False) -> np.ndarray:
+    """P = I − Jᵀ G⁻¹ J into ``out`` for one chunk; returns the samples certified (see
+    :func:`null_space_projector`), the others to be redone by the SVD."""
+    n, m, nv = J.shape
+    G = np.matmul(J, J.transpose(0, 2, 1))
+    d = np.arange(m)
+    g = G[:, d, d]
+    s2 = g.sum(axis=1)  # ‖J‖²_F
+    scale2 = np.where(s2 > 0, s2, 1.0)
+    G[:, d, d] = np.where(g > 0, g, scale2[:, None])  # zero rows: a unit pivot at the sample's scale
+    if damped:  # certify on G + δI (positive definite), then refactor the certified samples undamped
+        G[:, d, d] += (16 * m * np.finfo(float).eps) * scale2[:, None]
+    try:
+        L = np.linalg.cholesky(G)
+    except np.linalg.LinAlgError:  # a singular G in the chunk (dependent rows)
+        if damped:
+            return np.zeros(n, bool)
+        ok = np.zeros(n, bool)
+        with np.errstate(all="ignore"):
+            cert = _normal_projector(J, rcond, np.empty_like(out), damped=True)
+        if cert.any():
+            sub = np.empty((int(cert.sum()), nv, nv))
+            ok[cert] = _normal_projector(J[cert], rcond, sub)
+            out[cert] = sub
+        return ok
+    Li = _lower_inverse(L)
+    k2 = s2 * np.einsum("nij,nij->n", Li, Li)  # (‖J‖_F ‖L⁻¹‖_F)² ≥ κ²
+    ok = (k2 <= FAST_CONDITION**2) & (k2 * rcond**2 < 1.0)
+    X = np.matmul(Li, J)
+    np.matmul(X.transpose(0, 2, 1), X, out=out)
+    np.negative(out, out=out)
+    out[:, np.arange(nv), np.arange(nv)] += 1.0
+    return ok
 
 
 def null_space_basis(Jc: np.ndarray, rcond: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
@@ -58,9 +134,9 @@ def null_space_basis(Jc: np.ndarray, rcond: float = 1e-7) -> tuple[np.ndarray, n
 
     Householder QR of Jcᵀ = Q R (LAPACK, batched over samples): B is the last nv − m columns of Q,
     so Jc B = 0, BᵀB = I and B Bᵀ = I − Jc⁺Jc for Jc of full row rank. ``exact`` (N,) marks the
-    samples where B Bᵀ also equals :func:`null_space_projector` (damping ε = rcond²·‖Jc‖²_F) to
-    1e-8: σ_min(Jc) ≥ 1/‖R⁻¹‖_F ≥ 1e4·rcond·‖Jc‖_F, so ε/σ²_min ≤ 1e-8. Elsewhere (dependent or
-    nearly dependent rows, m ≥ nv) B spans only part of the null space: use the projector there.
+    samples where B Bᵀ also equals :func:`null_space_projector` (pinv keeps every row), with a margin:
+    σ_min(Jc) ≥ 1/‖R⁻¹‖_F ≥ 1e4·rcond·‖Jc‖_F. Elsewhere (dependent or nearly dependent rows,
+    m ≥ nv) B may span only part of the null space: use the projector there.
     """
     N, m, nv = Jc.shape
     if m == 0:

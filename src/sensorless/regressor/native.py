@@ -14,7 +14,9 @@ the Python loop with the same results. A model is accepted only after its kernel
 Pinocchio's Python one on random states (relative 1e-12). ``SENSORLESS_NATIVE=0`` turns it off;
 ``SENSORLESS_NATIVE_THREADS`` sets its threads (default 1: the fold already runs beside it).
 The same library holds the momentum observer's compiled step (``observer_kernel.cpp``,
-:mod:`sensorless.estimation.native_observer`), which starts from :func:`tree_model`.
+:mod:`sensorless.estimation.native_observer`), which starts from :func:`tree_model`, and the
+batched contact null-space projector (``native_contact.cpp``, used by
+:func:`~.contact_kinematics.null_space_projector` through :func:`contact_projector`).
 """
 
 from __future__ import annotations
@@ -28,11 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NativeRegressor", "available", "build", "library", "library_path", "native_regressor", "threads", "tree_model",
-           "unavailable_reason"]
+__all__ = ["NativeRegressor", "available", "build", "contact_projector", "library", "library_path", "native_regressor",
+           "threads", "tree_model", "unavailable_reason"]
 
-#: the kernel's sources, one library: the regressor and the observer step (observer_kernel.cpp)
-_SOURCES = (Path(__file__).with_name("native_kernel.cpp"), Path(__file__).with_name("observer_kernel.cpp"))
+#: the kernel's sources, one library: the regressor, the observer step and the contact projector
+_SOURCES = tuple(Path(__file__).with_name(n) for n in ("native_kernel.cpp", "observer_kernel.cpp", "native_contact.cpp"))
 _LIB_NAME = "libsensorless_regressor.so"
 #: Pinocchio joint model → (kernel type code, fixed unit axis or None) (native_kernel.cpp): an axis-aligned
 #: joint is passed as its unaligned form
@@ -122,6 +124,10 @@ def _lib():
     lib.slr_model_free.argtypes = [p]
     lib.slr_regressor.restype = i
     lib.slr_regressor.argtypes = [p, i, p, p, p, i, p, p, i]
+    if hasattr(lib, "slr_null_space_projector"):  # absent from a library built before it existed
+        d = ctypes.c_double
+        lib.slr_null_space_projector.restype = None
+        lib.slr_null_space_projector.argtypes = [ctypes.c_long, i, i, p, d, d, p, p]
     return lib
 
 
@@ -238,6 +244,13 @@ def _make(lib, model) -> "NativeRegressor | None":
     if not np.allclose(out, ref, rtol=1e-12, atol=1e-12 * max(np.abs(ref).max(), 1.0)):
         return None
     return reg
+
+
+def contact_projector():
+    """The kernel's batched projector ``f(n, m, nv, J, rcond, max_cond, P, ok)`` (``native_contact.cpp``),
+    or None when the kernel is not built, disabled, or built before the projector was added."""
+    lib = _lib()
+    return getattr(lib, "slr_null_space_projector", None) if lib is not None else None
 
 
 def threads() -> int:
