@@ -6,6 +6,12 @@ equations that were not used to fit: ``validation_score`` is the residual
 γ with the lowest mean score over folds wins (:func:`select_gamma` for given
 train/validation equations, :func:`cross_validate_gamma` for folds cut from trajectories
 along whole excitation periods).
+
+Cost. Each fold's program is compiled once with γ a cvxpy Parameter (DPP), so another γ is
+only a conic solve. The default ``search="bracket"`` does not solve every γ of the grid: a
+golden-section search on the grid indices evaluates ≈ 6 of the 20 default γ (× folds), and
+falls back to the whole grid when the evaluated scores are not strictly unimodal
+(:func:`_grid_search`). ``search="exhaustive"`` solves them all.
 """
 
 from __future__ import annotations
@@ -25,11 +31,19 @@ from ..regressor.terms import ModelStructure
 from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi
 
-__all__ = ["GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score"]
+__all__ = ["GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score"]
+
+GAMMA_SEARCHES = ("bracket", "exhaustive")
+_BRACKET_MIN = 6  # grids shorter than this are scanned whole
+_GOLDEN = 0.3819660112501051  # 1 − 1/φ
+
 
 @dataclass
 class GammaSelection:
-    """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds))."""
+    """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds));
+    nan for a γ the search did not evaluate, inf where a solve failed. ``search`` is the
+    search that ran ("exhaustive", "bracket" or "bracket+exhaustive": the fallback),
+    ``n_solves`` the number of LMI solves."""
 
     gamma: float
     gammas: np.ndarray
@@ -37,6 +51,8 @@ class GammaSelection:
     fold_scores: np.ndarray
     score: str
     failures: dict[float, str] = field(default_factory=dict)
+    search: str = "exhaustive"
+    n_solves: int = 0
 
     @property
     def edge(self) -> str | None:
@@ -65,13 +81,17 @@ class GammaSelection:
                 "still be falling; extend the grid downward (include 0, no prior)")
 
     def to_dict(self) -> dict:
+        """Plain types; a γ the search did not evaluate has score None and ``evaluated`` False."""
         return {
             "gamma": self.gamma,
             "edge": self.edge,
             "gammas": self.gammas.tolist(),
-            "scores": self.scores.tolist(),
-            "fold_scores": self.fold_scores.tolist(),
+            "scores": [None if np.isnan(v) else float(v) for v in self.scores],
+            "fold_scores": [[None if np.isnan(v) else float(v) for v in row] for row in self.fold_scores],
+            "evaluated": (~np.isnan(self.scores)).tolist(),
             "score": self.score,
+            "search": self.search,
+            "n_solves": self.n_solves,
             "failures": {str(k): v for k, v in self.failures.items()},
         }
 
@@ -93,31 +113,95 @@ def validation_score(ne: NormalEquations, params: np.ndarray, score: str = "resi
     raise ValueError(f"unknown score '{score}'; use 'residual' or 'nrmse'")
 
 
-def _scan(
-    problem: LmiProblem, ne_val: NormalEquations, gammas: np.ndarray, score: str, row_weights, solver, failures,
-    tick: Callable[[], None] = lambda: None,
-) -> np.ndarray:
-    out = np.full(len(gammas), np.inf)
-    for i, g in enumerate(gammas):
-        try:
-            sol = problem.solve(float(g), solver=solver)
-        except SolverError as exc:
-            failures[float(g)] = str(exc)
-            continue
-        finally:
-            tick()
-        out[i] = validation_score(ne_val, sol.params, score, row_weights)
-    return out
+def _unimodal(values: Sequence[float]) -> bool:
+    """Every value finite, strictly decreasing up to the minimum and strictly increasing after it."""
+    v = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(v)):
+        return False
+    m = int(np.argmin(v))
+    return bool(np.all(np.diff(v[: m + 1]) < 0) and np.all(np.diff(v[m:]) > 0))
 
 
-def _pick(gammas: np.ndarray, fold_scores: np.ndarray, score: str, failures: dict, warn: bool = True) -> GammaSelection:
-    scores = fold_scores.mean(axis=1)
-    if not np.any(np.isfinite(scores)):
-        raise SolverError(f"no gamma could be solved: {failures}")
-    sel = GammaSelection(float(gammas[int(np.argmin(scores))]), gammas, scores, fold_scores, score, failures)
-    if warn and sel.edge is not None:
-        warnings.warn(sel.edge_message(), IdentifiabilityWarning, stacklevel=3)
-    return sel
+def _grid_search(n: int, evaluate: Callable[[int], float], search: str = "bracket") -> str:
+    """Call ``evaluate(i)`` (i = 0 … n−1, each at most once) on enough grid points to find its argmin.
+
+    "exhaustive": every point. "bracket": golden-section search on the indices — the bracket
+    [lo, hi] that holds the minimum of a unimodal curve shrinks by 1/φ per step, about 6 of 20
+    points — then the winner's neighbours. If the evaluated values are not strictly unimodal in
+    index order (a tie, a failed solve, a second dip) every point is evaluated, so the argmin is
+    the exhaustive one. A dip lying wholly between evaluated points is not seen by that check:
+    there the bracket can miss the grid's argmin. Grids shorter than 6 are scanned whole.
+    Returns the search that ran: "exhaustive", "bracket" or "bracket+exhaustive".
+    """
+    if search not in GAMMA_SEARCHES:
+        raise ValueError(f"unknown γ search '{search}'; use one of {', '.join(GAMMA_SEARCHES)}")
+    seen: dict[int, float] = {}
+
+    def f(i: int) -> float:
+        if i not in seen:
+            seen[i] = float(evaluate(i))
+        return seen[i]
+
+    if search == "exhaustive" or n < _BRACKET_MIN:
+        for i in range(n):
+            f(i)
+        return "exhaustive"
+    lo, hi = 0, n - 1
+    while hi - lo > 3:
+        d = int(round(_GOLDEN * (hi - lo)))
+        a, b = lo + d, max(hi - d, lo + d + 1)
+        if f(a) <= f(b):
+            hi = b
+        else:
+            lo = a
+    best = min(range(lo, hi + 1), key=f)
+    for j in (best - 1, best + 1):
+        if 0 <= j < n:
+            f(j)
+    if _unimodal([seen[i] for i in sorted(seen)]):
+        return "bracket"
+    for i in range(n):
+        f(i)
+    return "bracket+exhaustive"
+
+
+class _FoldScorer:
+    """``scorer(i)``: the mean held-out score over folds of grid point ``i``, filling ``fold_scores``
+    (one compiled :class:`LmiProblem` per fold, re-solved per γ; a failed solve scores inf)."""
+
+    def __init__(self, problems: Sequence[LmiProblem], vals: Sequence[NormalEquations], gammas: np.ndarray,
+                 score: str, row_weights, solver: str | None, tick: Callable[[], None] = lambda: None) -> None:
+        self.problems, self.vals, self.gammas, self.score = problems, vals, gammas, score
+        self.row_weights, self.solver, self.tick = row_weights, solver, tick
+        self.fold_scores = np.full((len(gammas), len(problems)), np.nan)
+        self.failures: dict[float, str] = {}
+        self.n_solves = 0
+
+    def __call__(self, i: int) -> float:
+        g = float(self.gammas[i])
+        for f, (prob, val) in enumerate(zip(self.problems, self.vals)):
+            self.n_solves += 1
+            try:
+                sol = prob.solve(g, solver=self.solver)
+                self.fold_scores[i, f] = validation_score(val, sol.params, self.score, self.row_weights)
+            except SolverError as exc:
+                self.failures[g] = str(exc)
+                self.fold_scores[i, f] = np.inf
+            finally:
+                self.tick()
+        return float(self.fold_scores[i].mean())
+
+    def select(self, search: str, warn: bool) -> GammaSelection:
+        ran = _grid_search(len(self.gammas), self, search)
+        scores = self.fold_scores.mean(axis=1)  # nan: not evaluated, inf: a fold failed
+        if not np.any(np.isfinite(scores)):
+            raise SolverError(f"no gamma could be solved: {self.failures}")
+        best = int(np.argmin(np.where(np.isnan(scores), np.inf, scores)))
+        sel = GammaSelection(float(self.gammas[best]), self.gammas, scores, self.fold_scores, self.score,
+                             self.failures, ran, self.n_solves)
+        if warn and sel.edge is not None:
+            warnings.warn(sel.edge_message(), IdentifiabilityWarning, stacklevel=3)
+        return sel
 
 
 def select_gamma(
@@ -129,20 +213,20 @@ def select_gamma(
     score: str = "residual",
     solver: str | None = None,
     warn: bool = True,
+    search: str = "bracket",
     **build_kwargs: Any,
 ) -> GammaSelection:
     """The γ whose solution on ``ne_train`` has the lowest :func:`validation_score` on ``ne_val``.
 
     ``build_kwargs`` as :func:`solve_lmi` (regularization, constraints, ellipsoids, ...).
-    The program is compiled once; γ is a parameter. A winner at an edge of the grid
+    The program is compiled once; γ is a parameter. ``search``: "bracket" (default) or
+    "exhaustive" (:func:`_grid_search`). A winner at an edge of the grid
     (:attr:`GammaSelection.edge`) issues an :class:`~sensorless.errors.IdentifiabilityWarning`
     unless ``warn=False``.
     """
     gammas = np.asarray(gammas, dtype=float)
-    failures: dict[float, str] = {}
     prob = build_lmi(ne_train, structure, **build_kwargs)
-    sc = _scan(prob, ne_val, gammas, score, build_kwargs.get("row_weights"), solver, failures)
-    return _pick(gammas, sc[:, None], score, failures, warn)
+    return _FoldScorer([prob], [ne_val], gammas, score, build_kwargs.get("row_weights"), solver).select(search, warn)
 
 
 def _split_folds(
@@ -204,6 +288,7 @@ def cross_validate_gamma(
     solver: str | None = None,
     chunk: int = 2048,
     warn: bool = True,
+    search: str = "bracket",
     progress: Callable[[int, int], None] | None = None,
     **build_kwargs: Any,
 ) -> GammaSelection:
@@ -220,8 +305,11 @@ def cross_validate_gamma(
     ``(t − t0) mod period`` instead. Precompressed folds may be passed instead of trajectories. The returned γ
     minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`. The default
     grid starts at γ = 0 (no prior); a winner at an edge of the grid warns (``warn``, see
-    :func:`select_gamma`). ``progress(done, total)`` is called after each fold is compressed and
-    each γ solved (total = n_folds · (1 + n_γ); n_folds · n_γ for precompressed folds).
+    :func:`select_gamma`). ``search``: "bracket" (default: a golden-section search on the grid,
+    the whole grid when its scores are not unimodal) or "exhaustive" (:func:`_grid_search`).
+    ``progress(done, total)`` is called after each fold is compressed and each LMI solved, with
+    total = the exhaustive count n_folds · (1 + n_γ) (n_folds · n_γ for precompressed folds); a
+    bracket search that ends early reports ``(total, total)`` last.
     """
     gammas = np.asarray(gammas, dtype=float)
     items = [data] if isinstance(data, Trajectory) else list(data)
@@ -238,10 +326,12 @@ def cross_validate_gamma(
     ellipsoids = build_kwargs.pop("ellipsoids", None)
     prior = build_kwargs.get("prior")
     ell = resolve_ellipsoids(structure.robot, ellipsoids, prior=structure.prior() if prior is None else prior)
-    failures: dict[float, str] = {}
-    cols = []
+    problems = []
     for f in range(len(folds)):
         train = functools.reduce(NormalEquations.merge, [folds[i] for i in range(len(folds)) if i != f])
-        prob = build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs)
-        cols.append(_scan(prob, folds[f], gammas, score, build_kwargs.get("row_weights"), solver, failures, tick))
-    return _pick(gammas, np.stack(cols, axis=1), score, failures, warn)
+        problems.append(build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs))
+    scorer = _FoldScorer(problems, folds, gammas, score, build_kwargs.get("row_weights"), solver, tick)
+    sel = scorer.select(search, warn)
+    if progress is not None and done[0] < total:
+        progress(total, total)
+    return sel

@@ -422,7 +422,7 @@ def solve_lmi(
 
 
 # γ selection lives in .gamma; the old import paths keep working (lazily: .gamma imports this module)
-_MOVED = ("GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score", "_split_folds", "_scan", "_pick")
+_MOVED = ("GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score", "_split_folds")
 
 
 def __getattr__(name: str):
