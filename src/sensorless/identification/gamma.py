@@ -17,6 +17,7 @@ falls back to the whole grid when the evaluated scores are not strictly unimodal
 from __future__ import annotations
 
 import functools
+import os
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
@@ -167,28 +168,49 @@ def _grid_search(n: int, evaluate: Callable[[int], float], search: str = "bracke
 
 class _FoldScorer:
     """``scorer(i)``: the mean held-out score over folds of grid point ``i``, filling ``fold_scores``
-    (one compiled :class:`LmiProblem` per fold, re-solved per γ; a failed solve scores inf)."""
+    (one compiled :class:`LmiProblem` per fold, re-solved per γ; a failed solve scores inf). With
+    ``workers`` > 1 the folds are solved in threads (the conic solver releases the GIL; each
+    thread touches only its own fold's problem, so the numbers are those of a serial run)."""
 
     def __init__(self, problems: Sequence[LmiProblem], vals: Sequence[NormalEquations], gammas: np.ndarray,
-                 score: str, row_weights, solver: str | None, tick: Callable[[], None] = lambda: None) -> None:
+                 score: str, row_weights, solver: str | None, tick: Callable[[], None] = lambda: None,
+                 workers: int = 1) -> None:
         self.problems, self.vals, self.gammas, self.score = problems, vals, gammas, score
         self.row_weights, self.solver, self.tick = row_weights, solver, tick
+        self.workers = max(1, min(int(workers), len(problems)))
         self.fold_scores = np.full((len(gammas), len(problems)), np.nan)
         self.failures: dict[float, str] = {}
         self.n_solves = 0
 
+    def _one(self, f: int, g: float) -> tuple[float, str | None]:
+        try:
+            sol = self.problems[f].solve(g, solver=self.solver)
+        except SolverError as exc:
+            return np.inf, str(exc)
+        return validation_score(self.vals[f], sol.params, self.score, self.row_weights), None
+
     def __call__(self, i: int) -> float:
         g = float(self.gammas[i])
-        for f, (prob, val) in enumerate(zip(self.problems, self.vals)):
-            self.n_solves += 1
-            try:
-                sol = prob.solve(g, solver=self.solver)
-                self.fold_scores[i, f] = validation_score(val, sol.params, self.score, self.row_weights)
-            except SolverError as exc:
-                self.failures[g] = str(exc)
-                self.fold_scores[i, f] = np.inf
-            finally:
+        folds = range(len(self.problems))
+        if self.workers > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(self.workers) as ex:
+                out = ex.map(lambda f: self._one(f, g), folds)
+                results = []
+                for r in out:
+                    results.append(r)
+                    self.tick()
+        else:
+            results = []
+            for f in folds:
+                results.append(self._one(f, g))
                 self.tick()
+        for f, (val, err) in enumerate(results):
+            self.fold_scores[i, f] = val
+            if err is not None:
+                self.failures[g] = err
+        self.n_solves += len(results)
         return float(self.fold_scores[i].mean())
 
     def select(self, search: str, warn: bool) -> GammaSelection:
@@ -289,6 +311,7 @@ def cross_validate_gamma(
     chunk: int = 2048,
     warn: bool = True,
     search: str = "bracket",
+    workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     **build_kwargs: Any,
 ) -> GammaSelection:
@@ -309,7 +332,8 @@ def cross_validate_gamma(
     the whole grid when its scores are not unimodal) or "exhaustive" (:func:`_grid_search`).
     ``progress(done, total)`` is called after each fold is compressed and each LMI solved, with
     total = the exhaustive count n_folds · (1 + n_γ) (n_folds · n_γ for precompressed folds); a
-    bracket search that ends early reports ``(total, total)`` last.
+    bracket search that ends early reports ``(total, total)`` last. ``workers`` threads solve the
+    folds of one γ side by side (default: one per available core; the numbers do not depend on it).
     """
     gammas = np.asarray(gammas, dtype=float)
     items = [data] if isinstance(data, Trajectory) else list(data)
@@ -330,7 +354,9 @@ def cross_validate_gamma(
     for f in range(len(folds)):
         train = functools.reduce(NormalEquations.merge, [folds[i] for i in range(len(folds)) if i != f])
         problems.append(build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs))
-    scorer = _FoldScorer(problems, folds, gammas, score, build_kwargs.get("row_weights"), solver, tick)
+    if workers is None:
+        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    scorer = _FoldScorer(problems, folds, gammas, score, build_kwargs.get("row_weights"), solver, tick, workers)
     sel = scorer.select(search, warn)
     if progress is not None and done[0] < total:
         progress(total, total)

@@ -38,7 +38,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import threading
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Any, Mapping, Sequence
@@ -83,6 +85,9 @@ __all__ = [
 CONSISTENCY_TOL = 1e-8  # λ_min(J_k) ≥ −tol · ‖J_k‖₂ counts as consistent
 # 0 (no prior: the data alone, inside the constraints), then 1e-8 … 10 in half decades
 DEFAULT_GAMMAS: tuple[float, ...] = (0.0,) + tuple(float(g) for g in np.logspace(-8, 1, 19))
+# cvxpy's compilation is not thread-safe (a global id counter): the first solve of a program for a
+# solver, which compiles it, holds this lock; re-solves with new parameter values only fill in data
+_COMPILE_LOCK = threading.Lock()
 _SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "CLARABEL": {},
     "SCS": {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iters": 20_000},
@@ -261,6 +266,7 @@ class LmiProblem:
         }
         self.build_seconds = time.perf_counter() - t0
         self._first_solve = True
+        self._compiled: set[str] = set()  # solvers this program was compiled for
 
     # ---- solving ---------------------------------------------------------------------
     def solve(
@@ -282,7 +288,9 @@ class LmiProblem:
         for name in order:
             t0 = time.perf_counter()
             try:
-                self.problem.solve(solver=name, verbose=verbose, **_SOLVER_OPTIONS.get(name, {}))
+                with _COMPILE_LOCK if name not in self._compiled else contextlib.nullcontext():
+                    self.problem.solve(solver=name, verbose=verbose, **_SOLVER_OPTIONS.get(name, {}))
+                    self._compiled.add(name)
                 status = self.problem.status
             except (cp.error.SolverError, ValueError, ArithmeticError) as exc:
                 status = f"error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
