@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import os
+import time
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
@@ -44,7 +45,7 @@ class GammaSelection:
     """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds));
     nan for a γ the search did not evaluate, inf where a solve failed. ``search`` is the
     search that ran ("exhaustive", "bracket" or "bracket+exhaustive": the fallback),
-    ``n_solves`` the number of LMI solves."""
+    ``n_solves`` the number of LMI solves, ``seconds`` the wall time of the selection."""
 
     gamma: float
     gammas: np.ndarray
@@ -54,6 +55,7 @@ class GammaSelection:
     failures: dict[float, str] = field(default_factory=dict)
     search: str = "exhaustive"
     n_solves: int = 0
+    seconds: float = float("nan")
 
     @property
     def edge(self) -> str | None:
@@ -93,6 +95,7 @@ class GammaSelection:
             "score": self.score,
             "search": self.search,
             "n_solves": self.n_solves,
+            "seconds": self.seconds,
             "failures": {str(k): v for k, v in self.failures.items()},
         }
 
@@ -246,9 +249,12 @@ def select_gamma(
     (:attr:`GammaSelection.edge`) issues an :class:`~sensorless.errors.IdentifiabilityWarning`
     unless ``warn=False``.
     """
+    t0 = time.perf_counter()
     gammas = np.asarray(gammas, dtype=float)
     prob = build_lmi(ne_train, structure, **build_kwargs)
-    return _FoldScorer([prob], [ne_val], gammas, score, build_kwargs.get("row_weights"), solver).select(search, warn)
+    sel = _FoldScorer([prob], [ne_val], gammas, score, build_kwargs.get("row_weights"), solver).select(search, warn)
+    sel.seconds = time.perf_counter() - t0
+    return sel
 
 
 def _split_folds(
@@ -335,6 +341,7 @@ def cross_validate_gamma(
     bracket search that ends early reports ``(total, total)`` last. ``workers`` threads solve the
     folds of one γ side by side (default: one per available core; the numbers do not depend on it).
     """
+    t0 = time.perf_counter()
     gammas = np.asarray(gammas, dtype=float)
     items = [data] if isinstance(data, Trajectory) else list(data)
     given = bool(items) and all(isinstance(i, NormalEquations) for i in items)
@@ -358,6 +365,7 @@ def cross_validate_gamma(
         workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     scorer = _FoldScorer(problems, folds, gammas, score, build_kwargs.get("row_weights"), solver, tick, workers)
     sel = scorer.select(search, warn)
+    sel.seconds = time.perf_counter() - t0
     if progress is not None and done[0] < total:
         progress(total, total)
     return sel
