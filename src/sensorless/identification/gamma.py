@@ -8,10 +8,12 @@ train/validation equations, :func:`cross_validate_gamma` for folds cut from traj
 along whole excitation periods).
 
 Cost. Each fold's program is compiled once with γ a cvxpy Parameter (DPP), so another γ is
-only a conic solve. The default ``search="bracket"`` does not solve every γ of the grid: a
-golden-section search on the grid indices evaluates ≈ 6 of the 20 default γ (× folds), and
-falls back to the whole grid when the evaluated scores are not strictly unimodal
-(:func:`_grid_search`). ``search="exhaustive"`` solves them all.
+only a conic solve (cvxpy reuses Clarabel's workspace). The default ``search="bracket"`` does not
+solve every γ of the grid: a golden-section search on the grid indices evaluates ≈ 6 of the 20
+default γ (× folds), and falls back to the whole grid when the evaluated scores are not strictly
+unimodal (:func:`_grid_search`); a (fold, γ) whose unconstrained minimiser satisfies every
+constraint takes that exact solution without a conic solve (:mod:`.unconstrained`).
+``search="exhaustive"`` solves every γ with the conic solver, as before.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from ..regressor.compress import NormalEquations, compress
 from ..regressor.terms import ModelStructure
 from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi
+from .unconstrained import regularizer_metric, unconstrained_solution
 
 __all__ = ["GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score"]
 
@@ -45,7 +48,8 @@ class GammaSelection:
     """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds));
     nan for a γ the search did not evaluate, inf where a solve failed. ``search`` is the
     search that ran ("exhaustive", "bracket" or "bracket+exhaustive": the fallback),
-    ``n_solves`` the number of LMI solves, ``seconds`` the wall time of the selection."""
+    ``n_solves`` the number of conic LMI solves, ``n_closed_form`` the (fold, γ) pairs solved in closed
+    form because no constraint was active (:mod:`.unconstrained`), ``seconds`` the wall time."""
 
     gamma: float
     gammas: np.ndarray
@@ -56,6 +60,7 @@ class GammaSelection:
     search: str = "exhaustive"
     n_solves: int = 0
     seconds: float = float("nan")
+    n_closed_form: int = 0
 
     @property
     def edge(self) -> str | None:
@@ -95,6 +100,7 @@ class GammaSelection:
             "score": self.score,
             "search": self.search,
             "n_solves": self.n_solves,
+            "n_closed_form": self.n_closed_form,
             "seconds": self.seconds,
             "failures": {str(k): v for k, v in self.failures.items()},
         }
@@ -177,13 +183,25 @@ class _FoldScorer:
 
     def __init__(self, problems: Sequence[LmiProblem], vals: Sequence[NormalEquations], gammas: np.ndarray,
                  score: str, row_weights, solver: str | None, tick: Callable[[], None] = lambda: None,
-                 workers: int = 1) -> None:
+                 workers: int = 1, closed_form: bool = False) -> None:
         self.problems, self.vals, self.gammas, self.score = problems, vals, gammas, score
         self.row_weights, self.solver, self.tick = row_weights, solver, tick
         self.workers = max(1, min(int(workers), len(problems)))
+        self.closed_form = closed_form
+        self._metrics: dict[int, np.ndarray | None] = {}
         self.fold_scores = np.full((len(gammas), len(problems)), np.nan)
         self.failures: dict[float, str] = {}
         self.n_solves = 0
+        self.n_closed_form = 0
+
+    def _unconstrained(self, f: int, g: float) -> np.ndarray | None:
+        if not self.closed_form:
+            return None
+        if f not in self._metrics:
+            self._metrics[f] = regularizer_metric(self.problems[f])
+        if self._metrics[f] is None:
+            return None
+        return unconstrained_solution(self.problems[f], g, self._metrics[f])
 
     def _one(self, f: int, g: float) -> tuple[float, str | None]:
         try:
@@ -194,26 +212,30 @@ class _FoldScorer:
 
     def __call__(self, i: int) -> float:
         g = float(self.gammas[i])
-        folds = range(len(self.problems))
-        if self.workers > 1:
+        results: dict[int, tuple[float, str | None]] = {}
+        for f in range(len(self.problems)):  # no constraint active: the exact minimiser, no conic solve
+            params = self._unconstrained(f, g)
+            if params is not None:
+                results[f] = (validation_score(self.vals[f], params, self.score, self.row_weights), None)
+                self.n_closed_form += 1
+                self.tick()
+        todo = [f for f in range(len(self.problems)) if f not in results]
+        if self.workers > 1 and len(todo) > 1:
             from concurrent.futures import ThreadPoolExecutor
 
-            with ThreadPoolExecutor(self.workers) as ex:
-                out = ex.map(lambda f: self._one(f, g), folds)
-                results = []
-                for r in out:
-                    results.append(r)
+            with ThreadPoolExecutor(min(self.workers, len(todo))) as ex:
+                for f, r in zip(todo, ex.map(lambda f: self._one(f, g), todo)):
+                    results[f] = r
                     self.tick()
         else:
-            results = []
-            for f in folds:
-                results.append(self._one(f, g))
+            for f in todo:
+                results[f] = self._one(f, g)
                 self.tick()
-        for f, (val, err) in enumerate(results):
+        for f, (val, err) in results.items():
             self.fold_scores[i, f] = val
             if err is not None:
                 self.failures[g] = err
-        self.n_solves += len(results)
+        self.n_solves += len(todo)
         return float(self.fold_scores[i].mean())
 
     def select(self, search: str, warn: bool) -> GammaSelection:
@@ -223,7 +245,7 @@ class _FoldScorer:
             raise SolverError(f"no gamma could be solved: {self.failures}")
         best = int(np.argmin(np.where(np.isnan(scores), np.inf, scores)))
         sel = GammaSelection(float(self.gammas[best]), self.gammas, scores, self.fold_scores, self.score,
-                             self.failures, ran, self.n_solves)
+                             self.failures, ran, self.n_solves, n_closed_form=self.n_closed_form)
         if warn and sel.edge is not None:
             warnings.warn(sel.edge_message(), IdentifiabilityWarning, stacklevel=3)
         return sel
@@ -252,7 +274,8 @@ def select_gamma(
     t0 = time.perf_counter()
     gammas = np.asarray(gammas, dtype=float)
     prob = build_lmi(ne_train, structure, **build_kwargs)
-    sel = _FoldScorer([prob], [ne_val], gammas, score, build_kwargs.get("row_weights"), solver).select(search, warn)
+    sel = _FoldScorer([prob], [ne_val], gammas, score, build_kwargs.get("row_weights"), solver,
+                      closed_form=search == "bracket").select(search, warn)
     sel.seconds = time.perf_counter() - t0
     return sel
 
@@ -363,7 +386,8 @@ def cross_validate_gamma(
         problems.append(build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs))
     if workers is None:
         workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    scorer = _FoldScorer(problems, folds, gammas, score, build_kwargs.get("row_weights"), solver, tick, workers)
+    scorer = _FoldScorer(problems, folds, gammas, score, build_kwargs.get("row_weights"), solver, tick, workers,
+                         closed_form=search == "bracket")
     sel = scorer.select(search, warn)
     sel.seconds = time.perf_counter() - t0
     if progress is not None and done[0] < total:

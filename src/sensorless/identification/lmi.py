@@ -242,6 +242,7 @@ class LmiProblem:
         self.builders = list(default_constraints(eps, density=bool(ell)) if constraints is None else constraints)
         self.regularizer = make_regularizer(regularization)
         R, z, self.e0 = _data_factor(A, b, c, ctx.scale, base, rank_tol)
+        self.data_factor = (R, z)  # data term ‖R x − z‖² (+ e0)
         self.x = x = cp.Variable(p, name="x")
         self.n_samples = max(int(ne.n_samples), 1)
         self.gamma = cp.Parameter(nonneg=True, name="gamma_over_n", value=1e-3 / self.n_samples)
