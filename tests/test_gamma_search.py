@@ -11,6 +11,7 @@ import pytest
 
 from sensorless.identification.gamma import _grid_search, cross_validate_gamma
 from sensorless.identification.lmi import DEFAULT_GAMMAS, build_lmi, solve_lmi
+from sensorless.identification.unconstrained import satisfies_constraints, unconstrained_solution
 from sensorless.regressor.compress import NormalEquations, compress
 from sensorless.regressor.terms import ModelStructure
 from sensorless.excitation import random_fourier
@@ -103,8 +104,8 @@ def test_bracket_cv_picks_the_exhaustive_gamma_and_parameters(ur5_case):
     assert ex.search == "exhaustive" and ex.n_solves == 5 * len(DEFAULT_GAMMAS)
     assert br.search == "bracket" and br.n_solves <= 5 * 8 and br.gamma == ex.gamma
     assert np.isnan(br.scores).sum() == len(DEFAULT_GAMMAS) - (br.n_solves + br.n_closed_form) // 5
-    ev = ~np.isnan(br.scores)
-    np.testing.assert_allclose(br.fold_scores[ev], ex.fold_scores[ev], rtol=1e-9)
+    ev = ~np.isnan(br.scores)  # the same scores, to the conic solver's accuracy (closed form: exact)
+    np.testing.assert_allclose(br.fold_scores[ev], ex.fold_scores[ev], rtol=1e-5)
     ne = functools.reduce(NormalEquations.merge, folds)
     np.testing.assert_array_equal(solve_lmi(ne, s, gamma=br.gamma).params, solve_lmi(ne, s, gamma=ex.gamma).params)
 
@@ -117,7 +118,7 @@ def test_a_non_unimodal_cv_curve_runs_the_whole_grid(ur5_case):
     ex = cross_validate_gamma(s, folds, zigzag, warn=False, search="exhaustive")
     br = cross_validate_gamma(s, folds, zigzag, warn=False)
     assert not np.any(np.isnan(br.scores)) and br.search == "bracket+exhaustive"
-    assert br.gamma == ex.gamma and br.n_solves > ex.n_solves - 5  # nothing skipped
+    assert br.gamma == ex.gamma and br.n_solves + br.n_closed_form == ex.n_solves  # nothing skipped
 
 
 def test_threads_give_the_serial_numbers(ur5_case):
@@ -139,3 +140,31 @@ def test_resolving_the_compiled_program_gives_the_fresh_programs_solution(ur5_ca
         scale = np.abs(fresh.params).max()
         np.testing.assert_allclose(again.params, fresh.params, rtol=0, atol=1e-7 * scale)
         assert again.setup_seconds < fresh.setup_seconds or g == 1e-2  # compiled once
+
+
+def test_closed_form_is_the_programs_solution_when_no_constraint_is_active(ur5):
+    """Strong prior, no friction terms: the unconstrained minimiser is feasible and equals a tightly
+    solved conic program; where a constraint binds (γ → 0) it is refused; γ = 0 or a non-quadratic
+    regulariser never take it."""
+    s = ModelStructure(ur5, joint_terms=())
+    truth = perturbed_truth(ur5, rng=7)
+    motion = random_fourier(ur5, rng=8, base_freq=0.2).sample(50.0, 4.0)
+    clean = synthetic_trajectory(truth, motion)
+    ne = compress(s, synthetic_trajectory(truth, motion, noise_std=0.05 * np.sqrt((clean.tau**2).mean(0)), rng=9))
+    prob = build_lmi(ne, s)
+    tight = {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10}
+    hits = 0
+    for g in (10.0, 1.0, 1e-1, 1e-2, 1e-4, 1e-6, 1e-8):
+        closed = unconstrained_solution(prob, g)
+        prob.gamma.value = g / prob.n_samples
+        prob.problem.solve(solver="CLARABEL", **tight)
+        conic = prob.ctx.params(prob.x.value)
+        if closed is None:
+            continue
+        hits += 1
+        np.testing.assert_allclose(closed, conic, rtol=0, atol=1e-7 * np.abs(conic).max())
+        assert satisfies_constraints(prob, closed / prob.ctx.scale)
+    assert hits >= 2
+    assert unconstrained_solution(prob, 1e-8) is None  # the data alone push some body out of its cone
+    assert unconstrained_solution(prob, 0.0) is None
+    assert unconstrained_solution(build_lmi(ne, s, regularization="entropic"), 1.0) is None
