@@ -108,6 +108,12 @@ def test_bracket_cv_picks_the_exhaustive_gamma_and_parameters(ur5_case):
     np.testing.assert_allclose(br.fold_scores[ev], ex.fold_scores[ev], rtol=1e-5)
     ne = functools.reduce(NormalEquations.merge, folds)
     np.testing.assert_array_equal(solve_lmi(ne, s, gamma=br.gamma).params, solve_lmi(ne, s, gamma=ex.gamma).params)
+    # closed-form: some (fold, γ) without a conic solve, scores equal to the solver's accuracy
+    cf = cross_validate_gamma(s, folds, warn=False, search="closed-form")
+    assert cf.n_closed_form > 0 and cf.n_solves + cf.n_closed_form <= 5 * 8
+    ev = ~np.isnan(cf.scores)
+    np.testing.assert_allclose(cf.fold_scores[ev], ex.fold_scores[ev], rtol=1e-5)
+    assert cf.gamma == ex.gamma
 
 
 def test_a_non_unimodal_cv_curve_runs_the_whole_grid(ur5_case):

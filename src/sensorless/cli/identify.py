@@ -76,7 +76,9 @@ def identify(
     gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),
     gamma_search: GammaSearch = typer.Option(GammaSearch.bracket, help="--gamma auto: bracket (golden-section search on "
                                              "the γ grid, the whole grid when its scores are not unimodal) | "
-                                             "exhaustive (every γ of the grid)"),
+                                             "exhaustive (every γ of the grid) | closed-form (bracket; no conic "
+                                             "solve where no constraint binds: exact, may pick another γ than "
+                                             "the solver's scores)"),
     ellipsoids: Ellipsoids = typer.Option(Ellipsoids.auto, help="lmi: bounding ellipsoids"),
     contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain any body near the prior "
                                        "(second moments ×4, CoM within 7.5 cm); --no-contain-prior: geometry only"),

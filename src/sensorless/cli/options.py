@@ -30,7 +30,7 @@ def _choices(name: str, values: tuple[str, ...]) -> type[StrEnum]:
 
 Method = _choices("Method", ("ols", "wls", "lmi", "svd"))
 Regularization = _choices("Regularization", ("pullback", "entropic", "euclidean", "none"))
-GammaSearch = _choices("GammaSearch", ("bracket", "exhaustive"))
+GammaSearch = _choices("GammaSearch", ("bracket", "exhaustive", "closed-form"))
 Ellipsoids = _choices("Ellipsoids", ("auto", "kinematic", "none"))
 Outliers = _choices("Outliers", ("error", "drop", "keep"))
 Velocity = _choices("Velocity", ("logged", "from-q"))

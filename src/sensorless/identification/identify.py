@@ -92,7 +92,7 @@ def identify(
     ``prior`` — default the model's own inertials — with ``regularization`` and weight
     ``gamma``; ``gamma="auto"`` picks it by 5-fold cross-validation on the training data,
     :func:`~.gamma.cross_validate_gamma`, which calls ``gamma_progress(done, total)`` as it goes;
-    ``gamma_search`` "bracket" or "exhaustive" and ``gamma_workers`` threads, as its ``search`` and
+    ``gamma_search`` "bracket", "exhaustive" or "closed-form" and ``gamma_workers`` threads, as its ``search`` and
     ``workers``).
     ``progress(n)`` is called as n more samples are folded into the normal equations.
     ``ellipsoids`` and ``lmi_options`` go to the solver.
@@ -128,8 +128,9 @@ def identify(
     """
     args = {k: v for k, v in locals().items() if k not in ("model", "data")}
     _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard)
-    if gamma_search not in ("bracket", "exhaustive"):
-        raise OptionError(f"gamma_search must be 'bracket' or 'exhaustive', got {gamma_search!r}")
+    if gamma_search not in ("bracket", "exhaustive", "closed-form"):
+        raise OptionError(f"{setting('gamma_search', placeholder='bracket|exhaustive|closed-form')}: "
+                          f"unknown γ search {gamma_search!r}")
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
     if needs_presliding_search(structure):  # k per joint by BIC on a first fit's friction residual
         if isinstance(data, NormalEquations):
