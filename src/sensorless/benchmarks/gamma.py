@@ -9,8 +9,8 @@ Cases (generated, so the run needs no files):
   (``--gamma auto``) instead of ``--gamma 1e-2``.
 
 Each case runs ``sensorless identify`` in a fresh process per search (``--gamma-search exhaustive``,
-every γ of the grid as before issue 28, then the default ``bracket``), interleaved ``repeats``
-times; reported per search: end-to-end wall time (process start to exit, best of the repeats),
+every γ of the grid as before issue 28, the default ``bracket``, and ``closed-form``), interleaved
+``repeats`` times; reported per search: end-to-end wall time (process start to exit, best of the repeats),
 γ-selection seconds and LMI solves (``result.json`` ``diagnostics.gamma_selection``), the chosen γ,
 and whether both searches chose the same γ and wrote the same parameters (largest relative difference).
 """
@@ -29,9 +29,10 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["CASES", "bench_gamma"]
+__all__ = ["CASES", "SEARCHES", "bench_gamma"]
 
 CASES = ("ur5-hard", "talos")
+SEARCHES = ("exhaustive", "bracket", "closed-form")
 _TALOS_ARGS = ["--robot", "talos", "--data", "walk.npz", "--contact-frames", "left_sole_link,right_sole_link",
                "--contact-dims", "6,6", "--contact-mode", "wrench", "--wrench-offset", "sole", "--joint-terms", "",
                "--imu-frame", "imu_link"]
@@ -67,6 +68,7 @@ def _run(args: list[str], cwd: Path, out: str) -> dict:
         "seconds": wall,
         "gamma_selection_seconds": sel.get("seconds"),
         "n_solves": sel.get("n_solves"),
+        "n_closed_form": sel.get("n_closed_form"),
         "search": sel.get("search"),
         "gamma_cv": sel.get("gamma"),
         "gamma": res["diagnostics"].get("gamma"),
@@ -75,8 +77,9 @@ def _run(args: list[str], cwd: Path, out: str) -> dict:
 
 
 def bench_gamma(cases: Sequence[str] = CASES, repeats: int = 1, console=None) -> dict:
-    """``{"settings": ..., "results": {case: {"exhaustive": {...}, "bracket": {...}, "same_gamma",
-    "max_parameter_rel_diff", "solves_ratio", "gamma_selection_speedup"}}}`` (module docstring)."""
+    """``{"settings": ..., "results": {case: {search: {...}}}}``, each search compared to "exhaustive"
+    (``same_gamma``, ``max_parameter_rel_diff``, ``solves_ratio``, ``gamma_selection_speedup``,
+    ``identify_speedup``; module docstring)."""
     out: dict = {"settings": {"cases": list(cases), "repeats": repeats, "cpus": os.cpu_count(),
                               "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
                               "machine": platform.machine(), "python": platform.python_version()},
@@ -85,7 +88,7 @@ def bench_gamma(cases: Sequence[str] = CASES, repeats: int = 1, console=None) ->
         with tempfile.TemporaryDirectory(prefix=f"sensorless-gamma-{case}-") as tmp:
             where = Path(tmp)
             args = _make_case(case, where)
-            runs: dict[str, list[dict]] = {"exhaustive": [], "bracket": []}
+            runs: dict[str, list[dict]] = {s: [] for s in SEARCHES}
             for _ in range(repeats):
                 for search in runs:
                     runs[search].append(_run([*args, "--gamma-search", search], where, f"m_{search}"))
@@ -100,19 +103,23 @@ def bench_gamma(cases: Sequence[str] = CASES, repeats: int = 1, console=None) ->
                              "gamma_selection_seconds_best": min(r["gamma_selection_seconds"] for r in ok),
                              "seconds_all": [r["seconds"] for r in ok]}
             entry[search]["_params"] = np.asarray(best["parameters"], dtype=float)
-        ex, br = entry["exhaustive"], entry["bracket"]
-        if "_params" in ex and "_params" in br:
-            pa, pb = ex.pop("_params"), br.pop("_params")
-            entry["same_gamma"] = ex["gamma"] == br["gamma"] and ex["gamma_cv"] == br["gamma_cv"]
-            entry["max_parameter_rel_diff"] = float(np.max(np.abs(pa - pb) / np.maximum(np.abs(pa), 1e-12)))
-            entry["solves_ratio"] = br["n_solves"] / ex["n_solves"]
-            entry["gamma_selection_speedup"] = ex["gamma_selection_seconds_best"] / br["gamma_selection_seconds_best"]
+        ex = entry["exhaustive"]
+        pa = ex.pop("_params", None)
+        for search in SEARCHES[1:]:
+            new = entry[search]
+            pb = new.pop("_params", None)
+            if pa is None or pb is None:
+                continue
+            new["same_gamma"] = ex["gamma"] == new["gamma"] and ex["gamma_cv"] == new["gamma_cv"]
+            new["max_parameter_rel_diff"] = float(np.max(np.abs(pa - pb) / np.maximum(np.abs(pa), 1e-12)))
+            new["solves_ratio"] = new["n_solves"] / ex["n_solves"]
+            new["gamma_selection_speedup"] = ex["gamma_selection_seconds_best"] / new["gamma_selection_seconds_best"]
+            new["identify_speedup"] = ex["seconds"] / new["seconds"]
             if console is not None:
                 console.print(
-                    f"{case}: exhaustive {ex['n_solves']} solves, γ selection {ex['gamma_selection_seconds_best']:.2f} s, "
-                    f"identify {ex['seconds']:.2f} s | bracket ({br['search']}) {br['n_solves']} solves, "
-                    f"{br['gamma_selection_seconds_best']:.2f} s, identify {br['seconds']:.2f} s | γ {br['gamma_cv']:.3g} "
-                    f"same: {entry['same_gamma']}, parameters max rel diff {entry['max_parameter_rel_diff']:.1e}",
-                    highlight=False)
+                    f"{case} {search} vs exhaustive: solves {new['n_solves']} vs {ex['n_solves']}, γ selection "
+                    f"{new['gamma_selection_seconds_best']:.2f} s vs {ex['gamma_selection_seconds_best']:.2f} s, identify "
+                    f"{new['seconds']:.2f} s vs {ex['seconds']:.2f} s; γ {new['gamma_cv']:.3g} vs {ex['gamma_cv']:.3g}, "
+                    f"parameters max rel diff {new['max_parameter_rel_diff']:.1e}", highlight=False)
         out["results"][case] = entry
     return out
