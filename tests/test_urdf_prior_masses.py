@@ -41,6 +41,6 @@ def test_bisection_greedy_is_the_plain_greedy(seed):
     assert (cand is None and cand0 is None) or np.array_equal(cand, cand0)
     # few calls, and the result comes from a call on exactly the final list (as the greedy's last success)
     rejected = len(order) - len(kept)
-    assert len(calls) <= 1 + rejected * (np.log2(max(n, 2)) + 2)
+    assert len(calls) <= 1 + rejected * (2 * np.log2(max(n, 2)) + 3)
     if kept:
         assert tuple(kept) in calls

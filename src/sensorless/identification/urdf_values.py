@@ -97,7 +97,8 @@ def _greedy_prefixes(order: list[int], reach) -> tuple[list[int], np.ndarray | N
     """The greedy ``for k in order: keep k if reach(kept + [k]) is not None`` — ``(kept, reach(kept))``
     — in O(log n) calls per body it rejects: fixing a subset of the masses relaxes fixing them all,
     so ``reach(kept + rest[:j])`` succeeds for every j up to the first body the greedy rejects, found by
-    bisection; each call is on exactly the list the greedy would try (the same program, the same numbers)."""
+    galloping down from the whole list, then bisection; each call is on a list the greedy builds (the
+    same program, the same numbers), the result on exactly its final list."""
     kept: list[int] = []
     cand = None
     rest = list(order)
@@ -106,6 +107,13 @@ def _greedy_prefixes(order: list[int], reach) -> tuple[list[int], np.ndarray | N
         if every is not None:
             return kept + rest, every
         lo, hi, best = 0, len(rest), None  # kept + rest[:lo] reachable, kept + rest[:hi] not
+        step = 1  # gallop down from the top first: the bodies nearest the prior, last in order, are the usual misfits
+        while hi - step > lo:
+            trial = reach(kept + rest[:hi - step])
+            if trial is not None:
+                lo, best = hi - step, trial
+                break
+            hi, step = hi - step, 2 * step
         while hi - lo > 1:
             mid = (lo + hi) // 2
             trial = reach(kept + rest[:mid])
