@@ -174,3 +174,29 @@ def test_closed_form_is_the_programs_solution_when_no_constraint_is_active(ur5):
     assert unconstrained_solution(prob, 1e-8) is None  # the data alone push some body out of its cone
     assert unconstrained_solution(prob, 0.0) is None
     assert unconstrained_solution(build_lmi(ne, s, regularization="entropic"), 1.0) is None
+
+
+# ---- command line ---------------------------------------------------------------------------------
+def test_cli_gamma_search_is_recorded_and_checked(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from sensorless.benchmarks.peers import peer_case
+    from sensorless.cli import app
+
+    t = peer_case("hard", 0).train
+    np.savez(tmp_path / "log.npz", t=t.t, q=t.q, dq=t.v, tau=t.tau)
+    run = lambda *a: CliRunner().invoke(app, [str(x) for x in a])  # noqa: E731
+    r = run("identify", "--robot", "ur5", "--data", tmp_path / "log.npz", "--out", tmp_path / "m", "--no-plot",
+            "--gamma-search", "exhaustive")
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "m" / "result.json").read_text())
+    sel = doc["diagnostics"]["gamma_selection"]
+    assert doc["settings"]["gamma_search"] == "exhaustive" and sel["search"] == "exhaustive"
+    assert sel["n_solves"] == 5 * len(sel["gammas"]) and all(sel["evaluated"]) and sel["seconds"] > 0
+    r = run("identify", "--robot", "ur5", "--data", tmp_path / "log.npz", "--out", tmp_path / "m2",
+            "--gamma-search", "golden")
+    assert r.exit_code == 2 and "--gamma-search" in r.output and not (tmp_path / "m2").exists()
+    r = run("benchmark", "gamma", "--cases", "ur5,talos", "--out", tmp_path / "b.json")
+    assert r.exit_code == 2 and "ur5-hard" in r.output and not (tmp_path / "b.json").exists()
