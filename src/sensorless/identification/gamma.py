@@ -143,8 +143,9 @@ def _grid_search(n: int, evaluate: Callable[[int], float], search: str = "bracke
     [lo, hi] that holds the minimum of a unimodal curve shrinks by 1/φ per step, about 6 of 20
     points — then the winner's neighbours. If the evaluated values are not strictly unimodal in
     index order (a tie, a failed solve, a second dip) every point is evaluated, so the argmin is
-    the exhaustive one. A dip lying wholly between evaluated points is not seen by that check:
-    there the bracket can miss the grid's argmin. Grids shorter than 6 are scanned whole.
+    the exhaustive one. A second valley among the points it never evaluated (e.g. on the side a
+    first comparison discarded) is not seen by that check: there the bracket can miss the grid's
+    argmin. Grids shorter than 6 are scanned whole.
     Returns the search that ran: "exhaustive", "bracket" or "bracket+exhaustive".
     """
     if search not in GAMMA_SEARCHES:
