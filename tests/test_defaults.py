@@ -73,10 +73,19 @@ def test_gamma_auto_grid_has_zero_and_edges_reach_diagnostics(ur5, hard):
     s = ModelStructure(ur5, joint_terms=())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        res = identify(s, [hard.train], method="lmi", gamma="auto")
+        res = identify(s, [hard.train], method="lmi", gamma="auto", gamma_search="exhaustive")
+        fast = identify(s, [hard.train], method="lmi", gamma="auto")  # default: bracketing search
     sel = res.diagnostics["gamma_selection"]
     assert sel["gammas"][0] == 0.0 and np.isfinite(sel["scores"][0])
     assert (sel["edge"] is None) == (not any("of its grid" in w for w in res.diagnostics["warnings"]))
+    # the bracketing search picks the same γ (and so the same parameters) with fewer solves
+    b = fast.diagnostics["gamma_selection"]
+    assert b["gamma"] == sel["gamma"] and fast.settings["gamma_search"] == "bracket"
+    np.testing.assert_array_equal(fast.parameters, res.parameters)
+    assert b["n_solves"] < sel["n_solves"] == 5 * len(sel["gammas"])
+    assert b["evaluated"] == [v is not None for v in b["scores"]] and not all(b["evaluated"])
+    ev = np.flatnonzero(b["evaluated"])  # the same solves (cvxpy reuses Clarabel's workspace: order-dependent round-off)
+    np.testing.assert_allclose(np.array(b["scores"])[ev].astype(float), np.array(sel["scores"])[ev], rtol=1e-9)
 
 
 # ---- weights ---------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""`sensorless benchmark identify | dask | contact | speed | lmi | peers | real-arm` (JSON output)."""
+"""`sensorless benchmark identify | dask | contact | speed | lmi | gamma | peers | real-arm` (JSON output)."""
 
 from __future__ import annotations
 
@@ -96,6 +96,24 @@ def bench_lmi_cmd(
                 f"solve {v.get('solve_seconds', float('nan')):.3f} s, {v['status']}, consistent {v.get('consistent')}"
             )
     return res
+
+
+@bench_command("gamma")
+def bench_gamma_cmd(
+    cases: str = typer.Option("ur5-hard,talos", help="comma-separated: ur5-hard (600-sample UR5 peer case), "
+                                                     "talos (the talos-walk example, 33 bodies)"),
+    repeats: int = typer.Option(1, help="interleaved repetitions per search (best of)"),
+) -> dict:
+    """γ selection (`identify --gamma auto`): exhaustive grid vs bracketing search, same run, same γ?"""
+    from ..benchmarks.gamma import CASES, bench_gamma
+
+    chosen = [c.strip() for c in cases.split(",") if c.strip()]
+    bad = [c for c in chosen if c not in CASES]
+    if bad or not chosen:
+        raise OptionError(f"--cases: unknown {bad or cases!r}; choose from {', '.join(CASES)}")
+    if repeats < 1:
+        raise OptionError("--repeats must be >= 1")
+    return bench_gamma(chosen, repeats=repeats, console=console)
 
 
 @bench_command("peers")

@@ -42,6 +42,7 @@ from .options import (
     ContactMode,
     ContactRows,
     Ellipsoids,
+    GammaSearch,
     Method,
     Outliers,
     Regularization,
@@ -73,6 +74,11 @@ def identify(
     prior: Optional[Path] = typer.Option(None, help="lmi: URDF whose inertials are the prior (default: --robot's own)"),
     regularization: Regularization = typer.Option(Regularization.pullback, help="lmi: regulariser toward the prior"),
     gamma: str = typer.Option("auto", help="lmi: regularisation weight, or 'auto' (5-fold cross-validation)"),
+    gamma_search: GammaSearch = typer.Option(GammaSearch.bracket, help="--gamma auto: bracket (golden-section search on "
+                                             "the γ grid, the whole grid when its scores are not unimodal) | "
+                                             "exhaustive (every γ of the grid) | closed-form (bracket; no conic "
+                                             "solve where no constraint binds: exact, may pick another γ than "
+                                             "the solver's scores)"),
     ellipsoids: Ellipsoids = typer.Option(Ellipsoids.auto, help="lmi: bounding ellipsoids"),
     contain_prior: bool = typer.Option(True, help="lmi: grow each ellipsoid to contain any body near the prior "
                                        "(second moments ×4, CoM within 7.5 cm); --no-contain-prior: geometry only"),
@@ -205,6 +211,8 @@ def identify(
                                contact_mode, contact_rows=contact_rows, wrench_offset=wrench_offset,
                                offset_axes=offset_axes, train=train if scheduler is None else rows_from)
         lmi_kw = _lmi_kwargs(r, structure, method, prior, regularization, gamma, ellipsoids, contain_prior)
+        if lmi_kw.get("gamma") == "auto":
+            lmi_kw["gamma_search"] = str(gamma_search)
         from ..identification.weights import weights_option
 
         row_sigma = weights_option(weights, structure.row_names)

@@ -18,7 +18,7 @@ import typer
 
 from ..errors import OptionError
 
-__all__ = ["Method", "Regularization", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
+__all__ = ["Method", "Regularization", "GammaSearch", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
            "WrenchOffset", "Rest", "Criterion", "ForceReference", "PayloadMode", "Align", "ALIGN_HELP",
            "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "FrictionState", "config_option", "check_config",
            "resolved_options"]
@@ -30,6 +30,7 @@ def _choices(name: str, values: tuple[str, ...]) -> type[StrEnum]:
 
 Method = _choices("Method", ("ols", "wls", "lmi", "svd"))
 Regularization = _choices("Regularization", ("pullback", "entropic", "euclidean", "none"))
+GammaSearch = _choices("GammaSearch", ("bracket", "exhaustive", "closed-form"))
 Ellipsoids = _choices("Ellipsoids", ("auto", "kinematic", "none"))
 Outliers = _choices("Outliers", ("error", "drop", "keep"))
 Velocity = _choices("Velocity", ("logged", "from-q"))

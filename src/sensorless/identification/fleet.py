@@ -81,11 +81,13 @@ def identify_fleet(structure: ModelStructure, fleet: FleetEquations, *, method: 
         cv = cross_validate_gamma(structure, fleet.folds, prior=kw.get("prior"),
                                   regularization=kw.get("regularization", "pullback"),
                                   ellipsoids=kw.get("ellipsoids"), row_weights=row_w,
-                                  progress=kw.get("gamma_progress"), **dict(kw.get("lmi_options") or {}))
+                                  progress=kw.get("gamma_progress"), search=kw.get("gamma_search", "bracket"),
+                                  workers=kw.get("gamma_workers"), **dict(kw.get("lmi_options") or {}))
         kw["gamma"] = cv.gamma
     result = identify(structure, fleet.equations, method=method, **kw)
     if cv is not None:
         result.diagnostics["gamma_selection"] = cv.to_dict()
+        result.settings["gamma_search"] = kw.get("gamma_search", "bracket")
         if cv.edge is not None:  # (warned by cross_validate_gamma)
             result.diagnostics["warnings"].append(cv.edge_message())
     if record is not None:

@@ -6,11 +6,25 @@ equations that were not used to fit: ``validation_score`` is the residual
 γ with the lowest mean score over folds wins (:func:`select_gamma` for given
 train/validation equations, :func:`cross_validate_gamma` for folds cut from trajectories
 along whole excitation periods).
+
+Cost. Each fold's program is compiled once with γ a cvxpy Parameter (DPP), so another γ is
+only a conic solve (cvxpy reuses Clarabel's workspace). The default ``search="bracket"`` does not
+solve every γ of the grid: a golden-section search on the grid indices evaluates ≈ 6 of the 20
+default γ (× folds), and falls back to the whole grid when the evaluated scores are not strictly
+unimodal (:func:`_grid_search`). ``search="exhaustive"`` solves every γ with the conic solver, as
+before. ``search="closed-form"`` is the bracket search in which a (fold, γ) whose unconstrained
+minimiser satisfies every constraint takes that exact solution without a conic solve
+(:mod:`.unconstrained`; TALOS: 5 conic solves instead of 30). It is more accurate than the conic
+solver where the data barely see a direction, so it can pick another γ where the CV scores of
+neighbouring γ differ by less than the solver's tolerance (the Panda demo: 1e-4 instead of
+3.16e-5, held-out NRMSE 2.5799 % instead of 2.5800 %); hence not the default.
 """
 
 from __future__ import annotations
 
 import functools
+import os
+import time
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
@@ -24,12 +38,22 @@ from ..regressor.compress import NormalEquations, compress
 from ..regressor.terms import ModelStructure
 from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi
+from .unconstrained import regularizer_metric, unconstrained_solution
 
-__all__ = ["GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score"]
+__all__ = ["GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score"]
+
+GAMMA_SEARCHES = ("bracket", "exhaustive", "closed-form")
+_BRACKET_MIN = 6  # grids shorter than this are scanned whole
+_GOLDEN = 0.3819660112501051  # 1 − 1/φ
+
 
 @dataclass
 class GammaSelection:
-    """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds))."""
+    """Held-out score per γ (``scores``, mean over folds; ``fold_scores`` (n_γ, n_folds));
+    nan for a γ the search did not evaluate, inf where a solve failed. ``search`` is the
+    search that ran ("exhaustive", "bracket" or "bracket+exhaustive": the fallback),
+    ``n_solves`` the number of conic LMI solves, ``n_closed_form`` the (fold, γ) pairs solved in closed
+    form because no constraint was active (:mod:`.unconstrained`), ``seconds`` the wall time."""
 
     gamma: float
     gammas: np.ndarray
@@ -37,6 +61,10 @@ class GammaSelection:
     fold_scores: np.ndarray
     score: str
     failures: dict[float, str] = field(default_factory=dict)
+    search: str = "exhaustive"
+    n_solves: int = 0
+    seconds: float = float("nan")
+    n_closed_form: int = 0
 
     @property
     def edge(self) -> str | None:
@@ -65,13 +93,19 @@ class GammaSelection:
                 "still be falling; extend the grid downward (include 0, no prior)")
 
     def to_dict(self) -> dict:
+        """Plain types; a γ the search did not evaluate has score None and ``evaluated`` False."""
         return {
             "gamma": self.gamma,
             "edge": self.edge,
             "gammas": self.gammas.tolist(),
-            "scores": self.scores.tolist(),
-            "fold_scores": self.fold_scores.tolist(),
+            "scores": [None if np.isnan(v) else float(v) for v in self.scores],
+            "fold_scores": [[None if np.isnan(v) else float(v) for v in row] for row in self.fold_scores],
+            "evaluated": (~np.isnan(self.scores)).tolist(),
             "score": self.score,
+            "search": self.search,
+            "n_solves": self.n_solves,
+            "n_closed_form": self.n_closed_form,
+            "seconds": self.seconds,
             "failures": {str(k): v for k, v in self.failures.items()},
         }
 
@@ -93,31 +127,133 @@ def validation_score(ne: NormalEquations, params: np.ndarray, score: str = "resi
     raise ValueError(f"unknown score '{score}'; use 'residual' or 'nrmse'")
 
 
-def _scan(
-    problem: LmiProblem, ne_val: NormalEquations, gammas: np.ndarray, score: str, row_weights, solver, failures,
-    tick: Callable[[], None] = lambda: None,
-) -> np.ndarray:
-    out = np.full(len(gammas), np.inf)
-    for i, g in enumerate(gammas):
+def _unimodal(values: Sequence[float]) -> bool:
+    """Every value finite, strictly decreasing up to the minimum and strictly increasing after it."""
+    v = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(v)):
+        return False
+    m = int(np.argmin(v))
+    return bool(np.all(np.diff(v[: m + 1]) < 0) and np.all(np.diff(v[m:]) > 0))
+
+
+def _grid_search(n: int, evaluate: Callable[[int], float], search: str = "bracket") -> str:
+    """Call ``evaluate(i)`` (i = 0 … n−1, each at most once) on enough grid points to find its argmin.
+
+    "exhaustive": every point. "bracket" (or "closed-form"): golden-section search on the indices — the bracket
+    [lo, hi] that holds the minimum of a unimodal curve shrinks by 1/φ per step, about 6 of 20
+    points — then the winner's neighbours. If the evaluated values are not strictly unimodal in
+    index order (a tie, a failed solve, a second dip) every point is evaluated, so the argmin is
+    the exhaustive one. A second valley among the points it never evaluated (e.g. on the side a
+    first comparison discarded) is not seen by that check: there the bracket can miss the grid's
+    argmin. Grids shorter than 6 are scanned whole.
+    Returns the search that ran: "exhaustive", "bracket" or "bracket+exhaustive".
+    """
+    if search not in GAMMA_SEARCHES:
+        raise ValueError(f"unknown γ search '{search}'; use one of {', '.join(GAMMA_SEARCHES)}")
+    seen: dict[int, float] = {}
+
+    def f(i: int) -> float:
+        if i not in seen:
+            seen[i] = float(evaluate(i))
+        return seen[i]
+
+    if search == "exhaustive" or n < _BRACKET_MIN:
+        for i in range(n):
+            f(i)
+        return "exhaustive"
+    lo, hi = 0, n - 1
+    while hi - lo > 3:
+        d = int(round(_GOLDEN * (hi - lo)))
+        a, b = lo + d, max(hi - d, lo + d + 1)
+        if f(a) <= f(b):
+            hi = b
+        else:
+            lo = a
+    best = min(range(lo, hi + 1), key=f)
+    for j in (best - 1, best + 1):
+        if 0 <= j < n:
+            f(j)
+    if _unimodal([seen[i] for i in sorted(seen)]):
+        return "bracket"
+    for i in range(n):
+        f(i)
+    return "bracket+exhaustive"
+
+
+class _FoldScorer:
+    """``scorer(i)``: the mean held-out score over folds of grid point ``i``, filling ``fold_scores``
+    (one compiled :class:`LmiProblem` per fold, re-solved per γ; a failed solve scores inf). With
+    ``workers`` > 1 the folds are solved in threads (the conic solver releases the GIL; each
+    thread touches only its own fold's problem, so the numbers are those of a serial run)."""
+
+    def __init__(self, problems: Sequence[LmiProblem], vals: Sequence[NormalEquations], gammas: np.ndarray,
+                 score: str, row_weights, solver: str | None, tick: Callable[[], None] = lambda: None,
+                 workers: int = 1, closed_form: bool = False) -> None:
+        self.problems, self.vals, self.gammas, self.score = problems, vals, gammas, score
+        self.row_weights, self.solver, self.tick = row_weights, solver, tick
+        self.workers = max(1, min(int(workers), len(problems)))
+        self.closed_form = closed_form
+        self._metrics: dict[int, np.ndarray | None] = {}
+        self.fold_scores = np.full((len(gammas), len(problems)), np.nan)
+        self.failures: dict[float, str] = {}
+        self.n_solves = 0
+        self.n_closed_form = 0
+
+    def _unconstrained(self, f: int, g: float) -> np.ndarray | None:
+        if not self.closed_form:
+            return None
+        if f not in self._metrics:
+            self._metrics[f] = regularizer_metric(self.problems[f])
+        if self._metrics[f] is None:
+            return None
+        return unconstrained_solution(self.problems[f], g, self._metrics[f])
+
+    def _one(self, f: int, g: float) -> tuple[float, str | None]:
         try:
-            sol = problem.solve(float(g), solver=solver)
+            sol = self.problems[f].solve(g, solver=self.solver)
         except SolverError as exc:
-            failures[float(g)] = str(exc)
-            continue
-        finally:
-            tick()
-        out[i] = validation_score(ne_val, sol.params, score, row_weights)
-    return out
+            return np.inf, str(exc)
+        return validation_score(self.vals[f], sol.params, self.score, self.row_weights), None
 
+    def __call__(self, i: int) -> float:
+        g = float(self.gammas[i])
+        results: dict[int, tuple[float, str | None]] = {}
+        for f in range(len(self.problems)):  # no constraint active: the exact minimiser, no conic solve
+            params = self._unconstrained(f, g)
+            if params is not None:
+                results[f] = (validation_score(self.vals[f], params, self.score, self.row_weights), None)
+                self.n_closed_form += 1
+                self.tick()
+        todo = [f for f in range(len(self.problems)) if f not in results]
+        if self.workers > 1 and len(todo) > 1:
+            from concurrent.futures import ThreadPoolExecutor
 
-def _pick(gammas: np.ndarray, fold_scores: np.ndarray, score: str, failures: dict, warn: bool = True) -> GammaSelection:
-    scores = fold_scores.mean(axis=1)
-    if not np.any(np.isfinite(scores)):
-        raise SolverError(f"no gamma could be solved: {failures}")
-    sel = GammaSelection(float(gammas[int(np.argmin(scores))]), gammas, scores, fold_scores, score, failures)
-    if warn and sel.edge is not None:
-        warnings.warn(sel.edge_message(), IdentifiabilityWarning, stacklevel=3)
-    return sel
+            with ThreadPoolExecutor(min(self.workers, len(todo))) as ex:
+                for f, r in zip(todo, ex.map(lambda f: self._one(f, g), todo)):
+                    results[f] = r
+                    self.tick()
+        else:
+            for f in todo:
+                results[f] = self._one(f, g)
+                self.tick()
+        for f, (val, err) in results.items():
+            self.fold_scores[i, f] = val
+            if err is not None:
+                self.failures[g] = err
+        self.n_solves += len(todo)
+        return float(self.fold_scores[i].mean())
+
+    def select(self, search: str, warn: bool) -> GammaSelection:
+        ran = _grid_search(len(self.gammas), self, search)
+        scores = self.fold_scores.mean(axis=1)  # nan: not evaluated, inf: a fold failed
+        if not np.any(np.isfinite(scores)):
+            raise SolverError(f"no gamma could be solved: {self.failures}")
+        best = int(np.argmin(np.where(np.isnan(scores), np.inf, scores)))
+        sel = GammaSelection(float(self.gammas[best]), self.gammas, scores, self.fold_scores, self.score,
+                             self.failures, ran, self.n_solves, n_closed_form=self.n_closed_form)
+        if warn and sel.edge is not None:
+            warnings.warn(sel.edge_message(), IdentifiabilityWarning, stacklevel=3)
+        return sel
 
 
 def select_gamma(
@@ -129,20 +265,24 @@ def select_gamma(
     score: str = "residual",
     solver: str | None = None,
     warn: bool = True,
+    search: str = "bracket",
     **build_kwargs: Any,
 ) -> GammaSelection:
     """The γ whose solution on ``ne_train`` has the lowest :func:`validation_score` on ``ne_val``.
 
     ``build_kwargs`` as :func:`solve_lmi` (regularization, constraints, ellipsoids, ...).
-    The program is compiled once; γ is a parameter. A winner at an edge of the grid
+    The program is compiled once; γ is a parameter. ``search``: "bracket" (default),
+    "exhaustive" or "closed-form" (module docstring). A winner at an edge of the grid
     (:attr:`GammaSelection.edge`) issues an :class:`~sensorless.errors.IdentifiabilityWarning`
     unless ``warn=False``.
     """
+    t0 = time.perf_counter()
     gammas = np.asarray(gammas, dtype=float)
-    failures: dict[float, str] = {}
     prob = build_lmi(ne_train, structure, **build_kwargs)
-    sc = _scan(prob, ne_val, gammas, score, build_kwargs.get("row_weights"), solver, failures)
-    return _pick(gammas, sc[:, None], score, failures, warn)
+    sel = _FoldScorer([prob], [ne_val], gammas, score, build_kwargs.get("row_weights"), solver,
+                      closed_form=search == "closed-form").select(search, warn)
+    sel.seconds = time.perf_counter() - t0
+    return sel
 
 
 def _split_folds(
@@ -204,6 +344,8 @@ def cross_validate_gamma(
     solver: str | None = None,
     chunk: int = 2048,
     warn: bool = True,
+    search: str = "bracket",
+    workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     **build_kwargs: Any,
 ) -> GammaSelection:
@@ -220,9 +362,14 @@ def cross_validate_gamma(
     ``(t − t0) mod period`` instead. Precompressed folds may be passed instead of trajectories. The returned γ
     minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`. The default
     grid starts at γ = 0 (no prior); a winner at an edge of the grid warns (``warn``, see
-    :func:`select_gamma`). ``progress(done, total)`` is called after each fold is compressed and
-    each γ solved (total = n_folds · (1 + n_γ); n_folds · n_γ for precompressed folds).
+    :func:`select_gamma`). ``search``: "bracket" (default: a golden-section search on the grid,
+    the whole grid when its scores are not unimodal) or "exhaustive" (:func:`_grid_search`).
+    ``progress(done, total)`` is called after each fold is compressed and each LMI solved, with
+    total = the exhaustive count n_folds · (1 + n_γ) (n_folds · n_γ for precompressed folds); a
+    bracket search that ends early reports ``(total, total)`` last. ``workers`` threads solve the
+    folds of one γ side by side (default: one per available core; the numbers do not depend on it).
     """
+    t0 = time.perf_counter()
     gammas = np.asarray(gammas, dtype=float)
     items = [data] if isinstance(data, Trajectory) else list(data)
     given = bool(items) and all(isinstance(i, NormalEquations) for i in items)
@@ -238,10 +385,16 @@ def cross_validate_gamma(
     ellipsoids = build_kwargs.pop("ellipsoids", None)
     prior = build_kwargs.get("prior")
     ell = resolve_ellipsoids(structure.robot, ellipsoids, prior=structure.prior() if prior is None else prior)
-    failures: dict[float, str] = {}
-    cols = []
+    problems = []
     for f in range(len(folds)):
         train = functools.reduce(NormalEquations.merge, [folds[i] for i in range(len(folds)) if i != f])
-        prob = build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs)
-        cols.append(_scan(prob, folds[f], gammas, score, build_kwargs.get("row_weights"), solver, failures, tick))
-    return _pick(gammas, np.stack(cols, axis=1), score, failures, warn)
+        problems.append(build_lmi(train, structure, ellipsoids=ell or False, **build_kwargs))
+    if workers is None:
+        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    scorer = _FoldScorer(problems, folds, gammas, score, build_kwargs.get("row_weights"), solver, tick, workers,
+                         closed_form=search == "closed-form")
+    sel = scorer.select(search, warn)
+    sel.seconds = time.perf_counter() - t0
+    if progress is not None and done[0] < total:
+        progress(total, total)
+    return sel

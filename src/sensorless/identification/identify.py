@@ -72,6 +72,8 @@ def identify(
     width_grid: Mapping[str, Sequence[float]] | None = None,
     check_torques: bool = True,
     gamma_progress: Callable[[int, int], None] | None = None,
+    gamma_search: str = "bracket",
+    gamma_workers: int | None = None,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
@@ -89,7 +91,9 @@ def identify(
     (physically consistent convex program, :func:`~.lmi.solve_lmi`, regularised toward
     ``prior`` — default the model's own inertials — with ``regularization`` and weight
     ``gamma``; ``gamma="auto"`` picks it by 5-fold cross-validation on the training data,
-    :func:`~.gamma.cross_validate_gamma`, which calls ``gamma_progress(done, total)`` as it goes).
+    :func:`~.gamma.cross_validate_gamma`, which calls ``gamma_progress(done, total)`` as it goes;
+    ``gamma_search`` "bracket", "exhaustive" or "closed-form" and ``gamma_workers`` threads, as its ``search`` and
+    ``workers``).
     ``progress(n)`` is called as n more samples are folded into the normal equations.
     ``ellipsoids`` and ``lmi_options`` go to the solver.
     The γ grid of ``gamma="auto"`` starts at 0; a winner at an edge of the grid, bounding
@@ -124,6 +128,9 @@ def identify(
     """
     args = {k: v for k, v in locals().items() if k not in ("model", "data")}
     _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, standard)
+    if gamma_search not in ("bracket", "exhaustive", "closed-form"):
+        raise OptionError(f"{setting('gamma_search', placeholder='bracket|exhaustive|closed-form')}: "
+                          f"unknown γ search {gamma_search!r}")
     structure = model if isinstance(model, ModelStructure) else ModelStructure(model, joint_terms=tuple(joint_terms))
     if needs_presliding_search(structure):  # k per joint by BIC on a first fit's friction residual
         if isinstance(data, NormalEquations):
@@ -191,7 +198,7 @@ def identify(
         if gamma == "auto":
             cv = cross_validate_gamma(structure, data, period="auto", prior=prior, regularization=regularization,
                                       ellipsoids=ellipsoids, row_weights=row_w, warn=False,
-                                      progress=gamma_progress, **opts)
+                                      progress=gamma_progress, search=gamma_search, workers=gamma_workers, **opts)
             gamma = cv.gamma
             extra["gamma_selection"] = cv.to_dict()
             if cv.edge is not None:
@@ -283,6 +290,7 @@ def identify(
         "outliers": outliers,
         **({"gamma": float(gamma), "regularization": regularization, "prior": "given" if prior is not None else "model"}
            if method == "lmi" else {}),
+        **({"gamma_search": gamma_search} if "gamma_selection" in diagnostics else {}),
         **structure.settings(),
     }
     return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings)

@@ -38,7 +38,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import threading
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Any, Mapping, Sequence
@@ -83,6 +85,9 @@ __all__ = [
 CONSISTENCY_TOL = 1e-8  # λ_min(J_k) ≥ −tol · ‖J_k‖₂ counts as consistent
 # 0 (no prior: the data alone, inside the constraints), then 1e-8 … 10 in half decades
 DEFAULT_GAMMAS: tuple[float, ...] = (0.0,) + tuple(float(g) for g in np.logspace(-8, 1, 19))
+# cvxpy's compilation is not thread-safe (a global id counter): the first solve of a program for a
+# solver, which compiles it, holds this lock; re-solves with new parameter values only fill in data
+_COMPILE_LOCK = threading.Lock()
 _SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "CLARABEL": {},
     "SCS": {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iters": 20_000},
@@ -237,6 +242,7 @@ class LmiProblem:
         self.builders = list(default_constraints(eps, density=bool(ell)) if constraints is None else constraints)
         self.regularizer = make_regularizer(regularization)
         R, z, self.e0 = _data_factor(A, b, c, ctx.scale, base, rank_tol)
+        self.data_factor = (R, z)  # data term ‖R x − z‖² (+ e0)
         self.x = x = cp.Variable(p, name="x")
         self.n_samples = max(int(ne.n_samples), 1)
         self.gamma = cp.Parameter(nonneg=True, name="gamma_over_n", value=1e-3 / self.n_samples)
@@ -261,6 +267,7 @@ class LmiProblem:
         }
         self.build_seconds = time.perf_counter() - t0
         self._first_solve = True
+        self._compiled: set[str] = set()  # solvers this program was compiled for
 
     # ---- solving ---------------------------------------------------------------------
     def solve(
@@ -282,7 +289,9 @@ class LmiProblem:
         for name in order:
             t0 = time.perf_counter()
             try:
-                self.problem.solve(solver=name, verbose=verbose, **_SOLVER_OPTIONS.get(name, {}))
+                with _COMPILE_LOCK if name not in self._compiled else contextlib.nullcontext():
+                    self.problem.solve(solver=name, verbose=verbose, **_SOLVER_OPTIONS.get(name, {}))
+                    self._compiled.add(name)
                 status = self.problem.status
             except (cp.error.SolverError, ValueError, ArithmeticError) as exc:
                 status = f"error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
@@ -422,7 +431,7 @@ def solve_lmi(
 
 
 # γ selection lives in .gamma; the old import paths keep working (lazily: .gamma imports this module)
-_MOVED = ("GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score", "_split_folds", "_scan", "_pick")
+_MOVED = ("GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score", "_split_folds")
 
 
 def __getattr__(name: str):

@@ -69,12 +69,11 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     S = np.repeat(m, 10) * np.tile([1, ell, ell, ell] + [ell**2] * 6, len(m))
     # greedily, farthest from the prior first: keep each body whose prior mass stays reachable
     order = sorted(fix, key=lambda k: -abs(np.log(max(pi[10 * k], 1e-12) / P0[k, 0])))
-    kept: list[int] = []
-    cand = pi
-    for k in order:
-        trial = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept + [k]), P0[kept + [k], 0])
-        if trial is not None:
-            kept, cand = kept + [k], trial
+    def reach(ks: list[int]) -> np.ndarray | None:
+        return _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(ks, dtype=int), P0[ks, 0])
+
+    kept, cand = _greedy_prefixes(order, reach)
+    cand = pi if cand is None else cand
     # then every other direction the data do not see goes to the prior too (CoMs and inertias of
     # bodies the log cannot resolve, e.g. links seen only through the floating-base rows)
     polished = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept, dtype=int), P0[kept, 0],
@@ -94,6 +93,40 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     return cand, info
 
 
+def _greedy_prefixes(order: list[int], reach) -> tuple[list[int], np.ndarray | None]:
+    """The greedy ``for k in order: keep k if reach(kept + [k]) is not None`` — ``(kept, reach(kept))``
+    — in O(log n) calls per body it rejects: fixing a subset of the masses relaxes fixing them all,
+    so ``reach(kept + rest[:j])`` succeeds for every j up to the first body the greedy rejects, found by
+    galloping down from the whole list, then bisection; each call is on a list the greedy builds (the
+    same program, the same numbers), the result on exactly its final list."""
+    kept: list[int] = []
+    cand = None
+    rest = list(order)
+    while rest:
+        every = reach(kept + rest)
+        if every is not None:
+            return kept + rest, every
+        lo, hi, best = 0, len(rest), None  # kept + rest[:lo] reachable, kept + rest[:hi] not
+        step = 1  # gallop down from the top first: the bodies nearest the prior, last in order, are the usual misfits
+        while hi - step > lo:
+            trial = reach(kept + rest[:hi - step])
+            if trial is not None:
+                lo, best = hi - step, trial
+                break
+            hi, step = hi - step, 2 * step
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            trial = reach(kept + rest[:mid])
+            if trial is not None:
+                lo, best = mid, trial
+            else:
+                hi = mid
+        if lo:
+            kept, cand = kept + rest[:lo], best
+        rest = rest[lo + 1:]  # rest[lo]: the body the greedy rejects
+    return kept, cand
+
+
 def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
     """``π̂ + Δ`` with ``B Δ = 0``, the masses ``fix`` at ``m0``, every body's pseudo-inertia ⪰ 0 and
     ``‖S⁻¹Δ‖`` minimal, or with ``target`` ``‖S⁻¹(π̂ + Δ − target)‖`` minimal (a small SDP); None
@@ -102,12 +135,12 @@ def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
 
     from ..parameters import pseudo_inertia_basis
 
-    basis = pseudo_inertia_basis()
+    basis16 = pseudo_inertia_basis().reshape(10, 16).T  # vec(J) = basis16 @ π_k (the same program data as Σ π_i A_i)
     y = cp.Variable(len(pi))
     x = (pi / S) + y  # scaled parameters
     cons = [(B * S[None, :]) @ y == 0, x[fix * 10] == m0 / S[fix * 10]]
     for k in range(len(pi) // 10):
-        J = sum(x[10 * k + i] * basis[i] for i in range(10))
+        J = cp.reshape(basis16 @ x[10 * k:10 * k + 10], (4, 4), order="C")
         cons.append(0.5 * (J + J.T) >> 0)
     prob = cp.Problem(cp.Minimize(cp.sum_squares(y if target is None else x - target / S)), cons)
     try:
