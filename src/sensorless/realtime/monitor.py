@@ -135,7 +135,8 @@ class StreamMonitor:
 
     ``dyn``: :class:`~sensorless.estimation.momentum.MomentumDynamics`; ``th``: its thresholds;
     ``frame``/``reference``: the Cartesian force (None: none). :meth:`step` writes into the
-    preallocated ``out`` record (seq, t, τ_ext, F, contact) and returns it (reused every call)."""
+    preallocated ``out`` record (seq, t, τ_ext, F, contact) and returns it (reused every call);
+    ``raw`` holds x = −r and ``settled`` the joints whose velocity was set to 0, of the last sample."""
 
     def __init__(self, dyn, th: StreamThresholds, frame: str | None = None,
                  reference: str = "local_world_aligned") -> None:
@@ -163,6 +164,7 @@ class StreamMonitor:
             (dyn.structure.tree if dyn.transmission else dyn.structure.robot).frame_id(frame)
             if reference not in REFERENCES:
                 raise OptionError(f"--reference {reference}: choose from {sorted(REFERENCES)}")
+            self._force_setup()
         self._thr_rest, self._thr_move = th.k * th.sigma_rest, th.k * th.sigma_move
         self.out = np.zeros(self.layout.n_out)
         self.reset()
@@ -172,8 +174,8 @@ class StreamMonitor:
         for first-call costs (lazy imports, allocations) on top of its latency."""
         lay = self.layout
         self.step(0, 0.0, np.zeros(len(lay.joints)), np.zeros(len(lay.joints)), np.zeros(len(lay.actuated)))
-        self.t0 = None
-        self.step(1, 1.0, np.zeros(len(lay.joints)), np.zeros(len(lay.joints)), np.zeros(len(lay.actuated)))
+        self.step(1, self.th.warmup_s + self.th.dt, np.zeros(len(lay.joints)), np.zeros(len(lay.joints)),
+                  np.zeros(len(lay.actuated)))  # past the warm-up: the force path too
         self.reset()
 
     def reset(self) -> None:
@@ -182,7 +184,7 @@ class StreamMonitor:
         self.observer.reset()
         self.t0 = None
         self._still_n = np.zeros(n, int)
-        self._settled = np.zeros(n, bool)
+        self.settled = np.zeros(n, bool)
         self._sum, self._count = np.zeros(n), np.zeros(n, int)
         self._fixed, self._away = np.full(n, np.nan), np.full(n, np.nan)
         self._h, self._h_last = np.full(n, np.nan), np.full(n, np.nan)
@@ -198,13 +200,13 @@ class StreamMonitor:
             self.t0 = t
         still = np.abs(v[self._vcols]) <= self._speed
         self._still_n = np.where(still, self._still_n + 1, 0)
-        was = self._settled
+        was = self.settled
         settled = (self._still_n - 1) * th.dt >= th.settle_s - 1e-9 * th.dt
         ended = was & ~settled
         if ended.any():  # breaking away: report against the last holding level for T_s
             self._leave_until[ended] = t + th.settle_s
             self._h_last[ended] = self._h[ended]
-        self._settled = settled
+        self.settled = settled
         if settled.any():
             v = v.copy()
             v[self.cols[settled]] = 0.0
@@ -262,14 +264,35 @@ class StreamMonitor:
 
     def _force(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """F (3,) at the frame from the reported torque (``cartesian_force`` of one sample)."""
-        from ..estimation.force import damped_least_squares, frame_jacobians
+        import pinocchio as pin
+
+        from ..estimation.force import damped_least_squares_one, frame_jacobians
 
         dyn = self.dyn
         if dyn.transmission:
             st = dyn.structure
             J = frame_jacobians(st.tree, st.tree.full_configuration(st.joint_values(q[None])), self.frame,
-                                self.reference)[:, :3] @ st.G
+                                self.reference)[0, :3] @ st.G
         else:
-            qf = dyn.structure.robot.full_configuration(np.asarray(q, float)[None], None)
-            J = frame_jacobians(dyn.structure.robot, qf, self.frame, self.reference)[:, :3][:, :, self.rows]
-        return damped_least_squares(J, tau[None]).F[0]
+            qf = self._qf
+            qf[self._iq] = q[self._lin]
+            if self._cont.size:
+                qf[self._iq_c], qf[self._iq_c + 1] = np.cos(q[self._cont]), np.sin(q[self._cont])
+            J = pin.computeFrameJacobian(self._model, self._data, qf, self._fid, self._ref)[:3, self.rows]
+        return damped_least_squares_one(J, tau)
+
+    def _force_setup(self) -> None:
+        """Index maps of ``Robot.full_configuration`` (a fixed base: joints in ``joint_names`` order; a
+        continuous joint as cos, sin), the frame and the reference, once."""
+        from ..estimation.force import REFERENCES
+
+        if self.dyn.transmission:
+            return
+        robot = self.dyn.structure.robot
+        self._model, self._data = robot.model, robot.model.createData()
+        self._fid, self._ref = robot.frame_id(self.frame), REFERENCES[self.reference]
+        cont = np.array([robot.is_continuous(n) for n in robot.joint_names], bool)
+        iq = np.array([robot.q_index(n) for n in robot.joint_names], int)
+        self._lin, self._iq = np.flatnonzero(~cont), iq[~cont]
+        self._cont, self._iq_c = np.flatnonzero(cont), iq[cont]
+        self._qf = np.zeros(robot.nq)
