@@ -286,3 +286,46 @@ def test_cli_thresholds_of_another_model_refused(cli_setup, tmp_path):
     (tmp_path / "monitor.json").write_text(json.dumps(doc))
     r = _cli(["stream", "--robot", "ur5", "--thresholds", str(tmp_path)], env, input=b"")
     assert r.returncode == 2 and "run `sensorless monitor` with this --model" in r.stderr.decode()
+
+
+def test_transmission_stream_equals_offline():
+    """The dVRK PSM in motor coordinates (a transmission): τ_ext and the force at tool_tip (J G) equal the
+    offline observer and `cartesian_force` to 1e-10."""
+    import pinocchio as pin
+
+    from sensorless.data.trajectory import Trajectory
+    from sensorless.robots.dvrk_psm import psm_structure
+
+    st = psm_structure(drives="motors", coulomb_smoothing=0.05)
+    rng = np.random.default_rng(0)
+    p = np.zeros(st.n_params)
+    pin.seed(0)
+    for k in range(st.robot.n_bodies):
+        p[10 * k : 10 * k + 10] = pin.Inertia.Random().toDynamicParameters()
+    p[st.n_body_params:] = rng.uniform(0.01, 0.2, st.n_params - st.n_body_params)
+    dyn = MomentumDynamics(st, p)
+    n, N, dt = len(dyn.names), 400, 1e-3
+    th = StreamThresholds(tuple(dyn.names), 4.0, np.ones(n), np.ones(n), np.zeros(n), np.zeros(n), np.zeros(n),
+                          np.full(n, np.nan), 50.0, 1, 1.0, dt, 0.14, 0.14)
+    t = np.arange(N) * dt
+    q = 0.3 * np.sin(t[:, None] * np.arange(1, n + 1))
+    v = np.gradient(q, dt, axis=0)
+    tau = rng.normal(size=(N, n))
+    traj = Trajectory(t=t, q=q, v=v, tau=tau, joint_names=tuple(dyn.names))
+    out = _stream(StreamMonitor(dyn, th, frame="tool_tip"), traj)
+    mt = monitored_torque(dyn, MomentumObserver(dyn, gain=50.0, dt=dt).run(traj).r, traj)
+    warm = t < 0.14 - 1e-12
+    np.testing.assert_allclose(out[~warm, 2 : 2 + n], mt.tau_ext[~warm], rtol=0, atol=1e-10)
+    fe = cartesian_force(dyn, traj, MonitoredTorque(np.where(warm[:, None], 0.0, mt.tau_ext), mt.names, mt.rows),
+                         "tool_tip", "local_world_aligned")
+    np.testing.assert_allclose(out[~warm, 2 + n : 5 + n], fe.F[~warm], rtol=0, atol=1e-10)
+
+
+def test_floating_base_model_is_refused():
+    solo = load_robot("solo12", floating_base=True)
+    st = ModelStructure(solo, joint_terms=("fv", "fc", "armature"))
+    dyn = MomentumDynamics(st, st.prior())
+    n = len(dyn.names)
+    th = StreamThresholds(tuple(dyn.names), 4.0, *(np.ones(n),) * 5, np.full(n, np.nan), 50.0, 1, 1.0, 1e-3, 0.1, 0.1)
+    with pytest.raises(OptionError, match="floating-base robot's observer needs the base pose"):
+        StreamMonitor(dyn, th)
