@@ -329,3 +329,20 @@ def test_floating_base_model_is_refused():
     th = StreamThresholds(tuple(dyn.names), 4.0, *(np.ones(n),) * 5, np.full(n, np.nan), 50.0, 1, 1.0, 1e-3, 0.1, 0.1)
     with pytest.raises(OptionError, match="floating-base robot's observer needs the base pose"):
         StreamMonitor(dyn, th)
+
+
+def test_one_sample_damped_least_squares_equals_batched():
+    """The per-sample solver of the stream equals the batched one: regular, near-singular (damped) and
+    rank-deficient (NaN on the unobservable component) Jacobians."""
+    from sensorless.estimation.force import damped_least_squares, damped_least_squares_one
+
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(30, 3, 6))
+    J[10:20, 2] = J[10:20, 0] + 1e-3 * rng.normal(size=(10, 6))  # σ_min below ε: damped
+    J[20:, 2] = 0.0  # fz unobservable
+    tau = rng.normal(size=(30, 6))
+    want = damped_least_squares(J, tau).F
+    got = np.array([damped_least_squares_one(J[i], tau[i]) for i in range(30)])
+    assert np.isnan(want[20:, 2]).all()
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-10, equal_nan=True)
