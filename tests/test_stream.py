@@ -202,8 +202,9 @@ def test_cli_stdin_eof_matches_library(cli_setup, arm):
     assert doc["samples"] == len(lines) and doc["dropped"] == 0 and doc["latency"]["p99_us"] > 0
 
 
-def test_cli_sigterm_stops_cleanly(cli_setup):
-    """SIGTERM while waiting for input: exit 0, every sample read was answered, summary says SIGTERM."""
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+def test_cli_signal_stops_cleanly(cli_setup, sig):
+    """SIGTERM or SIGINT while waiting for input: exit 0, every sample read was answered, the summary names it."""
     work, env, lay, lines = cli_setup
     p = subprocess.Popen(_stream_cmd(work), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          env=env)
@@ -213,11 +214,11 @@ def test_cli_sigterm_stops_cleanly(cli_setup):
     deadline = time.time() + 60
     while out.count(b"\n") < 51 and time.time() < deadline:  # header + 50 estimates
         out += os.read(p.stdout.fileno(), 65536)
-    p.send_signal(signal.SIGTERM)
+    p.send_signal(getattr(signal, sig))
     rest, err = p.communicate(timeout=30)
     assert p.returncode == 0, err.decode()
     assert (out + rest).count(b"\n") == 51
-    assert "50 samples" in err.decode() and "stopped by SIGTERM" in err.decode()
+    assert "50 samples" in err.decode() and f"stopped by {sig}" in err.decode()
 
 
 def test_cli_bad_record(cli_setup):
