@@ -178,7 +178,9 @@ def _records(src: Endpoint, fmt: str, size: int, sig: _Signals):
             sock.bind((src.host, src.port))
         except OSError as e:
             raise OptionError(f"--input udp://{src.host}:{src.port}: cannot listen there ({e.strerror})") from None
-        sys.stderr.write(f"stream: listening on udp://{src.host}:{sock.getsockname()[1]}\n")
+        rcv = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        sys.stderr.write(f"stream: listening on udp://{src.host}:{sock.getsockname()[1]} (kernel receive buffer "
+                         f"{rcv / 2**20:.1f} MiB)\n")
         sys.stderr.flush()
         buf = bytearray(65536)
         while True:
