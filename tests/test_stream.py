@@ -347,3 +347,44 @@ def test_one_sample_damped_least_squares_equals_batched():
     assert np.isnan(want[20:, 2]).all()
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-10, equal_nan=True)
+
+
+def test_rest_decisions_equal_offline_classification():
+    """A joint still from the first sample: the streamed reported torque and contact flag equal
+    `classify_at_rest` (the offline decisions) on the same observer output — a step inside the
+    static-friction band is a new holding level (no contact), one beyond band + kσ is a contact."""
+    from sensorless.estimation.static_band import RestAwareThresholds, classify_at_rest
+
+    robot = load_robot("ur5")
+    st = ModelStructure(robot, joint_terms=("armature",))
+    dyn = MomentumDynamics(st, st.prior())
+    n, N, dt, settle, warm = 6, 3000, 1e-3, 0.05, 0.02
+    rng = np.random.default_rng(1)
+    t = np.arange(N) * dt
+    x = 0.05 * rng.normal(size=(N, n))
+    x[1000:, 0] += 0.6  # inside the band (f_s 1.0 around 0): a new stick level
+    x[2000:2300, 0] += 2.0  # beyond it: a contact at rest
+    x[2500:2600, 3] += 1.0  # a moving joint over k σ_m
+    k, band = 4.0, np.full(n, 1.0)
+    sig = np.full(n, 0.05)
+    th = StreamThresholds(tuple(robot.joint_names), k, sig, sig, np.zeros(n), np.zeros(n), band, np.full(n, 0.01),
+                          50.0, 1, 1.0, dt, warm, settle, 0.0)
+    sm = StreamMonitor(dyn, th)
+    script = iter(-x)
+
+    class Scripted:  # the observer output r = −x, sample by sample
+        def step(self, q, v, tau):
+            return next(script)
+
+    sm.observer = Scripted()
+    v = np.ones((N, n))
+    v[:, 0] = 0.0  # joint 0 held still throughout
+    out = np.array([sm.step(i, t[i], np.zeros(n), v[i], np.zeros(n)).copy() for i in range(N)])
+    rest = np.zeros((N, n), bool)
+    rest[:, 0] = True
+    off = RestAwareThresholds(list(th.names), k, sig, sig, np.full(n, np.nan), np.zeros(n), np.zeros(n), band,
+                              ["given"] * n, np.zeros(n, int), np.zeros(n, int))
+    trace = classify_at_rest(x, t, rest, off, quiet=np.zeros(N, bool), warmup=warm, settle=settle)
+    np.testing.assert_allclose(out[:, 2:8], trace.tau_ext, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(out[:, -1] > 0, trace.contact)
+    assert not out[1000:2000, -1].any() and out[2000:2300, -1].all() and out[2500:2600, -1].all()
