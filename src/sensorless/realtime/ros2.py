@@ -57,6 +57,7 @@ def run_ros2(monitor, topic: str, prefix: str, skip_bad: bool = False):  # pragm
     try:
         import rclpy
         from geometry_msgs.msg import Vector3Stamped
+        from rclpy.executors import ExternalShutdownException
         from rclpy.node import Node
         from sensor_msgs.msg import JointState
         from std_msgs.msg import Bool, Float64MultiArray, MultiArrayDimension
@@ -111,6 +112,8 @@ def run_ros2(monitor, topic: str, prefix: str, skip_bad: bool = False):  # pragm
         stats.stopped_by = "shutdown"
     except KeyboardInterrupt:
         stats.stopped_by = "SIGINT"
+    except ExternalShutdownException:  # SIGTERM: rclpy shuts the context down
+        stats.stopped_by = "SIGTERM"
     finally:
         node.destroy_node()
         if rclpy.ok():
