@@ -50,6 +50,7 @@ __all__ = [
     "CartesianForceEstimator",
     "ForceEstimate",
     "damped_least_squares",
+    "damped_least_squares_one",
     "external_torque",
     "frame_jacobians",
 ]
@@ -143,6 +144,27 @@ def damped_least_squares(
     F = np.einsum("nmk,nk,nk->nm", U, gain, np.einsum("nkj,nj->nk", Vt, tau))
     F[unobservable] = np.nan
     return DampedSolution(F, smin, np.sqrt(lam2), unobservable)
+
+
+def damped_least_squares_one(J: np.ndarray, tau: np.ndarray, *, sigma_threshold: float = 0.01,
+                             lambda_max: float = 0.02) -> np.ndarray:
+    """F (m,) of :func:`damped_least_squares` for one sample, J (m, n), τ (n,): the same rule and
+    numbers without the batch overhead (a streaming loop: ``sensorless stream``)."""
+    U, s, Vt = np.linalg.svd(J, full_matrices=False)
+    sv = s.tolist()  # descending
+    tol = UNOBSERVABLE * max(J.shape) * _EPS * max(sv[0] if sv else 0.0, 1e-300)
+    seen = [x for x in sv if x > tol]
+    smin = seen[-1] if seen else 0.0
+    ratio = min(max(smin / sigma_threshold, 0.0), 1.0) if sigma_threshold > 0 else 1.0
+    lam2 = lambda_max**2 * (1.0 - ratio**2)
+    gain = [x / (x * x + lam2) if x * x + lam2 > 0 else 0.0 for x in sv]
+    F = U @ (np.array(gain) * (Vt @ tau))
+    if len(seen) < J.shape[0]:
+        F[_unobservable(J[None], s[None])[0][0]] = np.nan
+    return F
+
+
+_EPS = float(np.finfo(float).eps)
 
 
 def _unobservable(J: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
