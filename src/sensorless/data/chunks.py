@@ -65,26 +65,39 @@ class _Npz(ChunkedLog):
         super().__init__(path, n, width, joint_names)
 
     def _rows(self, fields, size, start, stop):
-        with zipfile.ZipFile(self.path) as zf:
+        with zipfile.ZipFile(self.path) as zf, open(self.path, "rb") as raw:
             streams = {}
             for f in fields:
-                fh = zf.open(self._members[f])
+                info = zf.getinfo(self._members[f])
                 offset, dtype, shape = self._headers[f]
                 row = dtype.itemsize * (1 if len(shape) == 1 else int(shape[1]))
-                fh.seek(offset + start * row)
-                streams[f] = (fh, dtype, shape, row)
+                if info.compress_type == zipfile.ZIP_STORED:  # the bytes as they are in the file: seek, read
+                    raw.seek(info.header_offset)
+                    head = raw.read(30)
+                    data = info.header_offset + 30 + int.from_bytes(head[26:28], "little") + \
+                        int.from_bytes(head[28:30], "little")
+                    streams[f] = (None, data + offset + start * row, dtype, shape, row)
+                else:  # deflated: decompressed in order
+                    fh = zf.open(info)
+                    fh.seek(offset + start * row)
+                    streams[f] = (fh, 0, dtype, shape, row)
             try:
                 for s in range(start, stop, size):
                     n = min(size, stop - s)
                     part = {}
-                    for f, (fh, dtype, shape, row) in streams.items():
-                        buf = fh.read(n * row)
+                    for f, (fh, pos, dtype, shape, row) in streams.items():
+                        if fh is None:
+                            raw.seek(pos + (s - start) * row)
+                            buf = raw.read(n * row)
+                        else:
+                            buf = fh.read(n * row)
                         x = np.frombuffer(buf, dtype=dtype).astype(float)
                         part[f] = x if len(shape) == 1 else x.reshape(n, shape[1])
                     yield s, part
             finally:
                 for fh, *_ in streams.values():
-                    fh.close()
+                    if fh is not None:
+                        fh.close()
 
 
 def _npz(path: Path, joint_names) -> "ChunkedLog | None":

@@ -76,16 +76,23 @@ class StreamedLog:
 
     def chunks(self, size: int) -> Iterator[tuple[int, int, Trajectory]]:
         """(start, n, chunk): samples [start, start + n) preprocessed, plus the next sample when there is
-        one (``len(chunk) == n + 1``: the look-ahead a velocity-reversal test needs)."""
+        one (``len(chunk) == n + 1``: the look-ahead a velocity-reversal test needs). The log is read once,
+        in order; w // 2 samples on each side of a chunk are kept for its derivative."""
         N, h = self.n_samples, self.window // 2
         sg = SavitzkyGolay(self.window, POLYORDER, self.dt)
+        reader = self.log.chunks(["q", "v", "tau"], max(size, h + 2))
+        buf, b0 = {"q": np.zeros((0, 0)), "v": None, "tau": None}, 0  # raw samples [b0, b0 + len)
         for s in range(0, N, size):
             e = min(s + size, N)
             hi = min(e + 1, N)  # with the look-ahead sample
-            lo_r, hi_r = max(s - h, 0), min(hi + h, N)
-            raw = next(self.log.chunks(["q", "v", "tau"], hi_r - lo_r, lo_r, hi_r))[1]
-            a = sg.apply(raw["v"], 1)[s - lo_r : hi - lo_r]
-            v = raw["v"][s - lo_r : hi - lo_r].copy()
+            need = min(hi + h, N)
+            while buf["v"] is None or b0 + len(buf["v"]) < need:
+                _, raw = next(reader)
+                buf = raw if buf["v"] is None else {k: np.concatenate([buf[k], raw[k]]) for k in raw}
+            lo_r = max(s - h, 0)
+            win = {k: x[lo_r - b0 : need - b0] for k, x in buf.items()}
+            a = sg.apply(win["v"], 1)[s - lo_r : hi - lo_r]
+            v = win["v"][s - lo_r : hi - lo_r].copy()
             if self.quiet is not None:
                 qm = self.quiet[s:hi]
                 a[qm] = 0.0
@@ -93,9 +100,12 @@ class StreamedLog:
                 for j, (idx, drift) in enumerate(self.creep):
                     k0, k1 = np.searchsorted(idx, [s, hi])
                     v[idx[k0:k1] - s, j] = drift[k0:k1]
-            yield s, e - s, Trajectory(t=self.t[s:hi], q=raw["q"][s - lo_r : hi - lo_r], v=v, a=a,
-                                       tau=raw["tau"][s - lo_r : hi - lo_r], joint_names=list(self.log.joint_names),
-                                       source=self.source)
+            yield s, e - s, Trajectory(t=self.t[s:hi], q=win["q"][s - lo_r : hi - lo_r].copy(), v=v, a=a,
+                                       tau=win["tau"][s - lo_r : hi - lo_r].copy(),
+                                       joint_names=list(self.log.joint_names), source=self.source)
+            keep = max(e - h, 0)  # the next chunk starts at e and looks back h samples
+            buf = {k: x[keep - b0 :] for k, x in buf.items()}
+            b0 = keep
 
 
 def _finite(x: np.ndarray, fld: str, joint: str, t: np.ndarray, src: str) -> None:

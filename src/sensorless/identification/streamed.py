@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import numpy as np
@@ -52,6 +54,9 @@ STREAM_MIN_SAMPLES = 50_000
 #: samples kept for the plots: the first ones (torques.png) and an evenly strided subsample (friction.png)
 PLOT_SAMPLES = 20_000
 N_FOLDS = 5
+#: the torque-channel checks (:class:`~.torque_channels.TorqueChannels`: dead runs, the prior's scale on a
+#: subsample) see the log in blocks of this many samples
+CHANNEL_BLOCK = 1 << 16
 
 
 @dataclasses.dataclass
@@ -135,11 +140,13 @@ def _fold_index(slog: StreamedLog, n_folds: int) -> Callable[[int, int], np.ndar
 
 
 def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 2048,
-                progress: Callable[[int], None] | None = None, on_chunk: Callable[[int, int, Trajectory], None] | None = None
-                ) -> list[NormalEquations]:
+                progress: Callable[[int], None] | None = None, on_chunk: Callable[[int, int, Trajectory], None] | None = None,
+                overlap: "bool | None" = None) -> list[NormalEquations]:
     """Normal equations of the preprocessed log, one set per cross-validation fold (``n_folds`` ≥ 2) or
     one set; ``structure`` as :func:`~sensorless.regressor.compress` reads it (a model or the friction
-    candidates). Each chunk's regressor is evaluated once. ``on_chunk(start, n, chunk)`` sees each chunk."""
+    candidates). Each chunk's regressor is evaluated once. ``on_chunk(start, n, chunk)`` sees each chunk.
+    ``overlap``: fold chunk k in a helper thread while chunk k + 1 is read and evaluated (default: when
+    a core is idle, as :func:`~sensorless.regressor.compress`); the sums do not depend on it."""
     track = bool(getattr(structure, "track_left_out", False))
     if structure.row_map.per_sample or "presliding" in getattr(structure, "joint_terms", ()):
         raise DataError("the streamed pass folds per-joint rows of a fixed map (no contacts, no presliding)")
@@ -148,30 +155,58 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     dense = not structure.row_map.selects_rows or structure.n_block_params != structure.n_body_params
     cols = None if dense else structure.row_body_columns()
     rows = structure.term_rows
-    buf = np.empty((chunk + 1, structure.n_rows, structure.n_block_params))
+    if overlap is None:
+        overlap = _idle_core()
+    bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if overlap else 1)]
+    pending: list = [None] * len(bufs)
     prev_v = None
-    with one_blas_thread():
-        for s, n, part in slog.chunks(chunk):
+    with one_blas_thread(), ThreadPoolExecutor(1) as pool:
+        for k, (s, n, part) in enumerate(slog.chunks(chunk)):
             if on_chunk is not None:
                 on_chunk(s, n, part)
+            slot = k % len(bufs)
+            if pending[slot] is not None:  # the fold still reading this buffer
+                pending[slot].result()
             Q, V, A = structure.state(part)
-            Wb = structure.block_regressor(Q[:n], V[:n], A[:n], out=buf[:n])
+            Wb = structure.block_regressor(Q[:n], V[:n], A[:n], out=bufs[slot][:n])
             F = structure.joint_features(V[:n], A[:n], None)
             y = structure.target(part)[:n]
-            Vm = V if prev_v is None else np.concatenate([prev_v, V])
-            keep = structure.fit_mask(Vm)
+            keep = structure.fit_mask(V if prev_v is None else np.concatenate([prev_v, V]))
             if keep is not None:
                 keep = keep[(0 if prev_v is None else 1):][:n]
             prev_v = V[n - 1 : n]
-            folds = fold_of(s, s + n) if fold_of is not None else np.zeros(n, dtype=int)
-            for f in np.unique(folds):
-                i = slice(None) if folds[0] == folds[-1] == f and (folds == f).all() else np.flatnonzero(folds == f)
-                _fold(nes[f], structure, Wb[i], F[i], y[i], None if keep is None else keep[i], rows, cols, track)
+            folds = fold_of(s, s + n) if fold_of is not None else None
+            job = (nes, folds, structure, Wb, F, y, keep, rows, cols, track)
+            if overlap:
+                pending[slot] = pool.submit(_fold_chunk, *job)
+            else:
+                _fold_chunk(*job)
             if progress is not None:
                 progress(n)
+        for f in pending:
+            if f is not None:
+                f.result()
     for ne in nes:
         ne.mirror_upper()
     return nes
+
+
+def _idle_core() -> bool:
+    cores = os.cpu_count() or 1
+    try:
+        return cores > 1 and os.getloadavg()[0] < cores - 1
+    except OSError:  # pragma: no cover - no load average on this platform
+        return cores > 1
+
+
+def _fold_chunk(nes, folds, structure, Wb, F, y, keep, rows, cols, track) -> None:
+    """A chunk's samples into the equations of their folds (``folds``: per sample, or None: all in one)."""
+    if folds is None or folds[0] == folds[-1] and (folds == folds[0]).all():
+        _fold(nes[0 if folds is None else int(folds[0])], structure, Wb, F, y, keep, rows, cols, track)
+        return
+    for f in np.unique(folds):
+        i = np.flatnonzero(folds == f)
+        _fold(nes[int(f)], structure, Wb[i], F[i], y[i], None if keep is None else keep[i], rows, cols, track)
 
 
 def _fold(ne: NormalEquations, structure, Wb, F, y, keep, rows, cols, track: bool) -> None:
@@ -205,13 +240,13 @@ def _plot_samples(slog: StreamedLog, n: int):
         if first < m:
             sub.append(part.take(np.arange(first, m, stride)))
 
-    def concat(parts: list) -> Trajectory:
-        cat = lambda k: np.concatenate([getattr(p, k) for p in parts])  # noqa: E731
-        return Trajectory(t=cat("t"), q=cat("q"), v=cat("v"), a=cat("a"), tau=cat("tau"),
-                          joint_names=list(slog.log.joint_names), source=slog.source,
-                          provenance=dict(slog.provenance))
+    return on_chunk, lambda: (_concat(head, slog), _concat(sub, slog))
 
-    return on_chunk, lambda: (concat(head), concat(sub))
+
+def _concat(parts: list, slog: StreamedLog) -> Trajectory:
+    cat = lambda k: np.concatenate([getattr(p, k) for p in parts])  # noqa: E731
+    return Trajectory(t=cat("t"), q=cat("q"), v=cat("v"), a=cat("a"), tau=cat("tau"),
+                      joint_names=list(slog.log.joint_names), source=slog.source, provenance=dict(slog.provenance))
 
 
 def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", friction: bool = True,
@@ -245,14 +280,24 @@ def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", f
     motion = JointMotion(s.robot.joint_names)
     channels = TorqueChannels(s) if check_torques else None
 
+    block: list = []
+
+    def check(final: bool = False) -> None:  # the torque channels see blocks of CHANNEL_BLOCK samples
+        if block and (final or sum(map(len, block)) >= CHANNEL_BLOCK):
+            channels.add(_concat(block, slog))
+            block.clear()
+
     def watch(start: int, n: int, part: Trajectory) -> None:
         on_chunk(start, n, part)
         body = part.take(slice(0, n))
         motion.add(body)
         if channels is not None:
-            channels.add(body)
+            block.append(body)
+            check()
 
     folds = fold_stream(cand, slog, n_folds=N_FOLDS if cv else 1, chunk=chunk, progress=progress, on_chunk=watch)
+    if channels is not None:
+        check(final=True)
     empty = [f for f, ne in enumerate(folds) if ne.n_samples == 0]
     if cv and empty:
         raise DataError(f"no sample falls in phase block {empty[0]} of {N_FOLDS}; is the period of {slog.period} s right?",
