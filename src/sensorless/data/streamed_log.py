@@ -85,11 +85,12 @@ class StreamedLog:
         for s in range(0, N, size):
             e = min(s + size, N)
             hi = min(e + 1, N)  # with the look-ahead sample
-            need = min(hi + h, N)
+            lo_r = max(s - h, 0)
+            need = min(max(hi + h, lo_r + self.window), N)  # at least a window: the edge fits at the log's ends
+            lo_r = max(min(lo_r, need - self.window), 0)
             while buf["v"] is None or b0 + len(buf["v"]) < need:
                 _, raw = next(reader)
                 buf = raw if buf["v"] is None else {k: np.concatenate([buf[k], raw[k]]) for k in raw}
-            lo_r = max(s - h, 0)
             win = {k: x[lo_r - b0 : need - b0] for k, x in buf.items()}
             a = sg.apply(win["v"], 1)[s - lo_r : hi - lo_r]
             v = win["v"][s - lo_r : hi - lo_r].copy()
@@ -103,7 +104,7 @@ class StreamedLog:
             yield s, e - s, Trajectory(t=self.t[s:hi], q=win["q"][s - lo_r : hi - lo_r].copy(), v=v, a=a,
                                        tau=win["tau"][s - lo_r : hi - lo_r].copy(),
                                        joint_names=list(self.log.joint_names), source=self.source)
-            keep = max(e - h, 0)  # the next chunk starts at e and looks back h samples
+            keep = max(e - self.window, 0)  # the next chunk starts at e and looks back h (at the end: w) samples
             buf = {k: x[keep - b0 :] for k, x in buf.items()}
             b0 = keep
 
