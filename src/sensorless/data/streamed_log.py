@@ -158,12 +158,16 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0) -> "S
     creep, frac_rest, frac_creep = [], np.zeros(n), np.zeros(n)
     ac_sum, ac_k, lags = None, 0, _lag_range(N, dt)
     for j, name in enumerate(names):
-        q, v, tau = (log.column(f, j, _READ) for f in ("q", "v", "tau"))
-        for fld, x in (("q", q), ("v", v), ("tau", tau)):
+        for fld in ("tau", "q", "v"):  # one column at a time where possible (memory)
+            x = log.column(fld, j, _READ)
             _finite(x, fld, name, t, src)
             if _outlying(x):
                 return None  # the whole-log path raises (or drops, with --outliers) naming the sample
-        st[j], sv[j] = signal_noise(tau[:, None])[0], signal_noise(v[:, None])[0]
+            if fld == "tau":
+                st[j] = signal_noise(x[:, None])[0]
+            del x
+        q, v = log.column("q", j, _READ), log.column("v", j, _READ)
+        sv[j] = signal_noise(v[:, None])[0]
         qmin[j], qmax[j] = q.min(), q.max()
         moving[j] = np.ptp(q) >= 1e-3
         if rest_on:
@@ -184,7 +188,7 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0) -> "S
             if ac is not None:
                 ac_sum = ac if ac_sum is None else ac_sum + ac
                 ac_k += 1
-        del q, v, tau
+        del q, v
     period = _period(ac_sum, ac_k, lags, dt)
     prov = {"t": "logged", "q": "logged", "v": "logged", "tau": "logged",
             "a": f"derived: d/dt of logged v, Savitzky-Golay (window {w}, order {POLYORDER})",
@@ -213,7 +217,13 @@ def _autocorrelation(q: np.ndarray, lags: tuple[int, int]) -> "np.ndarray | None
     var = (x**2).mean()
     if not var > 0:
         return None
-    ac = np.fft.irfft(np.abs(np.fft.rfft(x, 2 * n)) ** 2)[:n] / (n - np.arange(n)) / var
+    p = np.abs(np.fft.rfft(x, 2 * n))  # the same operations as excitation_period, in place (memory)
+    del x
+    p **= 2
+    ac = np.fft.irfft(p)[:n]
+    del p
+    ac /= n - np.arange(n)
+    ac /= var
     return ac[lags[0] - 1 : lags[1] + 1].copy()
 
 
