@@ -237,7 +237,7 @@ def open_chunked(path, joint_names: Sequence[str]) -> "ChunkedLog | None":
             return _npz(p, joint_names)
         if suffix in (".h5", ".hdf5"):
             return _h5(p, joint_names)
-        if suffix == ".parquet":
+        if suffix in (".parquet", ".pq"):
             return _parquet(p, joint_names)
     except (OSError, ValueError, KeyError, zipfile.BadZipFile):
         return None  # the whole-log readers raise their typed error for the same file

@@ -221,9 +221,8 @@ def _fold(ne: NormalEquations, structure, Wb, F, y, keep, rows, cols, track: boo
                 o = out[i]
                 ne.left_out.add_blocks(Wb[i] * o[:, :, None], F[i] * o[:, rows, None], rows, y[i] * o, cols,
                                        upper_only=True)
-            y_stats = y
-            Wb, F, y = Wb.copy(), F.copy(), y.copy()
-            Wb[out], y[out] = 0.0, 0.0
+            y_stats, y = y, y.copy()
+            Wb[out], y[out] = 0.0, 0.0  # in place: this chunk's own buffers (or copies of a fold's samples)
             F[out[:, rows]] = 0.0
     ne.add_blocks(Wb, F, rows, y, cols, upper_only=True, y_stats=y_stats)
 
