@@ -196,3 +196,13 @@ def test_logs_it_cannot_reproduce_go_to_the_whole_log_path(logs, ur5, tmp_path):
     assert scan_log(open_chunked(tmp_path / "glitch.npz", ur5.joint_names)) is None
     np.savez(tmp_path / "extra.npz", **arr, a=np.zeros_like(arr["q"]))  # a logged v̇: read whole
     assert open_chunked(tmp_path / "extra.npz", ur5.joint_names) is None
+
+
+def test_held_out_scores_and_ols_baseline_match(logs, tmp_path):
+    d, _ = logs
+    data = ["--data", str(d / "clean.npz"), "--validate", str(d / "log.npz"), "--gamma", "0.001"]
+    a = _identify([*data, "--stream"], tmp_path / "s")
+    b = _identify([*data, "--no-stream"], tmp_path / "m")
+    va, vb = (next(iter(x["validation"].values())) for x in (a, b))
+    for col in ("lmi", "ols"):
+        assert va[col]["mean_nrmse"] == pytest.approx(vb[col]["mean_nrmse"], rel=1e-7), col

@@ -310,10 +310,14 @@ def identify(
             try:  # unconstrained least squares on the same data, for the comparison table
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
-                    baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
-                                             check_torques=False, progress=bars.step(
-                                                 "OLS baseline (samples)", total=sum(map(len, train))).advance
-                                             ).fit(fleet.equations if fleet is not None else train)
+                    if streamed is not None:  # a solve on the streamed pass's equations
+                        ols = streamed.ols_baseline(row_sigma)
+                        baseline = PhysicalModel.from_parameters(ols.structure, ols.parameters)
+                    else:
+                        baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
+                                                 check_torques=False, progress=bars.step(
+                                                     "OLS baseline (samples)", total=sum(map(len, train))).advance
+                                                 ).fit(fleet.equations if fleet is not None else train)
             except SensorlessError:
                 baseline = None
         bars.close()  # the tables follow

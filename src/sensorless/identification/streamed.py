@@ -72,6 +72,17 @@ class StreamedFit:
     log: StreamedLog
     head: Trajectory
     subsample: Trajectory
+    #: the fit's input: the structure before the friction search, its compressed equations and candidate grids
+    equations: "tuple | None" = None
+
+    def ols_baseline(self, weights="auto"):
+        """The unconstrained least-squares result on the same compressed equations (no pass over the log;
+        the comparison column of ``sensorless identify``)."""
+        from .identify import identify
+
+        s, ne, grid, widths = self.equations
+        return identify(s, ne, method="ols", weights=weights, stribeck_grid=grid, width_grid=widths,
+                        check_torques=False, outliers="keep")
 
 
 def _pooled(sig: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -310,7 +321,7 @@ def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", f
     result.settings["streamed"] = {"chunk": chunk, "n_samples": slog.n_samples, "folds": N_FOLDS if cv else 1,
                                    "fold_period_s": slog.period if cv else None}
     head, sub = plots()
-    return StreamedFit(result, result.structure, fit, law, slog, head, sub)
+    return StreamedFit(result, result.structure, fit, law, slog, head, sub, (s, total, grid, widths))
 
 
 #: preprocessing options (``sensorless identify``'s) under which the streamed pass gives the whole-log samples
