@@ -18,6 +18,7 @@ every chunk and names the sample index in the whole log).
 from __future__ import annotations
 
 import zipfile
+import zlib
 from pathlib import Path
 from typing import Iterator, Sequence
 
@@ -239,6 +240,6 @@ def open_chunked(path, joint_names: Sequence[str]) -> "ChunkedLog | None":
             return _h5(p, joint_names)
         if suffix in (".parquet", ".pq"):
             return _parquet(p, joint_names)
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error):
         return None  # the whole-log readers raise their typed error for the same file
     return None
