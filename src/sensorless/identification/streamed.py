@@ -211,13 +211,15 @@ def _idle_core() -> bool:
 
 
 def _fold_chunk(nes, folds, structure, Wb, F, y, keep, rows, cols, track) -> None:
-    """A chunk's samples into the equations of their folds (``folds``: per sample, or None: all in one)."""
-    if folds is None or folds[0] == folds[-1] and (folds == folds[0]).all():
-        _fold(nes[0 if folds is None else int(folds[0])], structure, Wb, F, y, keep, rows, cols, track)
+    """A chunk's samples into the equations of their folds (``folds``: per sample, or None: all in one),
+    one contiguous run of a fold at a time (views, no copies: a phase block spans many samples)."""
+    if folds is None:
+        _fold(nes[0], structure, Wb, F, y, keep, rows, cols, track)
         return
-    for f in np.unique(folds):
-        i = np.flatnonzero(folds == f)
-        _fold(nes[int(f)], structure, Wb[i], F[i], y[i], None if keep is None else keep[i], rows, cols, track)
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(folds)) + 1, [len(folds)]])
+    for a, b in zip(edges[:-1], edges[1:]):
+        _fold(nes[int(folds[a])], structure, Wb[a:b], F[a:b], y[a:b], None if keep is None else keep[a:b], rows, cols,
+              track)
 
 
 def _fold(ne: NormalEquations, structure, Wb, F, y, keep, rows, cols, track: bool) -> None:
