@@ -161,25 +161,19 @@ class StribeckCandidates:
         s = self.structure
         v = V[:, s.robot.term_v_indices]
         sgn = s.sliding_sign(v)
-        base = s.joint_features(V, A, Z)
-        nt, gw = base.shape[2], self.widths.shape[1]
-        out = np.empty((v.shape[0], v.shape[1], nt + gw + self.grid.shape[1]))  # [terms | T | D], filled in place
-        out[:, :, :nt] = base
-        T, D = out[:, :, nt : nt + gw], out[:, :, nt + gw :]
+        on = self.searched[None, :, None]
         w = self.widths
-        np.divide(v[:, :, None], np.where(w > 0, w, 1.0)[None], out=T)
+        T = v[:, :, None] / np.where(w > 0, w, 1.0)[None]  # contiguous work arrays: faster ufunc loops
         np.tanh(T, out=T)  # tanh(v/w), sgn v where w = 0
         if not np.all(w > 0):
-            T[...] = np.where(w[None] > 0, T, np.sign(v)[:, :, None])
-        T *= (sgn != 0)[:, :, None] * self.searched[None, :, None]  # 0 at rest (|v| ≤ δ)
-        np.divide(v[:, :, None], self.grid[None], out=D)  # stribeck_decay: −expm1(−(v/vs)²) sgn
+            T = np.where(w[None] > 0, T, np.sign(v)[:, :, None])
+        T *= (sgn != 0)[:, :, None] * on  # 0 at rest (|v| ≤ δ)
+        D = v[:, :, None] / self.grid[None]  # stribeck_decay: −expm1(−(v/vs)²) sgn
         np.square(D, out=D)
         np.negative(D, out=D)
         np.expm1(D, out=D)
-        np.negative(D, out=D)
-        D *= sgn[:, :, None]
-        D *= self.searched[None, :, None]
-        return out
+        D *= -(sgn[:, :, None] * on)  # the sign change of −expm1 folded in (exact)
+        return np.concatenate([s.joint_features(V, A, Z), T, D], axis=2)
 
     # ---- from candidate equations to the model's -------------------------------------------------
     def _choice(self, choice) -> np.ndarray:
