@@ -158,15 +158,18 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0) -> "S
     creep, frac_rest, frac_creep = [], np.zeros(n), np.zeros(n)
     ac_sum, ac_k, lags = None, 0, _lag_range(N, dt)
     for j, name in enumerate(names):
-        for fld in ("tau", "q", "v"):  # one column at a time where possible (memory)
+        cols = {}
+        for fld in ("tau", "q", "v"):  # τ is done with before q and v are read (memory)
             x = log.column(fld, j, _READ)
             _finite(x, fld, name, t, src)
             if _outlying(x):
                 return None  # the whole-log path raises (or drops, with --outliers) naming the sample
             if fld == "tau":
                 st[j] = signal_noise(x[:, None])[0]
+            else:
+                cols[fld] = x
             del x
-        q, v = log.column("q", j, _READ), log.column("v", j, _READ)
+        q, v = cols.pop("q"), cols.pop("v")
         sv[j] = signal_noise(v[:, None])[0]
         qmin[j], qmax[j] = q.min(), q.max()
         moving[j] = np.ptp(q) >= 1e-3
