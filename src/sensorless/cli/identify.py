@@ -148,7 +148,7 @@ def identify(
                                     "gets the prior's mass, the identified dynamics unchanged) | regularised (the "
                                     "regularised values of result.json)"),
     stream: Optional[bool] = typer.Option(None, "--stream/--no-stream", help="one long training log read and compressed "
-                                          "chunk by chunk in one pass (bounded memory; docs/speed.md): default when "
+                                          "chunk by chunk in one pass (bounded memory; docs/logs.md): default when "
                                           "it applies to a log of >= 50,000 samples; --stream: at any length; "
                                           "--no-stream: the whole log in memory"),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "

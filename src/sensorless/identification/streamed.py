@@ -366,10 +366,15 @@ def identify_streamed(log: ChunkedLog, structure, method: str, friction: bool, c
     """:func:`streamed_identify` with ``sensorless identify``'s keyword arguments ``kw`` (the PhysicalModel
     ones); None when the log is shorter than ``min_samples`` (default :data:`STREAM_MIN_SAMPLES`) or the
     scan finds it needs the whole-log path."""
+    from ..errors import ExcitationError
+
     kw = dict(kw)
     progress, check = kw.pop("progress", None), kw.pop("check_torques", True)
-    return streamed_identify(structure, log, method=method, friction=friction,
-                             coulomb_smoothing=coulomb_smoothing, stribeck_velocity=stribeck_velocity,
-                             rest=str(getattr(rest, "value", rest)),
-                             min_samples=STREAM_MIN_SAMPLES if min_samples is None else min_samples,
-                             check_torques=check, progress=progress, **kw)
+    try:
+        return streamed_identify(structure, log, method=method, friction=friction,
+                                 coulomb_smoothing=coulomb_smoothing, stribeck_velocity=stribeck_velocity,
+                                 rest=str(getattr(rest, "value", rest)),
+                                 min_samples=STREAM_MIN_SAMPLES if min_samples is None else min_samples,
+                                 check_torques=check, progress=progress, **kw)
+    except ExcitationError as exc:  # named by its file, as the whole-log path does
+        raise ExcitationError(f"{log.path}: {exc}") from None
