@@ -122,9 +122,10 @@ def _outlying(x: np.ndarray) -> bool:
     return bool(np.any(np.abs(x - m[0]) > OUTLIER_THRESHOLD * s[0]))
 
 
-def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0) -> "StreamedLog | None":
+def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0, period: bool = True) -> "StreamedLog | None":
     """Measure ``log`` for the streamed preprocessing (module docstring), one joint at a time; None
-    when the whole-log path must handle it. Raises NonFiniteError / TimestampError naming the sample."""
+    when the whole-log path must handle it. Raises NonFiniteError / TimestampError naming the sample.
+    ``period``: find the excitation period (for cross-validation folds; else ``StreamedLog.period`` is None)."""
     from .resample import MAX_JITTER, timing
     from .timebase import to_seconds
 
@@ -156,7 +157,7 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0) -> "S
     speed, moving, qmin, qmax = np.zeros(n), np.zeros(n, bool), np.zeros(n), np.zeros(n)
     quiet = np.zeros((N, n), dtype=bool) if rest_on else None
     creep, frac_rest, frac_creep = [], np.zeros(n), np.zeros(n)
-    ac_sum, ac_k, lags = None, 0, _lag_range(N, dt)
+    ac_sum, ac_k, lags = None, 0, _lag_range(N, dt) if period else None
     for j, name in enumerate(names):
         cols = {}
         for fld in ("tau", "q", "v"):  # τ is done with before q and v are read (memory)

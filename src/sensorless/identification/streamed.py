@@ -274,7 +274,8 @@ def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", f
     log = path if isinstance(path, ChunkedLog) else open_chunked(path, structure.robot.joint_names)
     if log is None:
         return None
-    slog = scan_log(log, rest=rest, min_samples=min_samples)
+    cv = method == "lmi" and identify_kwargs.get("gamma") == "auto"
+    slog = scan_log(log, rest=rest, min_samples=min_samples, period=cv)
     if slog is None:
         return None
     law = fit = None
@@ -287,7 +288,6 @@ def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", f
         grid = law.stribeck_grid if isinstance(given["stribeck_velocity"], dict) else None
         widths = law.width_grid
     cand = StribeckCandidates(s, grid, widths) if (grid or widths) else s
-    cv = method == "lmi" and identify_kwargs.get("gamma") == "auto"
     on_chunk, plots = _plot_samples(slog, PLOT_SAMPLES)
     motion = JointMotion(s.robot.joint_names)
     channels = TorqueChannels(s) if check_torques else None
