@@ -206,3 +206,15 @@ def test_held_out_scores_and_ols_baseline_match(logs, tmp_path):
     va, vb = (next(iter(x["validation"].values())) for x in (a, b))
     for col in ("lmi", "ols"):
         assert va[col]["mean_nrmse"] == pytest.approx(vb[col]["mean_nrmse"], rel=1e-7), col
+
+
+def test_long_log_benchmark_records_each_run(tmp_path):
+    """The benchmark's record (not its figures: those are the benchmark's business)."""
+    from sensorless.benchmarks.long_log import bench_long_log
+
+    res = bench_long_log([3000, 6000], extra_args=("--stream", "--no-plot", "--gamma", "0.001"), work=tmp_path)
+    assert [r["n_samples"] for r in res["runs"]] == [3000, 6000]
+    assert all(r["streamed"] and r["peak_rss_mib"] > 50 and r["wall_seconds"] > 0 for r in res["runs"])
+    assert res["peak_memory_ratio_largest_over_smallest"] > 0 and "marginal_per_sample_us" in res
+    assert res["bare_cpp_regressor_us"] is None or res["bare_cpp_regressor_us"] > 0
+    assert not list(tmp_path.iterdir())  # the logs and outputs are removed
