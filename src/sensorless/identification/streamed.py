@@ -13,7 +13,12 @@ friction-candidate compression, the five cross-validation folds of γ, and the f
    excitation periods, or contiguous blocks without one). The folds sum to the log's equations
    (normal equations are additive), so the Stribeck choice, the γ cross-validation (the chosen
    columns mapped out of each fold) and the final fit all run on compressed equations:
-   :func:`~.identify.identify` with ``folds``. Memory is O(rows · p² · folds), not O(N).
+   :func:`~.identify.identify` with ``folds``. Memory is O(rows · p² · folds), not O(N). When a core
+   is idle, chunk k is folded in a helper thread while chunk k + 1 is read and evaluated.
+
+The torque-channel checks (:class:`~.torque_channels.TorqueChannels`) see the log in blocks of
+:data:`CHANNEL_BLOCK` samples (a dead run is measured within a block); the plots get the first
+:data:`PLOT_SAMPLES` samples and an evenly strided subsample of as many.
 
 The equations left out of the fit at velocity reversals are found between neighbouring samples of
 the log (a one-sample look-ahead across chunks), in the folds too (the whole-log path tests the
