@@ -1,4 +1,4 @@
-"""`sensorless benchmark identify | dask | contact | speed | lmi | gamma | peers | real-arm` (JSON output)."""
+"""`sensorless benchmark identify | long-log | dask | contact | speed | lmi | gamma | peers | real-arm` (JSON output)."""
 
 from __future__ import annotations
 
@@ -26,6 +26,24 @@ def bench_identify(
     from ..benchmarks.identify import bench_identify as run
 
     return run(robot, [int(float(s)) for s in samples.split(",")], console=console)
+
+
+@bench_command("long-log")
+def bench_long_log_cmd(
+    samples: str = typer.Option("100000,1000000", help="comma-separated sample counts of the UR5 logs"),
+    repeats: int = typer.Option(1, help="runs per size (the best wall time is kept)"),
+    no_plot: bool = typer.Option(False, "--no-plot", help="pass --no-plot to `sensorless identify`"),
+    no_stream: bool = typer.Option(False, "--no-stream", help="pass --no-stream (the whole-log path, for comparison)"),
+) -> dict:
+    """`sensorless identify` (the defaults) on long UR5 logs as fresh processes: wall time, peak RSS,
+    µs/sample, against the bare C++ regressor kernel in the same run."""
+    from ..benchmarks.long_log import bench_long_log
+
+    sizes = [int(float(s)) for s in samples.split(",")]
+    if repeats < 1 or min(sizes) < 1000:
+        raise OptionError("--repeats must be >= 1 and every --samples count >= 1000")
+    extra = tuple(a for a, on in (("--no-plot", no_plot), ("--no-stream", no_stream)) if on)
+    return bench_long_log(sizes, repeats=repeats, extra_args=extra, console=console)
 
 
 @bench_command("dask")

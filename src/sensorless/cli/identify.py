@@ -153,6 +153,10 @@ def identify(
     urdf_values: str = typer.Option("prior", help="model.urdf: prior (a body whose mass the data do not determine "
                                     "gets the prior's mass, the identified dynamics unchanged) | regularised (the "
                                     "regularised values of result.json)"),
+    stream: Optional[bool] = typer.Option(None, "--stream/--no-stream", help="one long training log read and compressed "
+                                          "chunk by chunk in one pass (bounded memory; docs/logs.md): default when "
+                                          "it applies to a log of >= 50,000 samples; --stream: at any length; "
+                                          "--no-stream: the whole log in memory"),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="write torques.png (a decimated window of the first "
                               "held-out log, else of the first training log, with residuals; torques_<limb>.png per "
                               "limb for a robot with several) and friction.png"),
@@ -196,9 +200,14 @@ def identify(
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp, \
             progress_bars() as bars:
         skipped: list = []
+        streamed = None
         reading = bars.step("reading logs", total=len(validate) + (len(data) if scheduler is None else 0))
+        from ..identification.streamed import streamable
+
+        chunked = streamable(stream, data, r, prep, scheduler=scheduler, skip_bad=skip_bad, imu_frame=imu_frame,
+                             contact_frames=contact_frames, passive=passive, joint_terms=joint_terms)
         if scheduler is None:
-            train, data, skipped = _load_training(data, r, prep, skip_bad, reading.advance)
+            train, data, skipped = ([], data, []) if chunked else _load_training(data, r, prep, skip_bad, reading.advance)
         val = load_logs(validate, r, **prep, progress=reading.advance)
         if imu_frame:  # on a cluster the workers do it (LogReader.imu_frame)
             val = _imu_frame_logs(val, r, imu_frame, savgol_window)
@@ -246,12 +255,25 @@ def identify(
             if imu_frame:
                 train = _imu_frame_logs(train, r, imu_frame, savgol_window)
         else:
-            total = sum(len(t) for t in train)
+            total = chunked.n_samples if chunked else sum(len(t) for t in train)
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
             kw = dict(progress=bars.step("regressor (samples)", total=total).advance, outliers="keep",
                       weights=row_sigma, check_torques=not accept_implausible,
                       gamma_progress=bars.callback("γ cross-validation (folds, solves)"), **lmi_kw)
-            fric, law = None, None
+            fric, law, streamed = None, None, None
+            if chunked:  # one pass over the log (sensorless.identification.streamed), or None: read it whole
+                from ..identification.streamed import identify_streamed
+
+                streamed = identify_streamed(chunked, structure, method, friction, coulomb_smoothing,
+                                             stribeck_velocity, rest, kw, min_samples=0 if stream else None)
+                if streamed is None:
+                    train, data, skipped = _load_training(data, r, prep, skip_bad, reading.advance)
+            if streamed is not None:
+                friction = False
+                result, structure, train = streamed.result, streamed.structure, [streamed.head]
+                model = PhysicalModel.from_parameters(structure, result.parameters)
+                if streamed.fit is not None:
+                    result.settings["friction"] = _friction_settings(streamed.fit, streamed.law, data[:1])
             if friction:  # ε and the Stribeck candidates from the first training log, as on a cluster,
                 # or from every training log when the first leaves a joint still (each joint where it moves)
                 logs, paths = _friction_logs(structure, train, data)
@@ -261,11 +283,12 @@ def identify(
                             else coulomb_smoothing,
                             stribeck_velocity=law.stribeck_grid or stribeck_velocity,
                             width_grid=law.width_grid)
-            try:  # the logs' outliers were handled on reading
-                model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
-            except ExcitationError as exc:
-                raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
-            result, structure = model.result_, model.structure_
+            if streamed is None:
+                try:  # the logs' outliers were handled on reading
+                    model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
+                except ExcitationError as exc:
+                    raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
+                result, structure = model.result_, model.structure_
             if friction:
                 result.settings["friction"] = _friction_settings(model.friction_fit_, law, paths)
         result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -295,10 +318,14 @@ def identify(
             try:  # unconstrained least squares on the same data, for the comparison table
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
-                    baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
-                                             check_torques=False, progress=bars.step(
-                                                 "OLS baseline (samples)", total=sum(map(len, train))).advance
-                                             ).fit(fleet.equations if fleet is not None else train)
+                    if streamed is not None:  # a solve on the streamed pass's equations
+                        ols = streamed.ols_baseline(row_sigma)
+                        baseline = PhysicalModel.from_parameters(ols.structure, ols.parameters)
+                    else:
+                        baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
+                                                 check_torques=False, progress=bars.step(
+                                                     "OLS baseline (samples)", total=sum(map(len, train))).advance
+                                                 ).fit(fleet.equations if fleet is not None else train)
             except SensorlessError:
                 baseline = None
         bars.close()  # the tables follow
@@ -322,7 +349,8 @@ def identify(
         if plot and _plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")):
             from ..report.friction_plot import plot_friction
 
-            plot_friction(structure, result.parameters, train, tmp / "friction.png",
+            plot_friction(structure, result.parameters, [streamed.subsample] if streamed is not None else train,
+                          tmp / "friction.png",
                           title=f"{r.name}: joint friction (training logs)")
         from ..identification.artifact import save_model_folder
 

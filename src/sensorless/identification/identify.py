@@ -74,6 +74,9 @@ def identify(
     gamma_progress: Callable[[int, int], None] | None = None,
     gamma_search: str = "bracket",
     gamma_workers: int | None = None,
+    folds: Sequence[NormalEquations] | None = None,
+    motion: JointMotion | None = None,
+    channels: TorqueChannels | None = None,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
@@ -109,6 +112,9 @@ def identify(
     Precompressed ``data`` must then be the candidates' equations.
     A ``presliding`` term without a given distance is chosen per joint, or dropped, by
     :mod:`~.presliding` (two fits; ``diagnostics["presliding_search"]``).
+    Precompressed ``data`` (a streamed pass, :mod:`~.streamed`) may come with the cross-validation
+    ``folds`` of ``gamma="auto"`` (their sum is ``data``; candidates' equations when ``data`` is) and
+    the ``motion`` / ``channels`` checks accumulated over the same samples.
     ``standard``: how to pick standard parameters from the base ones, "closest_to_prior"
     (nearest to the model's own inertials) or "min_norm".
 
@@ -137,7 +143,6 @@ def identify(
             raise OptionError("the 'presliding' term's distance is chosen from the logs, not precompressed equations")
         return search_presliding(identify, structure, [data] if isinstance(data, Trajectory) else data, args)
     weights = check_weights(weights, structure.row_names)
-    motion = channels = None
     if not isinstance(data, NormalEquations):
         motion = JointMotion(structure.robot.joint_names)
         channels = TorqueChannels(structure) if check_torques else None
@@ -150,9 +155,9 @@ def identify(
                       f"{setting('prior', placeholder='...')}")
         warnings.warn(prior_note, stacklevel=2)
     if method == "lmi" and gamma == "auto":
-        if isinstance(data, NormalEquations):
+        if isinstance(data, NormalEquations) and not folds:
             raise SolverError(f"{setting('gamma', 'auto')} needs the training trajectories, not precompressed equations")
-        data = list(data)
+        data = data if isinstance(data, NormalEquations) else list(data)
     cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
     t0 = time.perf_counter()
     ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
@@ -166,6 +171,7 @@ def identify(
     if cand is not None:
         choice, stribeck_search = choose_stribeck(cand, ne, weights)
         before, structure, ne = structure, cand.structure_for(choice), cand.select(ne, choice)
+        folds = [cand.select(f, choice) for f in folds] if folds else folds
         prior = carry_prior(prior, before, structure)  # the search may have dropped Stribeck terms
     base = base_parameters(structure)
     sample_count_check(ne, base)
@@ -196,7 +202,7 @@ def identify(
         row_w = row_weights(ne, w)
         extra = {}
         if gamma == "auto":
-            cv = cross_validate_gamma(structure, data, period="auto", prior=prior, regularization=regularization,
+            cv = cross_validate_gamma(structure, list(folds) if folds else data, period="auto", prior=prior, regularization=regularization,
                                       ellipsoids=ellipsoids, row_weights=row_w, warn=False,
                                       progress=gamma_progress, search=gamma_search, workers=gamma_workers, **opts)
             gamma = cv.gamma

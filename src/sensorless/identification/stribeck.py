@@ -48,7 +48,6 @@ import numpy as np
 
 from ..errors import DataError
 from ..regressor.compress import NormalEquations
-from ..regressor.friction_columns import stribeck_decay
 from ..regressor.terms import ModelStructure
 from .base import base_parameters
 
@@ -161,12 +160,19 @@ class StribeckCandidates:
     def joint_features(self, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None) -> np.ndarray:
         s = self.structure
         v = V[:, s.robot.term_v_indices]
-        gate = s.sliding_sign(v) != 0  # 0 at rest (|v| ≤ δ)
-        w = self.widths[None]
-        T = np.where(w > 0, np.tanh(v[:, :, None] / np.where(w > 0, w, 1.0)), np.sign(v)[:, :, None])
-        T *= gate[:, :, None] * self.searched[None, :, None]
-        D = stribeck_decay(v[:, :, None], self.grid[None], s.sliding_sign(v)[:, :, None])
-        D *= self.searched[None, :, None]
+        sgn = s.sliding_sign(v)
+        on = self.searched[None, :, None]
+        w = self.widths
+        T = v[:, :, None] / np.where(w > 0, w, 1.0)[None]  # contiguous work arrays: faster ufunc loops
+        np.tanh(T, out=T)  # tanh(v/w), sgn v where w = 0
+        if not np.all(w > 0):
+            T = np.where(w[None] > 0, T, np.sign(v)[:, :, None])
+        T *= (sgn != 0)[:, :, None] * on  # 0 at rest (|v| ≤ δ)
+        D = v[:, :, None] / self.grid[None]  # stribeck_decay: −expm1(−(v/vs)²) sgn
+        np.square(D, out=D)
+        np.negative(D, out=D)
+        np.expm1(D, out=D)
+        D *= -(sgn[:, :, None] * on)  # the sign change of −expm1 folded in (exact)
         return np.concatenate([s.joint_features(V, A, Z), T, D], axis=2)
 
     # ---- from candidate equations to the model's -------------------------------------------------

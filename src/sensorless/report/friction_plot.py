@@ -2,7 +2,8 @@
 
 Per term joint (actuated, then passive) two panels share the velocity axis: the torque the
 rigid-body + armature model leaves to friction, r = τ − [Y π]_j − Ia_j v̇_j (grey dots, at most
-``max_points`` samples drawn at random with a fixed seed), with the identified steady friction
+``max_points`` samples drawn at random with a fixed seed; only those samples are evaluated, so the
+figure costs the same on any length of log), with the identified steady friction
 curve τ_f(v) (:func:`~sensorless.identification.friction.friction_curve`); and below it the
 residual r − τ_f(v) of each dot. Units per joint (N·m against rad/s, or N against m/s); one
 legend above the axes.
@@ -25,12 +26,20 @@ def friction_figure(structure, params: np.ndarray, logs: Iterable, title: str = 
     """The figure (module docstring) of the identified ``params`` of ``structure`` on ``logs``."""
     from ..identification.friction import friction_curve, friction_residual
 
-    pairs = [friction_residual(structure, params, t) for t in logs]
+    logs = list(logs)
+    sizes = np.array([len(t) for t in logs], dtype=int)
+    idx = None
+    if sizes.sum() > max_points:  # the dots drawn, chosen first: only those samples are evaluated
+        idx = np.random.default_rng(0).choice(int(sizes.sum()), max_points, replace=False)
+        keep = np.unique(idx)
+        starts = np.concatenate([[0], np.cumsum(sizes)])
+        logs = [t.take(keep[(keep >= a) & (keep < b)] - a) for t, a, b in zip(logs, starts[:-1], starts[1:])]
+    pairs = [friction_residual(structure, params, t) for t in logs if len(t)]
     V = np.concatenate([v for v, _ in pairs])
     R = np.concatenate([r for _, r in pairs])
-    if len(V) > max_points:
-        idx = np.random.default_rng(0).choice(len(V), max_points, replace=False)
-        V, R = V[idx], R[idx]
+    if idx is not None:  # in the order drawn
+        order = np.searchsorted(keep, idx)
+        V, R = V[order], R[order]
     joints = list(structure.robot.term_joints)  # actuated, then passive (τ = 0)
     n = len(joints)
     vmax = np.nanmax(np.abs(V), axis=0) if len(V) else np.ones(n)
