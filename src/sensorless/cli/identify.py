@@ -53,7 +53,7 @@ from .options import (
     resolved_options,
 )
 from .identify_model import _check_identify_options, _friction_options, _lmi_kwargs, _plain, _structure
-from .identify_outputs import _floating_base_checks, _plot_window, _print_bodies
+from .identify_outputs import _figure_jobs, _floating_base_checks, _print_bodies
 from .progress import progress_bars
 
 
@@ -154,9 +154,22 @@ def identify(
     """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png, report.html.
 
     --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
-    from ..estimators import CADModel, PhysicalModel
-    from ..report import metrics_table
+    args = dict(locals())
+    plotter = _start_plotter() if plot else None  # first: it imports matplotlib in parallel with this process's work
+    try:
+        _identify(plotter=plotter, **args)
+    finally:
+        if plotter is not None:
+            plotter.close()
 
+
+def _identify(*, plotter, config, robot, data, validate, method, prior, regularization, gamma, ellipsoids, contain_prior,
+              weights, out, joint_terms, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample,
+              velocity, max_gap, time_unit, base_velocity, pose_max_gap, lock, passive, floating_base, contact_frames,
+              contact_dims, contact_offset, contact_mode, contact_rows, wrench_offset, offset_axes, wrench_frame,
+              imu_frame, coulomb_smoothing, rest, stribeck_velocity, force, outliers, scheduler, workers, skip_bad,
+              accept_implausible, urdf_values, plot) -> None:
+    """The body of :func:`identify` (``plotter``: the process drawing the figures, or None)."""
     check_config()
     from ..identification.urdf_values import URDF_VALUES
 
@@ -174,6 +187,9 @@ def identify(
                           "of q): run without --scheduler")
     if floating_base is None and contact_frames and not passive:
         floating_base = True  # a legged robot's base floats; with --passive a passive joint is the unactuated "base"
+    from ..estimators import CADModel, PhysicalModel
+    from ..report import metrics_table
+
     r = load_robot_arg(robot, lock, floating_base, passive)
     from ..data.wrench_frames import wrench_frame_map
     from ..regressor.distributed import LogReader, expand_paths
@@ -277,22 +293,32 @@ def identify(
             result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
         for f, e in skipped:
             warn_line(f"skipped {e}")
-        _plausible(result, lmi_kw, accept_implausible, urdf_values)
-        doc = result.to_dict()
         if scheduler is not None:  # identified on the workers: the same model, for scoring and plots
             model = PhysicalModel.from_parameters(structure, result.parameters)
         cad = CADModel(r, like=structure).fit()
         baseline = None
         if method != "ols" and val:
-            try:  # unconstrained least squares on the same data, for the comparison table
+            equations = fleet.equations if fleet is not None else result.equations
+            try:  # unconstrained least squares on the compressed equations of the fit, for the comparison table
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
                     baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
-                                             check_torques=False, progress=bars.step(
-                                                 "OLS baseline (samples)", total=sum(map(len, train))).advance
-                                             ).fit(fleet.equations if fleet is not None else train)
+                                             check_torques=False).fit(equations)
             except SensorlessError:
                 baseline = None
+        shown = val[0] if val else (train[0] if train else None)
+        jobs = []  # the figures, drawn by the plot process while result.json is written
+        if plot:
+            friction_plot = (_plain(structure) and train
+                             and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")))
+            shown_models = {method.upper(): model, **({"OLS": baseline} if baseline is not None else {}), "CAD": cad}
+            jobs = _figure_jobs(shown, structure, shown_models, train, result.parameters, tmp,
+                                # with --scheduler, the client may not see the training files
+                                f"{r.name}: {'held-out' if val else 'training'} torques" if shown is not None else None,
+                                f"{r.name}: joint friction (training logs)" if friction_plot else None)
+        drawn_elsewhere = bool(jobs) and plotter is not None and plotter.submit(jobs)
+        _plausible(result, lmi_kw, accept_implausible, urdf_values)
+        doc = result.to_dict()
         bars.close()  # the tables follow
         doc["validation"] = {}
         for p, traj in zip(validate, val):
@@ -305,20 +331,15 @@ def identify(
             cols[method.upper()] = m_id
             console.print(metrics_table(f"held-out {Path(p).name}", cols))
         _print_bodies(result)
-        shown = val[0] if val else (train[0] if train else None)
-        if plot and shown is not None:  # with --scheduler, the client may not see the training files
-            shown_models = {method.upper(): model, **({"OLS": baseline} if baseline is not None else {}), "CAD": cad}
-            _plot_window(shown, structure, shown_models, tmp,
-                         f"{r.name}: {'held-out' if val else 'training'} torques")
         _floating_base_checks(structure, result, doc, train, val, validate)
-        if plot and _plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")):
-            from ..report.friction_plot import plot_friction
-
-            plot_friction(structure, result.parameters, train, tmp / "friction.png",
-                          title=f"{r.name}: joint friction (training logs)")
         from ..identification.artifact import save_model_folder
 
         save_model_folder(tmp, result, doc, urdf_values=urdf_values)
+        if jobs and not (drawn_elsewhere and plotter.wait()):  # the plot process failed: draw here
+            from ..report.plot_process import draw_job
+
+            for job in jobs:
+                draw_job(*job)
         from ..report.html import write_html_report
 
         write_html_report(tmp, doc)
@@ -331,6 +352,13 @@ def identify(
         extra += f"; body masses: {counts['data']} from the data, {counts['prior']} prior, {counts['undetermined']} undetermined"
     skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
     console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
+
+
+def _start_plotter():
+    """The process drawing identify's figures (:class:`~sensorless.report.plot_process.PlotProcess`)."""
+    from ..report.plot_process import PlotProcess
+
+    return PlotProcess()
 
 
 def _load_training(data, r, prep: dict, skip_bad: bool, progress=None):

@@ -32,6 +32,40 @@ def _plot_window(traj, structure, models: dict, out_dir: Path, title: str) -> li
     return list(figs)
 
 
+def _figure_jobs(shown, structure, models: dict, train, params, out_dir: Path, torque_title: str | None,
+                 friction_title: str | None) -> list:
+    """The figures of :func:`_plot_window` (``torque_title`` given) and friction.png (``friction_title``
+    given) as jobs for :class:`~sensorless.report.plot_process.PlotProcess`: every array the drawing
+    needs is computed here (predictions, units, limbs, friction dots and curves), none of it by the child."""
+    import numpy as np
+
+    from ..report.rows import effort_unit, grouped_paths, limb_groups
+
+    jobs: list = []
+    if torque_title is not None:
+        n = min(len(shown), PLOT_WINDOW)
+        part = shown.take(np.arange(0, n, max(1, math.ceil(n / PLOT_POINTS))))
+        span = f"first {part.t[-1] - shown.t[0]:.3g} s" if n < len(shown) else "whole log"
+        title = f"{torque_title} ({span}, {len(part)} points)"
+        measured = np.asarray(structure.target(part))
+        preds = {k: np.asarray(m.predict(part)) for k, m in models.items()}
+        rows, robot = list(structure.row_names), structure.robot
+        groups = limb_groups(robot, rows)
+        paths = grouped_paths(out_dir, "torques", groups)
+        for g, members in groups.items():
+            cols = [rows.index(m) for m in members]
+            jobs.append(("torques", dict(t=part.t, measured=measured[:, cols],
+                                         predictions={k: v[:, cols] for k, v in preds.items()}, rows=members,
+                                         units=[effort_unit(robot, m) for m in members],
+                                         title=f"{title}: {g}" if g and title else title or g), paths[g]))
+    if friction_title is not None:
+        from ..report.friction_plot import friction_panels
+
+        jobs.append(("friction", {**friction_panels(structure, params, train), "title": friction_title},
+                     out_dir / "friction.png"))
+    return jobs
+
+
 def _print_bodies(result) -> None:
     """Mass per body, named by joint and link (result.json: parameter_links), with its verdict
     (diagnostics.verdicts): a mass the data do not determine is shown as '—', never as identified."""

@@ -285,7 +285,8 @@ def identify(
            if method == "lmi" else {}),
         **structure.settings(),
     }
-    return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings)
+    return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings,
+                                equations=ne)
 
 
 def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dict | None:
