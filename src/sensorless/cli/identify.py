@@ -355,10 +355,10 @@ def _identify(*, plotter, config, robot, data, validate, method, prior, regulari
 
 
 def _start_plotter():
-    """The process drawing identify's figures (:class:`~sensorless.report.plot_process.PlotProcess`)."""
-    from ..report.plot_process import PlotProcess
+    """The process drawing identify's figures (:class:`~.figure_process.FigureProcess`)."""
+    from .figure_process import FigureProcess
 
-    return PlotProcess()
+    return FigureProcess()
 
 
 def _load_training(data, r, prep: dict, skip_bad: bool, progress=None):

