@@ -256,7 +256,7 @@ def _identify(*, plotter, config, robot, data, validate, method, prior, regulari
         else:
             total = sum(len(t) for t in train)
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
-            kw = dict(progress=bars.step("regressor (samples)", total=total).advance, outliers="keep",
+            kw = dict(progress=bars.step("regressor (samples)", total=total).advance, outliers="keep", validated=True,
                       weights=row_sigma, check_torques=not accept_implausible,
                       gamma_progress=bars.callback("γ cross-validation (folds, solves)"), **lmi_kw)
             fric, law = None, None
@@ -269,7 +269,7 @@ def _identify(*, plotter, config, robot, data, validate, method, prior, regulari
                             else coulomb_smoothing,
                             stribeck_velocity=law.stribeck_grid or stribeck_velocity,
                             width_grid=law.width_grid)
-            try:  # the logs' outliers were handled on reading
+            try:  # the logs were validated (outliers handled) on reading: identify does not check them again
                 model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
             except ExcitationError as exc:
                 raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
