@@ -18,7 +18,7 @@ import numpy as np
 from .figure_kit import figure_legend, new_figure, paired_axes, save_figure
 from .rows import effort_unit, motion_units
 
-__all__ = ["draw_friction", "friction_figure", "friction_panels", "plot_friction"]
+__all__ = ["draw_friction", "friction_figure", "friction_panels", "plot_friction", "plot_friction_panels"]
 
 
 def friction_figure(structure, params: np.ndarray, logs: Iterable, title: str = "", max_points: int = 4000):
@@ -100,4 +100,11 @@ def plot_friction(structure, params: np.ndarray, logs: Iterable, path: "str | Pa
     fig = friction_figure(structure, params, logs, title=title, max_points=max_points)
     if path is not None:
         save_figure(fig, path)
+    return fig
+
+
+def plot_friction_panels(panels: dict, path: "str | Path"):
+    """:func:`draw_friction` of ``panels`` (:func:`friction_panels`, with its ``title``) written to ``path``."""
+    fig = draw_friction(**panels)
+    save_figure(fig, path)
     return fig

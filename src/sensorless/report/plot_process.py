@@ -3,8 +3,8 @@ command's critical path.
 
 ``python -m sensorless.report.plot_process`` imports matplotlib, then reads a pickled list of
 jobs on stdin, draws each and writes its PNG atomically, and prints ``ok``. A job is
-``("torques", kwargs, path)`` → :func:`~.plots.torque_figure` or ``("friction", panels, path)``
-→ :func:`~.friction_plot.draw_friction`: plain arrays and strings computed by the parent (no
+``("torques", kwargs, path)`` → :func:`~.plots.plot_torques` or ``("friction", panels, path)``
+→ :func:`~.friction_plot.plot_friction_panels`: plain arrays and strings computed by the parent (no
 robot model, so the child never imports Pinocchio or the identification stack).
 """
 
@@ -19,19 +19,18 @@ __all__ = ["draw_job"]
 
 def draw_job(kind: str, kwargs: dict, path) -> Path:
     """Draw one job and write its PNG (atomically) to ``path``."""
-    from .figure_kit import save_figure
-
     if kind == "torques":
-        from .plots import torque_figure
+        from .plots import plot_torques
 
-        fig = torque_figure(**kwargs)
+        kw = dict(kwargs)
+        plot_torques(kw.pop("t"), kw.pop("measured"), kw.pop("predictions"), kw.pop("rows"), path, **kw)
     elif kind == "friction":
-        from .friction_plot import draw_friction
+        from .friction_plot import plot_friction_panels
 
-        fig = draw_friction(**kwargs)
+        plot_friction_panels(kwargs, path)
     else:
         raise ValueError(f"unknown figure job '{kind}'")
-    return save_figure(fig, path)
+    return Path(path)
 
 
 def _main() -> int:
