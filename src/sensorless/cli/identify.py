@@ -155,6 +155,7 @@ def identify(
 
     --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
     args = dict(locals())
+    _cheap_exit()
     plotter = _start_plotter() if plot else None  # first: it imports matplotlib in parallel with this process's work
     try:
         _identify(plotter=plotter, **args)
@@ -352,6 +353,20 @@ def _identify(*, plotter, config, robot, data, validate, method, prior, regulari
         extra += f"; body masses: {counts['data']} from the data, {counts['prior']} prior, {counts['undetermined']} undetermined"
     skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
     console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
+
+
+def _cheap_exit() -> None:
+    """At interpreter exit, move every object to the garbage collector's permanent generation
+    (``gc.freeze``) first: the collections of the shutdown then skip the objects the run made
+    (cvxpy's problems among them; measured 1.3–2.1 s from the exit handlers to the end of the
+    process on a loaded machine, 0.14–0.30 s with it). Everything the command writes is closed
+    before then; the OS frees the memory."""
+    import atexit
+    import gc
+
+    if not getattr(_cheap_exit, "registered", False):
+        atexit.register(gc.freeze)
+        _cheap_exit.registered = True
 
 
 def _start_plotter():
