@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from contextlib import nullcontext
 from pathlib import Path
 from typing import List, Optional
 
@@ -204,8 +205,9 @@ def _identify(*, plotter, config, robot, data, validate, method, prior, regulari
                 gains=gains, trim=trims, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
                 rest=rest, time_unit=time_unit, base_velocity=base_velocity, pose_max_gap=pose_max_gap,
                 wrench_frames=wrench_frames)
+    # the figure process is stopped first on an error: nothing it writes outlives the hidden folder's removal
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp, \
-            progress_bars() as bars:
+            progress_bars() as bars, (plotter if plotter is not None else nullcontext()):
         skipped: list = []
         reading = bars.step("reading logs", total=len(validate) + (len(data) if scheduler is None else 0))
         if scheduler is None:
