@@ -7,7 +7,8 @@ the command sends the figure jobs (arrays computed here) and goes on writing res
 the child writes each PNG atomically into the command's output folder (still the hidden
 temporary one: the folder appears complete or not at all), and :meth:`FigureProcess.wait`
 returns once every PNG is written. If the child cannot start or fails, ``wait`` returns False
-and the command draws the same figures itself (:func:`~sensorless.report.plot_process.draw_job`).
+and the command draws the same figures itself (:func:`~sensorless.report.plot_process.draw_job`),
+as it does when no core is idle (:func:`idle_core`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,18 @@ import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["FigureProcess"]
+__all__ = ["FigureProcess", "idle_core"]
+
+
+def idle_core() -> bool:
+    """A core is free for the figure process: more than one core and the 1-min load average below
+    cores − 1. On a busy machine the child only competes with the fit (and costs a Python start-up),
+    so the command draws the figures itself."""
+    cores = os.cpu_count() or 1
+    try:
+        return cores > 1 and os.getloadavg()[0] < cores - 1
+    except OSError:  # no load average on this platform
+        return cores > 1
 
 
 class FigureProcess:

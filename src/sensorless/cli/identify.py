@@ -372,10 +372,11 @@ def _cheap_exit() -> None:
 
 
 def _start_plotter():
-    """The process drawing identify's figures (:class:`~.figure_process.FigureProcess`)."""
-    from .figure_process import FigureProcess
+    """The process drawing identify's figures (:class:`~.figure_process.FigureProcess`), when a core is
+    idle for it; else None (the command draws them)."""
+    from . import figure_process
 
-    return FigureProcess()
+    return figure_process.FigureProcess() if figure_process.idle_core() else None
 
 
 def _load_training(data, r, prep: dict, skip_bad: bool, progress=None):
