@@ -54,7 +54,7 @@ from .options import (
     resolved_options,
 )
 from .identify_model import _check_identify_options, _friction_options, _lmi_kwargs, _plain, _structure
-from .identify_outputs import _figure_jobs, _floating_base_checks, _print_bodies
+from .identify_outputs import _figure_jobs, _floating_base_checks, _gamma_note, _plausible, _print_bodies
 from .progress import progress_bars
 
 
@@ -480,29 +480,3 @@ def _imu_frame_logs(logs, robot, frame: str, savgol_window):
     from ..data.prepare import with_imu_frame
 
     return [with_imu_frame(t, robot, frame, savgol_window) for t in logs]
-
-
-def _gamma_note(d: dict) -> str:
-    """γ used, with the cross-validation winner and floor when the runaway guard raised it, and active bounds."""
-    g = d.get("gamma_guard") or {}
-    note = f"γ = {d['gamma']:.3g}"
-    if g.get("applied"):
-        note += f" (cross-validation chose {g['gamma_cv']:.3g}; raised to the floor {g['floor']:.3g})"
-    bounds = ((d.get("verdicts") or {}).get("active_bounds") or {}).get("bodies") or {}
-    if bounds:
-        note += "; active bounds: " + ", ".join(f"{b} ({'/'.join(v)})" for b, v in list(bounds.items())[:4])
-        note += " ..." if len(bounds) > 4 else ""
-    return note
-
-
-def _plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -> None:
-    """Plausibility of the fitted model before anything is written (PlausibilityError → exit 2, no
-    output folder); with --accept-implausible the problems are printed and kept in result.json."""
-    from ..identification.plausibility import check_plausibility
-
-    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept,
-                                  urdf_values=urdf_values)
-    if problems:
-        result.diagnostics["implausible_accepted"] = problems
-        for p in problems:
-            warn_line(f"implausible (kept: --accept-implausible): {p}")

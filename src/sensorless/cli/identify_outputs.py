@@ -1,4 +1,5 @@
-"""What `sensorless identify` writes and prints besides result.json: plot, bodies, wrench checks, URDF."""
+"""What `sensorless identify` writes and prints besides result.json: figures, bodies, γ, wrench checks,
+the plausibility check before anything is written."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 from .common import (
     console,
     err_console,
+    warn_line,
 )
 
 
@@ -140,3 +142,29 @@ def _floating_base_checks(structure, result, doc: dict, train, val, validate) ->
         if traj_doc["com_cop"]["ok"] is False:
             err_console.print(f"[yellow]warning:[/] the identified CoM is {1e3 * traj_doc['com_cop']['distance_mean']:.1f} mm "
                               "from the measured CoP on standing windows (a wrench bias? try --wrench-offset)")
+
+
+def _gamma_note(d: dict) -> str:
+    """γ used, with the cross-validation winner and floor when the runaway guard raised it, and active bounds."""
+    g = d.get("gamma_guard") or {}
+    note = f"γ = {d['gamma']:.3g}"
+    if g.get("applied"):
+        note += f" (cross-validation chose {g['gamma_cv']:.3g}; raised to the floor {g['floor']:.3g})"
+    bounds = ((d.get("verdicts") or {}).get("active_bounds") or {}).get("bodies") or {}
+    if bounds:
+        note += "; active bounds: " + ", ".join(f"{b} ({'/'.join(v)})" for b, v in list(bounds.items())[:4])
+        note += " ..." if len(bounds) > 4 else ""
+    return note
+
+
+def _plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -> None:
+    """Plausibility of the fitted model before anything is written (PlausibilityError → exit 2, no
+    output folder); with --accept-implausible the problems are printed and kept in result.json."""
+    from ..identification.plausibility import check_plausibility
+
+    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept,
+                                  urdf_values=urdf_values)
+    if problems:
+        result.diagnostics["implausible_accepted"] = problems
+        for p in problems:
+            warn_line(f"implausible (kept: --accept-implausible): {p}")
