@@ -24,14 +24,27 @@ __all__ = ["FigureProcess", "idle_core"]
 
 
 def idle_core() -> bool:
-    """A core is free for the figure process: more than one core and the 1-min load average below
-    cores − 1. On a busy machine the child only competes with the fit (and costs a Python start-up),
-    so the command draws the figures itself."""
-    cores = os.cpu_count() or 1
+    """A core is free for the figure process: fewer runnable tasks than cores right now (this one
+    included; ``/proc/loadavg``), else the 1-min load average below cores − 1 where there is no
+    such count. On a busy machine the child only competes with the fit (and costs a Python
+    start-up), so the command draws the figures itself. (The 1-min average would also count this
+    command's own previous runs: a user running identify twice on an idle machine.)"""
     try:
-        return cores > 1 and os.getloadavg()[0] < cores - 1
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    if cores < 2:
+        return False
+    try:
+        with open("/proc/loadavg", encoding="ascii") as fh:
+            running = int(fh.read().split()[3].split("/")[0])
+        return running < cores
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.getloadavg()[0] < cores - 1
     except OSError:  # no load average on this platform
-        return cores > 1
+        return True
 
 
 class FigureProcess:
