@@ -161,6 +161,9 @@ def test_identify_writes_torques_with_residuals_of_every_model_and_friction_with
         log = synthetic_trajectory(truth, random_fourier(ur5, rng=seed).sample(100, 6.0), noise_std=0.1, rng=seed + 1)
         write_npz(log, tmp_path / f"{name}.npz")
     saved = _recorder(monkeypatch, tp, fp)
+    # drawn in this process (not the figure process), to read the figures back; the figure process writes
+    # the same bytes (tests/test_identify_e2e.py)
+    monkeypatch.setattr("sensorless.cli.identify._start_plotter", lambda: None)
     r = CliRunner().invoke(app, ["identify", "--robot", "ur5", "--data", str(tmp_path / "train.npz"), "--validate",
                                  str(tmp_path / "test.npz"), "--joint-terms", "fv,fc,offset", "--method", "wls", "--out",
                                  str(tmp_path / "m")])

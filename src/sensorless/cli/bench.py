@@ -1,4 +1,4 @@
-"""`sensorless benchmark identify | long-log | dask | contact | speed | lmi | gamma | peers | real-arm` (JSON output)."""
+"""`sensorless benchmark identify | identify-e2e | long-log | dask | contact | speed | lmi | gamma | peers | real-arm` (JSON output)."""
 
 from __future__ import annotations
 
@@ -44,6 +44,19 @@ def bench_long_log_cmd(
         raise OptionError("--repeats must be >= 1 and every --samples count >= 1000")
     extra = tuple(a for a, on in (("--no-plot", no_plot), ("--no-stream", no_stream)) if on)
     return bench_long_log(sizes, repeats=repeats, extra_args=extra, console=console)
+
+
+@bench_command("identify-e2e", results="identify_e2e")
+def bench_identify_e2e_cmd(
+    repeats: int = typer.Option(5, help="interleaved rounds (best of; the median is kept too)"),
+    long_samples: int = typer.Option(100_000, help="samples of the long UR5 log"),
+) -> dict:
+    """`sensorless identify` end to end, fresh processes: the UR5 hard case (defaults, --method ols), a long log, `python -c pass`."""
+    from ..benchmarks.identify_e2e import bench_identify_e2e
+
+    if min(repeats, long_samples) < 1:
+        raise OptionError("--repeats and --long-samples must be >= 1")
+    return bench_identify_e2e(repeats=repeats, long_samples=long_samples, console=console)
 
 
 @bench_command("dask")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from contextlib import nullcontext
 from pathlib import Path
 from typing import List, Optional
 
@@ -19,7 +20,6 @@ from .common import (
     app,
     atomic_outdir,
     console,
-    err_console,
     gains_option,
     guarded,
     load_logs,
@@ -54,7 +54,8 @@ from .options import (
     resolved_options,
 )
 from .identify_model import _check_identify_options, _friction_options, _lmi_kwargs, _plain, _structure
-from .identify_outputs import _floating_base_checks, _plot_window, _print_bodies
+from .identify_friction import _client_friction, _first_log_friction, _friction_logs, _friction_settings
+from .identify_outputs import _figure_jobs, _floating_base_checks, _gamma_note, _plausible, _print_bodies
 from .progress import progress_bars
 
 
@@ -164,9 +165,23 @@ def identify(
     """Identify a dynamic model from logs; write result.json, model.urdf, joint_terms.json, torques.png, report.html.
 
     --data accepts glob patterns, '**' recursive (quote them: --data 'logs/**/*.parquet')."""
-    from ..estimators import CADModel, PhysicalModel
-    from ..report import metrics_table
+    args = dict(locals())
+    _cheap_exit()
+    plotter = _start_plotter() if plot else None  # first: it imports matplotlib in parallel with this process's work
+    try:
+        _identify(plotter=plotter, **args)
+    finally:
+        if plotter is not None:
+            plotter.close()
 
+
+def _identify(*, plotter, config, robot, data, validate, method, prior, regularization, gamma, ellipsoids, contain_prior,
+              weights, out, joint_terms, columns, rate, lowpass, savgol_window, decimate, gains, trim, resample,
+              velocity, max_gap, time_unit, base_velocity, pose_max_gap, lock, passive, floating_base, contact_frames,
+              contact_dims, contact_offset, contact_mode, contact_rows, wrench_offset, offset_axes, wrench_frame,
+              imu_frame, coulomb_smoothing, rest, stribeck_velocity, force, outliers, scheduler, workers, skip_bad,
+              accept_implausible, urdf_values, stream, gamma_search, plot) -> None:
+    """The body of :func:`identify` (``plotter``: the process drawing the figures, or None)."""
     check_config()
     from ..identification.urdf_values import URDF_VALUES
 
@@ -184,6 +199,9 @@ def identify(
                           "of q): run without --scheduler")
     if floating_base is None and contact_frames and not passive:
         floating_base = True  # a legged robot's base floats; with --passive a passive joint is the unactuated "base"
+    from ..estimators import CADModel, PhysicalModel
+    from ..report import metrics_table
+
     r = load_robot_arg(robot, lock, floating_base, passive)
     from ..data.wrench_frames import wrench_frame_map
     from ..regressor.distributed import LogReader, expand_paths
@@ -197,8 +215,9 @@ def identify(
                 gains=gains, trim=trims, resample=resample, velocity=velocity, max_gap=max_gap, outliers=outliers,
                 rest=rest, time_unit=time_unit, base_velocity=base_velocity, pose_max_gap=pose_max_gap,
                 wrench_frames=wrench_frames)
+    # the figure process is stopped first on an error: nothing it writes outlives the hidden folder's removal
     with atomic_outdir(out, force, inputs=path_inputs(robot, data, validate, prior, weights)) as tmp, \
-            progress_bars() as bars:
+            progress_bars() as bars, (plotter if plotter is not None else nullcontext()):
         skipped: list = []
         streamed = None
         reading = bars.step("reading logs", total=len(validate) + (len(data) if scheduler is None else 0))
@@ -257,7 +276,7 @@ def identify(
         else:
             total = chunked.n_samples if chunked else sum(len(t) for t in train)
             friction = _plain(structure) and (coulomb_smoothing == "auto" or "stribeck" in structure.joint_terms)
-            kw = dict(progress=bars.step("regressor (samples)", total=total).advance, outliers="keep",
+            kw = dict(progress=bars.step("regressor (samples)", total=total).advance, outliers="keep", validated=True,
                       weights=row_sigma, check_torques=not accept_implausible,
                       gamma_progress=bars.callback("γ cross-validation (folds, solves)"), **lmi_kw)
             fric, law, streamed = None, None, None
@@ -284,7 +303,7 @@ def identify(
                             stribeck_velocity=law.stribeck_grid or stribeck_velocity,
                             width_grid=law.width_grid)
             if streamed is None:
-                try:  # the logs' outliers were handled on reading
+                try:  # the logs were validated (outliers handled) on reading: identify does not check them again
                     model = PhysicalModel(structure=structure, method=method, friction=fric, **kw).fit(train)
                 except ExcitationError as exc:
                     raise ExcitationError(f"{', '.join(map(str, data))}: {exc}") from None
@@ -308,14 +327,13 @@ def identify(
             result.settings.update({"scheduler": scheduler, "skipped_files": [{"file": f, "error": e} for f, e in skipped]})
         for f, e in skipped:
             warn_line(f"skipped {e}")
-        _plausible(result, lmi_kw, accept_implausible, urdf_values)
-        doc = result.to_dict()
         if scheduler is not None:  # identified on the workers: the same model, for scoring and plots
             model = PhysicalModel.from_parameters(structure, result.parameters)
         cad = CADModel(r, like=structure).fit()
         baseline = None
         if method != "ols" and val:
-            try:  # unconstrained least squares on the same data, for the comparison table
+            equations = fleet.equations if fleet is not None else result.equations
+            try:  # unconstrained least squares on the compressed equations of the fit, for the comparison table
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
                     if streamed is not None:  # a solve on the streamed pass's equations
@@ -323,11 +341,23 @@ def identify(
                         baseline = PhysicalModel.from_parameters(ols.structure, ols.parameters)
                     else:
                         baseline = PhysicalModel(structure=structure, method="ols", outliers="keep", weights=row_sigma,
-                                                 check_torques=False, progress=bars.step(
-                                                     "OLS baseline (samples)", total=sum(map(len, train))).advance
-                                                 ).fit(fleet.equations if fleet is not None else train)
+                                                 check_torques=False).fit(equations)
             except SensorlessError:
                 baseline = None
+        shown = val[0] if val else (train[0] if train else None)
+        jobs = []  # the figures, drawn by the plot process while result.json is written
+        if plot:
+            friction_plot = (_plain(structure) and train
+                             and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")))
+            shown_models = {method.upper(): model, **({"OLS": baseline} if baseline is not None else {}), "CAD": cad}
+            jobs = _figure_jobs(shown, structure, shown_models, [streamed.subsample] if streamed is not None else train,
+                                result.parameters, tmp,
+                                # with --scheduler, the client may not see the training files
+                                f"{r.name}: {'held-out' if val else 'training'} torques" if shown is not None else None,
+                                f"{r.name}: joint friction (training logs)" if friction_plot else None)
+        drawn_elsewhere = bool(jobs) and plotter is not None and plotter.submit(jobs)
+        _plausible(result, lmi_kw, accept_implausible, urdf_values)
+        doc = result.to_dict()
         bars.close()  # the tables follow
         doc["validation"] = {}
         for p, traj in zip(validate, val):
@@ -340,21 +370,15 @@ def identify(
             cols[method.upper()] = m_id
             console.print(metrics_table(f"held-out {Path(p).name}", cols))
         _print_bodies(result)
-        shown = val[0] if val else (train[0] if train else None)
-        if plot and shown is not None:  # with --scheduler, the client may not see the training files
-            shown_models = {method.upper(): model, **({"OLS": baseline} if baseline is not None else {}), "CAD": cad}
-            _plot_window(shown, structure, shown_models, tmp,
-                         f"{r.name}: {'held-out' if val else 'training'} torques")
         _floating_base_checks(structure, result, doc, train, val, validate)
-        if plot and _plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")):
-            from ..report.friction_plot import plot_friction
-
-            plot_friction(structure, result.parameters, [streamed.subsample] if streamed is not None else train,
-                          tmp / "friction.png",
-                          title=f"{r.name}: joint friction (training logs)")
         from ..identification.artifact import save_model_folder
 
         save_model_folder(tmp, result, doc, urdf_values=urdf_values)
+        if jobs and not (drawn_elsewhere and plotter.wait()):  # the plot process failed: draw here
+            from ..report.plot_process import draw_job
+
+            for job in jobs:
+                draw_job(*job)
         from ..report.html import write_html_report
 
         write_html_report(tmp, doc)
@@ -367,6 +391,28 @@ def identify(
         extra += f"; body masses: {counts['data']} from the data, {counts['prior']} prior, {counts['undetermined']} undetermined"
     skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
     console.print(f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/")
+
+
+def _cheap_exit() -> None:
+    """At interpreter exit, move every object to the garbage collector's permanent generation
+    (``gc.freeze``) first: the collections of the shutdown then skip the objects the run made
+    (cvxpy's problems among them; measured 1.3–2.1 s from the exit handlers to the end of the
+    process on a loaded machine, 0.14–0.30 s with it). Everything the command writes is closed
+    before then; the OS frees the memory."""
+    import atexit
+    import gc
+
+    if not getattr(_cheap_exit, "registered", False):
+        atexit.register(gc.freeze)
+        _cheap_exit.registered = True
+
+
+def _start_plotter():
+    """The process drawing identify's figures (:class:`~.figure_process.FigureProcess`), when a core is
+    idle for it; else None (the command draws them)."""
+    from . import figure_process
+
+    return figure_process.FigureProcess() if figure_process.idle_core() else None
 
 
 def _load_training(data, r, prep: dict, skip_bad: bool, progress=None):
@@ -397,56 +443,6 @@ def _load_each(data, r, prep: dict, progress=None):
     return train, used, skipped
 
 
-def _friction_settings(fit, measured, first) -> dict:
-    """result.json ``settings.friction``; ``measured``: the fit ε was measured by (auto smoothing), if any."""
-    doc = fit.to_dict()
-    if measured is not None and measured.coulomb_smoothing_mode == "auto":
-        doc.update(coulomb_smoothing_mode="auto",
-                   coulomb_smoothing_from=[str(p) for p in first] if isinstance(first, (list, tuple)) else str(first),
-                   velocity_noise=measured.to_dict().get("velocity_noise"))
-    return doc
-
-
-def _friction_logs(structure, train: list, data: list) -> tuple[list, list]:
-    """The logs the friction law is measured on: the first training log when every joint moves in
-    it (the same as on a cluster), else all of them (a joint held still has v ≡ 0, and six
-    single-joint calibration logs gave ε ≈ 0 on five joints)."""
-    from ..identification.friction import moving_joints
-
-    if len(train) == 1 or moving_joints(structure, train[0]).all():
-        return train[:1], data[:1]
-    return train, list(data)
-
-
-def _first_log_friction(structure, first: list, path, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
-    """The friction law (ε, and the Stribeck candidates) measured on the training logs ``first``
-    read from ``path`` (one path, or one per log: every training log locally, the first one on a
-    cluster; :func:`~sensorless.identification.friction.friction_structure`, each joint measured on
-    the logs where it moves); the velocity noise is read before the low-pass colours it."""
-    from ..identification.friction import friction_structure
-
-    paths = list(path) if isinstance(path, (list, tuple)) else [path]
-    raw = load_logs(paths, r, **{**prep, "lowpass": None}) if lowpass and coulomb_smoothing == "auto" else None
-    return friction_structure(structure, first, coulomb_smoothing=coulomb_smoothing,
-                              stribeck_velocity=stribeck_velocity, noise_logs=raw, lowpass_hz=lowpass)
-
-
-def _client_friction(structure, first: list, path, r, prep: dict, coulomb_smoothing, stribeck_velocity, lowpass):
-    """With --scheduler: the workers fit the friction law of :func:`_first_log_friction` (ε, and the
-    Stribeck candidates, chosen on the client from the summed equations). Without a readable first
-    log: sgn(v) (ε = 0) and a fixed vs, with a warning."""
-    if not first:
-        warn_line(f"--scheduler: the first training log ({path}) is not usable on this machine; "
-                  "--coulomb-smoothing auto falls back to sgn(v) (ε = 0)")
-        return structure, None
-    s, fit = _first_log_friction(structure, first, path, r, prep, coulomb_smoothing, stribeck_velocity, lowpass)
-    eps = ", ".join(f"{j} {e:.3g}" for j, e in fit.coulomb_smoothing.items())
-    err_console.print(f"--scheduler: Coulomb smoothing from {path} (ε [rad/s]: {eps})"
-                      + ("; Stribeck candidates from the same log" if fit.stribeck_grid else ""),
-                      highlight=False, soft_wrap=True)
-    return s, fit
-
-
 def _first_training_log(data, r, prep: dict, skip_bad: bool = False) -> list:
     """The first training log (friction law, contact rows, torque plot), if this machine has it; a file
     here that fails raises its error, as the workers would (one line, as a single-process run), unless
@@ -470,29 +466,3 @@ def _imu_frame_logs(logs, robot, frame: str, savgol_window):
     from ..data.prepare import with_imu_frame
 
     return [with_imu_frame(t, robot, frame, savgol_window) for t in logs]
-
-
-def _gamma_note(d: dict) -> str:
-    """γ used, with the cross-validation winner and floor when the runaway guard raised it, and active bounds."""
-    g = d.get("gamma_guard") or {}
-    note = f"γ = {d['gamma']:.3g}"
-    if g.get("applied"):
-        note += f" (cross-validation chose {g['gamma_cv']:.3g}; raised to the floor {g['floor']:.3g})"
-    bounds = ((d.get("verdicts") or {}).get("active_bounds") or {}).get("bodies") or {}
-    if bounds:
-        note += "; active bounds: " + ", ".join(f"{b} ({'/'.join(v)})" for b, v in list(bounds.items())[:4])
-        note += " ..." if len(bounds) > 4 else ""
-    return note
-
-
-def _plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -> None:
-    """Plausibility of the fitted model before anything is written (PlausibilityError → exit 2, no
-    output folder); with --accept-implausible the problems are printed and kept in result.json."""
-    from ..identification.plausibility import check_plausibility
-
-    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept,
-                                  urdf_values=urdf_values)
-    if problems:
-        result.diagnostics["implausible_accepted"] = problems
-        for p in problems:
-            warn_line(f"implausible (kept: --accept-implausible): {p}")

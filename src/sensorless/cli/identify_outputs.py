@@ -1,4 +1,5 @@
-"""What `sensorless identify` writes and prints besides result.json: plot, bodies, wrench checks, URDF."""
+"""What `sensorless identify` writes and prints besides result.json: figures, bodies, γ, wrench checks,
+the plausibility check before anything is written."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 from .common import (
     console,
     err_console,
+    warn_line,
 )
 
 
@@ -30,6 +32,40 @@ def _plot_window(traj, structure, models: dict, out_dir: Path, title: str) -> li
                                        structure.row_names, out_dir, robot=structure.robot,
                                        title=f"{title} ({span}, {len(part)} points)")
     return list(figs)
+
+
+def _figure_jobs(shown, structure, models: dict, train, params, out_dir: Path, torque_title: str | None,
+                 friction_title: str | None) -> list:
+    """The figures of :func:`_plot_window` (``torque_title`` given) and friction.png (``friction_title``
+    given) as jobs for :class:`~sensorless.cli.figure_process.FigureProcess`: every array the drawing
+    needs is computed here (predictions, units, limbs, friction dots and curves), none of it by the child."""
+    import numpy as np
+
+    from ..report.rows import effort_unit, grouped_paths, limb_groups
+
+    jobs: list = []
+    if torque_title is not None:
+        n = min(len(shown), PLOT_WINDOW)
+        part = shown.take(np.arange(0, n, max(1, math.ceil(n / PLOT_POINTS))))
+        span = f"first {part.t[-1] - shown.t[0]:.3g} s" if n < len(shown) else "whole log"
+        title = f"{torque_title} ({span}, {len(part)} points)"
+        measured = np.asarray(structure.target(part))
+        preds = {k: np.asarray(m.predict(part)) for k, m in models.items()}
+        rows, robot = list(structure.row_names), structure.robot
+        groups = limb_groups(robot, rows)
+        paths = grouped_paths(out_dir, "torques", groups)
+        for g, members in groups.items():
+            cols = [rows.index(m) for m in members]
+            jobs.append(("torques", dict(t=part.t, measured=measured[:, cols],
+                                         predictions={k: v[:, cols] for k, v in preds.items()}, rows=members,
+                                         units=[effort_unit(robot, m) for m in members],
+                                         title=f"{title}: {g}" if g and title else title or g), paths[g]))
+    if friction_title is not None:
+        from ..report.friction_plot import friction_panels
+
+        jobs.append(("friction", {**friction_panels(structure, params, train), "title": friction_title},
+                     out_dir / "friction.png"))
+    return jobs
 
 
 def _print_bodies(result) -> None:
@@ -106,3 +142,29 @@ def _floating_base_checks(structure, result, doc: dict, train, val, validate) ->
         if traj_doc["com_cop"]["ok"] is False:
             err_console.print(f"[yellow]warning:[/] the identified CoM is {1e3 * traj_doc['com_cop']['distance_mean']:.1f} mm "
                               "from the measured CoP on standing windows (a wrench bias? try --wrench-offset)")
+
+
+def _gamma_note(d: dict) -> str:
+    """γ used, with the cross-validation winner and floor when the runaway guard raised it, and active bounds."""
+    g = d.get("gamma_guard") or {}
+    note = f"γ = {d['gamma']:.3g}"
+    if g.get("applied"):
+        note += f" (cross-validation chose {g['gamma_cv']:.3g}; raised to the floor {g['floor']:.3g})"
+    bounds = ((d.get("verdicts") or {}).get("active_bounds") or {}).get("bodies") or {}
+    if bounds:
+        note += "; active bounds: " + ", ".join(f"{b} ({'/'.join(v)})" for b, v in list(bounds.items())[:4])
+        note += " ..." if len(bounds) > 4 else ""
+    return note
+
+
+def _plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -> None:
+    """Plausibility of the fitted model before anything is written (PlausibilityError → exit 2, no
+    output folder); with --accept-implausible the problems are printed and kept in result.json."""
+    from ..identification.plausibility import check_plausibility
+
+    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept,
+                                  urdf_values=urdf_values)
+    if problems:
+        result.diagnostics["implausible_accepted"] = problems
+        for p in problems:
+            warn_line(f"implausible (kept: --accept-implausible): {p}")

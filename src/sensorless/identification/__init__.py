@@ -8,7 +8,6 @@ from .base import BaseParameters, base_parameters
 from .identifiability import identifiability_report
 from .identify import CONSTRAINT_RESIDUAL_RISE, JOINT_TERM_MAX_VIF, METHODS, identify
 from .ellipsoids import PRIOR_COM_MARGIN, PRIOR_SLACK, BoundingEllipsoid, auto_ellipsoids
-from .fleet import identify_files, identify_fleet
 from .least_squares import (
     LeastSquaresSolution,
     excitation_check,
@@ -19,11 +18,8 @@ from .least_squares import (
     two_step_sigma,
 )
 from .metrics import TorqueMetrics, torque_metrics
-from .payload import JointConsistency, PayloadEstimate, identify_payload, payload_regressor, point_mass_parameters
 from .result import IdentificationResult
-from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
 
-from .drive_gains import DriveGains, identify_drive_gains, payload_torque
 from .friction import (
     FrictionFit,
     coulomb_smoothing_from_noise,
@@ -38,8 +34,14 @@ from .stribeck import StribeckCandidates, choose_stribeck
 from .weights import check_weights, read_weights_file, weights_option
 from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
 
-# cvxpy (~0.4 s to import) is loaded with the LMI modules, on first use (PEP 562)
+# cvxpy (~0.4 s to import) is loaded with the LMI modules, on first use (PEP 562); so are the
+# payload, drive-gain, fleet and floating-base modules (`sensorless identify` on an arm needs none of them)
 __getattr__, __dir__ = lazy_exports(globals(), {
+    **dict.fromkeys(["identify_files", "identify_fleet"], ".fleet"),
+    **dict.fromkeys(["JointConsistency", "PayloadEstimate", "identify_payload", "payload_regressor",
+                     "point_mass_parameters"], ".payload"),
+    **dict.fromkeys(["base_wrench_metrics", "com_cop_check", "com_positions", "standing_mask"], ".floating_base"),
+    **dict.fromkeys(["DriveGains", "identify_drive_gains", "payload_torque"], ".drive_gains"),
     **dict.fromkeys(["BodyMassBounds", "ComInEllipsoid", "DensityRealizable", "NonNegativeArmature",
                      "NonNegativeFriction", "PseudoInertiaPSD", "TotalMass", "default_constraints"], ".constraints"),
     **dict.fromkeys(["LmiSolution", "build_lmi", "solve_lmi"], ".lmi"),
@@ -47,6 +49,10 @@ __getattr__, __dir__ = lazy_exports(globals(), {
 })
 
 if TYPE_CHECKING:
+    from .drive_gains import DriveGains, identify_drive_gains, payload_torque
+    from .fleet import identify_files, identify_fleet
+    from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
+    from .payload import JointConsistency, PayloadEstimate, identify_payload, payload_regressor, point_mass_parameters
     from .constraints import (
         BodyMassBounds,
         ComInEllipsoid,

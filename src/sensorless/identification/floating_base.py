@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError
@@ -37,6 +36,8 @@ def base_wrench_metrics(structure: ContactStructure, params: np.ndarray, traj: T
     measured base wrench for scale."""
     s = _wrench_structure(structure)
     pred, meas = s.torques(params, traj)[:, :6], s.target(traj)[:, :6]
+    from scipy.spatial.transform import Rotation  # imported on use: scipy.spatial costs ~0.1 s at start-up
+
     R = Rotation.from_quat(np.asarray(_in_robot_order(s.robot, traj).base_q)[:, 3:7]).as_matrix()
     err = np.einsum("nij,nkj->nki", R, (pred - meas).reshape(-1, 2, 3))  # (N, [force, moment], 3)
     ref = np.einsum("nij,nkj->nki", R, meas.reshape(-1, 2, 3))

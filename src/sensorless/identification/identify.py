@@ -77,6 +77,7 @@ def identify(
     folds: Sequence[NormalEquations] | None = None,
     motion: JointMotion | None = None,
     channels: TorqueChannels | None = None,
+    validated: bool = False,
 ) -> IdentificationResult:
     """Identify base and standard parameters from trajectories (or precompressed equations).
 
@@ -120,7 +121,9 @@ def identify(
 
     Trajectories are validated as the readers do (:func:`~sensorless.data.validate_trajectory`:
     shapes, dtypes, finiteness, time, joint names, units), and gross outliers are handled by
-    ``outliers`` ("error" | "drop" | "keep", :mod:`~sensorless.data.outliers`). Every method
+    ``outliers`` ("error" | "drop" | "keep", :mod:`~sensorless.data.outliers`), unless
+    ``validated=True`` says the caller's reader already did both for this robot, on the data as
+    given (``sensorless identify``'s logs: the check runs once per log). Every method
     then needs at least as many equations as base parameters and motion on every joint with
     fv/fc/armature terms (:class:`~sensorless.errors.ExcitationError` otherwise, naming the
     joint). ols/wls also refuse a rank-deficient base regressor; svd and lmi accept one (the
@@ -146,7 +149,7 @@ def identify(
     if not isinstance(data, NormalEquations):
         motion = JointMotion(structure.robot.joint_names)
         channels = TorqueChannels(structure) if check_torques else None
-        data = _validated(data, structure.robot, outliers, motion, channels)
+        data = _validated(data, structure.robot, outliers, motion, channels, check=not validated)
     prior_note = None
     if method == "lmi" and prior is None and regularization is not None and _massless_prior(structure):
         regularization, gamma = None, 0.0  # a pull toward zero mass everywhere is no prior
@@ -299,7 +302,8 @@ def identify(
         **({"gamma_search": gamma_search} if "gamma_selection" in diagnostics else {}),
         **structure.settings(),
     }
-    return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings)
+    return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings,
+                                equations=ne)
 
 
 def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dict | None:
@@ -372,12 +376,14 @@ def _check_options(method, gamma, regularization, svd_rcond, chunk, outliers, st
         raise SolverError(f"unknown standard-parameter choice '{standard}'; use 'closest_to_prior' or 'min_norm'")
 
 
-def _validated(data, robot: Robot, outliers: str, motion: JointMotion, channels: TorqueChannels | None = None):
-    """Validate each trajectory as the readers do; a list stays a list, a generator stays lazy."""
+def _validated(data, robot: Robot, outliers: str, motion: JointMotion, channels: TorqueChannels | None = None,
+               check: bool = True):
+    """Validate each trajectory as the readers do (unless not ``check``), note its motion and torque
+    channels; a list stays a list, a generator stays lazy."""
     def one(traj) -> Trajectory:
         if not isinstance(traj, Trajectory):
             raise DataError(f"identify() takes Trajectory objects (or NormalEquations), got {type(traj).__name__}")
-        traj = motion.add(validate_trajectory(traj, robot, outliers=outliers))
+        traj = motion.add(validate_trajectory(traj, robot, outliers=outliers) if check else traj)
         return traj if channels is None else channels.add(traj)
 
     if isinstance(data, Trajectory):

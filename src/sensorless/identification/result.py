@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,6 +13,9 @@ from ..io import versions, write_json_atomic  # re-exported: the writers live in
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .metrics import TorqueMetrics, torque_metrics
+
+if TYPE_CHECKING:
+    from ..regressor.compress import NormalEquations
 
 __all__ = ["IdentificationResult", "body_links", "parameter_links", "versions", "write_json_atomic"]
 
@@ -34,6 +38,9 @@ class IdentificationResult:
     train_metrics: TorqueMetrics
     diagnostics: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    #: the compressed normal equations the parameters were solved on (not written to result.json):
+    #: another solver on the same data (e.g. the CLI's OLS baseline) is a solve, not a second pass
+    equations: "NormalEquations | None" = field(default=None, repr=False, compare=False)
 
     @property
     def robot(self):

@@ -6,7 +6,10 @@ import numpy as np
 
 from rich.table import Table
 
-from ..identification.metrics import TorqueMetrics
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the figures' child process imports this package: no identification stack
+    from ..identification.metrics import TorqueMetrics
 
 __all__ = ["metrics_table"]
 
