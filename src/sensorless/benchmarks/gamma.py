@@ -17,7 +17,6 @@ and whether both searches chose the same γ and wrote the same parameters (large
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import subprocess
@@ -62,7 +61,9 @@ def _run(args: list[str], cwd: Path, out: str) -> dict:
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         return {"error": (proc.stderr or proc.stdout).strip().splitlines()[-1:], "seconds": wall}
-    res = json.loads((cwd / out / "result.json").read_text())
+    from ..identification.artifact import read_result
+
+    res = read_result(cwd / out)
     sel = res["diagnostics"].get("gamma_selection") or {}
     return {
         "seconds": wall,

@@ -114,9 +114,9 @@ def bench_long_log(sizes: list[int], *, repeats: int = 1, extra_args: tuple[str,
                              "--force", *extra_args], env)
                 walls.append(w)
                 rss.append(m)
-            import json
+            from ..identification.artifact import read_result
 
-            doc = json.loads((tmp / f"out_{n}" / "result.json").read_text())
+            doc = read_result(tmp / f"out_{n}")
             run = {"n_samples": n, "wall_seconds": min(walls), "wall_seconds_all": walls, "peak_rss_mib": max(rss),
                    "per_sample_us": 1e6 * min(walls) / n, "streamed": doc["settings"].get("streamed") is not None,
                    "gamma": doc["diagnostics"].get("gamma"),
