@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
@@ -43,7 +42,7 @@ from ..data.chunks import ChunkedLog, open_chunked
 from ..data.streamed_log import StreamedLog, scan_log
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.compress import NormalEquations, one_blas_thread
+from ..regressor.compress import NormalEquations, idle_core, one_blas_thread
 from ..regressor.terms import ModelStructure
 from .friction import FrictionFit, coulomb_smoothing_from_noise, friction_structure, record_search, stribeck_grid, \
     transition_grid
@@ -172,7 +171,7 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     cols = None if dense else structure.row_body_columns()
     rows = structure.term_rows
     if overlap is None:
-        overlap = _idle_core()
+        overlap = idle_core()
     bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if overlap else 1)]
     pending: list = [None] * len(bufs)
     prev_v = None
@@ -205,14 +204,6 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     for ne in nes:
         ne.mirror_upper()
     return nes
-
-
-def _idle_core() -> bool:
-    cores = os.cpu_count() or 1
-    try:
-        return cores > 1 and os.getloadavg()[0] < cores - 1
-    except OSError:  # pragma: no cover - no load average on this platform
-        return cores > 1
 
 
 def _fold_chunk(nes, folds, structure, Wb, F, y, keep, rows, cols, track) -> None:

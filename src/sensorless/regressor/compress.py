@@ -264,7 +264,7 @@ def compress(
     dense = not row_map.selects_rows or structure.n_block_params != structure.n_body_params
     cols = structure.row_body_columns() if not (dense or own_fold) else None
     if overlap is None:
-        overlap = _idle_core()
+        overlap = idle_core()
     seen = False
     with one_blas_thread(), (ThreadPoolExecutor(1) if overlap and not own_fold else _NoPool()) as pool:
         bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if pool else 1)]
@@ -334,7 +334,8 @@ def _fit_mask(structure, traj: Trajectory, start: int, n: int, V: np.ndarray, pr
     return None if keep is None else keep[start - lo : start - lo + n]
 
 
-def _idle_core() -> bool:
+def idle_core() -> bool:
+    """True when a second core is free (1-min load average below cores − 1): the overlap thread pays off."""
     cores = os.cpu_count() or 1
     try:
         return cores > 1 and os.getloadavg()[0] < cores - 1
