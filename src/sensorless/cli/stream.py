@@ -87,7 +87,8 @@ def stream(
         doc = {**stats.to_dict(), "model": str(art.path), "model_label": art.label, "robot": robot,
                "input": str(src), "output": str(dst), "format": fmts, "frame": frame,
                "reference": str(reference) if frame else None, "records": mon.layout.describe(),
-               "thresholds": th.settings()}
+               "thresholds": th.settings(),
+               "observer_step": "compiled" if mon.observer.compiled else f"python ({mon.observer.compiled_reason})"}
         summary.parent.mkdir(parents=True, exist_ok=True)
         summary.write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
 
