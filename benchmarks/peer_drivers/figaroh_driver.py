@@ -10,29 +10,19 @@ prior, figaroh's default cvxopt solver through picos). OUT: ``params`` (10 per b
 m, mc, Ixx Ixy Iyy Ixz Iyz Izz about the joint frame) and ``info`` (JSON). No sensorless import.
 """
 
-import json
-import os
 import sys
 import time
 
 import numpy as np
-import pinocchio as pin
 from figaroh.identification.physical_fit import build_problem, solve_direct_effort_fit
+from peer_case import load_case, write_result
 
 KEYS = ["m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz"]  # figaroh's names, Pinocchio's order
 
 
 def main(case_path, out_path):
-    c = np.load(case_path)
-    model = pin.buildModelFromUrdf(str(c["urdf"]))
-    data = model.createData()
-    bodies = [str(b) for b in c["body_names"]]
-    jids = [model.getJointId(b) for b in bodies]
-    q, v, a, tau = c["q"], c["v"], c["a"], c["tau"]
-    n, nv = q.shape[0], model.nv
-    Y = np.empty((n * nv, 10 * (model.njoints - 1)))
-    for k in range(n):
-        Y[k * nv:(k + 1) * nv] = pin.computeJointTorqueRegressor(model, data, q[k], v[k], a[k])
+    c, model, bodies, jids, Y = load_case(case_path)
+    tau = c["tau"]
     cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in jids])
     names = [f"{key}_{b}" for b in bodies for key in KEYS]
     prior = np.concatenate([model.inertias[j].toDynamicParameters() for j in jids])
@@ -44,9 +34,7 @@ def main(case_path, out_path):
         raise SystemExit(f"figaroh physical fit failed: {record.solver_status} {record.exception}")
     info = {"estimator": "figaroh.identification.physical_fit.solve_direct_effort_fit", "solver": record.solver,
             "status": record.solver_status, "accepted": bool(record.accepted), "fit_seconds": solve}
-    tmp = out_path + ".tmp.npz"
-    np.savez(tmp, params=np.asarray(record.theta, dtype=float), info=json.dumps(info))
-    os.replace(tmp, out_path)
+    write_result(out_path, np.asarray(record.theta, dtype=float), info)
 
 
 if __name__ == "__main__":

@@ -12,30 +12,20 @@ solved by cvxpy with Clarabel (MOSEK needs a licence). The regressor is Pinocchi
 none). OUT: ``params`` (10 per body, Pinocchio order) and ``info`` (JSON). No sensorless import.
 """
 
-import json
-import os
 import sys
 import time
 
 import cvxpy as cp
 import numpy as np
-import pinocchio as pin
 import rigeo as rg
+from peer_case import load_case, write_result
 
 PIN_TO_RIGEO = [0, 1, 2, 3, 4, 5, 7, 6, 8, 9]  # Pinocchio ..Iyy, Ixz.. -> rigeo ..Ixz, Iyy.. (its own inverse)
 
 
 def main(case_path, out_path):
-    c = np.load(case_path)
-    model = pin.buildModelFromUrdf(str(c["urdf"]))
-    data = model.createData()
-    bodies = [str(b) for b in c["body_names"]]
-    jids = [model.getJointId(b) for b in bodies]
-    q, v, a, tau = c["q"], c["v"], c["a"], c["tau"]
-    n, nv = q.shape[0], model.nv
-    Y = np.empty((n * nv, 10 * (model.njoints - 1)))
-    for k in range(n):
-        Y[k * nv:(k + 1) * nv] = pin.computeJointTorqueRegressor(model, data, q[k], v[k], a[k])
+    c, model, bodies, jids, Y = load_case(case_path)
+    tau = c["tau"]
     cols = np.concatenate([np.arange(10 * (j - 1), 10 * j)[PIN_TO_RIGEO] for j in jids])
     t0 = time.perf_counter()
     Q, A = np.linalg.qr(Y[:, cols])  # ‖Yθ − τ‖² = ‖Rθ − Qᵀτ‖² + const: Clarabel ends 'optimal_inaccurate' on the full rows
@@ -55,9 +45,7 @@ def main(case_path, out_path):
     params = np.concatenate([th.value[PIN_TO_RIGEO] for th in thetas])
     info = {"estimator": "least squares + rigeo.pim_psd + rigeo.Box.moment_sdp_constraints", "solver": "CLARABEL",
             "status": problem.status, "fit_seconds": solve}
-    tmp = out_path + ".tmp.npz"
-    np.savez(tmp, params=params, info=json.dumps(info))
-    os.replace(tmp, out_path)
+    write_result(out_path, params, info)
 
 
 if __name__ == "__main__":
