@@ -61,22 +61,13 @@ def _timed(argv: list[str], env: dict, result: Path | None) -> dict:
 def _logs(folder: Path, long_samples: int) -> dict[str, Path]:
     """The hard case's training log (as issue 28 makes it) and the long UR5 log of ``benchmark speed``
     (5 harmonics at 0.1 Hz, 1 kHz, noise 0.1 N·m, seed 0)."""
-    from ..benchmarks.peers import peer_case
-    from ..data.readers import write_npz
-    from ..data.trajectory import Trajectory
-    from ..excitation import random_fourier
-    from ..robot import load_robot
-    from ..simulation import perturbed_truth, streamed_fourier_log
+    from .long_log import write_ur5_log
+    from .peers import peer_case
 
     train = peer_case("hard", 0).train
     hard = folder / "hard.npz"
     np.savez(hard, t=train.t, q=train.q, dq=train.v, tau=train.tau)
-    ur5 = load_robot("ur5")
-    parts = list(streamed_fourier_log(perturbed_truth(ur5, rng=0), random_fourier(ur5, rng=1, base_freq=0.1),
-                                      rate=1000.0, n_samples=long_samples, noise_std=0.1, rng=0))
-    cat = lambda k: np.concatenate([getattr(p, k) for p in parts])  # noqa: E731
-    log = Trajectory(t=cat("t"), q=cat("q"), v=cat("v"), a=cat("a"), tau=cat("tau"), joint_names=parts[0].joint_names)
-    return {"hard": hard, "long": write_npz(log, folder / "long.npz")}
+    return {"hard": hard, "long": write_ur5_log(folder / "long.npz", long_samples, accelerations=True)}
 
 
 def bench_identify_e2e(*, repeats: int = 5, long_samples: int = 100_000, console=None) -> dict:

@@ -28,8 +28,9 @@ __all__ = ["bench_long_log", "bare_kernel_us"]
 GOALS = {"per_sample_over_bare_cpp_at_largest": "<= 3", "peak_memory_ratio_largest_over_smallest": "<= 1.2"}
 
 
-def write_ur5_log(path: Path, n: int, seed: int = 0) -> Path:
-    """The UR5 benchmark log of :func:`~sensorless.benchmarks.speed` (``_fourier_log``) as t, q, dq, tau."""
+def write_ur5_log(path: Path, n: int, seed: int = 0, accelerations: bool = False) -> Path:
+    """The UR5 benchmark log of :func:`~sensorless.benchmarks.speed` (``_fourier_log``) as t, q, dq, tau
+    (and the simulated ddq with ``accelerations``)."""
     from ..excitation import random_fourier
     from ..robot import load_robot
     from ..simulation import perturbed_truth, streamed_fourier_log
@@ -39,7 +40,7 @@ def write_ur5_log(path: Path, n: int, seed: int = 0) -> Path:
     parts = list(streamed_fourier_log(truth, random_fourier(robot, rng=seed + 1, base_freq=0.1), rate=1000.0,
                                       n_samples=n, noise_std=0.1, rng=seed))
     cat = lambda k: np.concatenate([getattr(p, k) for p in parts])  # noqa: E731
-    np.savez(path, t=cat("t"), q=cat("q"), dq=cat("v"), tau=cat("tau"))
+    np.savez(path, t=cat("t"), q=cat("q"), dq=cat("v"), tau=cat("tau"), **({"ddq": cat("a")} if accelerations else {}))
     return path
 
 
