@@ -188,7 +188,7 @@ def test_gamma_zero_cross_validation_win_does_not_pass_silently(arm_logs, panda,
 
 # ---- massless prior (dvrk_psm) ------------------------------------------------------------------------
 def test_massless_prior_prints_no_body_as_identified_unless_determined(capsys):
-    from sensorless.cli.identify_outputs import _print_bodies
+    from sensorless.cli.identify_outputs import print_bodies
     from sensorless.robots import psm_structure
 
     import pinocchio as pin
@@ -211,7 +211,7 @@ def test_massless_prior_prints_no_body_as_identified_unless_determined(capsys):
     for b, e in v.items():  # "data" only with a small data-alone std
         if e["mass"]["verdict"] == "data":
             assert e["mass"]["std_data"] is not None and e["mass"]["std_data"] < 0.2 * abs(e["mass"]["value"]) + 1e-9
-    _print_bodies(res)
+    print_bodies(res)
     text = capsys.readouterr().out
     P = res.inertial_parameters.reshape(-1, 10)
     m_col = [ln.split("│")[3].strip() for ln in text.splitlines() if ln.startswith("│")]

@@ -50,8 +50,9 @@ __all__ = [
 ]
 
 _NO_VALUE = object()
-SETTING_PATTERN = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)(?:=([^`]*))?`")
-"""A setting named in a message: `` `field` `` or `` `field=value` `` (group 1: field, group 2: value text)."""
+SETTING_PATTERN = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)(?:=([^`]*))?`")
+"""A setting named in a message: `` `field` ``, `` `field=value` `` or a run configuration's `` `group.field` ``
+(``solver.gamma``, :mod:`sensorless.run.config`) (group 1: field, group 2: value text)."""
 
 
 def setting(field: str, value: object = _NO_VALUE, *, placeholder: str | None = None) -> str:

@@ -101,7 +101,7 @@ def _environ(values: dict):
 
 def _single_process(robot_name: str, files: list[str], method: str) -> dict:
     """The CLI's local path, in a fresh process: load every log, then identify."""
-    from ..cli.common import load_logs
+    from ..run.logs import load_logs
     from ..identification import identify
     from ..regressor import ModelStructure
     from ..robot import load_robot

@@ -22,6 +22,7 @@ from .blas import blas_threads_for_command
 from .flags import cli_words
 from .logs import log_trims, trim_option
 from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
+from ..run.logs import load_logs
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -211,24 +212,13 @@ def model_preprocessing(model, **given) -> dict:
 
 
 def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool], passive: Optional[List[str]] = None):
-    """A URDF/MJCF/xacro/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
-    motor coordinates, a transmission's coordinate robot). ``--trust-xacro`` and ``--package-path``
-    come from :func:`robot_source_options`; ``passive``: joints without actuator (``--passive``)."""
-    from ..robots.names import PSM_NAMES
+    """:func:`sensorless.run.model.load_run_robot` with the command's ``--trust-xacro``, ``--package-path``
+    (:func:`robot_source_options`) and ``--add-frame`` (:func:`~.frames.frame_options`)."""
+    from ..run.model import load_run_robot
 
-    if str(robot).lower() in PSM_NAMES:
-        from ..robots.dvrk_psm import psm_robot
-
-        if lock or floating or passive:
-            raise SensorlessError(f"--robot {robot}: --lock, --passive and --floating-base do not apply to the PSM model")
-        r = psm_robot()
-    else:
-        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
-    from ..robot import add_frame
-
-    for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
-        add_frame(r, *spec)
-    return r
+    source = _ROBOT_SOURCE.get()
+    return load_run_robot(robot, lock or (), floating, passive or (), frames=_ADDED_FRAMES.get(),
+                          trust_xacro=source.get("trust_xacro", False), package_paths=source.get("package_paths", ()))
 
 
 _ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
@@ -262,33 +252,17 @@ def robot_source_options(fn):
         finally:
             _ROBOT_SOURCE.reset(token)
 
-    return add_options({
-        "trust_xacro": (bool, lambda: typer.Option(False, "--trust-xacro", help=TRUST_XACRO_HELP)),
-        "package_path": (Optional[List[Path]], lambda: typer.Option(None, help=PACKAGE_PATH_HELP)),
-    })(run)
+    return add_options(ROBOT_SOURCE_OPTIONS)(run)
 
 
 TRUST_XACRO_HELP = ("expand a .xacro robot file (it can run code on this machine: read it first); in a subprocess "
                     "limited to SENSORLESS_XACRO_TIMEOUT s (30) and SENSORLESS_XACRO_MEMORY_MB (1024)")
 PACKAGE_PATH_HELP = ("folder the robot description may read meshes/includes from besides its own (package:// "
                      "looks here; repeatable; ROS_PACKAGE_PATH counts too)")
-
-
-def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, trim=None, progress=None, **options):
-    """Read, validate and preprocess logs given on the command line (:func:`load_log` each); ``trim``:
-    the ``--trim`` values or their :class:`~sensorless.data.LogTrims` (each log gets its window);
-    ``progress(1)`` after each file."""
-    from ..data.prepare import load_log
-    from ..data.trims import LogTrims
-
-    trims = LogTrims.parse(trim)
-    logs = []
-    for p in paths:
-        logs.append(load_log(p, robot, columns, rate, lowpass, savgol_window, decimate, trim=trims.window_for(p),
-                             **options))
-        if progress is not None:
-            progress(1)
-    return logs
+ROBOT_SOURCE_OPTIONS = {  # name -> (annotation, option factory)
+    "trust_xacro": (bool, lambda: typer.Option(False, "--trust-xacro", help=TRUST_XACRO_HELP)),
+    "package_path": (Optional[List[Path]], lambda: typer.Option(None, help=PACKAGE_PATH_HELP)),
+}
 
 
 ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
@@ -343,7 +317,7 @@ def add_options(options: dict, *, into: Optional[str] = None, first: bool = Fals
     return deco
 
 
-_READING_OPTIONS = {
+READING_OPTIONS = {
     "angle_unit": (Optional[AngleUnit], lambda: typer.Option(
         None, help="unit of the logged joint angles: rad | deg (q, v, v̇ of revolute joints converted from degrees; "
                    "recorded in result.json; default rad, or the model's)")),
@@ -365,7 +339,7 @@ def log_reading_options(skip_bad: bool = True):
     """Decorator: ``--angle-unit``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
-    options = dict(_READING_OPTIONS)
+    options = dict(READING_OPTIONS)
     if skip_bad:
         options["skip_bad"] = (bool, lambda: typer.Option(
             False, help="read the rest of a ROS bag / MCAP file with corrupt chunks (a warning counts what was lost; "

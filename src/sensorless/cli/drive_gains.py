@@ -26,7 +26,8 @@ from .common import (
     lock_option,
     robot_option,
 )
-from .logs import log_settings, log_trims, print_pairing, trim_option
+from ..run.logs import log_settings
+from .logs import log_trims, print_pairing, trim_option
 from .options import ALIGN_HELP, RATE_HELP, Align, TimeUnit
 from .progress import progress_bars
 

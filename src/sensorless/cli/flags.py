@@ -1,5 +1,6 @@
 """Messages in the command's language: every setting a library message names (`` `field` `` or
-`` `field=value` ``, :func:`sensorless.errors.setting`) becomes the running command's option.
+`` `field=value` ``, :func:`sensorless.errors.setting`; a run configuration's `` `group.field` ``,
+e.g. `` `solver.gamma` ``, is its field) becomes the running command's option.
 
 The field is looked up among the command's options (``lock_joints`` → ``--lock``, ``rate`` →
 ``--rate``, ``contain_prior=True`` → ``--contain-prior``); the value is written as that option
@@ -90,7 +91,7 @@ def _value_words(v) -> str:
 
 
 def _in_words(field: str, value, placeholder: bool) -> str:
-    words = field.replace("_", " ")
+    words = field.rsplit(".", 1)[-1].replace("_", " ")
     if value is None or placeholder:
         return words
     return f"{words} {_value_words(value)}"
@@ -107,7 +108,9 @@ def _param(field: str, params: dict):
 
 
 def _flag(field: str, text: str | None, ctx) -> str:
-    """The option of the running command that sets ``field`` to the value ``text`` (see module docstring)."""
+    """The option of the running command that sets ``field`` to the value ``text`` (see module docstring);
+    a run configuration's ``group.field`` is its field (``solver.gamma`` → ``--gamma``)."""
+    field = field.rsplit(".", 1)[-1]
     params = {p.name: p for p in ctx.command.params if getattr(p, "param_type_name", "") == "option"}
     value, placeholder = _parse(text)
     if field in _NEGATED and field not in params and isinstance(value, bool):

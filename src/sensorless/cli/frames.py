@@ -9,29 +9,16 @@ from typing import List, Optional
 
 import typer
 
-from ..errors import SensorlessError
 from .common import _ADDED_FRAMES, add_options, app, console, guarded, load_robot_arg, lock_option, robot_option
 from .common import floating_base_option, output_file, path_inputs, robot_source_options
 
-__all__ = ["frame_options", "frames", "parse_add_frame"]
+__all__ = ["ADD_FRAME_OPTION", "frame_options", "frames"]
 
 ADD_FRAME_HELP = ("add a frame at a known location: NAME:PARENT:x,y,z[:roll,pitch,yaw] [m, rad] in the axes of "
                   "frame PARENT (repeatable; `sensorless frames` lists the model's frames)")
 
 
-def parse_add_frame(spec: str) -> tuple:
-    """'NAME:PARENT:x,y,z[:r,p,y]' → (name, parent, xyz, rpy); SensorlessError naming the spec."""
-    parts = str(spec).split(":")
-    bad = f"--add-frame '{spec}': expected NAME:PARENT:x,y,z or NAME:PARENT:x,y,z:roll,pitch,yaw"
-    if len(parts) not in (3, 4) or not parts[0].strip() or not parts[1].strip():
-        raise SensorlessError(bad)
-    try:
-        vecs = [[float(x) for x in p.split(",")] for p in parts[2:]]
-    except ValueError:
-        raise SensorlessError(bad + " (numbers)") from None
-    if any(len(v) != 3 for v in vecs):
-        raise SensorlessError(bad + " (three numbers each)")
-    return parts[0].strip(), parts[1].strip(), vecs[0], vecs[1] if len(vecs) == 2 else [0.0, 0.0, 0.0]
+ADD_FRAME_OPTION = {"add_frame": (Optional[List[str]], lambda: typer.Option(None, help=ADD_FRAME_HELP))}
 
 
 def frame_options(fn):
@@ -40,13 +27,15 @@ def frame_options(fn):
 
     @functools.wraps(fn)
     def run(*args, add_frame: Optional[List[str]] = None, **kwargs):
+        from ..run.model import parse_add_frame
+
         token = _ADDED_FRAMES.set(tuple(parse_add_frame(s) for s in add_frame or ()))
         try:
             return fn(*args, **kwargs)
         finally:
             _ADDED_FRAMES.reset(token)
 
-    return add_options({"add_frame": (Optional[List[str]], lambda: typer.Option(None, help=ADD_FRAME_HELP))})(run)
+    return add_options(ADD_FRAME_OPTION)(run)
 
 
 @app.command()

@@ -1,74 +1,14 @@
-"""What `sensorless identify` writes and prints besides result.json: figures, bodies, γ, wrench checks,
-the plausibility check before anything is written."""
+"""What `sensorless identify` prints: the bodies, the floating-base checks, γ and the summary line."""
 
 from __future__ import annotations
-
-import math
-from pathlib import Path
 
 from .common import (
     console,
     err_console,
-    warn_line,
 )
 
 
-PLOT_WINDOW = 20_000  # samples of the log shown in torques.png (from its start)
-PLOT_POINTS = 2_000  # points per curve after decimation
-
-
-def _plot_window(traj, structure, models: dict, out_dir: Path, title: str) -> list[Path]:
-    """torques.png (or torques_<limb>.png per limb of a robot with several): measured vs predicted effort
-    and the residuals on the first ``PLOT_WINDOW`` samples, every k-th sample (≤ ``PLOT_POINTS`` points).
-    Only those samples are predicted (the model is pointwise in q, v, v̇)."""
-    import numpy as np
-
-    from .. import report
-
-    n = min(len(traj), PLOT_WINDOW)
-    part = traj.take(np.arange(0, n, max(1, math.ceil(n / PLOT_POINTS))))
-    span = f"first {part.t[-1] - traj.t[0]:.3g} s" if n < len(traj) else "whole log"
-    figs = report.plot_torques_by_limb(part.t, structure.target(part), {k: m.predict(part) for k, m in models.items()},
-                                       structure.row_names, out_dir, robot=structure.robot,
-                                       title=f"{title} ({span}, {len(part)} points)")
-    return list(figs)
-
-
-def _figure_jobs(shown, structure, models: dict, train, params, out_dir: Path, torque_title: str | None,
-                 friction_title: str | None) -> list:
-    """The figures of :func:`_plot_window` (``torque_title`` given) and friction.png (``friction_title``
-    given) as jobs for :class:`~sensorless.cli.figure_process.FigureProcess`: every array the drawing
-    needs is computed here (predictions, units, limbs, friction dots and curves), none of it by the child."""
-    import numpy as np
-
-    from ..report.rows import effort_unit, grouped_paths, limb_groups
-
-    jobs: list = []
-    if torque_title is not None:
-        n = min(len(shown), PLOT_WINDOW)
-        part = shown.take(np.arange(0, n, max(1, math.ceil(n / PLOT_POINTS))))
-        span = f"first {part.t[-1] - shown.t[0]:.3g} s" if n < len(shown) else "whole log"
-        title = f"{torque_title} ({span}, {len(part)} points)"
-        measured = np.asarray(structure.target(part))
-        preds = {k: np.asarray(m.predict(part)) for k, m in models.items()}
-        rows, robot = list(structure.row_names), structure.robot
-        groups = limb_groups(robot, rows)
-        paths = grouped_paths(out_dir, "torques", groups)
-        for g, members in groups.items():
-            cols = [rows.index(m) for m in members]
-            jobs.append(("torques", dict(t=part.t, measured=measured[:, cols],
-                                         predictions={k: v[:, cols] for k, v in preds.items()}, rows=members,
-                                         units=[effort_unit(robot, m) for m in members],
-                                         title=f"{title}: {g}" if g and title else title or g), paths[g]))
-    if friction_title is not None:
-        from ..report.friction_plot import friction_panels
-
-        jobs.append(("friction", {**friction_panels(structure, params, train), "title": friction_title},
-                     out_dir / "friction.png"))
-    return jobs
-
-
-def _print_bodies(result) -> None:
+def print_bodies(result) -> None:
     """Mass per body, named by joint and link (result.json: parameter_links), with its verdict
     (diagnostics.verdicts): a mass the data do not determine is shown as '—', never as identified."""
     from rich.table import Table
@@ -101,26 +41,12 @@ def _print_bodies(result) -> None:
     console.print(t)
 
 
-def _floating_base_checks(structure, result, doc: dict, train, val, validate) -> None:
-    """Measured-wrench identification: bias values, world-axis base-wrench RMSE and the
-    CoM-vs-CoP check on standing windows, per log, into ``doc["floating_base"]``."""
-    if not getattr(structure, "measured_wrench", False):
+def print_floating_base(doc: dict) -> None:
+    """The measured-wrench checks of result.json ``floating_base`` (:func:`sensorless.run.validation.floating_base_report`):
+    total mass, base-wrench RMSE, CoM–CoP distance, contact flags; warnings where they disagree."""
+    fb = doc.get("floating_base")
+    if not fb:
         return
-    from ..identification.floating_base import base_wrench_metrics, com_cop_check
-
-    p = result.parameters
-    fb = {"contact_rows": structure.settings()["contact_rows"], "wrench_offset": structure.offset_values(p),
-          "train": [], "validation": {}}
-    from ..regressor.contact_inference import contact_summary
-
-    for traj in train:
-        fb["train"].append({"base_wrench": base_wrench_metrics(structure, p, traj),
-                            "com_cop": com_cop_check(structure, p, traj),
-                            "contacts": contact_summary(structure, traj)})
-    for path, traj in zip(validate, val):
-        fb["validation"][str(path)] = {"base_wrench": base_wrench_metrics(structure, p, traj),
-                                       "com_cop": com_cop_check(structure, p, traj)}
-    doc["floating_base"] = fb
     mass = doc.get("mass_properties") or {}
     bw = fb["train"][0]["base_wrench"]
     cc = fb["train"][0]["com_cop"]
@@ -144,7 +70,7 @@ def _floating_base_checks(structure, result, doc: dict, train, val, validate) ->
                               "from the measured CoP on standing windows (a wrench bias? try --wrench-offset)")
 
 
-def _gamma_note(d: dict) -> str:
+def gamma_note(d: dict) -> str:
     """γ used, with the cross-validation winner and floor when the runaway guard raised it, and active bounds."""
     g = d.get("gamma_guard") or {}
     note = f"γ = {d['gamma']:.3g}"
@@ -157,14 +83,14 @@ def _gamma_note(d: dict) -> str:
     return note
 
 
-def _plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -> None:
-    """Plausibility of the fitted model before anything is written (PlausibilityError → exit 2, no
-    output folder); with --accept-implausible the problems are printed and kept in result.json."""
-    from ..identification.plausibility import check_plausibility
-
-    problems = check_plausibility(result, lmi_kw.get("prior"), lmi_kw.get("ellipsoids"), accept=accept,
-                                  urdf_values=urdf_values)
-    if problems:
-        result.diagnostics["implausible_accepted"] = problems
-        for p in problems:
-            warn_line(f"implausible (kept: --accept-implausible): {p}")
+def summary_line(result, method: str, skipped: list, out) -> str:
+    """The last line of `sensorless identify`: base parameters, γ or condition number, body verdicts."""
+    d = result.diagnostics
+    extra = (f"{gamma_note(d)}, solver {d['lmi']['solver']} ({d['lmi']['status']}), "
+             f"all bodies consistent: {d['lmi']['consistent']}" if method == "lmi"
+             else f"condition number {d['condition_number']:.1f}")
+    counts = (d.get("verdicts") or {}).get("counts")
+    if counts:
+        extra += f"; body masses: {counts['data']} from the data, {counts['prior']} prior, {counts['undetermined']} undetermined"
+    skip_note = f", {len(skipped)} file(s) skipped (listed in result.json)" if skipped else ""
+    return f"{len(result.base.independent)} base parameters, {extra}{skip_note}; wrote {out}/"

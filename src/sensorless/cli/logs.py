@@ -1,14 +1,13 @@
-"""How a command's logs are cut and what a run records about each: ``--trim`` (a window for
-every log, FILE=WINDOW for one, :class:`sensorless.data.LogTrims`), ``--skip-bad-rows`` and the
-per-log settings (windows, corrupt rows dropped) saved with the results; the line reporting how two
-runs of one trajectory were paired."""
+"""How a command's logs are cut: ``--trim`` (a window for every log, FILE=WINDOW for one,
+:class:`sensorless.data.LogTrims`; what a run records about each log: :mod:`sensorless.run.logs`);
+the line reporting how two runs of one trajectory were paired."""
 
 from __future__ import annotations
 
 import typer
 
 
-__all__ = ["log_settings", "log_trims", "preprocessing_settings", "print_pairing", "trim_option"]
+__all__ = ["log_trims", "print_pairing", "trim_option"]
 
 
 def trim_option():
@@ -26,42 +25,6 @@ def log_trims(trim, *paths) -> "LogTrims":
     trims = LogTrims.parse(trim)
     trims.check([p for group in paths for p in (group if isinstance(group, (list, tuple)) else [group])])
     return trims
-
-
-def preprocessing_settings(logs, *, columns, gains, rate, trim, resample, lowpass, savgol_window, velocity,
-                           decimate, max_gap, rest="auto", time_unit=None, base_velocity="auto", pose_max_gap=None,
-                           wrench_frames=None, paths=(), log_paths=None) -> dict:
-    """settings.preprocessing for result.json: the options (gains resolved per joint name,
-    column map parsed, gain suffix moved to ``gains``, ``--angle-unit``), the trim windows and dropped
-    corrupt rows of each log (:func:`log_settings`)."""
-    from ..data.gains import split_gain_modifiers
-    from ..data.limits import current_options
-    from ..data.prepare import parse_columns
-
-    cols = parse_columns(columns) if isinstance(columns, str) else columns
-    cols, _, _ = split_gain_modifiers(cols, "--columns")
-    resolved = next((t.provenance["gains"] for t in logs if "gains" in t.provenance), None)
-    return {"columns": cols, "gains": resolved, "rate": rate, "resample": resample, "lowpass": lowpass,
-            "savgol_window": savgol_window, "velocity": velocity, "max_gap": max_gap,
-            "decimate": decimate, "rest": rest, "time_unit": time_unit,
-            "base_velocity": base_velocity, "pose_max_gap": pose_max_gap, "wrench_frames": wrench_frames,
-            "angle_unit": current_options().get("angle_unit") or "rad",
-            **log_settings(trim, paths, logs, log_paths)}
-
-
-def log_settings(trim, paths, logs, log_paths=None) -> dict:
-    """Per-log settings of a run on the logs at ``paths``: ``trim`` (the window for every log),
-    ``trims`` ({log: its window}), ``skip_bad_rows`` and ``rows_dropped`` ({log: the corrupt rows
-    dropped}, :mod:`sensorless.data.bad_rows`) of the trajectories ``logs`` read from ``log_paths``
-    (default ``paths``)."""
-    from ..data.limits import current_options
-    from ..data.trims import LogTrims
-
-    paths = [str(p) for p in paths]
-    read = paths if log_paths is None else [str(p) for p in log_paths]
-    return {**LogTrims.parse(trim).settings(paths), "skip_bad_rows": bool(current_options().get("skip_bad_rows")),
-            "rows_dropped": {p: t.provenance["rows_dropped"] for p, t in zip(read, logs)
-                             if "rows_dropped" in t.provenance}}
 
 
 def print_pairing(pairing: dict) -> None:

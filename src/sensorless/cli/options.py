@@ -9,7 +9,6 @@ written out here so that ``--help`` does not import the solvers.
 
 from __future__ import annotations
 
-import tomllib
 from enum import StrEnum
 from pathlib import Path
 from typing import Optional
@@ -20,8 +19,7 @@ from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "GammaSearch", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
            "WrenchOffset", "Rest", "Criterion", "ForceReference", "PayloadMode", "Align", "ALIGN_HELP",
-           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "FrictionState", "config_option", "check_config",
-           "resolved_options"]
+           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "FrictionState", "config_option", "check_config"]
 
 
 def _choices(name: str, values: tuple[str, ...]) -> type[StrEnum]:
@@ -65,33 +63,24 @@ _CONFIG_ERROR = "sensorless_config_error"
 
 
 def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
-    """Eager callback: the file's keys become the command's defaults (``ctx.default_map``), so
-    options on the command line win and values are converted like typed ones. A problem is
-    kept for :func:`check_config` (raised inside the command, as one line)."""
+    """Eager callback: the file's keys (:func:`sensorless.run.toml.read_run_toml`) become the command's
+    defaults (``ctx.default_map``), so options on the command line win and values are converted like
+    typed ones. A problem is kept for :func:`check_config` (raised inside the command, as one line)."""
     if value is None or ctx.resilient_parsing:
         return value
-    from ..data.limits import read_small_text
-    from ..errors import InputError
+    from ..errors import SensorlessError
+    from ..run.toml import read_run_toml
 
     try:
-        doc = tomllib.loads(read_small_text(value, "--config file", encoding="utf-8"))  # FIFOs refused, not waited on
-    except InputError as exc:
-        ctx.meta[_CONFIG_ERROR] = str(exc)
-        return value
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        ctx.meta[_CONFIG_ERROR] = f"--config {value}: not a readable TOML file ({exc})"
+        table = read_run_toml(value)
+    except SensorlessError as exc:
+        ctx.meta[_CONFIG_ERROR] = f"--config {exc}"
         return value
     names = {p.name for p in ctx.command.params if p.name != "config"}
-    multiple = {p.name for p in ctx.command.params if getattr(p, "multiple", False)}
-    table = {str(k).replace("-", "_"): v for k, v in doc.items()}
-    table = {k: [v] if k in multiple and isinstance(v, str) else v for k, v in table.items()}  # trim = "2:-3"
     unknown = sorted(k for k in table if k not in names)
     if unknown:
-        ctx.meta[_CONFIG_ERROR] = (f"--config {value}: unknown key(s) {', '.join(unknown)}; keys are the command's "
-                                   f"options, e.g. method, data, out, savgol_window")
+        ctx.meta[_CONFIG_ERROR] = f"--config {value}: {', '.join(unknown)} not options of this command"
         return value
-    if table.pop("trust_xacro", None) is not None:  # consent to run a file's code: on the command line only
-        ctx.meta[_CONFIG_ERROR] = f"--config {value}: trust_xacro is taken from the command line only (--trust-xacro)"
     ctx.default_map = {**(ctx.default_map or {}), **table}
     return value
 
@@ -110,21 +99,3 @@ def check_config() -> None:
     ctx = _current_context()
     if ctx is not None and ctx.meta.get(_CONFIG_ERROR):
         raise OptionError(ctx.meta[_CONFIG_ERROR])
-
-
-def resolved_options() -> dict:
-    """The running command's options after the config file and the command line (JSON-ready)."""
-    from .common import _current_context
-
-    ctx = _current_context()
-    if ctx is None:
-        return {}
-
-    def plain(v):
-        if isinstance(v, (list, tuple)):
-            return [plain(x) for x in v]
-        if isinstance(v, StrEnum):
-            return str(v)
-        return v if isinstance(v, (str, int, float, bool)) or v is None else str(v)
-
-    return {k: plain(v) for k, v in ctx.params.items()}

@@ -24,7 +24,8 @@ from .common import (
     output_file,
     path_inputs,
 )
-from .logs import log_settings, print_pairing
+from ..run.logs import log_settings
+from .logs import print_pairing
 from .options import ALIGN_HELP, Align, PayloadMode
 from .progress import progress_bars
 
