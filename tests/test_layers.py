@@ -12,7 +12,7 @@ own layer or below. Bottom to top:
     4  identification, robots                      solve; robots authored in code (dVRK PSM)
     5  learning, control, estimation, excitation,  users of an identified model; ``report``
        actuator, estimators, report, realtime      (plots, tables, HTML) is used by experiments
-    6  simulation                                  MuJoCo scenes and scenario scripts
+    6  run, simulation                             one identification run (config, pipeline); MuJoCo scenes
     7  experiments, example_data                   the papers' studies; data for the documented commands
     8  cli, benchmarks, demo                       commands, speed/scale/accuracy benchmarks, the demo
 """
@@ -35,7 +35,7 @@ LAYERS = {
     "identification": 4, "robots": 4,
     "learning": 5, "control": 5, "estimation": 5, "excitation": 5, "actuator": 5, "estimators": 5, "report": 5,
     "realtime": 5,
-    "simulation": 6,
+    "run": 6, "simulation": 6,
     "experiments": 7, "example_data": 7,
     "cli": 8, "benchmarks": 8, "demo": 8,
 }

@@ -24,7 +24,6 @@ way. Every fit is scored on our side: held-out nRMSE of τ̂ = W π and per-body
 
 from __future__ import annotations
 
-import inspect
 import platform
 import tomllib
 from dataclasses import asdict, dataclass, field
@@ -184,15 +183,11 @@ def peer_case(name: str, seed: int, robot: Robot | None = None, recipe: Recipe =
 
 
 def cli_defaults() -> dict[str, Any]:
-    """The default value of every option of ``sensorless identify`` (from its signature)."""
-    from ..cli.identify import identify as command
+    """The default value of every option of ``sensorless identify``: the fields of
+    :class:`sensorless.run.RunConfig` (the command's options are built from them)."""
+    from ..run import RunConfig
 
-    fn = inspect.unwrap(command)
-    out = {}
-    for name, p in inspect.signature(fn).parameters.items():
-        d = p.default
-        out[name] = getattr(d, "default", d)
-    return out
+    return RunConfig().options()
 
 
 #: fits of `sensorless identify` the benchmark runs (name: extra command-line flags; "lmi" = the defaults)

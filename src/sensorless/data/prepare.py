@@ -318,7 +318,7 @@ def parse_columns(spec: "str | None") -> "dict | None":
         if not part.strip():
             continue
         if "=" not in part:
-            raise OptionError(f"--columns: '{part}' is not FIELD=SPEC (e.g. 'q=0:7;tau=14:21')")
+            raise OptionError(f"{setting('columns')}: '{part}' is not FIELD=SPEC (e.g. 'q=0:7;tau=14:21')")
         key, val = (s.strip() for s in part.split("=", 1))
         out[key] = val.split("|") if "|" in val else val
     return out

@@ -18,7 +18,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import OptionError
+from ..errors import OptionError, setting
 
 __all__ = ["WEIGHT_MODES", "check_weights", "read_weights_file", "weights_option"]
 
@@ -81,36 +81,42 @@ def read_weights_file(path: str | Path, rows: Sequence[str]) -> np.ndarray:
     rows = list(rows)
     from ..data.limits import read_small_text
 
-    text = read_small_text(path, "--weights file")  # a FIFO or device is refused, not waited on
+    text = read_small_text(path, "weights file")  # a FIFO or device is refused, not waited on
     if path.suffix.lower() == ".json" or text.lstrip().startswith("{"):
         try:
             values = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise OptionError(f"--weights {path}: not valid JSON ({exc})") from None
+            raise OptionError(f"{_src(path)}: not valid JSON ({exc})") from None
         if not isinstance(values, dict):
-            raise OptionError(f"--weights {path}: expected a JSON object {{joint: σ}}, got {type(values).__name__}")
-        return _from_mapping(values, rows, f"--weights {path}")
+            raise OptionError(f"{_src(path)}: expected a JSON object {{joint: σ}}, got {type(values).__name__}")
+        return _from_mapping(values, rows, f"{_src(path)}")
     table = [[c.strip() for c in line] for line in csv.reader(text.splitlines()) if any(c.strip() for c in line)]
     if len(table) == 2 and len(table[0]) > 2 and all(c in rows for c in table[0]):  # header of joints, row of σ
         if len(table[1]) != len(table[0]):
-            raise OptionError(f"--weights {path}: {len(table[0])} joint names but {len(table[1])} values")
-        return _from_mapping(dict(zip(table[0], table[1])), rows, f"--weights {path}")
+            raise OptionError(f"{_src(path)}: {len(table[0])} joint names but {len(table[1])} values")
+        return _from_mapping(dict(zip(table[0], table[1])), rows, f"{_src(path)}")
     if table and table[0] and table[0][0] not in rows:  # header line such as "joint,sigma"
         table = table[1:]
     if not table or any(len(line) != 2 for line in table):
-        raise OptionError(f"--weights {path}: expected CSV rows 'joint,σ' (one per joint) or a JSON object")
+        raise OptionError(f"{_src(path)}: expected CSV rows 'joint,σ' (one per joint) or a JSON object")
     values: dict[str, str] = {}
     for j, v in table:
         if j in values:
-            raise OptionError(f"--weights {path}: joint {j} listed twice")
+            raise OptionError(f"{_src(path)}: joint {j} listed twice")
         values[j] = v
-    return _from_mapping(values, rows, f"--weights {path}")
+    return _from_mapping(values, rows, f"{_src(path)}")
+
+
+def _src(path) -> str:
+    return setting("solver.weights", str(path))
 
 
 def weights_option(value: str, rows: Sequence[str]) -> str | np.ndarray | None:
-    """The CLI's ``--weights auto|none|FILE`` as the ``weights`` argument of ``identify``."""
+    """A run's ``solver.weights`` (``auto|none|FILE``, :mod:`sensorless.run.config`) as the ``weights``
+    argument of ``identify``."""
     if value in WEIGHT_MODES:
         return check_weights(value, rows)
     if not Path(value).exists():
-        raise OptionError(f"--weights must be auto, none or a JSON/CSV file of per-joint σ; no file '{value}'")
+        raise OptionError(f"{setting('solver.weights')} must be auto, none or a JSON/CSV file of per-joint σ; no file "
+                          f"'{value}'")
     return read_weights_file(value, rows)

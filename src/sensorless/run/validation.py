@@ -22,7 +22,7 @@ def check_plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prio
     if problems:
         result.diagnostics["implausible_accepted"] = problems
         for p in problems:
-            warnings.warn(f"implausible (kept: {setting('solver.accept_implausible', True)}): {p}", stacklevel=2)
+            warnings.warn(f"implausible (kept: {setting('solver.accept_implausible')}): {p}", stacklevel=2)
 
 
 def ols_baseline(fit, row_sigma):
