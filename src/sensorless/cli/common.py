@@ -217,11 +217,11 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
     from ..run.model import load_run_robot
 
     source = _ROBOT_SOURCE.get()
-    return load_run_robot(robot, lock or (), floating, passive or (), frames=_ADDED_FRAMES.get(),
+    return load_run_robot(robot, lock or (), floating, passive or (), frames=ADDED_FRAMES.get(),
                           trust_xacro=source.get("trust_xacro", False), package_paths=source.get("package_paths", ()))
 
 
-_ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
+ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
 _ROBOT_SOURCE: "contextvars.ContextVar[dict]" = contextvars.ContextVar("robot_source", default={})
 
 

@@ -94,8 +94,8 @@ def config_option():
 
 def check_config() -> None:
     """Raise the problem :func:`_load_config` found in ``--config`` (OptionError, one line)."""
-    from .common import _current_context
+    from typer.main import get_current_context
 
-    ctx = _current_context()
+    ctx = get_current_context(silent=True)
     if ctx is not None and ctx.meta.get(_CONFIG_ERROR):
         raise OptionError(ctx.meta[_CONFIG_ERROR])
