@@ -21,6 +21,7 @@ _EXPORTS = {
     **dict.fromkeys(["check_physical_consistency", "is_physically_consistent"], ".parameters"),
     **dict.fromkeys(["ModelStructure", "NormalEquations", "compress"], ".regressor"),
     **dict.fromkeys(["Robot", "load_robot"], ".robot"),
+    **dict.fromkeys(["RunConfig", "identify_run"], ".run"),
 }
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
 
@@ -33,6 +34,7 @@ if TYPE_CHECKING:  # static analysers see the eager imports
     from .parameters import check_physical_consistency, is_physically_consistent
     from .regressor import ModelStructure, NormalEquations, compress
     from .robot import Robot, load_robot
+    from .run import RunConfig, identify_run
 
 __version__ = "0.1.0"
 
@@ -44,6 +46,7 @@ __all__ = [
     "NormalEquations",
     "PhysicalModel",
     "Robot",
+    "RunConfig",
     "SensorlessError",
     "TorqueModel",
     "Trajectory",
@@ -51,6 +54,7 @@ __all__ = [
     "check_physical_consistency",
     "compress",
     "identify",
+    "identify_run",
     "is_physically_consistent",
     "load_robot",
     "random_fourier",
