@@ -69,8 +69,8 @@ def test_python_run_gives_the_command_numbers_bitwise(logs, tmp_path):
     assert r.exit_code == 0, r.output
     cli = json.loads((tmp_path / "cli" / "result.json").read_text())
 
-    run = identify_run(RunConfig.from_options(robot="ur5", data=[train], validate=[test]))
-    run.save(tmp_path / "py")
+    run = identify_run(RunConfig.from_options(robot="ur5", data=[train], validate=[test], out=tmp_path / "py"))
+    assert run.save() == tmp_path / "py"  # execution.out, written atomically
     py = json.loads((tmp_path / "py" / "result.json").read_text())
     assert py["parameters"] == cli["parameters"] and py["validation"] == cli["validation"]
     assert py["settings"]["method"] == "lmi" and py["diagnostics"]["gamma"] == cli["diagnostics"]["gamma"]

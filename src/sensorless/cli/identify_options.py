@@ -44,21 +44,23 @@ def _annotation(f: dataclasses.Field):
     return _TYPES[str(f.type)]
 
 
-def _option(f: dataclasses.Field):
-    """The typer option of config field ``f`` (module docstring)."""
+def _option(f: dataclasses.Field, group: str):
+    """The typer option of config field ``f`` (module docstring), listed under its group in ``--help``."""
     default: Any = ... if f.metadata["required"] else f.default
     if isinstance(default, tuple):
         default = list(default) if f.name == "validate" else None
     if f.name in SHARED:
         info = SHARED[f.name]()
         info.default = default
-        return info
-    return typer.Option(default, *f.metadata["flags"], help=f.metadata["help"])
+    else:
+        info = typer.Option(default, *f.metadata["flags"], help=f.metadata["help"])
+    info.rich_help_panel = group
+    return info
 
 
 def option_table() -> dict:
     """``{field name: (annotation, option factory)}`` for :func:`~.common.add_options`."""
-    return {name: (_annotation(f), lambda f=f: _option(f)) for name, (_, f) in config_fields().items()}
+    return {name: (_annotation(f), lambda f=f, g=g: _option(f, g)) for name, (g, f) in config_fields().items()}
 
 
 def identify_options(fn):
