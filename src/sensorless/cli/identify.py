@@ -45,7 +45,7 @@ def _identify(config: Optional[Path], options: dict, plotter) -> None:
             console.print(metrics_table(title, cols))
         print_bodies(run.result)
         print_floating_base(run.doc)
-        run.save(tmp, plotter=plotter)
+        run.write(tmp, plotter=plotter)
     console.print(summary_line(run.result, cfg.solver.method, run.skipped, out))
 
 

@@ -69,13 +69,19 @@ def _load_config(ctx, param, value: Optional[Path]) -> Optional[Path]:
     if value is None or ctx.resilient_parsing:
         return value
     from ..errors import SensorlessError
-    from ..run.toml import read_run_toml
+    from ..run.config import config_fields
+    from ..run.toml import consent_refused, read_run_toml
 
     try:
-        table = read_run_toml(value)
+        table = read_run_toml(value, keep_consent=True)
     except SensorlessError as exc:
         ctx.meta[_CONFIG_ERROR] = f"--config {exc}"
         return value
+    fields = config_fields()
+    consent = [k for k in table if k in fields and fields[k][1].metadata["cli_only"]]
+    if consent:  # refused inside the command, the file's other keys applied (no usage error first)
+        ctx.meta[_CONFIG_ERROR] = f"--config {consent_refused(value, consent)}"
+        table = {k: v for k, v in table.items() if k not in consent}
     names = {p.name for p in ctx.command.params if p.name != "config"}
     unknown = sorted(k for k in table if k not in names)
     if unknown:

@@ -65,29 +65,31 @@ class Run:
     figures: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
 
-    def save(self, directory: str | Path | None = None, *, plotter=None) -> Path:
-        """Write the model folder into ``directory`` (default ``execution.out``; replaced atomically when
-        ``directory`` is not given: :func:`sensorless.io.atomic_output_dir`): result.json, model.urdf,
-        joint_terms.json, the figures and report.html. ``plotter``: an object whose ``submit(jobs)``
-        returns True when it draws them and ``wait()`` True when it did; else they are drawn here."""
-        if directory is not None:
-            self._write(Path(directory), plotter)
-            return Path(directory)
+    def save(self, out: str | Path | None = None, *, force: bool | None = None, plotter=None) -> Path:
+        """Write the model folder ``out`` (default ``execution.out``) atomically
+        (:func:`sensorless.io.atomic_output_dir`; an existing one only with ``force``, default
+        ``execution.force``; never over an input): :meth:`write` into a hidden folder, then renamed."""
         from ..io import atomic_output_dir
 
-        out = self.config.execution.out
+        out = self.config.execution.out if out is None else out
         if out is None:
             from ..errors import OptionError, setting
 
             raise OptionError(f"{setting('execution.out')}: no output folder given")
-        with atomic_output_dir(Path(out), force=self.config.execution.force, inputs=run_inputs(self.config)) as tmp:
-            self._write(tmp, plotter)
+        force = self.config.execution.force if force is None else force
+        with atomic_output_dir(Path(out), force, inputs=run_inputs(self.config)) as tmp:
+            self.write(tmp, plotter=plotter)
         return Path(out)
 
-    def _write(self, directory: Path, plotter) -> None:
+    def write(self, directory: str | Path, *, plotter=None) -> None:
+        """Write result.json, model.urdf, joint_terms.json (through
+        :func:`~sensorless.identification.artifact.save_model_folder`), the figures and report.html into the
+        existing folder ``directory``. ``plotter``: an object whose ``submit(jobs)`` returns True when it
+        draws the figures and ``wait()`` True when it did; else they are drawn here."""
         from ..identification.artifact import save_model_folder
         from ..report.html import write_html_report
 
+        directory = Path(directory)
         jobs = [(kind, arrays, directory / Path(path).name) for kind, arrays, path in self.figures]
         drawn_elsewhere = bool(jobs) and plotter is not None and plotter.submit(jobs)
         save_model_folder(directory, self.result, self.doc, urdf_values=self.config.solver.urdf_values)

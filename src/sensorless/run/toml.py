@@ -8,15 +8,22 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from ..errors import OptionError
+from ..errors import OptionError, setting
 from .config import GROUPS, RunConfig, config_fields
 
-__all__ = ["read_run_toml", "run_config_from_toml"]
+__all__ = ["read_run_toml", "run_config_from_toml", "consent_refused"]
 
 
-def read_run_toml(path: str | Path) -> dict:
+def consent_refused(path, keys) -> OptionError:
+    """The error for consent fields (``trust_xacro``) found in the file ``path``."""
+    return OptionError(f"{path}: {', '.join(setting('model.' + k) for k in keys)} (consent to run the robot file's "
+                       "code) is taken from the command line only, or a RunConfig made in Python; never from a file")
+
+
+def read_run_toml(path: str | Path, *, keep_consent: bool = False) -> dict:
     """``{field name: value}`` of the TOML file ``path`` (module docstring; OptionError naming the file
-    and the key). A string where a field takes several values is one value (``trim = "2:-3"``)."""
+    and the key). A string where a field takes several values is one value (``trim = "2:-3"``). A consent
+    field is refused (:func:`consent_refused`) unless ``keep_consent`` (the caller refuses it)."""
     from ..data.limits import read_small_text
 
     src = str(path)
@@ -44,9 +51,8 @@ def read_run_toml(path: str | Path) -> dict:
         raise OptionError(f"{src}: unknown key(s) {', '.join(sorted(unknown))}; keys are the run's options "
                           f"(those of `sensorless identify`), e.g. method, data, out, savgol_window")
     refused = [k for k in flat if fields[k][1].metadata["cli_only"]]
-    if refused:
-        raise OptionError(f"{src}: {', '.join(refused)} is taken from the command line only (--trust-xacro) or "
-                          "a RunConfig written in Python, never from a file")
+    if refused and not keep_consent:
+        raise consent_refused(path, refused)
     for k, v in flat.items():
         if isinstance(v, str) and isinstance(fields[k][1].default, tuple):
             flat[k] = [v]
