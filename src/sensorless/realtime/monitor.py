@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DataError, OptionError
+from ..errors import DataError, OptionError, setting
 
 __all__ = ["StreamMonitor", "StreamThresholds"]
 
@@ -88,7 +88,7 @@ class StreamThresholds:
         p = Path(path)
         p = p / "monitor.json" if p.is_dir() else p
         if not p.is_file():
-            raise OptionError(f"--thresholds {path}: no monitor.json there; run `sensorless monitor` on a contact-free "
+            raise OptionError(f"{setting('thresholds', str(path))}: no monitor.json there; run `sensorless monitor` on a contact-free "
                               "log first (its --out folder holds the thresholds)")
         try:
             doc = json.loads(p.read_text())
@@ -147,8 +147,8 @@ class StreamMonitor:
         streamable(dyn)
         names, rows, _ = monitored_rows(dyn)
         if tuple(names) != th.names:
-            raise OptionError(f"--thresholds {th.source} monitors rows {list(th.names)}, the model {names}: run "
-                              "`sensorless monitor` with this --model")
+            raise OptionError(f"{setting('thresholds', str(th.source))} monitors rows {list(th.names)}, the model {names}: run "
+                              f"`sensorless monitor` with this {setting('model')}")
         self.dyn, self.th, self.rows = dyn, th, np.asarray(rows, int)
         joints = tuple(dyn.names) if dyn.transmission else tuple(dyn.structure.robot.joint_names)
         self.layout = RecordLayout(joints, tuple(dyn.actuated_names), tuple(names), ("fx", "fy", "fz") if frame else ())
@@ -163,7 +163,7 @@ class StreamMonitor:
 
             (dyn.structure.tree if dyn.transmission else dyn.structure.robot).frame_id(frame)
             if reference not in REFERENCES:
-                raise OptionError(f"--reference {reference}: choose from {sorted(REFERENCES)}")
+                raise OptionError(f"{setting('reference', str(reference))}: choose from {sorted(REFERENCES)}")
             self._force_setup()
         self._thr_rest, self._thr_move = th.k * th.sigma_rest, th.k * th.sigma_move
         self.out = np.zeros(self.layout.n_out)

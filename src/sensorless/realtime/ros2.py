@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DataError, OptionError
+from ..errors import DataError, OptionError, setting
 
 __all__ = ["joint_state_sample", "stamp_seconds", "stamp_gap", "run_ros2"]
 
@@ -62,7 +62,7 @@ def run_ros2(monitor, topic: str, prefix: str, skip_bad: bool = False):  # pragm
         from sensor_msgs.msg import JointState
         from std_msgs.msg import Bool, Float64MultiArray, MultiArrayDimension
     except ImportError as e:
-        raise OptionError(f"--input ros2:{topic} needs a ROS 2 installation with rclpy (source /opt/ros/DISTRO/setup.bash "
+        raise OptionError(f"{setting('input', f'ros2:{topic}')} needs a ROS 2 installation with rclpy (source /opt/ros/DISTRO/setup.bash "
                           f"first); {e}") from None
     import time
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import DataError, OptionError, TimestampError
+from ..errors import DataError, OptionError, TimestampError, setting
 
 __all__ = ["Endpoint", "LatencyHistogram", "StreamStats", "parse_endpoint", "run_stream"]
 
@@ -177,7 +177,7 @@ def _records(src: Endpoint, fmt: str, size: int, sig: _Signals):
         try:
             sock.bind((src.host, src.port))
         except OSError as e:
-            raise OptionError(f"--input udp://{src.host}:{src.port}: cannot listen there ({e.strerror})") from None
+            raise OptionError(f"{setting('input', f'udp://{src.host}:{src.port}')}: cannot listen there ({e.strerror})") from None
         rcv = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
         sys.stderr.write(f"stream: listening on udp://{src.host}:{sock.getsockname()[1]} (kernel receive buffer "
                          f"{rcv / 2**20:.1f} MiB)\n")

@@ -17,7 +17,7 @@ __all__ = ["parse_add_frame", "load_run_robot", "model_structure", "lmi_settings
 def parse_add_frame(spec: str) -> tuple:
     """'NAME:PARENT:x,y,z[:r,p,y]' → (name, parent, xyz, rpy); SensorlessError naming the spec."""
     parts = str(spec).split(":")
-    bad = f"{setting('model.add_frame', spec)}: expected NAME:PARENT:x,y,z or NAME:PARENT:x,y,z:roll,pitch,yaw"
+    bad = f"{setting('model.add_frame')} '{spec}': expected NAME:PARENT:x,y,z or NAME:PARENT:x,y,z:roll,pitch,yaw"
     if len(parts) not in (3, 4) or not parts[0].strip() or not parts[1].strip():
         raise SensorlessError(bad)
     try:
