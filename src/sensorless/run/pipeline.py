@@ -151,7 +151,6 @@ def _identify(config: RunConfig, bars, say) -> Run:
     from ..estimators import CADModel
     from ..identification.weights import weights_option
     from ..regressor.distributed import expand_paths
-    from ..robot import load_robot
     from .figures import figure_jobs
     from .validation import check_plausible, floating_base_report, held_out_scores, ols_baseline
 
@@ -182,8 +181,8 @@ def _identify(config: RunConfig, bars, say) -> Run:
                                 wrench_offset=m.wrench_offset, offset_axes=m.offset_axes,
                                 train=backend.contact_logs(data, train), say=say)
     lmi_kw = lmi_settings(r, structure, sv.method, sv.prior, sv.regularization, sv.gamma, sv.ellipsoids,
-                          sv.contain_prior, load_prior=lambda p, **kw: load_robot(
-                              p, trust_xacro=m.trust_xacro, package_paths=tuple(m.package_path), **kw))
+                          sv.contain_prior, load_prior=lambda p, floating_base: load_run_robot(
+                              p, floating_base=floating_base, trust_xacro=m.trust_xacro, package_paths=m.package_path))
     if lmi_kw.get("gamma") == "auto":
         lmi_kw["gamma_search"] = str(sv.gamma_search)
     row_sigma = weights_option(sv.weights, structure.row_names)
