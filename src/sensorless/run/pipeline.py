@@ -146,6 +146,7 @@ def _robot(config: RunConfig):
 
 
 def _identify(config: RunConfig, bars, say) -> Run:
+    from ..data.trims import LogTrims
     from ..data.wrench_frames import wrench_frame_map
     from ..errors import setting
     from ..estimators import CADModel
@@ -161,8 +162,6 @@ def _identify(config: RunConfig, bars, say) -> Run:
     wrench_frames = wrench_frame_map(list(lg.wrench_frame) or None, contact_frames, r)
     data = [Path(p) for p in expand_paths([Path(p) for p in lg.data])]
     validate = [Path(p) for p in lg.validate]
-    from ..data.trims import LogTrims
-
     trims = LogTrims.parse(list(lg.trim) or None, setting("logs.trim"))
     trims.check([*data, *validate], setting("logs.trim"))
     prep = dict(columns=lg.columns, rate=lg.rate, lowpass=lg.lowpass, savgol_window=lg.savgol_window,
