@@ -31,7 +31,7 @@ def identify(config: Optional[Path] = config_option(), *, options: dict) -> None
 
 def _identify(config: Optional[Path], options: dict, plotter) -> None:
     from ..report import metrics_table
-    from ..run.pipeline import identify_run, run_inputs
+    from ..run.pipeline import identify_run, jobs_in, run_inputs
     from .identify_outputs import print_bodies, print_floating_base, summary_line
 
     check_config()
@@ -40,12 +40,14 @@ def _identify(config: Optional[Path], options: dict, plotter) -> None:
     # the figure process is stopped first on an error: nothing it writes outlives the hidden folder's removal
     with atomic_outdir(out, cfg.execution.force, inputs=run_inputs(cfg)) as tmp, progress_bars() as bars, \
             (plotter if plotter is not None else nullcontext()):
-        run = identify_run(cfg, bars=bars, say=lambda line: console.print(line, highlight=False, soft_wrap=True))
+        sent = []  # the figures go to the plot process as soon as the run has them
+        run = identify_run(cfg, bars=bars, say=lambda line: console.print(line, highlight=False, soft_wrap=True),
+                           figures=lambda jobs: sent.append(plotter is not None and plotter.submit(jobs_in(tmp, jobs))))
         for title, cols in run.tables:
             console.print(metrics_table(title, cols))
         print_bodies(run.result)
         print_floating_base(run.doc)
-        run.write(tmp, plotter=plotter)
+        run.write(tmp, plotter=plotter, submitted=any(sent))
     console.print(summary_line(run.result, cfg.solver.method, run.skipped, out))
 
 

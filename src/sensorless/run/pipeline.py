@@ -20,7 +20,7 @@ from .config import RunConfig
 from .logs import imu_frame_logs, load_logs, preprocessing_settings
 from .model import is_plain, lmi_settings, load_run_robot, model_structure, parse_add_frame
 
-__all__ = ["Run", "identify_run", "reading_options", "run_inputs"]
+__all__ = ["Run", "identify_run", "reading_options", "run_inputs", "jobs_in"]
 
 
 class _Step:
@@ -81,17 +81,18 @@ class Run:
             self.write(tmp, plotter=plotter)
         return Path(out)
 
-    def write(self, directory: str | Path, *, plotter=None) -> None:
+    def write(self, directory: str | Path, *, plotter=None, submitted: bool = False) -> None:
         """Write result.json, model.urdf, joint_terms.json (through
         :func:`~sensorless.identification.artifact.save_model_folder`), the figures and report.html into the
         existing folder ``directory``. ``plotter``: an object whose ``submit(jobs)`` returns True when it
-        draws the figures and ``wait()`` True when it did; else they are drawn here."""
+        draws the figures and ``wait()`` True when it did (``submitted``: it has them already, from the
+        ``figures`` hook of :func:`identify_run`); else they are drawn here."""
         from ..identification.artifact import save_model_folder
         from ..report.html import write_html_report
 
         directory = Path(directory)
-        jobs = [(kind, arrays, directory / Path(path).name) for kind, arrays, path in self.figures]
-        drawn_elsewhere = bool(jobs) and plotter is not None and plotter.submit(jobs)
+        jobs = jobs_in(directory, self.figures)
+        drawn_elsewhere = bool(jobs) and plotter is not None and (submitted or plotter.submit(jobs))
         save_model_folder(directory, self.result, self.doc, urdf_values=self.config.solver.urdf_values)
         if jobs and not (drawn_elsewhere and plotter.wait()):  # the plot process failed: draw here
             from ..report.plot_process import draw_job
@@ -99,6 +100,11 @@ class Run:
             for job in jobs:
                 draw_job(*job)
         write_html_report(directory, self.doc)
+
+
+def jobs_in(directory: str | Path, jobs: list) -> list:
+    """The figure ``jobs`` of a run drawn into ``directory``."""
+    return [(kind, arrays, Path(directory) / Path(path).name) for kind, arrays, path in jobs]
 
 
 def run_inputs(config: RunConfig) -> list[Path]:
@@ -127,13 +133,16 @@ def reading_options(config: RunConfig):
                         angle_unit=None if lg.angle_unit is None else str(lg.angle_unit))
 
 
-def identify_run(config: RunConfig, *, bars=None, say: Callable[[str], None] | None = None) -> Run:
+def identify_run(config: RunConfig, *, bars=None, say: Callable[[str], None] | None = None,
+                 figures: Callable[[list], None] | None = None) -> Run:
     """Run the identification ``config`` describes (module docstring); nothing is written until
     :meth:`Run.save`. ``bars``: progress bars (``step(name, total)`` with ``advance``/``update``,
     ``callback(name)``, ``close()``; none drawn by default); ``say``: a callable for the lines the run
-    reports (contact rows chosen, Dask cluster); warnings are :mod:`warnings`."""
+    reports (contact rows chosen, Dask cluster); warnings are :mod:`warnings`. ``figures(jobs)``: called
+    with the figure jobs as soon as they are computed (a process may start drawing them while the run
+    checks and scores the model)."""
     with reading_options(config):
-        return _identify(config, bars if bars is not None else _NoBars(), say)
+        return _identify(config, bars if bars is not None else _NoBars(), say, figures)
 
 
 def _robot(config: RunConfig):
@@ -145,7 +154,7 @@ def _robot(config: RunConfig):
                           trust_xacro=m.trust_xacro, package_paths=m.package_path)
 
 
-def _identify(config: RunConfig, bars, say) -> Run:
+def _identify(config: RunConfig, bars, say, figures) -> Run:
     from ..data.trims import LogTrims
     from ..data.wrench_frames import wrench_frame_map
     from ..errors import setting
@@ -217,6 +226,8 @@ def _identify(config: RunConfig, bars, say) -> Run:
                            # on a cluster, the client may not see the training files
                            f"{r.name}: {'held-out' if val else 'training'} torques" if shown is not None else None,
                            f"{r.name}: joint friction (training logs)" if friction_plot else None)
+    if jobs and figures is not None:
+        figures(jobs)
     check_plausible(result, lmi_kw, sv.accept_implausible, sv.urdf_values)
     doc = result.to_dict()
     doc["validation"], tables = held_out_scores(validate, val, str(sv.method), model, cad, baseline)
