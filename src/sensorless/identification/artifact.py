@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, SensorlessError
+from ..errors import ParameterError, SensorlessError, setting
 from ..io import check_input_file, read_json
 from .artifact_schema import (Checker, check_preprocessing_settings, check_robot_settings, check_structure_settings,
                               check_verdicts, summary)
@@ -172,7 +172,7 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
     doc = read_result(path)
     if doc.get("kind") == FRICTION_KIND:
         raise ParameterError(f"{path}: a friction-only model (from `sensorless friction`) has no body model; "
-                             "use it with `sensorless predict --model MODEL --data LOG` without --robot")
+                             f"use it with `sensorless predict` without {setting('robot')}")
     c = Checker(path, path.parent)
     settings = c.mapping("settings", doc.get("settings"))
     values = c.mapping("parameters", doc.get("parameters"))
@@ -308,7 +308,7 @@ def structure_from_settings(settings: dict, doc: dict, robot):
 
         if not robot.coupled:
             raise ParameterError(f"a model of a coupled-joint robot ('{file_robot}'); "
-                                 f"load it with that robot (e.g. --robot dvrk_psm), not '{robot.name}'")
+                                 f"load it with that robot (e.g. {setting('robot', 'dvrk_psm')}), not '{robot.name}'")
         lo, hi = robot.position_limits()
         structure = TransmissionStructure.from_settings(robot.tree, settings, limits=(lo, hi),
                                                         velocity_limits=robot.velocity_limits(), name=robot.name)
@@ -458,7 +458,7 @@ def load_friction_model(model: str | Path) -> FrictionArtifact:
     c = Checker(path, path.parent)
     if doc.get("kind") != FRICTION_KIND:
         raise ParameterError(f"{path}: not a friction-only model (no \"kind\": \"friction\"); a model from "
-                             "`sensorless identify` needs --robot")
+                             f"`sensorless identify` needs {setting('robot')}")
     joints = c.strings("joints", doc.get("joints"))
     if not joints or len(set(joints)) != len(joints):
         raise c.fail("joints", "expected a non-empty list of distinct joint names")
