@@ -98,6 +98,6 @@ def to_seconds(t: np.ndarray, time_unit: str | None, rate, column: str, src: str
             return t, "s"
         return t * TIME_SCALE[unit], f"s (converted from {unit}: epoch stamps of that magnitude)"
     if time_unit == "tick":
-        hz = check_rate(rate, src, "the tick rate (--rate)")
+        hz = check_rate(rate, src, f"the tick rate ({setting('rate')})")
         return t / hz, f"s (converted from ticks at {hz:g} Hz)"
     return t * TIME_SCALE[time_unit], "s" if time_unit == "s" else f"s (converted from {time_unit})"

@@ -89,7 +89,7 @@ class StreamThresholds:
         p = p / "monitor.json" if p.is_dir() else p
         if not p.is_file():
             raise OptionError(f"{setting('thresholds', str(path))}: no monitor.json there; run `sensorless monitor` on a contact-free "
-                              "log first (its --out folder holds the thresholds)")
+                              f"log first (its {setting('out')} folder holds the thresholds)")
         try:
             doc = json.loads(p.read_text())
         except (OSError, ValueError) as e:
