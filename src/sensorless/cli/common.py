@@ -22,12 +22,11 @@ from .blas import blas_threads_for_command
 from .flags import cli_words
 from .logs import log_trims, trim_option
 from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
+from .plugins import PluginGroup
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
-bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
-experiment_app = typer.Typer(no_args_is_help=True, help="Reproductions of the papers' studies (JSON + figures).")
-app.add_typer(bench_app, name="benchmark")
-app.add_typer(experiment_app, name="experiment")
+#: the root command; other packages add theirs through entry points (:mod:`.plugins`: the studies)
+app = typer.Typer(cls=PluginGroup, add_completion=False, no_args_is_help=True,
+                  help="Dynamic models for robots without torque or force sensors.")
 
 
 class MultiValueCommand(TyperCommand):
@@ -422,39 +421,6 @@ def model_options(model: str = "result.json (or its directory) from `sensorless 
     return add_options({"robot": robot, "model": (ann, lambda: typer.Option(default, help=model))}, first=True)
 
 
-def bench_out_option(name: str):
-    """``--out`` of a benchmark: ``sensorless-bench/NAME.json`` in the working directory (never a tracked
-    file; the repository's record in benchmarks/results/ is rewritten only by naming it)."""
-    return typer.Option(Path(f"sensorless-bench/{name}.json"), help="JSON file to write")
-
-
-def bench_command(name: str, results: Optional[str] = None):
-    """Decorator: the (guarded) command ``sensorless benchmark NAME``, given an ``--out`` option
-    (:func:`bench_out_option` of ``results``, default ``name``) to which the result dict the
-    command returns is written (:func:`write_result`); one definition for every benchmark."""
-
-    def deco(fn):
-        @functools.wraps(fn)
-        def run(*args, out: Path, **kwargs) -> None:
-            write_result(fn(*args, **kwargs), out)
-
-        with_out = add_options({"out": (Path, lambda: bench_out_option(results or name))})(run)
-        return bench_app.command(name)(guarded(with_out))
-
-    return deco
-
-
-def experiment_options(out: str, quick: str, seed: str):
-    """Decorator: a study's ``--out`` (default ``out``), ``--quick`` / ``--seed`` (help ``quick``,
-    ``seed``) and ``--force`` options; one definition for the ``experiment`` commands."""
-    return add_options({
-        "out": (Path, lambda: typer.Option(Path(out), help="output directory (written atomically; default in sensorless-results/)")),
-        "quick": (bool, lambda: typer.Option(False, "--quick", help=quick)),
-        "seed": (int, lambda: typer.Option(0, help=seed)),
-        "force": (bool, force_option),
-    })
-
-
 def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
     """Logs to apply a model (a ModelArtifact, or a path) to, preprocessed as its training logs were:
     each option in ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`);
@@ -468,12 +434,3 @@ def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> t
                       pose_max_gap=opts.get("pose_max_gap"), wrench_frames=opts.get("wrench_frames"),
                       angle_unit=opts.get("angle_unit"))
     return trajs, opts
-
-
-def write_result(res: dict, out: Path) -> None:
-    """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
-    from ..identification.result import write_json_atomic
-
-    output_file(out, force=True)  # benchmark results are regenerated in place; never a directory or FIFO
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")
