@@ -13,7 +13,7 @@ import pytest
 from sensorless.data import Trajectory, read_trajectory, validate_trajectory
 from sensorless.data.bad_rows import max_edge_rows, scan_rows
 from sensorless.errors import DataError, DataWarning, NonFiniteError, TimestampError
-from sensorless.simulation.log_faults import write_faulty_csv
+from sensorless_studies.simulation.log_faults import write_faulty_csv
 
 N = 1000
 

@@ -107,8 +107,8 @@ def mocap_walk(legs):
     """A humanoid walking log whose base pose comes from a 100 Hz tracker: the truth at 1 kHz (wrench_log),
     sampled with periods of 9, 10 or 11 ms (±10 % jitter), 3 dropped frames, tracker noise 0.3 mm /
     1 mrad, and the last 5 samples repeating the pose before them (the tracker lost the markers)."""
-    from sensorless.simulation import perturbed_truth
-    from sensorless.simulation.wrench_log import walking_flags, wrench_log
+    from sensorless.testing import perturbed_truth
+    from sensorless_studies.simulation.wrench_log import walking_flags, wrench_log
 
     truth = perturbed_truth(legs, rng=3)
     hi = wrench_log(truth.robot, FEET, duration=6.0, rate=1000.0, flags=walking_flags(6000, 2, 800), seed=2)

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.excitation import random_fourier
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]

@@ -11,7 +11,7 @@ from sensorless.cli import app
 from sensorless.cli import options as opts
 from sensorless.data import write_npz
 from sensorless.excitation import random_fourier
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 
@@ -90,11 +90,11 @@ def test_choices_mirror_the_library():
 def test_study_and_estimator_choices_mirror_the_library():
     from sensorless.estimation.force import COMPONENTS, REFERENCES
     from sensorless.excitation.criteria import CRITERIA
-    from sensorless.experiments.contact_id import ACCELERATIONS, TRAININGS
+    from sensorless_studies.experiments.contact_id import ACCELERATIONS, TRAININGS
     from sensorless.identification import METHODS
     from sensorless.data.align import ALIGNMENTS
     from sensorless.identification.payload import MODES
-    from sensorless.simulation.quadruped import TAU_LOGS
+    from sensorless_studies.simulation.quadruped import TAU_LOGS
 
     assert tuple(opts.Criterion) == CRITERIA and tuple(opts.PayloadMode) == MODES
     assert set(opts.ForceReference) == set(REFERENCES) and COMPONENTS == ("linear", "angular", "wrench")

@@ -13,8 +13,8 @@ from conftest import REALDATA, realdata
 from typer.testing import CliRunner
 
 from sensorless.cli import app
-from sensorless.experiments.psm_identification import paired_payload_logs, write_psm_csv
-from sensorless.simulation.psm_logs import psm_motion, psm_truth, tip_force_efforts
+from sensorless_studies.experiments.psm_identification import paired_payload_logs, write_psm_csv
+from sensorless_studies.simulation.psm_logs import psm_motion, psm_truth, tip_force_efforts
 
 COLS = ["--columns", "q=0:7;v=7:14;tau=14:21", "--rate", "200"]
 NOISE = 0.003

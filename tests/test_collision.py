@@ -13,7 +13,7 @@ from sensorless.data import write_npz
 from sensorless.errors import DataError
 from sensorless.estimation.collision import detect_contacts, quiet_mask, quiet_thresholds, score_detection
 from sensorless.robot import load_robot
-from sensorless.simulation.arm_push import pushed_arm_scenario
+from sensorless_studies.simulation.arm_push import pushed_arm_scenario
 
 
 def test_false_alarm_rate_threshold_on_white_noise():

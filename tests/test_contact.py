@@ -10,7 +10,7 @@ from sensorless.data import Trajectory
 from sensorless.errors import DataError, RobotModelError
 from sensorless.identification import identify
 from sensorless.regressor import ContactStructure, ModelStructure, compress, null_space_projector
-from sensorless.simulation import perturbed_truth
+from sensorless.testing import perturbed_truth
 
 FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 
@@ -161,8 +161,8 @@ def test_cli_identifies_a_legged_robot_from_npz_logs_with_contact_flags(solo12, 
     from sensorless.cli import app
     from sensorless.data import read_trajectory, write_npz
     from sensorless.estimators import load_parameters
-    from sensorless.experiments.contact_id import prepare_log
-    from sensorless.simulation.quadruped import make_truth, simulate
+    from sensorless_studies.experiments.contact_id import prepare_log
+    from sensorless_studies.simulation.quadruped import make_truth, simulate
 
     truth = make_truth(solo12, 0)
     paths = {}

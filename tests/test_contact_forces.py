@@ -16,8 +16,8 @@ pytest.importorskip("mujoco")
 
 @pytest.fixture(scope="module")
 def trot():
-    from sensorless.simulation.quadruped import JOINT_TERMS, NoiseSpec, make_truth, simulate
-    from sensorless.simulation.quadruped_profiles import PROFILES, quadruped_robot
+    from sensorless_studies.simulation.quadruped import JOINT_TERMS, NoiseSpec, make_truth, simulate
+    from sensorless_studies.simulation.quadruped_profiles import PROFILES, quadruped_robot
 
     nom = quadruped_robot("solo12")
     truth = make_truth(nom, 0)

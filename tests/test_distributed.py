@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 distributed = pytest.importorskip("distributed")
 
-from sensorless.simulation.fleet_logs import write_fleet_logs  # noqa: E402
+from sensorless_studies.simulation.fleet_logs import write_fleet_logs  # noqa: E402
 from sensorless.cli import app  # noqa: E402
 from sensorless.cli.common import load_logs  # noqa: E402
 from sensorless.errors import DataError, JointNameError  # noqa: E402
@@ -411,7 +411,8 @@ def test_cli_wrench_mode_with_imu_frame_on_a_cluster_equals_local(tcp_cluster, t
     base rows). Used to be refused ('--scheduler does not support ...')."""
     from sensorless.data import write_npz
     from sensorless.data.imu import gravity_in_base
-    from sensorless.simulation import perturbed_truth, wrench_log
+    from sensorless.testing import perturbed_truth
+    from sensorless_studies.simulation import wrench_log
 
     feet = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
     truth = perturbed_truth(solo12, rng=6)

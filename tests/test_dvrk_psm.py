@@ -17,8 +17,8 @@ from sensorless.robots import (
     published_parameters,
     read_psm_log,
 )
-from sensorless.experiments.psm_identification import select_smoothing
-from sensorless.simulation.psm_logs import psm_motion, psm_truth
+from sensorless_studies.experiments.psm_identification import select_smoothing
+from sensorless_studies.simulation.psm_logs import psm_motion, psm_truth
 
 WPI = REALDATA / "dvrk_psm_wpi"
 RNG = np.random.default_rng(11)

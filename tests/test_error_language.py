@@ -23,7 +23,7 @@ from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.errors import JointNameError, SensorlessError, python_only, setting, settings_in
 from sensorless.excitation import random_fourier
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 LOCK = ["--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]

@@ -16,7 +16,7 @@ from sensorless.excitation import random_fourier  # noqa: E402
 from sensorless.identification import identify  # noqa: E402
 from sensorless.learning import HybridModel, LearnedTorqueModel, MLPTorqueModel, ValidatedHybridModel  # noqa: E402
 from sensorless.regressor import ModelStructure  # noqa: E402
-from sensorless.simulation import perturbed_truth, synthetic_trajectory  # noqa: E402
+from sensorless.testing import perturbed_truth, synthetic_trajectory  # noqa: E402
 
 TINY = dict(seed=0, epochs=3, patience=2, batch_size=64)
 

@@ -20,8 +20,8 @@ from sensorless.identification.floating_base import base_wrench_metrics, com_cop
 from sensorless.regressor import ContactStructure
 from sensorless.regressor.contact import choose_contact_rows
 from sensorless.robot import load_robot
-from sensorless.simulation import perturbed_truth
-from sensorless.simulation.wrench_log import walking_flags, wrench_log
+from sensorless.testing import perturbed_truth
+from sensorless_studies.simulation.wrench_log import walking_flags, wrench_log
 
 FEET = ("left_sole_link", "right_sole_link")
 BIAS = np.array([[30.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # 30 N horizontal on the left sole

@@ -143,7 +143,7 @@ def test_estimate_force_cli_recovers_a_known_tip_force(tmp_path, panda):
     from sensorless.excitation import random_fourier
     from sensorless.identification import identify
     from sensorless.regressor import ModelStructure
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     truth = perturbed_truth(panda, rng=0)
     free = synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(100, 20.0), noise_std=0.01, rng=2)
@@ -279,7 +279,7 @@ def test_cli_refuses_a_frame_whose_force_is_never_observable(panda, tmp_path):
     from sensorless.cli import app
     from sensorless.data import write_npz
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     lock = ["--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
     truth = perturbed_truth(panda, rng=0)

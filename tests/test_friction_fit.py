@@ -17,7 +17,7 @@ from sensorless.estimation.friction_dynamics import FrictionDynamics
 from sensorless.estimation.momentum import MomentumObserver
 from sensorless.identification.friction_fit import STATE_MODES
 from sensorless.identification.friction_model import FrictionModel, friction_errors, reversal_mask
-from sensorless.simulation.lugre import LuGreJoint, lugre_friction, simulate_lugre_joint, velocity_profile
+from sensorless_studies.simulation.lugre import LuGreJoint, lugre_friction, simulate_lugre_joint, velocity_profile
 
 LUGRE = LuGreJoint()  # fc 0.3, fs 0.45 N·m, σ0 150 N·m/rad: presliding over fc/σ0 = 2 mrad
 STATIC = LuGreJoint(sigma0=None)

@@ -1,5 +1,5 @@
 """Issue 17: per-joint terms, Stribeck / noise-aware Coulomb friction, drive gains, --data a b c,
-link names. Reduced versions of the real-arm acceptance (sensorless.benchmarks.real_arm)."""
+link names. Reduced versions of the real-arm acceptance (sensorless_studies.benchmarks.real_arm)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from sensorless.identification.friction import (
 )
 from sensorless.regressor import ModelStructure
 from sensorless.regressor.terms import parse_joint_terms
-from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
+from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
 
 COLS = "q=pos_{joint};v=vel_{joint};tau=i_{joint}"
 
@@ -256,7 +256,7 @@ def test_clock_offset_between_two_runs_is_found_from_the_positions():
 def _single_joint_logs(panda):
     """One log per joint, only that joint moving (its encoder velocity noisy, the others' v ≡ 0)."""
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     truth = perturbed_truth(panda, rng=0)
     rng = np.random.default_rng(3)

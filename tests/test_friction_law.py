@@ -122,7 +122,7 @@ def test_single_joint_logs_together_give_each_joint_the_fc_of_its_own_log(tmp_pa
     """Six simulated single-joint logs of a UR10 with Stribeck friction, identified together (as the
     CLI does with six --data files): every joint's fc within 5 % of the fit of its own log alone."""
     from sensorless.data.prepare import load_log
-    from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model
+    from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model
 
     robot, truth = truth_model("ur10", 0, stribeck=True, friction_scale=4.0)
     K = drive_gains_for(robot)

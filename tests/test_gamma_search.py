@@ -15,7 +15,7 @@ from sensorless.identification.unconstrained import satisfies_constraints, uncon
 from sensorless.regressor.compress import NormalEquations, compress
 from sensorless.regressor.terms import ModelStructure
 from sensorless.excitation import random_fourier
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 def _search(values, search="bracket"):
@@ -182,7 +182,7 @@ def test_cli_gamma_search_is_recorded_and_checked(tmp_path):
 
     from typer.testing import CliRunner
 
-    from sensorless.benchmarks.peers import peer_case
+    from sensorless_studies.benchmarks.peers import peer_case
     from sensorless.cli import app
 
     t = peer_case("hard", 0).train

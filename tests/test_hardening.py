@@ -33,7 +33,7 @@ from sensorless.errors import (
 )
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]

@@ -105,7 +105,7 @@ def test_cli_time_unit_is_used_and_remembered_by_the_model(tmp_path):
 
     from sensorless.cli import app
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     ur5 = load_robot("ur5")
     tr = synthetic_trajectory(perturbed_truth(ur5, rng=1), random_fourier(ur5, rng=2).sample(100.0, 15.0),

@@ -96,7 +96,7 @@ def lmi_run(tmp_path_factory):
     from sensorless.data import write_npz
     from sensorless.excitation import random_fourier
     from sensorless.robot import load_robot
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     d = tmp_path_factory.mktemp("html")
     robot = load_robot("ur5")

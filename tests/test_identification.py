@@ -9,7 +9,7 @@ from sensorless.errors import ExcitationError, SolverError
 from sensorless.excitation import random_fourier
 from sensorless.identification import base_parameters, identify
 from sensorless.regressor import ModelStructure
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 def _log(robot, truth, seed, duration=10.0, noise=0.0, rate=100.0):

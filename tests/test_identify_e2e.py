@@ -25,7 +25,7 @@ from sensorless.excitation import random_fourier
 from sensorless.identification import identify
 from sensorless.identification.friction import friction_residual, identify_friction
 from sensorless.regressor import ModelStructure
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 def _log(robot, seconds: float, rate: float = 200.0, rng: int = 1):

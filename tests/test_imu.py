@@ -9,7 +9,7 @@ import pytest
 
 from sensorless.data import base_acceleration, imu_base_acceleration, read_trajectory, write_npz
 from sensorless.errors import DataError
-from sensorless.simulation.quadruped import NoiseSpec, make_truth, simulate
+from sensorless_studies.simulation.quadruped import NoiseSpec, make_truth, simulate
 
 
 def test_specific_force_oracle_with_offset_against_pinocchio(solo12, rng):

@@ -9,8 +9,8 @@ from sensorless.estimation.momentum import MomentumDynamics
 from sensorless.regressor import ModelStructure
 from sensorless.regressor.integral import filtered_rows, filtered_target, momentum_regressors, projection_rate_error
 from sensorless.robot import load_robot
-from sensorless.simulation.arm_push import simulate_pushes
-from sensorless.simulation.synthetic import perturbed_truth
+from sensorless_studies.simulation.arm_push import simulate_pushes
+from sensorless.testing import perturbed_truth
 
 
 @pytest.fixture(scope="module")
@@ -49,8 +49,8 @@ def test_projected_filtered_regressor_and_pdot_term():
     is measured (it is the documented approximation)."""
     pytest.importorskip("mujoco")
     from sensorless.regressor.contact import ContactStructure
-    from sensorless.simulation.quadruped import JOINT_TERMS, NoiseSpec, make_truth, simulate
-    from sensorless.simulation.quadruped_profiles import PROFILES, quadruped_robot
+    from sensorless_studies.simulation.quadruped import JOINT_TERMS, NoiseSpec, make_truth, simulate
+    from sensorless_studies.simulation.quadruped_profiles import PROFILES, quadruped_robot
 
     nom = quadruped_robot("solo12")
     truth = make_truth(nom, 0)
@@ -120,8 +120,8 @@ def test_arm_recovery_from_filtered_rows(arm):
 def noisy_wobble():
     pytest.importorskip("mujoco")
     from sensorless.regressor.contact import ContactStructure
-    from sensorless.simulation.quadruped import NoiseSpec, make_truth, simulate
-    from sensorless.simulation.quadruped_profiles import PROFILES, quadruped_robot
+    from sensorless_studies.simulation.quadruped import NoiseSpec, make_truth, simulate
+    from sensorless_studies.simulation.quadruped_profiles import PROFILES, quadruped_robot
 
     nom = quadruped_robot("solo12")
     truth = make_truth(nom, 0)

@@ -80,7 +80,7 @@ def test_identification_result_json_has_no_bare_nan(tmp_path, panda):
     from sensorless.excitation import random_fourier
     from sensorless.identification import identify
     from sensorless.regressor import ModelStructure
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     truth = perturbed_truth(panda, rng=0)
     traj = synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(50, 10.0), noise_std=0.05, rng=2)

@@ -106,7 +106,7 @@ def _fext(m, contact_frames, wrenches):
 
 @pytest.fixture(scope="module")
 def leg_fixed():
-    from sensorless.simulation.leg_model import talos_right_leg
+    from sensorless_studies.simulation.leg_model import talos_right_leg
 
     return _with_frames(talos_right_leg(foot_plate=False))
 

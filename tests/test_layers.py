@@ -7,14 +7,17 @@ own layer or below. Bottom to top:
     0  errors, io                                  typed errors, atomic writes, version info
     1  robot, parameters, model_checks, export,    Pinocchio model, parameter conventions,
        urdf_patch, robot_paths, xacro_expand       URDF export, confined file references, xacro
-    2  data                                        Trajectory, readers, validation, filtering
+    2  data, testing                               Trajectory, readers, validation, filtering;
+                                                   synthetic logs with known ground truth (tests)
     3  regressor                                   terms, row maps, compression
     4  identification, robots                      solve; robots authored in code (dVRK PSM)
     5  learning, control, estimation, excitation,  users of an identified model; ``report``
-       actuator, estimators, report, realtime      (plots, tables, HTML) is used by experiments
-    6  simulation                                  MuJoCo scenes and scenario scripts
-    7  experiments, example_data                   the papers' studies; data for the documented commands
-    8  cli, benchmarks, demo                       commands, speed/scale/accuracy benchmarks, the demo
+       actuator, estimators, report, realtime      (plots, tables, HTML) is used by the studies
+    8  cli                                         commands (the studies' join through entry points)
+
+The simulations, studies, benchmarks, documentation data and demo are the separate package
+``sensorless_studies`` (``studies/``), which the library never imports (its own layers:
+``studies/tests/test_studies_layers.py``).
 """
 
 from __future__ import annotations
@@ -30,17 +33,13 @@ LAYERS = {
     "errors": 0, "io": 0, "_outdir": 0, "__version__": 0, "_lazy": 0,
     "robot": 1, "parameters": 1, "model_checks": 1, "export": 1, "urdf_patch": 1,
     "robot_paths": 1, "xacro_expand": 1, "_xacro_worker": 1,
-    "data": 2,
+    "data": 2, "testing": 2,
     "regressor": 3,
     "identification": 4, "robots": 4,
     "learning": 5, "control": 5, "estimation": 5, "excitation": 5, "actuator": 5, "estimators": 5, "report": 5,
     "realtime": 5,
-    "simulation": 6,
-    "experiments": 7, "example_data": 7,
-    "cli": 8, "benchmarks": 8, "demo": 8,
+    "cli": 8,
 }
-#: modules allowed to import ``sensorless.simulation`` / ``sensorless.experiments``
-APPLICATION = {"simulation", "experiments", "example_data", "cli", "benchmarks", "demo"}
 
 #: Known upward imports, each in a file another change owns; remove an entry when it is fixed.
 ALLOWED_UPWARD = {
@@ -102,13 +101,28 @@ def test_imports_point_down_the_layers():
     assert bad == [], "\n".join(bad)
 
 
-def test_no_library_module_imports_simulation_or_experiments():
-    bad = [
-        f"{where}: {mod} imports {target}"
-        for mod, target, where in _edges()
-        if _top(target) in ("simulation", "experiments") and _top(mod) not in APPLICATION
-    ]
+def _imported_names(path: Path) -> list[tuple[str, int]]:
+    """Every absolute module name ``path`` imports (any package), with line numbers."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out += [(a.name, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            out.append((node.module, node.lineno))
+    return out
+
+
+def test_the_library_never_imports_the_studies():
+    """src/sensorless holds no study: no import of ``sensorless_studies`` (nor a name for it in importlib
+    calls), and none of the studies' packages left in the library."""
+    bad = [f"{p.relative_to(SRC.parent)}:{line}: imports {name}" for p in sorted(SRC.rglob("*.py"))
+           for name, line in _imported_names(p) if name.split(".")[0] == "sensorless_studies"]
+    bad += [f"{p.relative_to(SRC.parent)}: names sensorless_studies" for p in sorted(SRC.rglob("*.py"))
+            if "sensorless_studies" in p.read_text(encoding="utf-8")]
     assert bad == [], "\n".join(bad)
+    left = [n for n in ("simulation", "experiments", "benchmarks", "example_data", "demo")
+            if (SRC / n).exists() or (SRC / f"{n}.py").exists()]
+    assert left == [], f"studies inside the library: {left}"
 
 
 def test_the_checker_sees_relative_and_function_level_imports(tmp_path):

@@ -24,7 +24,7 @@ from sensorless.learning import (
     sliding_window,
 )
 from sensorless.regressor import ModelStructure
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 TINY = dict(epochs=30, patience=8, batch_size=128, lr=3e-3)
 

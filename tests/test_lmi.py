@@ -43,7 +43,7 @@ from sensorless.identification.lmi import (
     solve_lmi,
     validation_score,
 )
-from sensorless.benchmarks.lmi import bench_lmi, random_state_equations
+from sensorless_studies.benchmarks.lmi import bench_lmi, random_state_equations
 from sensorless.identification.metrics import torque_metrics
 from sensorless.identification.regularizers import (
     ConstantPullback,
@@ -59,7 +59,7 @@ from sensorless.parameters import (
 )
 from sensorless.regressor import ModelStructure, NormalEquations, compress
 from sensorless.robot import load_robot
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 def _rot(rng) -> np.ndarray:

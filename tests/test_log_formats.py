@@ -24,7 +24,7 @@ TICK0 = 250_000  # the controller had been running before the log started
 @pytest.fixture(scope="module")
 def sim(ur5):
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     motion = random_fourier(ur5, rng=2).sample(RATE, 4.0)
     tr = synthetic_trajectory(perturbed_truth(ur5, rng=1), motion, noise_std=0.05, rng=3)

@@ -12,7 +12,7 @@ from sensorless.cli import app
 from sensorless.data import Trajectory, write_npz
 from sensorless.excitation import random_fourier
 from sensorless.identification.metrics import static_rows, torque_metrics
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 LOCK = ["--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
 

@@ -19,7 +19,7 @@ from sensorless.errors import RobotModelWarning
 from sensorless.excitation import random_fourier
 from sensorless.identification import auto_ellipsoids
 from sensorless.identification.ellipsoids import KINEMATIC_MARGIN, load_geometry, missing_meshes
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 # a closed tetrahedron, 10 cm
 STL = "solid s\n" + "".join(

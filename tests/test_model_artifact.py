@@ -22,7 +22,7 @@ from sensorless.data import write_npz
 from sensorless.errors import DataError, InputError, ParameterError
 from sensorless.excitation import random_fourier
 from sensorless.identification.artifact import SCHEMA_VERSION, load_model_folder, read_result
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 LOCK = ["--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
 ROBOT = ["--robot", "panda", *LOCK]

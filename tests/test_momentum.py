@@ -10,8 +10,8 @@ from sensorless.errors import DataError, RobotModelError, TimestampError
 from sensorless.estimation.momentum import MomentumDynamics, MomentumObserver
 from sensorless.regressor import ModelStructure
 from sensorless.robot import load_robot
-from sensorless.simulation.arm_push import Push, simulate_pushes
-from sensorless.simulation.synthetic import perturbed_truth
+from sensorless_studies.simulation.arm_push import Push, simulate_pushes
+from sensorless.testing import perturbed_truth
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 by hand 5 times, monitored through the CLI with the defaults (only the model, the log, the
 force frame and the output given).
 
-The simulation (:func:`sensorless.simulation.held_arm.held_arm_scenario`): a perturbed UR5 with
+The simulation (:func:`sensorless_studies.simulation.held_arm.held_arm_scenario`): a perturbed UR5 with
 per-joint static friction 1.3–1.7 × Coulomb (Karnopp stick–slip), a PD position loop of the
 nominal model, motor torques logged with noise, Unix-time stamps. After each push the joints
 stick wherever loop and friction balance, so the holding torque settles at a new level (the
@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.estimation.collision import ContactInterval, score_detection
-from sensorless.simulation.held_arm import held_arm_scenario
+from sensorless_studies.simulation.held_arm import held_arm_scenario
 
 
 @pytest.fixture(scope="module")

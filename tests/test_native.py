@@ -40,7 +40,7 @@ def test_kernel_equals_pinocchio_on_random_states(name):
 
 
 def test_compress_and_regressor_with_and_without_the_kernel_are_identical(monkeypatch):
-    from sensorless.benchmarks.speed import _fourier_log
+    from sensorless_studies.benchmarks.speed import _fourier_log
 
     robot = load_robot("ur5")
     traj = _fourier_log(robot, 1500)

@@ -221,7 +221,7 @@ def _wrong_friction(describe):
 
 
 def test_benchmark_record():
-    from sensorless.benchmarks.observer import run
+    from sensorless_studies.benchmarks.observer import run
 
     res = run(samples=400, python_samples=20, rounds=2, robots=("ur5", "dvrk_psm"))
     for name in ("ur5", "dvrk_psm"):

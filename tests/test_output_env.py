@@ -123,7 +123,7 @@ def test_check_output_file_rules(tmp_path):
 
 
 def test_demo_needs_force_to_replace(tmp_path, monkeypatch):
-    import sensorless.demo as demo
+    import sensorless_studies.demo as demo
 
     def tiny(out, seed=0, console=None):
         (Path(out) / "result.json").write_text(json.dumps({"seed": seed}))

@@ -224,7 +224,7 @@ def tiny_log(tmp_path_factory):
     from sensorless.data import write_npz
     from sensorless.excitation import random_fourier
     from sensorless.robot import load_robot
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     panda = load_robot("panda", lock_joints=["panda_finger_joint1", "panda_finger_joint2"])
     d = tmp_path_factory.mktemp("log")

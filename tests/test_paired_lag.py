@@ -14,8 +14,8 @@ from sensorless.cli import app
 from sensorless.data import Trajectory
 from sensorless.data.align import estimate_lag, pair_logs
 from sensorless.errors import DataError
-from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
-from sensorless.simulation.log_faults import write_faulty_csv
+from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
+from sensorless_studies.simulation.log_faults import write_faulty_csv
 
 COLS = "q=pos_{joint};v=vel_{joint};tau=i_{joint}"
 LAG = 1.2
@@ -46,9 +46,9 @@ def test_corrupt_shifted_pairs_gains_and_payload_with_the_cli_alone(tmp_path):
     its file starts with 9 corrupt rows and ends with a row cut short. Through the CLI alone
     (drive-gains, identify, payload; --skip-bad-rows, the defaults otherwise: pairing by time, the lag
     measured): gains within 2 %, payload mass within 3 %, the lag reported on the console and in the JSON.
-    The same seed of ``python -m sensorless.benchmarks.paired_logs``."""
-    from sensorless.benchmarks.paired_logs import one_seed
-    from sensorless.example_data.paired_runs import LAG as BENCH_LAG
+    The same seed of ``python -m sensorless_studies.benchmarks.paired_logs``."""
+    from sensorless_studies.benchmarks.paired_logs import one_seed
+    from sensorless_studies.example_data.paired_runs import LAG as BENCH_LAG
 
     r = one_seed(tmp_path, 0)
     assert np.all(np.abs(r["gains_relative_error"]) < 0.02), r["gains_relative_error"]

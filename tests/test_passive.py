@@ -142,7 +142,7 @@ def test_force_from_the_rows_of_known_generalized_force(tmp_path):
     the foot force is recovered exactly, and the rail row alone carries the vertical force."""
     from sensorless.estimation.force import CartesianForceEstimator
     from sensorless.estimators import PhysicalModel
-    from sensorless.simulation.hopping_leg import FOOT, TRUTH, leg_robot, leg_urdf
+    from sensorless_studies.simulation.hopping_leg import FOOT, TRUTH, leg_robot, leg_urdf
 
     r = leg_robot(leg_urdf(TRUTH, tmp_path / "leg.urdf"))
     rng = np.random.default_rng(0)

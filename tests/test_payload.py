@@ -19,7 +19,7 @@ from sensorless.identification.payload import (
 from sensorless.parameters import pseudo_inertia
 from sensorless.regressor import ModelStructure
 from sensorless.robot import Robot
-from sensorless.simulation import TruthModel, perturbed_truth, synthetic_trajectory
+from sensorless.testing import TruthModel, perturbed_truth, synthetic_trajectory
 
 FRAME = "panda_hand"
 PAYLOAD = pin.Inertia(1.5, np.array([0.01, -0.02, 0.08]), np.diag([0.004, 0.005, 0.003]))
@@ -95,8 +95,8 @@ def test_consistency_enforced_for_a_point_mass_payload(panda, panda_case):
 
 def test_payload_on_the_simulated_surgical_arm():
     """Known mass at the tool tip of the PSM-like arm: identify the arm in free space, then the payload."""
-    from sensorless.simulation.surgical_arm import TIP_FRAME
-    from sensorless.simulation.trocar import make_datasets, payload_log
+    from sensorless_studies.simulation.surgical_arm import TIP_FRAME
+    from sensorless_studies.simulation.trocar import make_datasets, payload_log
 
     short = dict(free_space=40.0, split=1.0, trocar_multisine=1.0, trocar_probe=1.0, trocar_test=1.0, contact=1.0)
     ds = make_datasets(3, quick=True, durations=short)
@@ -122,7 +122,7 @@ def test_bad_inputs(panda, panda_case):
 
 
 # ---- issue 11: payload on the dVRK PSM (coupled joints), paired no-load log, offsets, per-joint check ----
-from sensorless.simulation.psm_logs import psm_motion, psm_truth  # noqa: E402
+from sensorless_studies.simulation.psm_logs import psm_motion, psm_truth  # noqa: E402
 
 PSM_LINK = "pitch_end"  # the instrument (moved by q1, q2, q3)
 
@@ -179,7 +179,7 @@ def test_paired_no_load_log_cancels_model_error_and_session_offset(psm_case):
     """A wrong model (pitch_end 30 % heavier, CoM moved) and a τ2 session offset bias the plain
     estimate; the paired no-load log (same trajectory) with offsets removes both."""
     s, p, _ = psm_case
-    from sensorless.experiments.psm_identification import SESSION_OFFSET, paired_payload_logs
+    from sensorless_studies.experiments.psm_identification import SESSION_OFFSET, paired_payload_logs
 
     wrong = p.copy()
     k = list(s.robot.body_names).index("pitch_end")
@@ -219,7 +219,7 @@ def test_hac_uncertainty_accounts_for_correlated_noise(psm_case):
     """With noise correlated over 0.5 s the white-noise standard error is far too small; the
     HAC (block sandwich) and bootstrap errors are not, and cover the actual error."""
     s, p, result = psm_case
-    from sensorless.experiments.psm_identification import ar1_noise
+    from sensorless_studies.experiments.psm_identification import ar1_noise
 
     m = 0.2
     pay = pin.Inertia(m, np.array([0.0, 0.0, 0.35]), np.zeros((3, 3)))

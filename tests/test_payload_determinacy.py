@@ -10,11 +10,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from test_cli_psm import COLS, _run
-from sensorless.simulation.psm_logs import psm_motion, psm_truth
+from sensorless_studies.simulation.psm_logs import psm_motion, psm_truth
 from test_payload import _psm_payload_torques
 
 from sensorless.errors import ExcitationError
-from sensorless.experiments.psm_identification import write_psm_csv
+from sensorless_studies.experiments.psm_identification import write_psm_csv
 from sensorless.identification import identify
 from sensorless.identification.payload import identify_payload
 

@@ -154,7 +154,7 @@ def test_identify_writes_torques_with_residuals_of_every_model_and_friction_with
     import sensorless.report.plots as tp
     from sensorless.data import write_npz
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     truth = perturbed_truth(ur5, rng=0)
     for name, seed in (("train", 1), ("test", 3)):

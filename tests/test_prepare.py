@@ -15,7 +15,7 @@ from sensorless.cli.common import load_logs
 from sensorless.data import Trajectory, TrimWindow, prepare, read_trajectory, resample, timing, trim_window
 from sensorless.errors import DataError, JointNameError, ShapeMismatchError, TimestampError
 from sensorless.excitation import random_fourier
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 GAINS = np.array([10.0, 10.7, 9.6, 4.3, 4.1, 4.0])

@@ -14,7 +14,7 @@ from sensorless.identification.artifact import load_model_folder, save_model_fol
 from sensorless.identification.friction_model import reversal_mask
 from sensorless.regressor.terms import ModelStructure
 from sensorless.robot import load_robot
-from sensorless.simulation.lugre import LuGreJoint, lugre_friction, velocity_profile
+from sensorless_studies.simulation.lugre import LuGreJoint, lugre_friction, velocity_profile
 
 TWO_LINK = os.path.join(os.path.dirname(__file__), "data", "two_link.urdf")
 LUGRE = LuGreJoint(fc=1.0, fs=1.4, vs=0.02, sigma0=300.0, sigma1=1.0, sigma2=0.3)

@@ -16,7 +16,7 @@ from sensorless.data import write_npz
 from sensorless.excitation import design_excitation, random_fourier
 from sensorless.excitation.design import PLATEAU_ITERATIONS, PLATEAU_TOL
 from sensorless.regressor import ModelStructure
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 @pytest.fixture(scope="module")

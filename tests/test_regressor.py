@@ -8,7 +8,7 @@ import pytest
 
 from sensorless.identification.base import _random_states
 from sensorless.regressor import ModelStructure, NormalEquations, compress
-from sensorless.simulation import perturbed_truth
+from sensorless.testing import perturbed_truth
 
 
 def _rnea_reference(robot, truth, Q, V, A):
@@ -56,7 +56,7 @@ def test_block_compression_equals_dense_normal_equations(solo12, rng):
 def test_compression_is_chunk_independent_and_gives_residuals(panda):
     """Chunked compression = one-shot; per-row residuals from the sums equal direct ones."""
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import synthetic_trajectory
+    from sensorless.testing import synthetic_trajectory
 
     truth = perturbed_truth(panda, rng=0)
     traj = synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(100, 6.0), noise_std=0.1, rng=2)

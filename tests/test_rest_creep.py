@@ -51,7 +51,7 @@ def test_a_creeping_joint_is_not_at_rest_and_keeps_its_drift():
 def creeping_ur10(tmp_path_factory):
     """Two current-logged UR10 runs (Stribeck friction) whose wrist_1 creeps at CREEP through the idle
     segments, with an encoder-grade velocity (σ_v 2·10⁻⁴ rad/s: |v| stays within 5 σ_v while creeping)."""
-    from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model
+    from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model
 
     d = tmp_path_factory.mktemp("creep")
     robot, truth = truth_model("ur10", 0, stribeck=True, friction_scale=4.0)

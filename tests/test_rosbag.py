@@ -174,7 +174,7 @@ def test_cli_identify_reads_a_bag(tmp_path):
     from sensorless.cli import app
     from sensorless.excitation import random_fourier
     from sensorless.robot import load_robot
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     robot = load_robot("ur5")
     truth = perturbed_truth(robot, rng=0)

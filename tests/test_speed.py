@@ -20,7 +20,7 @@ import pinocchio as pin
 import pytest
 from typer.testing import CliRunner
 
-from sensorless.benchmarks.identify import FEET, _contact_log
+from sensorless_studies.benchmarks.identify import FEET, _contact_log
 from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.data.trajectory import Trajectory
@@ -30,7 +30,7 @@ from sensorless.identification.base import _random_states
 from sensorless.regressor import ContactStructure, ModelStructure, NormalEquations, compress
 from sensorless.regressor.compress import syrk_fold
 from sensorless.regressor.contact import null_space_basis, null_space_projector
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 def _rel(a, b) -> float:

@@ -15,7 +15,7 @@ from sensorless.estimation.static_band import (STATUS, StaticFriction, classify_
                                                rest_aware_thresholds, rest_intervals)
 from sensorless.regressor import ModelStructure
 from sensorless.robot import load_robot
-from sensorless.simulation.held_arm import Stiction, karnopp_step, noise_implied_force
+from sensorless_studies.simulation.held_arm import Stiction, karnopp_step, noise_implied_force
 
 
 @pytest.mark.parametrize("order", [1, 2])

@@ -21,7 +21,7 @@ from sensorless.identification.stribeck import StribeckCandidates
 from sensorless.identification.streamed import fold_stream, streamed_friction, streamed_identify
 from sensorless.regressor import ModelStructure, compress
 from sensorless.robot import load_robot
-from sensorless.simulation import perturbed_truth, streamed_fourier_log
+from sensorless.testing import perturbed_truth, streamed_fourier_log
 
 runner = CliRunner()
 N = 12_000
@@ -210,7 +210,7 @@ def test_held_out_scores_and_ols_baseline_match(logs, tmp_path):
 
 def test_long_log_benchmark_records_each_run(tmp_path):
     """The benchmark's record (not its figures: those are the benchmark's business)."""
-    from sensorless.benchmarks.long_log import bench_long_log
+    from sensorless_studies.benchmarks.long_log import bench_long_log
 
     res = bench_long_log([3000, 6000], extra_args=("--stream", "--no-plot", "--gamma", "0.001"), work=tmp_path)
     assert [r["n_samples"] for r in res["runs"]] == [3000, 6000]

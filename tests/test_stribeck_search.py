@@ -13,7 +13,7 @@ from sensorless.errors import DataError
 from sensorless.identification import identify
 from sensorless.identification.stribeck import StribeckCandidates, choose_stribeck
 from sensorless.regressor import ModelStructure, compress
-from sensorless.simulation.current_arm import truth_model
+from sensorless_studies.simulation.current_arm import truth_model
 
 TERMS = ("fv", "fc", "stribeck", "offset", "armature")
 

@@ -129,7 +129,7 @@ def test_cli_tick_options_are_recorded_and_predict_reuses_them(tmp_path, ur5):
 
     from sensorless.cli import app
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     tr = synthetic_trajectory(perturbed_truth(ur5, rng=1), random_fourier(ur5, rng=2).sample(500.0, 3.0),
                               noise_std=0.02, rng=3)

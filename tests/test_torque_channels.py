@@ -8,7 +8,7 @@ import pytest
 from sensorless.errors import DataError, UnitsError
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 @pytest.fixture(scope="module")

@@ -62,7 +62,7 @@ def test_identify_and_predict_take_per_log_windows_and_record_them(tmp_path):
     from typer.testing import CliRunner
 
     from sensorless.cli import app
-    from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model
+    from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model
 
     robot, truth = truth_model("ur5", 0)
     K = drive_gains_for(robot)
@@ -97,7 +97,7 @@ def test_a_config_file_gives_one_window_as_a_string(tmp_path):
     from typer.testing import CliRunner
 
     from sensorless.cli import app
-    from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model
+    from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model
 
     robot, truth = truth_model("ur5", 0)
     K = drive_gains_for(robot)

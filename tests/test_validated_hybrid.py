@@ -10,7 +10,7 @@ from sensorless.errors import DataWarning  # noqa: E402
 from sensorless.estimators import PhysicalModel  # noqa: E402
 from sensorless.excitation import random_fourier  # noqa: E402
 from sensorless.learning import HybridModel, ValidatedHybridModel, residual_scale  # noqa: E402
-from sensorless.simulation import perturbed_truth, synthetic_trajectory  # noqa: E402
+from sensorless.testing import perturbed_truth, synthetic_trajectory  # noqa: E402
 
 from conftest import REALDATA, realdata  # noqa: E402
 
@@ -91,7 +91,7 @@ def test_one_trajectory_warns_and_save_load_keeps_the_scale(logs, tmp_path):
 def test_psm_hybrid_is_never_worse_than_physical_on_two_results():
     """Issue 15: a residual trained on one_results made two_results up to 4× worse; validated on a
     different trajectory (cross-fitted halves of two_results) it is no worse on any coordinate."""
-    from sensorless.experiments.psm_hybrid import psm_hybrid_study
+    from sensorless_studies.experiments.psm_hybrid import psm_hybrid_study
 
     root = realdata(REALDATA / "dvrk_psm_wpi")
     rep = psm_hybrid_study(root, smoothing=0.2, epochs=40)

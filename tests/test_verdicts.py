@@ -17,7 +17,7 @@ from sensorless.identification import identify
 from sensorless.identification.verdicts import compute_verdicts, linear_split, regulariser_hessian
 from sensorless.regressor.compress import NormalEquations, compress
 from sensorless.regressor.terms import ModelStructure
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
 RATE, T = 100.0, 40.0

@@ -18,8 +18,8 @@ from sensorless.regressor import ContactStructure
 from sensorless.regressor.contact_inference import contact_summary, infer_contacts
 from sensorless.regressor.contact_kinematics import detect_contacts
 from sensorless.robot import load_robot
-from sensorless.simulation import perturbed_truth
-from sensorless.simulation.wrench_log import walking_flags, wrench_log
+from sensorless.testing import perturbed_truth
+from sensorless_studies.simulation.wrench_log import walking_flags, wrench_log
 
 FEET = ("left_sole_link", "right_sole_link")
 NOISE = 2.0  # [N, N·m] on the measured wrenches

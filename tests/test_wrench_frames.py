@@ -17,8 +17,8 @@ from sensorless.data import write_npz
 from sensorless.data.wrench_frames import express_wrenches, wrench_frame_map
 from sensorless.errors import DataError, OptionError, RobotModelError
 from sensorless.robot import add_frame, load_robot
-from sensorless.simulation import perturbed_truth
-from sensorless.simulation.wrench_log import walking_flags, wrench_log
+from sensorless.testing import perturbed_truth
+from sensorless_studies.simulation.wrench_log import walking_flags, wrench_log
 
 FEET = ("left_sole_link", "right_sole_link")
 #: an F/T sensor above the left sole, tilted and turned (name:parent:xyz:rpy, as --add-frame takes it)

@@ -1,6 +1,6 @@
 """Long fuzz run (issues 12 and 26): ≥ 10,000 malformed inputs in ten classes, outcome counts to JSON.
 
-    python benchmarks/fuzz.py [--classes npz,csv,...] [--scale 1.0] [--seed 0] [--jobs 2] [--out PATH]
+    python studies/benchmarks/fuzz.py [--classes npz,csv,...] [--scale 1.0] [--seed 0] [--jobs 2] [--out PATH]
 
 Classes (default counts at --scale 1): ``npz`` 4000, ``csv`` 2500, ``hdf5`` 1500 (logs with random
 keys, shapes, dtypes, NaN/inf/huge values, truncated or corrupted bytes), ``identify`` 1800 (small
@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fuzz_classes import NEW, module as fuzz_module  # noqa: E402
 from fuzz_classes.common import OUTCOMES, Hang  # noqa: E402
 
-TWO_LINK = (Path(__file__).resolve().parents[1] / "tests" / "data" / "two_link.urdf").read_text()
+TWO_LINK = (Path(__file__).resolve().parents[2] / "tests" / "data" / "two_link.urdf").read_text()
 COUNTS = {"npz": 4000, "csv": 2500, "hdf5": 1500, "identify": 1800, "cli": 250}
 BATCH = {"npz": 500, "csv": 500, "hdf5": 500, "identify": 150, "cli": 50}
 SPECIAL = [0.0, 1.0, np.nan, np.inf, -np.inf, 1e300, -1e300, 1e-300, 1e30, 1e10, 5e-324, 1e9 + 1]
@@ -278,7 +278,7 @@ def _setup_old(kind: str, d: Path):
     if kind == "cli":
         from sensorless.data import write_npz
         from sensorless.excitation import random_fourier
-        from sensorless.simulation import perturbed_truth, synthetic_trajectory
+        from sensorless.testing import perturbed_truth, synthetic_trajectory
 
         truth = perturbed_truth(robot, rng=0)
         write_npz(synthetic_trajectory(truth, random_fourier(robot, rng=1).sample(100, 4.0), noise_std=0.05, rng=2),

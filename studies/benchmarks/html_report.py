@@ -1,8 +1,10 @@
 """Render the demo's report.html in headless Chromium and save a PNG screenshot.
 
-    python benchmarks/html_report.py [--out benchmarks/results/report.png] [--height 2400]
+    python studies/benchmarks/html_report.py [--out sensorless-bench/report.png] [--height 2400]
 
-Runs the `make demo` pipeline (simulated Panda, LMI model; :func:`sensorless.demo.run_demo`) into a
+(the repository's record, studies/benchmarks/results/report.png, is rewritten only by naming it)
+
+Runs the `make demo` pipeline (simulated Panda, LMI model; :func:`sensorless_studies.demo.run_demo`) into a
 temporary folder, then `chromium --headless --screenshot` of its report.html: the top of the page,
 with the summary and the per-body table (prior, identified value, verdict). Needs a Chromium binary
 (Debian: apt-get install chromium); exits 2 saying so when there is none.
@@ -20,7 +22,7 @@ from pathlib import Path
 
 def main() -> int:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "report.png"))
+    ap.add_argument("--out", default="sensorless-bench/report.png", help="PNG to write (default: in the working directory)")
     ap.add_argument("--height", type=int, default=2400, help="window height in pixels (the page's top is shot)")
     args = ap.parse_args()
     browser = next((shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
@@ -29,7 +31,7 @@ def main() -> int:
         return 2
     from rich.console import Console
 
-    from sensorless.demo import run_demo
+    from sensorless_studies.demo import run_demo
 
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from sensorless.benchmarks.peers import (
+from sensorless_studies.benchmarks.peers import (
     DEFAULT_RECIPE,
     Recipe,
     cli_defaults,
@@ -111,7 +111,7 @@ def test_cli_benchmark_peers_writes_json_and_skips_absent_peers(tmp_path):
 TRUTH_DRIVER = """
 import sys
 import numpy as np
-from sensorless.benchmarks.peers import peer_case
+from sensorless_studies.benchmarks.peers import peer_case
 c = np.load(sys.argv[1])
 assert c["q"].shape == c["tau"].shape and c["box_half_extents"].shape == (len(c["body_names"]), 3)
 truth = peer_case(str(c["case"]), int(c["seed"]), train_samples=len(c["q"])).truth.robot.inertial_parameters()
@@ -162,7 +162,7 @@ def test_case_file_boxes_hold_the_recipe_truths(tmp_path, ur5):
     leave room for every recipe truth: each body's second moment about the joint frame, diag(½ tr(I) 1 − I),
     is at most m · max(lo², hi²) per axis (a body outside could not be realised in its box). The URDF's
     UR5 wrists alone need up to 60× what their meshes' box allows."""
-    from sensorless.benchmarks.peer_runs import write_case
+    from sensorless_studies.benchmarks.peer_runs import write_case
     from sensorless.identification.ellipsoids import body_points, load_geometry
 
     pts = body_points(ur5, load_geometry(ur5))

@@ -16,7 +16,7 @@ import json
 import numpy as np
 import pytest
 
-from sensorless.experiments.contact_id import ContactStudyConfig, run
+from sensorless_studies.experiments.contact_id import ContactStudyConfig, run
 
 GROUPS = ("validation", "ood_trot", "ood_jump")
 
@@ -99,7 +99,7 @@ def test_imu_base_acceleration_makes_stance_identification_realistic(tmp_path):
 
 def _need_spot():
     from sensorless.errors import RobotModelError
-    from sensorless.simulation.quadruped import spot_mjcf
+    from sensorless_studies.simulation.quadruped import spot_mjcf
 
     try:
         spot_mjcf()

@@ -62,8 +62,8 @@ def test_dvrk_psm_example_logs_are_wpi_format_and_recover_their_truth(psm_data):
 
 
 def test_trocar_arm_example_urdf_keeps_the_tool_frame_and_logs_carry_the_force(tmp_path, monkeypatch):
-    from sensorless.example_data import trocar_arm
-    from sensorless.simulation.surgical_arm import build_surgical_arm
+    from sensorless_studies.example_data import trocar_arm
+    from sensorless_studies.simulation.surgical_arm import build_surgical_arm
 
     monkeypatch.setattr(trocar_arm, "QUICK", dict.fromkeys(trocar_arm.QUICK, 1.0))  # 1 s logs: the layout only
     _example("trocar-arm", tmp_path / "t")

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from sensorless.cli import app
 from sensorless.data import imu_frame_base_acceleration, read_trajectory
 from sensorless.robot import load_robot
-from sensorless.simulation.wrench_log import accelerometer_reading, wrench_log
+from sensorless_studies.simulation.wrench_log import accelerometer_reading, wrench_log
 
 FEET = ("left_sole_link", "right_sole_link")
 

@@ -1,10 +1,10 @@
-"""Every example module under sensorless.example_data is registered, and every registered one has a writer."""
+"""Every example module under sensorless_studies.example_data is registered, and every registered one has a writer."""
 
 from __future__ import annotations
 
 import pkgutil
 
-import sensorless.example_data as ex
+import sensorless_studies.example_data as ex
 
 
 def test_every_example_module_is_registered_and_writes():

@@ -20,7 +20,7 @@ import sensorless.cli.monitor  # noqa: F401
 import sensorless.cli.predict  # noqa: F401
 from sensorless.cli import app
 from sensorless.estimation.force import damped_least_squares, frame_jacobians
-from sensorless.simulation.hopping_leg import CAD, FOOT, FOOT_RADIUS, TRUTH, leg_robot, leg_urdf, simulate_hops, write_hop_log
+from sensorless_studies.simulation.hopping_leg import CAD, FOOT, FOOT_RADIUS, TRUTH, leg_robot, leg_urdf, simulate_hops, write_hop_log
 
 SECONDS = 3.0  # per log: 4–6 hops each, flight and stance (the full figure: longer logs, same result)
 

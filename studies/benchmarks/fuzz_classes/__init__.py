@@ -1,4 +1,4 @@
-"""The fuzz classes of issue 26, run by ``benchmarks/fuzz.py`` (``--classes``).
+"""The fuzz classes of issue 26, run by ``studies/benchmarks/fuzz.py`` (``--classes``).
 
 Each module has ``setup(d, scale) -> ctx`` (once per worker process, in its private folder ``d``),
 ``case(rng, d, ctx) -> (outcome, message)`` and optionally ``teardown(ctx)``; outcomes are those of

@@ -21,7 +21,7 @@ from pathlib import Path
 
 OUTCOMES = ("typed", "ok", "generic", "garbage", "hang", "crash", "data_loss", "executed", "disclosure")
 BAD = ("generic", "garbage", "hang", "crash", "data_loss", "executed", "disclosure")
-TWO_LINK = (Path(__file__).resolve().parents[2] / "tests" / "data" / "two_link.urdf").read_text()
+TWO_LINK = (Path(__file__).resolve().parents[3] / "tests" / "data" / "two_link.urdf").read_text()
 MANIFEST = ".sensorless-output.json"
 
 
@@ -136,7 +136,7 @@ def setup_model(d: Path) -> dict:
     from sensorless.data import write_npz
     from sensorless.excitation import random_fourier
     from sensorless.robot import load_robot
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     robot_file = d / "two.urdf"
     robot_file.write_text(TWO_LINK)

@@ -30,7 +30,7 @@ import numpy as np
 
 from .common import cli, cli_outcome, one_line, setup_model, warned
 
-TESTS = Path(__file__).resolve().parents[2] / "tests"
+TESTS = Path(__file__).resolve().parents[3] / "tests"
 RATE = 1000.0  # tick rate: the 100 Hz log logs every 10th tick
 TICK0 = 1000
 

@@ -2,7 +2,7 @@
 
     PYTHON figaroh_driver.py CASE.npz OUT.npz
 
-CASE (written by sensorless.benchmarks.peer_runs): ``urdf``, ``body_names``, training ``q``, ``v``, ``a``,
+CASE (written by sensorless_studies.benchmarks.peer_runs): ``urdf``, ``body_names``, training ``q``, ``v``, ``a``,
 ``tau``. The fit is figaroh's ``select_stage: physical_fit`` estimator
 (``figaroh.identification.physical_fit.build_problem`` + ``solve_direct_effort_fit``: least squares on
 the joint-torque regressor with a pseudo-inertia LMI per link, Tikhonov weight 1e-6 towards the URDF

@@ -2,7 +2,7 @@
 
     PYTHON rigeo_driver.py CASE.npz OUT.npz
 
-CASE (written by sensorless.benchmarks.peer_runs): ``urdf``, ``body_names``, training ``q``, ``v``, ``a``,
+CASE (written by sensorless_studies.benchmarks.peer_runs): ``urdf``, ``body_names``, training ``q``, ``v``, ``a``,
 ``tau``, and per body a bounding box in its joint frame (``box_center``, ``box_half_extents``: the
 axis-aligned box of the link's collision meshes, joint origins and the URDF body's equivalent uniform
 box in any orientation). The fit is rigeo's constrained

@@ -21,7 +21,7 @@ Commands (the pairing by time and the lag are defaults; nothing tuned per seed):
 Checked: the gains within 2 %, the payload mass within 3 %, the lags reported within 20 ms of
 ``LAG``, the corrupt rows dropped (9 at the start, 1 at the end of each loaded file).
 
-    python -m sensorless_studies.benchmarks.paired_logs --seeds 5 --out benchmarks/results/paired_logs.json
+    python -m sensorless_studies.benchmarks.paired_logs --seeds 5 --out studies/benchmarks/results/paired_logs.json
     sensorless example paired-runs --out DIR                         # only the logs of seed 0
 """
 

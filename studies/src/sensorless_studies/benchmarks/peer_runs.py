@@ -4,7 +4,7 @@
   this Python (same ``sys.path``); its model is read back with :func:`~sensorless.identification.artifact.load_model_folder`.
 * a peer NAME (figaroh, rigeo, ...): ``VENV/bin/python DRIVER CASE.npz OUT.npz``, the peer's own virtual
   environment (default ``$XDG_CACHE_HOME/sensorless-peers/NAME``, else ``~/.cache/...``; ``make peers``
-  creates them) running ``DRIVER = DRIVERS/NAME_driver.py`` (``benchmarks/peer_drivers/`` of the source
+  creates them) running ``DRIVER = DRIVERS/NAME_driver.py`` (``studies/benchmarks/peer_drivers/`` of the source
   tree; not ``NAME.py``, which would shadow the peer's package), without our ``PYTHONPATH``.
 
 Driver contract: CASE holds ``urdf`` (path), ``body_names``, training ``q``, ``v``, ``a``, ``tau`` (N × n)
@@ -41,7 +41,7 @@ from sensorless.robot import Robot
 __all__ = ["KNOWN_PEERS", "default_drivers", "default_venv", "held_out_nrmse", "peer_python", "peer_skip_reason",
            "run_identify", "run_peer", "score_parameters", "write_case"]
 
-#: peers with a driver in ``benchmarks/peer_drivers`` and a ``make peers`` recipe (name: pip requirement)
+#: peers with a driver in ``studies/benchmarks/peer_drivers`` and a ``make peers`` recipe (name: pip requirement)
 KNOWN_PEERS = {"figaroh": "figaroh==1.0.2", "rigeo": "rigeo==0.2.0 pin==4.1.0"}
 
 
@@ -52,7 +52,7 @@ def default_venv(name: str) -> Path:
 
 
 def default_drivers() -> Path:
-    """``benchmarks/peer_drivers`` of the source tree this package runs from."""
+    """``studies/benchmarks/peer_drivers`` of the source tree this package runs from."""
     return Path(__file__).resolve().parents[3] / "benchmarks" / "peer_drivers"
 
 

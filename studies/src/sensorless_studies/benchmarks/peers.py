@@ -1,6 +1,6 @@
 """`sensorless benchmark peers`: the UR5 comparison with figaroh and rigeo, from generated data.
 
-Fixed recipe (``benchmarks/peers.toml``, :data:`DEFAULT_RECIPE`), per seed ``s``:
+Fixed recipe (``studies/benchmarks/peers.toml``, :data:`DEFAULT_RECIPE`), per seed ``s``:
 
 * robot: UR5 from example-robot-data (6 bodies);
 * truth: every body with mass perturbed as ``m·exp(N(0, 0.1))``, CoM ``+ N(0, 2 cm)`` per
@@ -77,7 +77,7 @@ class InertialPerturbation:
 
 @dataclass(frozen=True)
 class Recipe:
-    """The benchmark's fixed recipe (``benchmarks/peers.toml``)."""
+    """The benchmark's fixed recipe (``studies/benchmarks/peers.toml``)."""
 
     robot: str = "ur5"
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
@@ -117,7 +117,7 @@ def load_recipe(path: str | Path | None) -> Recipe:
         doc["seeds"] = tuple(int(x) for x in doc.get("seeds", DEFAULT_RECIPE.seeds))
         return Recipe(**doc, perturbation=pert, cases=cases)
     except (TypeError, KeyError, ValueError) as exc:
-        raise OptionError(f"--recipe {path}: bad recipe ({exc}); see benchmarks/peers.toml") from None
+        raise OptionError(f"--recipe {path}: bad recipe ({exc}); see studies/benchmarks/peers.toml") from None
 
 
 def perturb_inertials(

@@ -148,7 +148,7 @@ def bench_gamma_cmd(
 
 @bench_command("peers")
 def bench_peers_cmd(
-    recipe: Path = typer.Option(Path("benchmarks/peers.toml"), help="fixed recipe (TOML); the built-in copy when "
+    recipe: Path = typer.Option(Path("studies/benchmarks/peers.toml"), help="fixed recipe (TOML); the built-in copy when "
                                 "the default file is absent"),
     seeds: Optional[str] = typer.Option(None, help="comma-separated seeds (default: the recipe's)"),
     cases: Optional[str] = typer.Option(None, help="comma-separated cases (default: all, main,hard)"),
@@ -159,7 +159,7 @@ def bench_peers_cmd(
     peer_venv: Optional[List[str]] = typer.Option(None, help="NAME=PATH: the virtual environment of peer NAME "
                                                   "(default $XDG_CACHE_HOME/sensorless-peers/NAME, else ~/.cache/...); repeatable"),
     drivers: Optional[Path] = typer.Option(None, help="folder of the peers' driver scripts NAME_driver.py "
-                                           "(default: benchmarks/peer_drivers of the source tree)"),
+                                           "(default: studies/benchmarks/peer_drivers of the source tree)"),
     work: Optional[Path] = typer.Option(None, help="keep the generated logs and every fit's output here "
                                         "(default: a temporary folder, deleted)"),
     timeout: float = typer.Option(600.0, help="seconds allowed to one fit's process"),
@@ -170,7 +170,7 @@ def bench_peers_cmd(
     process start to its result file. Held-out nRMSE vs the noise-free torque, per-body consistency."""
     from ..benchmarks.peers import load_recipe, run_peers
 
-    default = recipe == Path("benchmarks/peers.toml") and not recipe.exists()
+    default = recipe == Path("studies/benchmarks/peers.toml") and not recipe.exists()
     rec = load_recipe(None if default else recipe)
     try:
         seed_list = tuple(int(s) for s in seeds.split(",")) if seeds else None
