@@ -16,8 +16,8 @@ from typing import Callable
 import numpy as np
 import pinocchio as pin
 
-from ..data.trajectory import Trajectory
-from ..robot import Robot
+from .data.trajectory import Trajectory
+from .robot import Robot
 
 __all__ = ["NoiseSpec", "TruthModel", "add_white_noise", "map_body_inertias", "perturbed_truth", "streamed_fourier_log",
            "synthetic_trajectory"]

@@ -1,6 +1,5 @@
-"""Commands: ``sensorless monitor`` (collision detection with the momentum observer) and
-``sensorless benchmark observer`` (per-sample cost of the streaming observer), ``sensorless benchmark
-held-monitor`` (a held-still arm with stiction pushed by hand, over seeds)."""
+"""Command: ``sensorless monitor`` (collision detection with the momentum observer; its benchmarks,
+``sensorless benchmark observer`` and ``held-monitor``, are in the studies package)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""Commands: ``sensorless stream`` (the collision monitor one sample at a time, stdin/UDP/ROS 2) and
-``sensorless benchmark stream`` (10⁵ samples at 1 kHz through the UDP loopback: drops, latency, CPU)."""
+"""Command: ``sensorless stream`` (the collision monitor one sample at a time, stdin/UDP/ROS 2; its benchmark,
+``sensorless benchmark stream``, is in the studies package)."""
 
 from __future__ import annotations
 
