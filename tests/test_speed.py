@@ -1,5 +1,5 @@
 """Fast paths against the straightforward ones (issue 13 items 3–4). No timing assertions here:
-timings live in ``sensorless benchmark speed`` (benchmarks/results/speed.json).
+timings live in ``sensorless benchmark speed`` (studies/benchmarks/results/speed.json).
 
 * SYRK fold == dense MᵀM; the per-row subtree fold == the fold of the assembled regressor;
   the overlapped (threaded) compression == the sequential one.
