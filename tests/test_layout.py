@@ -11,7 +11,9 @@ The scheme (flat, one name per module; the prefix plays the role of a folder):
   ``tests/test_<pkg>[_*].py`` (which imports it or names ``sensorless.<pkg>.<mod>``), so
   ``ls tests/test_<pkg>*`` and a grep find it;
 * a CLI module is tested by the files that run its command (``["payload", ...]``);
-* otherwise the module is in :data:`EXEMPT`, with the file that tests it and why.
+* otherwise the module is in :data:`EXEMPT`, with the file that tests it and why (a private back end, a
+  helper tested through the module that uses it, a figure tested with its command), or is a CLI helper every
+  command uses (:data:`CLI_SHARED`) or a CLI wrapper of the studies (:data:`STUDY_WRAPPERS`).
 
 Conversely every test file is named after a library module or subpackage, or is one of the
 project-wide tests (:data:`PROJECT_WIDE`) or a study's test (:data:`STUDIES`).
@@ -20,7 +22,6 @@ project-wide tests (:data:`PROJECT_WIDE`) or a study's test (:data:`STUDIES`).
 from __future__ import annotations
 
 import ast
-import importlib
 import re
 from functools import cache
 from pathlib import Path
@@ -35,7 +36,7 @@ EXEMPT = {
                                "loaded by `import sensorless.cli`) is the start-up test"),
     "_outdir": ("test_io.py", "private back end of sensorless.io.atomic_output_dir (manifest, lock, swap)"),
     "_xacro_worker": ("test_xacro_expand.py", "child process of sensorless.xacro_expand"),
-    "model_checks": ("test_robot.py", "the URDF/model sanity checks load_robot runs"),
+    "model_checks": ("test_hardening.py", "issue-12 file: bad URDF values are one-line RobotModelErrors"),
     "data/gains": ("test_friction_gains.py", "issue-17 file (gains maps, drive gains from a pair)"),
     "data/integral_filter": ("test_regressor_integral.py", "the filter of the acceleration-free regressor"),
     "data/outliers": ("test_hardening.py", "issue-12 regressions (gross outliers: error / drop)"),
@@ -64,7 +65,7 @@ EXEMPT = {
     "report/friction_bench_plot": ("test_cli_friction.py", "the friction command's figure"),
     "report/plot_process": ("test_cli_identify_e2e.py", "the figure process of identify"),
     "report/tables": ("test_cli_identify.py", "the console tables identify prints"),
-    "robots/names": ("test_robots_dvrk_psm.py", "the PSM's joint-name table"),
+    "robots/names": ("test_robots_dvrk_psm.py", "a constant: the names --robot accepts for the PSM"),
     "cli/applied_model": ("test_realtime_monitor.py", "the robot and model that predict/monitor/stream apply"),
     "cli/blas": ("test_speed.py", "BLAS threads per command"),
     "cli/core": ("test_speed.py", "the core command modules' import surface"),
@@ -84,18 +85,20 @@ PROJECT_WIDE = {
 STUDIES = re.compile(r"test_(.*study.*|mujoco_scene|hopping_leg|example.*|benchmark_peers|fuzz|rotations)\.py")
 
 
-def library_modules() -> list[str]:
+@cache
+def library_modules() -> tuple[str, ...]:
     out = []
     for p in sorted(SRC.rglob("*.py")):
         rel = p.relative_to(SRC).with_suffix("").as_posix()
         if rel.split("/")[0] in STUDY_PACKAGES or rel == "demo" or rel.endswith("__init__"):
             continue
         out.append(rel)
-    return out
+    return tuple(out)
 
 
-def test_files() -> list[str]:
-    return sorted(p.name for p in TESTS.glob("test_*.py"))
+@cache
+def files_in_tests() -> tuple[str, ...]:
+    return tuple(sorted(p.name for p in TESTS.glob("test_*.py")))
 
 
 def key(module: str) -> str:
@@ -106,18 +109,61 @@ def own_files(module: str) -> list[str]:
     """``test_<key>.py`` and ``test_<key>_<aspect>.py``, an aspect that is not itself another module."""
     keys = {key(m) for m in library_modules()}
     k = key(module)
-    return [f for f in test_files() if f == f"test_{k}.py" or (f.startswith(f"test_{k}_") and f[5:-3] not in keys)]
+    return [f for f in files_in_tests() if f == f"test_{k}.py" or (f.startswith(f"test_{k}_") and f[5:-3] not in keys)]
+
+
+def _top_level_names(path: Path) -> set[str]:
+    names = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names.update(t.id for t in targets if isinstance(t, ast.Name))
+    return names
+
+
+@cache
+def package_exports(package: str) -> dict[str, str]:
+    """Name -> defining submodule of a package's ``__init__`` (read, not imported): its ``from .mod import``
+    lines (``*`` included) and the lazy maps of :func:`sensorless._lazy.lazy_exports` (``{"Name": ".mod"}``,
+    ``dict.fromkeys([...], ".mod")``)."""
+    init = SRC.parent / package.replace(".", "/") / "__init__.py"
+    tree = ast.parse(init.read_text())
+    lists = {t.id: node.value for node in tree.body if isinstance(node, ast.Assign)
+             for t in node.targets if isinstance(t, ast.Name) and isinstance(node.value, (ast.List, ast.Tuple))}
+    out: dict[str, str] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
+            target = f"{package}.{node.module}"
+            for a in node.names:
+                src = SRC.parent / target.replace(".", "/")
+                if a.name == "*" and src.with_suffix(".py").exists():
+                    out.update(dict.fromkeys(_top_level_names(src.with_suffix(".py")), target))
+                else:
+                    out[a.asname or a.name] = target
+        elif isinstance(node, ast.Dict):
+            for k, v in zip(node.keys, node.values):
+                if isinstance(k, ast.Constant) and isinstance(v, ast.Constant) and str(v.value).startswith("."):
+                    out[k.value] = package + v.value
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "fromkeys"
+              and len(node.args) == 2 and isinstance(node.args[1], ast.Constant)):
+            keys = lists.get(node.args[0].id) if isinstance(node.args[0], ast.Name) else node.args[0]
+            for k in getattr(keys, "elts", []):
+                if isinstance(k, ast.Constant):
+                    out[k.value] = package + node.args[1].value
+    return out
 
 
 def _resolve(module: str, name: str) -> str:
-    if (SRC.parent / (module + "." + name).replace(".", "/")).with_suffix(".py").exists() or \
-            (SRC.parent / (module + "." + name).replace(".", "/") / "__init__.py").exists():
+    """The module that defines ``name`` of ``from module import name``: a submodule, the module
+    itself, or (from a package's exports) the submodule the package takes it from."""
+    path = SRC.parent / module.replace(".", "/")
+    if (path / f"{name}.py").exists() or (path / name / "__init__.py").exists():
         return f"{module}.{name}"
-    try:
-        owner = getattr(getattr(importlib.import_module(module), name), "__module__", None)
-    except Exception:  # an optional dependency or a name that moved: the package is what the file imports
+    if not (path / "__init__.py").exists():
         return module
-    return owner if isinstance(owner, str) and owner.startswith("sensorless.") else module
+    return package_exports(module).get(name, module)
 
 
 @cache
@@ -139,6 +185,7 @@ def commands_run(test_file: str) -> frozenset[str]:
                      and isinstance(n.elts[0], ast.Constant) and isinstance(n.elts[0].value, str))
 
 
+@cache
 def cli_commands() -> dict[str, set[str]]:
     """CLI module (``cli/<mod>``) -> the top-level commands it registers."""
     from sensorless.cli import app
@@ -168,12 +215,13 @@ def covered(module: str) -> bool:
     if any(p in modules and own_files(p) and imports(p, leaf) for p in parents):
         return True
     dotted = "sensorless." + module.replace("/", ".")
-    if pkg and "/" not in pkg:
-        family = [f for f in test_files() if f == f"test_{pkg}.py" or f.startswith(f"test_{pkg}_")]
+    if pkg:
+        prefix = "test_" + pkg.replace("/", "_")
+        family = [f for f in files_in_tests() if f == f"{prefix}.py" or f.startswith(f"{prefix}_")]
         if any(dotted in exercised(f) for f in family):
             return True
     commands = cli_commands().get(module, set())
-    return bool(commands) and any(commands & commands_run(f) for f in test_files())
+    return bool(commands) and any(commands & commands_run(f) for f in files_in_tests())
 
 
 def test_every_library_module_has_a_test_file_under_a_guessable_name():
@@ -196,8 +244,8 @@ def test_exemptions_are_needed_and_point_to_files_that_exist():
 
 def test_every_test_file_is_named_after_a_module_or_subpackage_or_is_project_wide():
     modules = library_modules()
-    prefixes = {key(m) for m in modules} | {m.split("/")[0] for m in modules if "/" in m}
-    strays = [f for f in test_files() if f not in PROJECT_WIDE and not STUDIES.fullmatch(f)
+    prefixes = {key(m) for m in modules} | {key(m.rpartition("/")[0]) for m in modules if "/" in m}
+    strays = [f for f in files_in_tests() if f not in PROJECT_WIDE and not STUDIES.fullmatch(f)
               and not any(f == f"test_{p}.py" or f.startswith(f"test_{p}_") for p in prefixes)]
     assert not strays, ("test files named after neither a library module nor a subpackage: " + ", ".join(strays)
                         + " (rename to tests/test_<subpackage>_<module>[_aspect].py)")
