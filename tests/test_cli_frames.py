@@ -10,7 +10,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from test_cli_psm import COLS, _run
-from test_payload_determinacy import COM, M, case, psm_cli  # noqa: F401  (fixtures)
+from test_identification_payload_determinacy import COM, M, case, psm_cli  # noqa: F401  (fixtures)
 
 from sensorless.errors import RobotModelError
 from sensorless.robot import add_frame, frame_table, load_robot
@@ -72,7 +72,7 @@ def test_every_frame_command_takes_add_frame():
 
 
 def test_payload_at_an_added_frame_on_the_psm(psm_cli):  # noqa: F811
-    """The payload of test_payload_determinacy sits at COM in 'rcm', whose origin is fixed (m
+    """The payload of test_identification_payload_determinacy sits at COM in 'rcm', whose origin is fixed (m
     undetermined). A frame added at the payload's location moves: m is determined there."""
     d = psm_cli
     base = ["payload", "--robot", "dvrk_psm", "--model", d / "model", *COLS, "--n-boot", "0", "--data", d / "rcm.csv"]

@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 from test_cli_psm import COLS, _run
 from sensorless.simulation.psm_logs import psm_motion, psm_truth
-from test_payload import _psm_payload_torques
+from test_identification_payload import _psm_payload_torques
 
 from sensorless.errors import ExcitationError
 from sensorless.experiments.psm_identification import write_psm_csv

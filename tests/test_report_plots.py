@@ -4,7 +4,7 @@ per row, each model's trace distinguishable, one figure per limb for a robot wit
 
 The figures are inspected as matplotlib objects (labels, artists, their data), never as pixels.
 The monitor, estimate-force and excite figures are tested next to those commands' tests
-(test_collision.py, test_force.py, test_excite_limits.py)."""
+(test_estimation_collision.py, test_estimation_force.py, test_excitation_limits.py)."""
 
 from __future__ import annotations
 
@@ -162,7 +162,7 @@ def test_identify_writes_torques_with_residuals_of_every_model_and_friction_with
         write_npz(log, tmp_path / f"{name}.npz")
     saved = _recorder(monkeypatch, tp, fp)
     # drawn in this process (not the figure process), to read the figures back; the figure process writes
-    # the same bytes (tests/test_identify_e2e.py)
+    # the same bytes (tests/test_cli_identify_e2e.py)
     monkeypatch.setattr("sensorless.cli.identify._start_plotter", lambda: None)
     r = CliRunner().invoke(app, ["identify", "--robot", "ur5", "--data", str(tmp_path / "train.npz"), "--validate",
                                  str(tmp_path / "test.npz"), "--joint-terms", "fv,fc,offset", "--method", "wls", "--out",

@@ -133,7 +133,7 @@ def test_bad_timestamps(logs, tmp_path, kind):
     t[100] = t[99] if kind == "duplicate" else t[99] - 0.5
     f = tmp_path / f"{kind}.npz"
     write_npz(tr.with_(t=t), f)
-    # duplicate stamps are merged by the default --resample auto (tests/test_prepare.py); off: a typed error
+    # duplicate stamps are merged by the default --resample auto (tests/test_data_prepare.py); off: a typed error
     off = ["--resample", "off"] if kind == "duplicate" else []
     _expect_error(["identify", *ROBOT, "--data", f, *off], tmp_path / "o", f"{kind}.npz", "100")
 
