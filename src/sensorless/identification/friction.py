@@ -60,6 +60,7 @@ import numpy as np
 from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError
+from ..regressor.joint_terms import joint_term
 from ..regressor.terms import ModelStructure, _in_robot_order
 
 __all__ = [
@@ -159,11 +160,12 @@ def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajector
 
 
 def _friction_params(structure: ModelStructure, params: np.ndarray) -> np.ndarray:
-    """``params`` with everything but the velocity-dependent friction terms and offset zeroed."""
+    """``params`` with everything but the velocity-dependent friction terms and offset zeroed (the joint
+    terms not on v̇)."""
     p = np.zeros_like(params)
     for j in structure.robot.term_joints:
         for t in structure.terms_of(j):
-            if t != "armature":
+            if not joint_term(t).acceleration:
                 k = structure.joint_term_index(j, t)
                 p[k] = params[k]
     return p
@@ -184,7 +186,7 @@ def friction_curve(structure: ModelStructure, params: np.ndarray, v: np.ndarray)
     v = np.atleast_2d(np.asarray(v, dtype=float))
     V = np.zeros((v.shape[0], structure.robot.nv))
     V[:, structure.robot.term_v_indices] = v
-    Z = np.sign(v) if "presliding" in structure.joint_terms else None  # steady sliding: s_c = sgn v
+    Z = np.sign(v) if any(joint_term(t).stateful for t in structure.joint_terms) else None  # steady sliding: sgn v
     F = structure.joint_features(V, np.zeros_like(V), Z)  # armature column 0 at zero acceleration
     nt, n = len(structure.joint_terms), len(structure.robot.term_joints)
     phi = _friction_params(structure, params)[structure.n_body_params:].reshape(n, nt) if nt else np.zeros((n, 0))
