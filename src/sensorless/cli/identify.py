@@ -10,6 +10,7 @@ from typing import List, Optional
 import typer
 
 from ..errors import ExcitationError, OptionError, SensorlessError
+from ..data.formats import formats_help
 from .channel_options import base_velocity_option, pose_max_gap_option, wrench_frame_option
 from .frames import frame_options
 from .logs import log_trims, preprocessing_settings, trim_option
@@ -67,8 +68,7 @@ from .progress import progress_bars
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .dat .npz .parquet .h5 .mat, a folder of "
-                                         "per-signal text files, ROS .bag / .mcap / ROS 2 bag folder (docs/logs.md); "
+    data: List[Path] = typer.Option(..., help=f"training log(s): {formats_help()} (docs/logs.md); "
                                          "several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
     method: Method = typer.Option(Method.lmi, help="lmi: physically consistent, regularised toward the prior (the URDF); ols/wls: unconstrained least squares; svd: minimum-norm truncated SVD"),
