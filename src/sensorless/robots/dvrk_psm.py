@@ -75,7 +75,6 @@ __all__ = [
     "PSM_BODIES_AUTHORS",
     "PSM_FRAMES",
     "PSM_LIMITS",
-    "PSM_NAMES",
     "mdh_placement",
     "psm_drives",
     "psm_robot",
@@ -171,9 +170,6 @@ def _frames() -> list[tuple[str, str, pin.SE3]]:
 PSM_FRAMES = ("rcm", "tool_tip")
 """Operational frames of the PSM tree besides one frame per joint (see :func:`psm_tree`)."""
 
-from .names import PSM_NAMES  # noqa: E402  (names the command line accepts for the PSM model)
-
-
 def psm_tree() -> tuple[Robot, np.ndarray]:
     """The Pinocchio tree (massless bodies; 12 joints) and its coupling matrix G (12 × 7).
 
@@ -255,6 +251,7 @@ def psm_structure(
     )
     default_drives = drives if isinstance(drives, str) else drive_list
     structure.robot.factory = functools.partial(_rebuild, bodies, default_drives)  # picklable (Dask workers)
+    structure.robot.excitation_box = PSM_LIMITS  # excitation design uses the logs' envelope as is
     return structure
 
 
