@@ -30,12 +30,27 @@ app.add_typer(bench_app, name="benchmark")
 app.add_typer(experiment_app, name="experiment")
 
 
+#: placeholder in an option's help for the list of log formats (:func:`sensorless.data.formats.formats_help`),
+#: filled when the help is shown (:class:`MultiValueCommand`): the CLI starts without loading the readers
+LOG_FORMATS = "<log formats>"
+
+
 class MultiValueCommand(TyperCommand):
     """A command whose repeatable options (``List[...]``) also take several values after one
     flag: ``--data a.csv b.csv c.csv`` is ``--data a.csv --data b.csv --data c.csv`` (a shell
     glob expands to exactly that). Values run until the next token starting with ``-``.
     Only for commands without positional arguments (nothing else could own a bare token).
     Usage errors (a value not among an option's choices, a missing option) are one red line too."""
+
+    def format_help(self, ctx, formatter):
+        """The help, with :data:`LOG_FORMATS` in an option's help replaced by the registered log formats."""
+        if any(LOG_FORMATS in (getattr(p, "help", None) or "") for p in self.params):
+            from ..data.formats import formats_help  # the registry (sensorless.data: loaded for the help only)
+
+            for p in self.params:
+                if LOG_FORMATS in (getattr(p, "help", None) or ""):
+                    p.help = p.help.replace(LOG_FORMATS, formats_help())
+        return super().format_help(ctx, formatter)
 
     def parse_args(self, ctx, args):
         if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)

@@ -105,9 +105,9 @@ def excite(
     terms = tuple(t for t in joint_terms.split(",") if t)
     # a coupled-joint robot (dvrk_psm) builds its own structure; a robot may declare its excitation box
     structure = r.make_structure(terms) if r.coupled else ModelStructure(r, joint_terms=terms)
-    box = r.excitation_box
-    limits = (ExcitationLimits(r.joint_names, box["lower"], box["upper"], box["velocity"], box["acceleration"])
-              if box is not None else ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration))
+    own = r.excitation_box
+    limits = (ExcitationLimits(r.joint_names, own["lower"], own["upper"], own["velocity"], own["acceleration"])
+              if own is not None else ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration))
     boxes = [_parse_box(b) for b in box]
     with atomic_outdir(out, force, inputs=path_inputs(robot)) as tmp:
         with progress_bars() as bars:

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import numpy as np
-import pinocchio as pin
+if TYPE_CHECKING:
+    import pinocchio as pin
 
 __all__ = ["ExampleRobotData", "erd_model"]
 
@@ -35,6 +36,9 @@ class ExampleRobotData:
 
     def load(self, name: str, floating_base: "bool | None" = None):
         """(model, name, source, URDF path); ``floating_base=False`` removes a catalogue free-flyer."""
+        import numpy as np
+        import pinocchio as pin
+
         model, urdf = erd_model(name)
         if floating_base is False and model.joints[1].shortname() == "JointModelFreeFlyer":
             model.lowerVelocityLimit = -np.abs(model.upperVelocityLimit)
@@ -42,7 +46,7 @@ class ExampleRobotData:
         return model, name, f"example-robot-data:{name}", urdf
 
 
-def erd_model(name: str) -> tuple[pin.Model, str | None]:
+def erd_model(name: str) -> "tuple[pin.Model, str | None]":
     """The kinematic/inertial model of an example-robot-data robot and its URDF path, loaded once.
 
     ``erd.load`` builds the visual and collision geometry too (meshes: most of its time). For the
@@ -50,6 +54,7 @@ def erd_model(name: str) -> tuple[pin.Model, str | None]:
     without geometry, with the same SRDF step (rotor parameters → armature, reference postures) and
     free-flyer limits; loaders with their own ``__init__`` (e.g. ``talos_legs``) go through ``erd.load``.
     """
+    import pinocchio as pin
     from example_robot_data.utils import RobotLoader, getModelPath, readParamsFromSrdf
 
     loader = _catalogue()[name]
