@@ -236,12 +236,12 @@ class NonNegativeFriction:
 class NonNegativeArmature:
     """Rotor inertia ``armature ≥ 0`` (the ``nonnegative`` joint terms on v̇)."""
 
+    terms: tuple[str, ...] = tuple(t for t in terms_where("nonnegative") if t in terms_where("acceleration"))
     name: str = "armature_nonnegative"
     hint: str = "drop NonNegativeArmature"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
-        idx = np.concatenate([ctx.term_indices(t) for t in terms_where("nonnegative") if t in terms_where("acceleration")]
-                             or [np.zeros(0, dtype=int)])
+        idx = np.concatenate([ctx.term_indices(t) for t in self.terms] or [np.zeros(0, dtype=int)])
         return [x[idx] >= 0] if idx.size else []
 
 

@@ -347,7 +347,7 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
     grid = None
     limits = dict(zip(structure.robot.joint_names, structure.robot.velocity_limits()))
     vlim = np.array([limits.get(j, np.inf) for j in joints])
-    law = [j for j in joints if {"fc", "stribeck"} & set(structure.terms_of(j))]
+    law = [j for j in joints if any(joint_term(t).reversal for t in structure.terms_of(j))]
     if auto_w:
         width_grid = transition_grid(speed, eps, joints, law, vlim)
     elif isinstance(width_grid, str):
