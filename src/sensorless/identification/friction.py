@@ -60,7 +60,7 @@ import numpy as np
 from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.joint_terms import joint_term
+from ..regressor.joint_terms import TermInputs, joint_term
 from ..regressor.terms import ModelStructure, _in_robot_order
 
 __all__ = [
@@ -199,16 +199,18 @@ def search_stribeck_velocity(
     """The vs in ``grid`` whose least-squares fit of r on the joint's friction columns
     ([v, T, T − (1 − exp(−(v/vs)²)) sgn v, 1] with T = tanh(v/ε), those in ``terms``) leaves the
     smallest residual; returns (vs, residual sum of squares per grid point)."""
-    from ..regressor.friction_columns import stribeck_decay
-
     v, r = np.asarray(v, dtype=float), np.asarray(r, dtype=float)
     ok = np.isfinite(v) & np.isfinite(r)
     v, r = v[ok], r[ok]
-    sgn = np.tanh(v / eps) if eps > 0 else np.sign(v)
-    fixed = [c for t, c in (("fv", v), ("fc", sgn), ("offset", np.ones_like(v))) if t in terms]
+
+    def columns(vs: float, names) -> list:  # the registry's columns of one joint (no rest gate)
+        x = TermInputs(v[:, None], np.zeros((v.size, 1)), np.array([eps]), np.zeros(1), np.array([vs]))
+        return [joint_term(t).column(x)[:, 0] for t in names]
+
+    fixed = columns(1.0, [t for t in ("fv", "fc", "offset") if t in terms])
     sse = np.full(len(grid), np.inf)
     for i, vs in enumerate(grid):
-        X = np.column_stack(fixed + [sgn - stribeck_decay(v, vs, np.sign(v))])
+        X = np.column_stack(fixed + columns(vs, ["stribeck"]))
         coef, *_ = np.linalg.lstsq(X, r, rcond=None)
         sse[i] = float(np.sum((r - X @ coef) ** 2))
     return float(grid[int(np.argmin(sse))]), sse
