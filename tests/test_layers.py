@@ -6,10 +6,12 @@ own layer or below. Bottom to top:
 
     0  errors, io                                  typed errors, atomic writes, version info
     1  robot, parameters, model_checks, export,    Pinocchio model, parameter conventions,
-       urdf_patch, robot_paths, xacro_expand       URDF export, confined file references, xacro
+       urdf_patch, robot_paths, xacro_expand,      URDF export, confined file references, xacro,
+       robots (the registry of named robots)       the names load_robot accepts
     2  data                                        Trajectory, readers, validation, filtering
     3  regressor                                   terms, row maps, compression
-    4  identification, robots                      solve; robots authored in code (dVRK PSM)
+    4  identification, robots.dvrk_psm             solve; robots authored in code (dVRK PSM; the registry
+                                                   names its builder by dotted path, imported on load)
     5  learning, control, estimation, excitation,  users of an identified model; ``report``
        actuator, estimators, report, realtime      (plots, tables, HTML) is used by experiments
     6  simulation                                  MuJoCo scenes and scenario scripts
@@ -32,7 +34,8 @@ LAYERS = {
     "robot_paths": 1, "xacro_expand": 1, "_xacro_worker": 1,
     "data": 2,
     "regressor": 3,
-    "identification": 4, "robots": 4,
+    "robots": 1, "robots.dvrk_psm": 4,  # the registry; a robot authored in code on the transmission module
+    "identification": 4,
     "learning": 5, "control": 5, "estimation": 5, "excitation": 5, "actuator": 5, "estimators": 5, "report": 5,
     "realtime": 5,
     "simulation": 6,
@@ -75,7 +78,10 @@ def _imports(path: Path, root: Path = SRC) -> list[tuple[str, int]]:
 
 
 def _top(name: str) -> str | None:
+    """The LAYERS key of a module: its top-level module, or a sub-module given its own layer."""
     parts = name.split(".")
+    if len(parts) > 2 and ".".join(parts[1:3]) in LAYERS:
+        return ".".join(parts[1:3])
     return parts[1] if len(parts) > 1 else None
 
 

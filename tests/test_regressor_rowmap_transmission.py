@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from sensorless.regressor.extra_terms import DriveTerm
+from sensorless.regressor.drive_terms import DriveTerm
 from sensorless.regressor.rowmap import RowMap, TransmissionRows
 from sensorless.regressor.transmission import TransmissionStructure, add_body_joint, coupling_matrix
 from sensorless.robot import Robot

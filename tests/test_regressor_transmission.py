@@ -16,7 +16,7 @@ from sensorless.errors import JointNameError, RobotModelError
 from sensorless.excitation import FourierTrajectory
 from sensorless.identification import base_parameters, identify
 from sensorless.regressor import compress
-from sensorless.regressor.extra_terms import DriveTerm
+from sensorless.regressor.drive_terms import DriveTerm
 from sensorless.regressor.transmission import (
     TransmissionStructure,
     add_body_joint,

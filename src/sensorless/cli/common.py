@@ -30,12 +30,27 @@ app.add_typer(bench_app, name="benchmark")
 app.add_typer(experiment_app, name="experiment")
 
 
+#: placeholder in an option's help for the list of log formats (:func:`sensorless.data.formats.formats_help`),
+#: filled when the help is shown (:class:`MultiValueCommand`): the CLI starts without loading the readers
+LOG_FORMATS = "<log formats>"
+
+
 class MultiValueCommand(TyperCommand):
     """A command whose repeatable options (``List[...]``) also take several values after one
     flag: ``--data a.csv b.csv c.csv`` is ``--data a.csv --data b.csv --data c.csv`` (a shell
     glob expands to exactly that). Values run until the next token starting with ``-``.
     Only for commands without positional arguments (nothing else could own a bare token).
     Usage errors (a value not among an option's choices, a missing option) are one red line too."""
+
+    def format_help(self, ctx, formatter):
+        """The help, with :data:`LOG_FORMATS` in an option's help replaced by the registered log formats."""
+        if any(LOG_FORMATS in (getattr(p, "help", None) or "") for p in self.params):
+            from ..data.formats import formats_help  # the registry (sensorless.data: loaded for the help only)
+
+            for p in self.params:
+                if LOG_FORMATS in (getattr(p, "help", None) or ""):
+                    p.help = p.help.replace(LOG_FORMATS, formats_help())
+        return super().format_help(ctx, formatter)
 
     def parse_args(self, ctx, args):
         if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)
@@ -211,19 +226,10 @@ def model_preprocessing(model, **given) -> dict:
 
 
 def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool], passive: Optional[List[str]] = None):
-    """A URDF/MJCF/xacro/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
-    motor coordinates, a transmission's coordinate robot). ``--trust-xacro`` and ``--package-path``
-    come from :func:`robot_source_options`; ``passive``: joints without actuator (``--passive``)."""
-    from ..robots.names import PSM_NAMES
-
-    if str(robot).lower() in PSM_NAMES:
-        from ..robots.dvrk_psm import psm_robot
-
-        if lock or floating or passive:
-            raise SensorlessError(f"--robot {robot}: --lock, --passive and --floating-base do not apply to the PSM model")
-        r = psm_robot()
-    else:
-        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
+    """A URDF/MJCF/xacro file or a name of the robot registry (:mod:`sensorless.robots.registry`:
+    example-robot-data's catalogue, models built in code such as 'dvrk_psm'). ``--trust-xacro`` and
+    ``--package-path`` come from :func:`robot_source_options`; ``passive``: joints without actuator (``--passive``)."""
+    r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
     from ..robot import add_frame
 
     for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
@@ -291,7 +297,15 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, 
     return logs
 
 
-ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
+def _robot_help() -> str:
+    from ..robots.registry import ROBOTS
+
+    code = "; ".join(f"{e.names[0]} ({e.description})" for e in ROBOTS if e.in_code)
+    return ("URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, or a registered robot name: "
+            f"example-robot-data's (e.g. panda, ur5, solo12) or built in code: {code}")
+
+
+ROBOT_HELP = _robot_help()
 
 
 # ---- the preprocessing options of commands that apply an identified model ------------------

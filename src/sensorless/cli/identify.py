@@ -14,6 +14,7 @@ from .channel_options import base_velocity_option, pose_max_gap_option, wrench_f
 from .frames import frame_options
 from .logs import log_trims, preprocessing_settings, trim_option
 from .common import (
+    LOG_FORMATS,
     robot_source_options,
     log_reading_options,
     MultiValueCommand,
@@ -67,8 +68,7 @@ from .progress import progress_bars
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .dat .npz .parquet .h5 .mat, a folder of "
-                                         "per-signal text files, ROS .bag / .mcap / ROS 2 bag folder (docs/logs.md); "
+    data: List[Path] = typer.Option(..., help=f"training log(s): {LOG_FORMATS} (docs/logs.md); "
                                          "several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
     method: Method = typer.Option(Method.lmi, help="lmi: physically consistent, regularised toward the prior (the URDF); ols/wls: unconstrained least squares; svd: minimum-norm truncated SVD"),

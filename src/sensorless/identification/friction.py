@@ -60,6 +60,7 @@ import numpy as np
 from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError
+from ..regressor.joint_terms import TermInputs, joint_term
 from ..regressor.terms import ModelStructure, _in_robot_order
 
 __all__ = [
@@ -159,11 +160,12 @@ def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajector
 
 
 def _friction_params(structure: ModelStructure, params: np.ndarray) -> np.ndarray:
-    """``params`` with everything but the velocity-dependent friction terms and offset zeroed."""
+    """``params`` with everything but the velocity-dependent friction terms and offset zeroed (the joint
+    terms not on v̇)."""
     p = np.zeros_like(params)
     for j in structure.robot.term_joints:
         for t in structure.terms_of(j):
-            if t != "armature":
+            if not joint_term(t).acceleration:
                 k = structure.joint_term_index(j, t)
                 p[k] = params[k]
     return p
@@ -184,7 +186,7 @@ def friction_curve(structure: ModelStructure, params: np.ndarray, v: np.ndarray)
     v = np.atleast_2d(np.asarray(v, dtype=float))
     V = np.zeros((v.shape[0], structure.robot.nv))
     V[:, structure.robot.term_v_indices] = v
-    Z = np.sign(v) if "presliding" in structure.joint_terms else None  # steady sliding: s_c = sgn v
+    Z = np.sign(v) if any(joint_term(t).stateful for t in structure.joint_terms) else None  # steady sliding: sgn v
     F = structure.joint_features(V, np.zeros_like(V), Z)  # armature column 0 at zero acceleration
     nt, n = len(structure.joint_terms), len(structure.robot.term_joints)
     phi = _friction_params(structure, params)[structure.n_body_params:].reshape(n, nt) if nt else np.zeros((n, 0))
@@ -197,16 +199,18 @@ def search_stribeck_velocity(
     """The vs in ``grid`` whose least-squares fit of r on the joint's friction columns
     ([v, T, T − (1 − exp(−(v/vs)²)) sgn v, 1] with T = tanh(v/ε), those in ``terms``) leaves the
     smallest residual; returns (vs, residual sum of squares per grid point)."""
-    from ..regressor.friction_columns import stribeck_decay
-
     v, r = np.asarray(v, dtype=float), np.asarray(r, dtype=float)
     ok = np.isfinite(v) & np.isfinite(r)
     v, r = v[ok], r[ok]
-    sgn = np.tanh(v / eps) if eps > 0 else np.sign(v)
-    fixed = [c for t, c in (("fv", v), ("fc", sgn), ("offset", np.ones_like(v))) if t in terms]
+
+    def columns(vs: float, names) -> list:  # the registry's columns of one joint (no rest gate)
+        x = TermInputs(v[:, None], np.zeros((v.size, 1)), np.array([eps]), np.zeros(1), np.array([vs]))
+        return [joint_term(t).column(x)[:, 0] for t in names]
+
+    fixed = columns(1.0, [t for t in ("fv", "fc", "offset") if t in terms])
     sse = np.full(len(grid), np.inf)
     for i, vs in enumerate(grid):
-        X = np.column_stack(fixed + [sgn - stribeck_decay(v, vs, np.sign(v))])
+        X = np.column_stack(fixed + columns(vs, ["stribeck"]))
         coef, *_ = np.linalg.lstsq(X, r, rcond=None)
         sse[i] = float(np.sum((r - X @ coef) ** 2))
     return float(grid[int(np.argmin(sse))]), sse
@@ -345,7 +349,7 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
     grid = None
     limits = dict(zip(structure.robot.joint_names, structure.robot.velocity_limits()))
     vlim = np.array([limits.get(j, np.inf) for j in joints])
-    law = [j for j in joints if {"fc", "stribeck"} & set(structure.terms_of(j))]
+    law = [j for j in joints if any(joint_term(t).reversal for t in structure.terms_of(j))]
     if auto_w:
         width_grid = transition_grid(speed, eps, joints, law, vlim)
     elif isinstance(width_grid, str):

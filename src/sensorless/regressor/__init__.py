@@ -13,7 +13,8 @@ from .contact import (
 )
 from .distributed import DistributedError, FleetEquations, LogReader, compress_files, expand_paths
 from .rowmap import ActuatedRows, ContactNullSpace, RowMap, TransmissionRows
-from .terms import JOINT_TERMS, ModelStructure
+from .joint_terms import JOINT_TERMS
+from .terms import ModelStructure
 
 __all__ = [
     "ActuatedRows", "ContactNullSpace", "RowMap", "TransmissionRows",

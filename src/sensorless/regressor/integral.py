@@ -9,8 +9,8 @@ included), linear in the parameters θ = [π, φ]:
   Y_b = Y(q, v, 0) − D_v Y_p(q, v), i.e. b = C v + g − Ṁ v = g − Cᵀ v (Ṁ = C + Cᵀ),
   where D_v is the derivative along the motion, q ⊕ (±ε v), by a central difference of
   Pinocchio's regressor (exact to O(ε²); no time derivative of the data);
-* joint terms: armature I_a puts v_j in Y_p (p_j += I_a v_j); viscous, Coulomb and offset
-  put their features [v, sgn v, 1] in Y_b.
+* joint terms (:mod:`.joint_terms`): a term on v̇ (armature I_a) puts v_j in Y_p (p_j += I_a v_j);
+  the others (viscous, Coulomb, offset, ...) put their columns [v, sgn v, 1, ...] in Y_b.
 
 No accelerations appear: apply one stable low-pass L(s) = (λ/(s + λ))ⁿ (n = ``order``)
 to both sides, from zero state at t₀,
@@ -51,6 +51,7 @@ from ..data.filtering import _uniform_dt
 from ..data.integral_filter import LowpassChain
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, setting
+from .joint_terms import joint_term
 from .terms import ModelStructure, _in_robot_order
 
 __all__ = ["FilteredRows", "filtered_rows", "filtered_target", "momentum_regressors", "projection_rate_error"]
@@ -86,7 +87,7 @@ def momentum_regressors(structure: ModelStructure, Q: np.ndarray, V: np.ndarray,
     for k, row in enumerate(act):
         c = nb + k * nt
         for t_i, term in enumerate(structure.joint_terms):
-            if term == "armature":
+            if joint_term(term).acceleration:  # a column v̇: its momentum column is v
                 Yp[:, row, c + t_i] = V[:, row]
             else:
                 Yb[:, row, c + t_i] = F[:, k, t_i]

@@ -22,7 +22,7 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
   joints); a term a joint does not have is a zero column, so its parameter is fixed at 0
   (it is not a base parameter) and :meth:`ModelStructure.terms_of` lists the real ones.
 
-* Drive terms (``drives``, :class:`~.extra_terms.DriveTerm`; empty here, a transmission's
+* Drive terms (``drives``, :class:`~.drive_terms.DriveTerm`; empty here, a transmission's
   friction, motor inertia and springs): a column g_d f_{d,p}(θ, θ̇, θ̈) on every kept row,
   one parameter coupling several rows.
 
@@ -50,15 +50,17 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
-from .friction_columns import coulomb_sign, fit_keep, sliding_sign, stribeck_decay
+from .friction_columns import coulomb_sign, fit_keep, sliding_sign
 from .friction_state import presliding_states
-from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, FRICTION_LAWS, JOINT_TERMS, _per_joint, named_joints,
-                         parse_joint_terms, parse_presliding, passive_terms)
+from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, _per_joint, named_joints, parse_joint_terms, parse_presliding,
+                         passive_terms)
+from .joint_terms import JOINT_TERMS, TermInputs, joint_term
+from .joint_terms.stribeck import FRICTION_LAWS
 from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
 
-__all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
+__all__ = ["ModelStructure"]
 
 @dataclass
 class ModelStructure:
@@ -355,22 +357,19 @@ class ModelStructure:
         v = V[:, self._act]
         if not self.joint_terms:
             return np.zeros(v.shape + (0,))
-        joints = self.robot.term_joints
-        sgn = (lambda: self.coulomb_sign(v))
-        vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
-        cols = {
-            "fv": lambda: v,
-            "fc": sgn,
-            "stribeck": lambda: (np.exp(-((v / vs) ** 2)) * sgn() if self.friction_law == "product"
-                                 else sgn() - stribeck_decay(v, vs, self.sliding_sign(v))),
-            "offset": lambda: np.ones_like(v),
-            "armature": lambda: A[:, self._act],
-            "presliding": lambda: _state_rows(Z, v.shape),
-        }
-        F = np.stack([cols[t]() for t in self.joint_terms], axis=2)
+        x = self.term_inputs(v, A[:, self._act], Z)
+        F = np.stack([joint_term(t).column(x) for t in self.joint_terms], axis=2)
         if getattr(self, "per_joint_terms", None) is not None:
             F *= self.term_mask[None, :, :]
         return F
+
+    def term_inputs(self, v: np.ndarray, a: np.ndarray, Z: "np.ndarray | None" = None) -> TermInputs:
+        """The signals the joint-term columns are made of (:class:`~.joint_terms.TermInputs`), for term-joint
+        velocities ``v`` and accelerations ``a`` (N, n_term_joints): this structure's ε, δ, vs and law."""
+        joints = self.robot.term_joints
+        vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
+        eps = np.array([self.smoothing_of(j) for j in joints])
+        return TermInputs(v, a, eps, self._rest_velocities(), vs, self.friction_law, Z)
 
     def friction_states(self, traj: Trajectory) -> "np.ndarray | None":
         """The presliding state s_c of each term joint along the log ``traj`` from 0 (N, n_term_joints,
@@ -401,7 +400,7 @@ class ModelStructure:
     def fit_mask(self, V: np.ndarray) -> "np.ndarray | None":
         """(N, n_rows) 0/1 weights of the equations in the fit (:func:`.friction_columns.fit_keep` on
         each term joint's row); None when nothing is left out."""
-        law = [bool({"fc", "stribeck"} & set(self.terms_of(j))) for j in self.robot.term_joints]
+        law = [any(joint_term(t).reversal for t in self.terms_of(j)) for j in self.robot.term_joints]
         keep_j = fit_keep(V[:, self._act], self._rest_velocities(), np.array(law, dtype=bool))
         if keep_j is None:
             return None
@@ -483,12 +482,6 @@ class ModelStructure:
         if getattr(self, "rest_velocity", None):
             out["rest_velocity"] = dict(self.rest_velocity)
         return {**out, "presliding": {j: dict(p) for j, p in self.presliding.items()}} if self.presliding else out
-
-
-def _state_rows(Z, shape) -> np.ndarray:  # the presliding column's rows
-    if Z is None or np.shape(Z) != shape:
-        raise DataError("the 'presliding' term depends on the history of q: evaluate whole logs (regressor, torques)")
-    return np.asarray(Z, dtype=float)
 
 
 def _in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:
