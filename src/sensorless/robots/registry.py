@@ -3,7 +3,7 @@ file (URDF, xacro, MJCF), in the way of robot_descriptions.
 
 To add a robot: a description a package ships (an entry whose ``load`` returns its Pinocchio model), or
 a robot built in code (its module in this package and a :class:`~.base.CodeRobot` line pointing at its
-builder); one line in :data:`ROBOTS`; one oracle test (``tests/test_robot_registry.py``: it loads by
+builder); one line in :data:`ROBOTS`; one oracle test (``tests/test_robots_registry.py``: it loads by
 name and equals the model built directly).
 """
 

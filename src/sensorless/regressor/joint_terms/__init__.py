@@ -9,7 +9,7 @@ block (labels ``joint.term``), so a new term goes at the end: existing models ke
 
 To add a term: one file here with a frozen class (name, description, flags, ``column``), one line
 in :data:`REGISTRY`, one oracle test (its column against a direct computation,
-``tests/test_joint_terms.py``).
+``tests/test_regressor_joint_terms.py``).
 """
 
 from __future__ import annotations
