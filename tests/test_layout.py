@@ -58,7 +58,6 @@ EXEMPT = {
     "identification/runaway": ("test_identification_verdicts.py", "its 'runaway guard' section"),
     "identification/uncertainty": ("test_hardening.py", "issue-12 file: relative std and joint motion"),
     "regressor/friction_columns": ("test_identification_friction.py", "the friction law's regressor columns"),
-    "regressor/joint_spec": ("test_friction_gains.py", "issue-17 file: per-joint term specs parse and errors"),
     "report/excitation_plot": ("test_excitation_limits.py", "the excite command's figure"),
     "report/force_plot": ("test_estimation_force.py", "the estimate-force figure"),
     "report/monitor_plot": ("test_estimation_collision.py", "the monitor figure"),
