@@ -64,7 +64,6 @@ EXEMPT = {
     "report/friction_bench_plot": ("test_cli_friction.py", "the friction command's figure"),
     "report/plot_process": ("test_cli_identify_e2e.py", "the figure process of identify"),
     "report/tables": ("test_cli_identify.py", "the console tables identify prints"),
-    "robots/names": ("test_robots_dvrk_psm.py", "a constant: the names --robot accepts for the PSM"),
     "cli/applied_model": ("test_realtime_monitor.py", "the robot and model that predict/monitor/stream apply"),
     "cli/blas": ("test_speed.py", "BLAS threads per command"),
     "cli/core": ("test_speed.py", "the core command modules' import surface"),
