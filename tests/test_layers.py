@@ -27,7 +27,7 @@ from typer.testing import CliRunner
 SRC = Path(__file__).resolve().parents[1] / "src" / "sensorless"
 
 LAYERS = {
-    "errors": 0, "io": 0, "_outdir": 0, "__version__": 0, "_lazy": 0,
+    "errors": 0, "io": 0, "outdir": 0, "__version__": 0, "lazy": 0,
     "robot": 1, "parameters": 1, "model_checks": 1, "export": 1, "urdf_patch": 1,
     "robot_paths": 1, "xacro_expand": 1, "_xacro_worker": 1,
     "data": 2,

@@ -7,7 +7,7 @@ logs (`IdentificationResult.predict`), exported as URDF (`write_urdf`).
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_exports
+from .lazy import lazy_exports
 from .errors import SensorlessError
 
 # Public names are imported on first use (PEP 562): `import sensorless` and the CLI's start-up

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 from .align import Pairing, clock_offset, estimate_lag, pair_logs
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, lowpass_channels, resample_uniform, savgol_derivatives, trim

@@ -2,7 +2,7 @@
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 from .base import BaseParameters, base_parameters
 from .identifiability import identifiability_report

@@ -2,7 +2,7 @@
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 from .friction_plot import plot_friction
 from .html import render_html_report, write_html_report
 from .plots import plot_torques, plot_torques_by_limb, torque_figure

@@ -1,6 +1,6 @@
 """Robot models authored in code (robots without a usable URDF)."""
 
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 from .names import PSM_NAMES
 
 # the PSM model (Pinocchio, regressor) is imported on first use: the CLI only needs PSM_NAMES to start
