@@ -108,8 +108,6 @@ def test_one_scoring_function(panda, logs):
         m, ref = model.score(test), score(model, test)
         np.testing.assert_array_equal(m.rmse, ref.rmse)
     np.testing.assert_allclose(phys.score(test).nrmse, phys.result_.score(test).nrmse)
-    with pytest.warns(DeprecationWarning, match="use score"):  # "evaluate" now only evaluates regressors
-        np.testing.assert_array_equal(phys.result_.evaluate(test).nrmse, phys.result_.score(test).nrmse)
 
 
 def test_cad_model_follows_sklearn_rules_and_clones(panda, logs):

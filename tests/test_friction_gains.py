@@ -203,15 +203,15 @@ def test_rest_detection_zeroes_a_joint_at_rest_but_not_a_reversal():
 def test_payload_with_every_joint_set_aside_is_no_svd_crash():
     """Regression (issue 17): payload with nominal, wrong gains raised 'LinAlgError: SVD did not
     converge' once every joint had been set aside as contradicting (zero weights -> NaN system)."""
-    from sensorless.identification.payload import _Solver, _solve_without
+    from sensorless.identification.payload import PayloadSolver, solve_without
 
     A = np.eye(10)[None].repeat(3, axis=0) * np.arange(1.0, 4.0)[:, None, None]
     A = np.concatenate([np.concatenate([A, np.zeros((3, 10, 1))], 2),
                         np.concatenate([np.zeros((3, 1, 10)), np.ones((3, 1, 1))], 2)], 1)  # 11x11 with an offset
     b = np.ones((3, 11))
-    solver = _Solver("full", False, None)
-    assert _solve_without(solver, A, b, np.zeros(3), np.ones(3, bool)) is None
-    phi = _solve_without(solver, A, b, np.array([1.0, 0.0, 1.0]), np.ones(3, bool))
+    solver = PayloadSolver("full", False, None)
+    assert solve_without(solver, A, b, np.zeros(3), np.ones(3, bool)) is None
+    phi = solve_without(solver, A, b, np.array([1.0, 0.0, 1.0]), np.ones(3, bool))
     assert phi is not None and np.all(np.isfinite(phi))
 
 

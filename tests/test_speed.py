@@ -204,11 +204,11 @@ def test_identify_no_plot_writes_no_png_and_the_plot_is_a_decimated_window(ur5, 
 
 
 def test_plot_window_predicts_only_the_decimated_samples(ur5, tmp_path, monkeypatch):
-    import sensorless.cli.core as core
+    import sensorless.cli.identify_outputs as outputs
 
     truth = perturbed_truth(ur5, rng=0)
     log = synthetic_trajectory(truth, random_fourier(ur5, rng=1).sample(1000, 30.0), noise_std=0.1, rng=2)
-    assert len(log) > core.PLOT_WINDOW
+    assert len(log) > outputs.PLOT_WINDOW
     seen = {}
 
     class Model:
@@ -219,9 +219,9 @@ def test_plot_window_predicts_only_the_decimated_samples(ur5, tmp_path, monkeypa
     import sensorless.report as report
 
     monkeypatch.setattr(report, "plot_torques_by_limb", lambda t, meas, preds, *a, **k: seen.update(points=len(t)) or {})
-    core._plot_window(log, ModelStructure(ur5), {"M": Model()}, tmp_path, "t")
-    assert seen["n"] == seen["points"] <= core.PLOT_POINTS
-    assert seen["t_end"] < log.t[core.PLOT_WINDOW]
+    outputs._plot_window(log, ModelStructure(ur5), {"M": Model()}, tmp_path, "t")
+    assert seen["n"] == seen["points"] <= outputs.PLOT_POINTS
+    assert seen["t_end"] < log.t[outputs.PLOT_WINDOW]
 
 
 def test_blockwise_fold_on_a_tree_numbered_breadth_first():

@@ -130,7 +130,7 @@ def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Pat
     from ..io import atomic_output_dir
 
     command = None
-    ctx = _current_context()
+    ctx = current_context()
     if ctx is not None:
         command = {"name": " ".join(["sensorless", *ctx.command_path.split()[1:]]), "options": {
             k: v if isinstance(v, (str, int, float, bool, list, tuple, Path)) or v is None else str(v)
@@ -139,7 +139,7 @@ def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Pat
         yield tmp
 
 
-def _current_context():
+def current_context():
     """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
     try:
         from typer.main import get_current_context
@@ -226,12 +226,13 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
         r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
     from ..robot import add_frame
 
-    for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
+    for spec in ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
         add_frame(r, *spec)
     return r
 
 
-_ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
+#: the ``--add-frame`` specs of the running command (set by :func:`sensorless.cli.frames.frame_options`)
+ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
 _ROBOT_SOURCE: "contextvars.ContextVar[dict]" = contextvars.ContextVar("robot_source", default={})
 
 

@@ -77,7 +77,7 @@ def drive_gains(
     from ..data.limits import current_options
     from ..identification.drive_gains import identify_drive_gains
     from ..identification.result import write_json_atomic
-    from .payload import _vector
+    from .payload import parse_vector
 
     if not (np.isfinite(payload_mass) and payload_mass > 0):
         raise OptionError(f"--payload-mass must be a positive number of kg, got {payload_mass}")
@@ -87,7 +87,7 @@ def drive_gains(
         raise OptionError(f"--block-seconds must be > 0, got {block_seconds}")
     output_file(out, path_inputs(robot, unloaded, loaded), force)
     r = load_robot_arg(robot, lock, False)
-    c = _vector(com, "--com")
+    c = parse_vector(com, "--com")
     trims = log_trims(trim, [unloaded, loaded])
     u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trims, resample=resample,
                       time_unit=time_unit)

@@ -105,18 +105,18 @@ def config_option():
 
 def check_config() -> None:
     """Raise the problem :func:`_load_config` found in ``--config`` (OptionError, one line)."""
-    from .common import _current_context
+    from .common import current_context
 
-    ctx = _current_context()
+    ctx = current_context()
     if ctx is not None and ctx.meta.get(_CONFIG_ERROR):
         raise OptionError(ctx.meta[_CONFIG_ERROR])
 
 
 def resolved_options() -> dict:
     """The running command's options after the config file and the command line (JSON-ready)."""
-    from .common import _current_context
+    from .common import current_context
 
-    ctx = _current_context()
+    ctx = current_context()
     if ctx is None:
         return {}
 

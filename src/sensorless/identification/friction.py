@@ -60,7 +60,7 @@ import numpy as np
 from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.terms import ModelStructure, _in_robot_order
+from ..regressor.terms import ModelStructure, in_robot_order
 
 __all__ = [
     "FrictionFit",
@@ -154,7 +154,7 @@ def coulomb_smoothing_from_noise(
 
 def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajectory, list[int]]:
     r = structure.robot
-    traj = _in_robot_order(r, traj)
+    traj = in_robot_order(r, traj)
     return traj, [r.joint_names.index(j) for j in r.term_joints]
 
 

@@ -70,13 +70,6 @@ class IdentificationResult:
         as every model's ``score``)."""
         return torque_metrics(self.structure.target(traj), self.predict(traj), self.structure.row_names)
 
-    def evaluate(self, traj: Trajectory) -> TorqueMetrics:
-        """Deprecated name of :meth:`score` ("evaluate" is kept for evaluating a regressor or a trajectory)."""
-        import warnings
-
-        warnings.warn("IdentificationResult.evaluate() is deprecated; use score()", DeprecationWarning, stacklevel=2)
-        return self.score(traj)
-
     def mass_properties(self) -> dict | None:
         """Identified total mass Σ m_k [kg] and CoM [m] (base frame, neutral configuration) of a
         floating-base robot, next to the model file's (``urdf_*``); None for a fixed base, whose

@@ -14,7 +14,7 @@ from .mlp import (
     deterministic_torch,
     train_network,
 )
-from .models import HybridModel, LearnedTorqueModel, MLPTorqueModel, ParameterModel
+from .models import HybridModel, LearnedTorqueModel, MLPTorqueModel
 from .validated import ValidatedHybridModel, residual_scale
 
 __all__ = [
@@ -23,7 +23,6 @@ __all__ = [
     "LSTMRegressor",
     "LearnedTorqueModel",
     "MLPTorqueModel",
-    "ParameterModel",
     "PerJointMLP",
     "Standardizer",
     "TrainConfig",

@@ -8,9 +8,6 @@
 * :class:`MLPTorqueModel` — configurable black box (default 5 × 2048, LeakyReLU) with
   user-supplied ``features(traj)`` and ``targets(traj)`` callables, e.g. actuation from
   a legged robot's sensor measurements.
-* :func:`ParameterModel` — deprecated alias of
-  :meth:`~sensorless.estimators.PhysicalModel.from_parameters` (fixed structure and parameters,
-  e.g. from ``load_parameters``); kept importable, warns.
 
 All networks are trained by :func:`~sensorless.learning.mlp.train_network` (Adam,
 ReduceLROnPlateau, early stopping on a block validation split, seeded) on standardised
@@ -20,7 +17,6 @@ inputs and targets, and saved as weights + JSON (:mod:`sensorless.learning.io`).
 from __future__ import annotations
 
 import contextlib
-import warnings
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
@@ -43,7 +39,7 @@ from .mlp import (
     train_network,
 )
 
-__all__ = ["HybridModel", "LearnedTorqueModel", "MLPTorqueModel", "ParameterModel", "TrainConfig"]
+__all__ = ["HybridModel", "LearnedTorqueModel", "MLPTorqueModel"]
 
 FeatureFn = Callable[[Trajectory], np.ndarray]
 
@@ -313,13 +309,6 @@ class LearnedTorqueModel(MLPTorqueModel):
                       kind=p.get("kind", "mlp"), per_joint=p["per_joint"])
             obj._restore(net, meta, WindowFeatures.from_dict(meta["features"]))
             return obj
-
-
-def ParameterModel(structure: ModelStructure, parameters: np.ndarray) -> PhysicalModel:
-    """Deprecated: use :meth:`PhysicalModel.from_parameters` (τ̂ = W(q, q̇, q̈) π, fixed π)."""
-    warnings.warn("ParameterModel is deprecated; use sensorless.estimators.PhysicalModel.from_parameters",
-                  DeprecationWarning, stacklevel=2)
-    return PhysicalModel.from_parameters(structure, parameters)
 
 
 class HybridModel(_Network):

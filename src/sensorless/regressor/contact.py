@@ -63,7 +63,7 @@ from .compress import NormalEquations
 from .contact_inference import infer_contacts, normal_forces
 from .contact_kinematics import contact_jacobians, contact_rotations, detect_contacts, null_space_basis, null_space_projector
 from .rowmap import ContactNullSpace, RowMap
-from .terms import ModelStructure, _in_robot_order
+from .terms import ModelStructure, in_robot_order
 
 __all__ = [
     "ContactStructure",
@@ -409,7 +409,7 @@ class ContactStructure(ModelStructure):
 
     def project(self, traj: Trajectory, tau: np.ndarray) -> np.ndarray:
         """Map actuated torques (N, n_actuated) of any model (e.g. a black-box MLP) to P Sᵀ τ."""
-        ordered = _in_robot_order(self.robot, traj)
+        ordered = in_robot_order(self.robot, traj)
         Q = self.robot.full_configuration(ordered.q, ordered.base_q)
         full = np.zeros((len(traj), self.robot.nv))
         full[:, self.robot.actuated_v_indices] = tau

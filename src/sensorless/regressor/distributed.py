@@ -24,7 +24,7 @@ the file is skipped and listed in :attr:`FleetEquations.skipped`. The client com
 Two-step WLS needs no second pass over the files: the per-row equations give every row's
 OLS residual ‖W_r π − y_r‖² = πᵀA_rπ − 2πᵀb_r + c_r exactly. LMI with γ chosen by
 cross-validation needs the samples split into folds exactly as
-``identification.gamma._split_folds`` does: pass 1 returns each file's length and excitation
+``identification.gamma.split_folds`` does: pass 1 returns each file's length and excitation
 period, pass 2 folds each file's samples into ``n_folds`` partial equations.
 """
 
@@ -193,7 +193,7 @@ def _named(exc: SensorlessError, path: str) -> SensorlessError:
 
 
 def _fold_parts(traj: Trajectory, n_folds: int, period: float | None, offset: int, total: int):
-    """This file's share of each cross-validation fold, as ``gamma._split_folds`` cuts them:
+    """This file's share of each cross-validation fold, as ``gamma.split_folds`` cuts them:
     phase blocks ``⌊((t − t₀) mod period) / period · n_folds⌋`` per file when a period is
     known, else contiguous blocks of the concatenated samples (``offset`` = samples before this file)."""
     if period is not None:
