@@ -28,7 +28,7 @@ from sensorless.excitation import random_fourier
 from sensorless.identification import identify
 from sensorless.identification.base import _random_states
 from sensorless.regressor import ContactStructure, ModelStructure, NormalEquations, compress
-from sensorless.regressor.compress import syrk_fold
+from sensorless.regressor.normal_equations import syrk_fold
 from sensorless.regressor.contact import null_space_basis, null_space_projector
 from sensorless.simulation import perturbed_truth, synthetic_trajectory
 

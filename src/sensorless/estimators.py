@@ -134,7 +134,7 @@ class PhysicalModel(TorqueModel):
     :func:`~sensorless.identification.friction.identify_friction` (noise-aware Coulomb smoothing,
     Stribeck search); ``fit`` then identifies through it, ``structure_`` is the structure it
     settled on and ``friction_fit_`` its record. ``fit`` also takes precompressed
-    :class:`~sensorless.regressor.compress.NormalEquations` (not with ``friction``).
+    :class:`~sensorless.regressor.normal_equations.NormalEquations` (not with ``friction``).
     """
 
     def __init__(

@@ -22,7 +22,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import SensorlessError
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from ..robot import Robot, load_robot
 from ..simulation.synthetic import perturbed_truth

@@ -34,7 +34,8 @@ import numpy as np
 from ..data.periodicity import excitation_period
 from ..data.trajectory import Trajectory
 from ..errors import DataError, IdentifiabilityWarning, SolverError
-from ..regressor.compress import NormalEquations, compress
+from ..regressor.compress import compress
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi

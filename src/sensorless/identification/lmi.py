@@ -55,7 +55,7 @@ from ..parameters import (
     from_pseudo_inertia,
     pseudo_inertia,
 )
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .constraints import (

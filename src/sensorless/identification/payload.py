@@ -66,7 +66,7 @@ import numpy as np
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, setting
 from ..parameters import pseudo_inertia
-from ..regressor.compress import iter_trajectories
+from ..regressor.normal_equations import iter_trajectories
 from ..regressor.terms import ModelStructure
 from .payload_fit import (
     PayloadBlocks,

@@ -15,7 +15,7 @@ from .base import BaseParameters
 from .metrics import TorqueMetrics, torque_metrics
 
 if TYPE_CHECKING:
-    from ..regressor.compress import NormalEquations
+    from ..regressor.normal_equations import NormalEquations
 
 __all__ = ["IdentificationResult", "body_links", "parameter_links", "versions", "write_json_atomic"]
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 
 __all__ = ["DATA_REL_STD", "NULL_CUTOFF", "NULL_FRACTION", "JOINT_UNIT", "VERDICTS", "compute_verdicts",

@@ -26,7 +26,7 @@ import numpy as np
 from ..data.trajectory import Trajectory
 from ..estimators import PhysicalModel, TorqueModel
 from ..errors import DataError, SensorlessError
-from ..regressor.compress import iter_trajectories
+from ..regressor.normal_equations import iter_trajectories
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
 from .features import Standardizer, WindowFeatures

@@ -1,6 +1,7 @@
 """Regressor terms and streaming compression."""
 
-from .compress import NormalEquations, compress, iter_trajectories
+from .compress import compress
+from .normal_equations import NormalEquations, iter_trajectories
 from .contact import (
     WRENCH_OFFSETS,
     ContactStructure,

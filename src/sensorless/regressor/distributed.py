@@ -1,15 +1,15 @@
 """Fleet-scale compression on Dask: files → partial normal equations → tree sum.
 
-The compressed normal equations (:mod:`.compress`) are sums over samples, hence over files,
+The compressed normal equations (:mod:`.normal_equations`) are sums over samples, hence over files,
 
     A_r = Σ_files Σ_i W_{i,r}ᵀ W_{i,r},   b_r = Σ_files Σ_i W_{i,r}ᵀ y_{i,r},   c_r = …
 
 so identification over many logs is a map-reduce. Each Dask task reads one file on its
 worker, preprocesses it exactly like the local path (:class:`LogReader`, i.e.
 ``cli.common.load_log``: read → low-pass → Savitzky–Golay → decimate) and folds it with
-:func:`~.compress.compress`. The partial sums are added by a fixed tree of merge tasks
+:func:`~.normal_equations.compress_trajectories`. The partial sums are added by a fixed tree of merge tasks
 (``split_every`` inputs per node, so the summation order does not depend on which task
-finishes first) and the client receives one :class:`~.compress.NormalEquations` of size
+finishes first) and the client receives one :class:`~.normal_equations.NormalEquations` of size
 O(rows · p²). Only the pickled model structure (scattered once to every worker, unpickled
 once per worker thread because a Pinocchio ``Data`` is per-thread scratch space) and the
 reader settings travel; the arrays never leave the worker that read them.
@@ -46,7 +46,7 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, DistributedError, SensorlessError
-from .compress import NormalEquations, compress
+from .normal_equations import NormalEquations, compress_trajectories
 from .terms import ModelStructure
 
 __all__ = ["DistributedError", "FleetEquations", "LogReader", "compress_files", "expand_paths"]
@@ -217,8 +217,8 @@ def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple
     try:
         traj = reader(path, structure.robot)
         if plan is None:
-            return _Part(compress(structure, traj, chunk=chunk), None, [path], [])
-        folds = [None if part is None else compress(structure, part, chunk=chunk) for part in _fold_parts(traj, *plan)]
+            return _Part(compress_trajectories(structure, traj, chunk=chunk), None, [path], [])
+        folds = [None if part is None else compress_trajectories(structure, part, chunk=chunk) for part in _fold_parts(traj, *plan)]
         return _Part(functools.reduce(_add, folds), folds, [path], [])
     except SensorlessError as exc:
         if not skip_bad:
