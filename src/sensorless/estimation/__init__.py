@@ -28,7 +28,6 @@ from .momentum import (
     MomentumObserver,
     ObserverResult,
     depth_first_model,
-    observer_filter,
 )
 
 __all__ = [
@@ -57,7 +56,6 @@ __all__ = [
     "frame_jacobians",
     "model_static_friction",
     "monitor_log",
-    "observer_filter",
     "observer_warmup",
     "quiet_mask",
     "quiet_thresholds",
