@@ -131,7 +131,7 @@ class PhysicalModel(TorqueModel):
     or the robot's own ``make_structure``). ``parameters``: a fixed parameter vector in that
     structure's layout; ``fit`` then keeps it and identifies nothing
     (:meth:`from_parameters`). ``friction``: keyword arguments of
-    :func:`~sensorless.identification.friction.identify_friction` (noise-aware Coulomb smoothing,
+    :func:`~sensorless.identification.friction_search.identify_friction` (noise-aware Coulomb smoothing,
     Stribeck search); ``fit`` then identifies through it, ``structure_`` is the structure it
     settled on and ``friction_fit_`` its record. ``fit`` also takes precompressed
     :class:`~sensorless.regressor.normal_equations.NormalEquations` (not with ``friction``).
@@ -182,7 +182,7 @@ class PhysicalModel(TorqueModel):
             raise ParameterError("PhysicalModel.fit needs trajectories (or fixed parameters=)")
         kwargs = dict(method=self.method, **self.identify_kwargs)
         if self.friction is not None:
-            from .identification.friction import identify_friction
+            from .identification.friction_search import identify_friction
 
             self.result_, self.friction_fit_ = identify_friction(self.structure_, data, identify_kwargs=kwargs,
                                                                  **self.friction)

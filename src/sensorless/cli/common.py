@@ -21,7 +21,7 @@ from .channel_options import base_velocity_option, pose_max_gap_option
 from .blas import blas_threads_for_command
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, current_context
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -137,15 +137,6 @@ def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Pat
             for k, v in ctx.params.items()}}
     with atomic_output_dir(out, force, inputs=inputs, command=command) as tmp:
         yield tmp
-
-
-def current_context():
-    """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
-    try:
-        from typer.main import get_current_context
-    except ImportError:  # pragma: no cover - older typer on plain click
-        from click import get_current_context
-    return get_current_context(silent=True)
 
 
 def output_file(out: Path, inputs: Iterable = (), force: bool = False) -> Path:

@@ -25,11 +25,11 @@ from .friction import (
     coulomb_smoothing_from_noise,
     friction_curve,
     friction_residual,
-    identify_friction,
     search_stribeck_velocity,
     signal_noise,
     stribeck_grid,
 )
+from .friction_search import identify_friction
 from .stribeck import StribeckCandidates, choose_stribeck
 from .weights import check_weights, read_weights_file, weights_option
 from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_motion, poorly_identified
