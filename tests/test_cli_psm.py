@@ -196,7 +196,7 @@ def test_every_psm_name_loads_the_psm_in_every_command(tmp_path):
     """excite, identify, predict, estimate-force and payload share one loader: the names excite
     accepted are the names every command accepts (regression: only excite knew them)."""
     from sensorless.cli.common import load_robot_arg
-    from sensorless.cli.excite import PSM_NAMES
+    from sensorless.robots.names import PSM_NAMES
     from sensorless.robots import COORDINATES
 
     for name in PSM_NAMES + ("DVRK_PSM",):

@@ -24,7 +24,8 @@ from sensorless.identification import identify, identify_files  # noqa: E402
 from sensorless.identification.gamma import split_folds  # noqa: E402
 from sensorless.regressor import ModelStructure, compress, compress_files, expand_paths  # noqa: E402
 from sensorless.regressor.dask_cluster import connect  # noqa: E402
-from sensorless.regressor.distributed import DistributedError, LogReader, _Model, _structure  # noqa: E402
+from sensorless.regressor.distributed import LogReader, _Model, _structure  # noqa: E402
+from sensorless.errors import DistributedError  # noqa: E402
 
 TOL = 1e-10
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]

@@ -250,15 +250,37 @@ def _lazy_exports_call(node: ast.AST) -> bool:
     return isinstance(node, ast.Call) and getattr(node.func, "id", None) == "lazy_exports"
 
 
+def _reimported(path: Path) -> set[str]:
+    """Names a module binds by a module-level ``from … import`` and does not define itself."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    imported, defined = set(), set()
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom):
+            imported |= {a.asname or a.name for a in node.names}
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            defined.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            for t in node.targets if isinstance(node, ast.Assign) else [node.target]:
+                defined |= {n.id for n in ast.walk(t) if isinstance(n, ast.Name)}
+    return imported - defined
+
+
 def shims(root: Path = SRC) -> list[str]:
     """Re-export and deprecation shims: a module (not a package ``__init__``) that only re-imports
-    names, or whose ``__all__`` lists a name it imports; a module ``__getattr__`` (other than a
-    package's :func:`sensorless.lazy.lazy_exports` of its own submodules); a ``_MOVED`` table;
-    a ``DeprecationWarning``."""
+    names, or whose ``__all__`` lists a name it imports; an import of a name through a module that
+    only imports it (import it from its owner); a module ``__getattr__`` (other than a package's
+    :func:`sensorless.lazy.lazy_exports` of its own submodules); a ``_MOVED`` table; a
+    ``DeprecationWarning``."""
     bad = []
-    for mod, path in _modules(root).items():
+    modules = _modules(root)
+    reimported = {m: _reimported(p) for m, p in modules.items() if p.name != "__init__.py"}
+    for mod, path in modules.items():
         if _exempt(path, root):
             continue
+        for target, name, line in _imported(path, modules, root):
+            if name is not None and name in reimported.get(target, ()):
+                bad.append(f"{path.relative_to(root.parent)}:{line}: {mod} imports {name} through {target}, "
+                           "which only imports it")
         where = path.relative_to(root.parent)
         tree = ast.parse(path.read_text(encoding="utf-8"))
         package = path.name == "__init__.py"
@@ -320,6 +342,7 @@ def test_the_structural_checks_find_each_kind_of_violation(tmp_path):
     (root / "lazy.py").write_text("import warnings\n_MOVED = ('f',)\n\n\ndef __getattr__(name):\n"
                                   "    warnings.warn('gone', DeprecationWarning)\n")
     (root / "mixed.py").write_text("from .data.a import f\n\n__all__ = ['f', 'k']\n\n\ndef k():\n    return f\n")
+    (root / "user.py").write_text("def u():\n    from .mixed import f\n    return f\n")
     private = private_imports(root)
     assert private == ["sensorless/data/b.py:5: sensorless.data.b imports private name _C from sensorless.data.a",
                        "sensorless/data/c.py:1: sensorless.data.c imports private module sensorless.data._hidden"
@@ -335,4 +358,5 @@ def test_the_structural_checks_find_each_kind_of_violation(tmp_path):
     assert "sensorless/lazy.py:2: sensorless.lazy keeps a _MOVED table" in found
     assert "sensorless/lazy.py:6: sensorless.lazy has a deprecation path (DeprecationWarning)" in found
     assert "sensorless/mixed.py:3: sensorless.mixed re-exports f (imported on line 1) in __all__" in found
+    assert "sensorless/user.py:2: sensorless.user imports f through sensorless.mixed, which only imports it" in found
     assert "data/__init__" not in found  # a package __init__ exporting its submodules' names is its API

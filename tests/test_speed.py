@@ -26,10 +26,10 @@ from sensorless.data import write_npz
 from sensorless.data.trajectory import Trajectory
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.identification.base import _random_states
+from sensorless.identification.base import random_states
 from sensorless.regressor import ContactStructure, ModelStructure, NormalEquations, compress
 from sensorless.regressor.normal_equations import syrk_fold
-from sensorless.regressor.contact import null_space_basis, null_space_projector
+from sensorless.regressor.contact_kinematics import null_space_basis, null_space_projector
 from sensorless.simulation import perturbed_truth, synthetic_trajectory
 
 
@@ -54,7 +54,7 @@ def test_subtree_columns_are_structural_zeros_and_the_blockwise_fold_is_exact(re
     robot = request.getfixturevalue(name)
     s = ModelStructure(robot)
     rng = np.random.default_rng(1)
-    Q, V, A = _random_states(s, 200, rng)
+    Q, V, A = random_states(s, 200, rng)
     W = s.evaluate(Q, V, A)
     for r, (c0, c1) in enumerate(s.row_body_columns()):
         outside = np.r_[0:c0, c1 : s.n_body_params]
@@ -240,7 +240,7 @@ def test_blockwise_fold_on_a_tree_numbered_breadth_first():
     m.velocityLimit, m.effortLimit = 3.0 * np.ones(m.nv), 50.0 * np.ones(m.nv)
     s = ModelStructure(Robot(m, name="tree"))
     assert s.row_body_columns()[1] == (10, 40)  # subtree of j2 = {2, 4}: columns 10..40 include j3's zeros
-    Q, V, A = _random_states(s, 100, rng)
+    Q, V, A = random_states(s, 100, rng)
     W = s.evaluate(Q, V, A)
     y = rng.normal(size=(100, s.n_rows))
     dense, blocks = NormalEquations.zeros(s.n_rows, s.n_params), NormalEquations.zeros(s.n_rows, s.n_params)

@@ -27,7 +27,7 @@ from .errors import JointNameError, RobotModelError, did_you_mean, setting
 from .parameters import pin_inertia
 from .xacro_expand import expand_xacro
 
-__all__ = ["Actuation", "Robot", "add_frame", "expand_xacro", "frame_table", "load_robot"]
+__all__ = ["Actuation", "Robot", "add_frame", "frame_table", "load_robot"]
 
 
 class Actuation:

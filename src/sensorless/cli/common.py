@@ -464,7 +464,7 @@ def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> t
 
 def write_result(res: dict, out: Path) -> None:
     """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
-    from ..identification.result import write_json_atomic
+    from ..io import write_json_atomic
 
     output_file(out, force=True)  # benchmark results are regenerated in place; never a directory or FIFO
     write_json_atomic(res, out)

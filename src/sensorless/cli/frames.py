@@ -10,7 +10,8 @@ from typing import List, Optional
 import typer
 
 from ..errors import SensorlessError
-from .common import ADDED_FRAMES, add_options, app, console, guarded, load_robot_arg, lock_option, robot_option
+from .common import ADDED_FRAMES, add_options, app, guarded, load_robot_arg, lock_option, robot_option
+from .console import console
 from .common import floating_base_option, output_file, path_inputs, robot_source_options
 
 __all__ = ["frame_options", "frames", "parse_add_frame"]
@@ -61,7 +62,7 @@ def frames(
 ) -> None:
     """List every frame of ROBOT: its type, parent joint and frame, origin and rotation in the
     parent joint's axes, and world origin and axes at zero joint values."""
-    from ..identification.result import write_json_atomic
+    from ..io import write_json_atomic
     from ..robot import frame_table
 
     if out is not None:

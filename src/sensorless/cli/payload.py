@@ -16,7 +16,6 @@ from .common import (
     model_preprocessing_options,
     MultiValueCommand,
     app,
-    console,
     guarded,
     force_option,
     lock_option,
@@ -24,6 +23,7 @@ from .common import (
     output_file,
     path_inputs,
 )
+from .console import console
 from .logs import log_settings, print_pairing
 from .options import ALIGN_HELP, Align, PayloadMode
 from .progress import progress_bars
@@ -85,7 +85,7 @@ def payload(
     import numpy as np
     from ..identification.payload import identify_payload
     from .applied_model import robot_and_model
-    from ..identification.result import write_json_atomic
+    from ..io import write_json_atomic
 
     output_file(out, path_inputs(robot, model, data, no_load), force)
     if no_load and len(no_load) != len(data):

@@ -9,7 +9,8 @@ from ..lazy import lazy_exports
 from .align import Pairing, clock_offset, estimate_lag, pair_logs
 from .filtering import SavitzkyGolay, butter_lowpass, decimate, lowpass, lowpass_channels, resample_uniform, savgol_derivatives, trim
 from .gains import currents_to_torques, load_gains, resolve_gains
-from .prepare import default_savgol_window, prepare
+from .prepare import prepare
+from .filtering import default_savgol_window
 from .trims import LogTrims, TrimWindow, trim_window
 from .rest import rest_mask, zero_at_rest
 from .outliers import check_outliers, drop_outliers, find_outliers, handle_outliers

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..errors import DataError, setting
 from .trajectory import Trajectory
-from .validation import TooFewSamplesError, validate_trajectory
+from .validation import validate_trajectory
+from ..errors import TooFewSamplesError
 
 __all__ = [
     "DEFAULT_DERIVATIVE_SECONDS",

@@ -63,8 +63,8 @@ from .trajectory import Trajectory
 from .trims import LogTrims, TrimWindow, trim_window
 from .validation import validate_trajectory
 
-__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
-           "BASE_VELOCITY_SOURCES", "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
+__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "parse_resample", "VELOCITY_SOURCES",
+           "BASE_VELOCITY_SOURCES"]
 
 VELOCITY_SOURCES = ("logged", "from-q")
 #: where the base twist comes from: ``auto`` (from the logged base pose when no base velocity is logged),

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import DataError, TimestampError, setting
 from .filtering import MAX_JITTER, with_arrays, sign_continuous
 from .trajectory import Trajectory
-from .validation import TooFewSamplesError
+from ..errors import TooFewSamplesError
 
 __all__ = ["Timing", "timing", "resample", "DEFAULT_MAX_GAP", "CUBIC_FIELDS"]
 

@@ -26,9 +26,9 @@ from .friction import (
     friction_curve,
     friction_residual,
     search_stribeck_velocity,
-    signal_noise,
     stribeck_grid,
 )
+from ..data.rest import signal_noise
 from .friction_search import identify_friction
 from .stribeck import StribeckCandidates, choose_stribeck
 from .weights import check_weights, read_weights_file, weights_option
@@ -38,8 +38,8 @@ from .uncertainty import JointMotion, base_parameter_uncertainty, check_joint_mo
 # payload, drive-gain, fleet and floating-base modules (`sensorless identify` on an arm needs none of them)
 __getattr__, __dir__ = lazy_exports(globals(), {
     **dict.fromkeys(["identify_files", "identify_fleet"], ".fleet"),
-    **dict.fromkeys(["JointConsistency", "PayloadEstimate", "identify_payload", "payload_regressor",
-                     "point_mass_parameters"], ".payload"),
+    "identify_payload": ".payload",
+    **dict.fromkeys(["JointConsistency", "PayloadEstimate", "payload_regressor", "point_mass_parameters"], ".payload_model"),
     **dict.fromkeys(["base_wrench_metrics", "com_cop_check", "com_positions", "standing_mask"], ".floating_base"),
     **dict.fromkeys(["DriveGains", "identify_drive_gains", "payload_torque"], ".drive_gains"),
     **dict.fromkeys(["BodyMassBounds", "ComInEllipsoid", "DensityRealizable", "NonNegativeArmature",
@@ -52,7 +52,8 @@ if TYPE_CHECKING:
     from .drive_gains import DriveGains, identify_drive_gains, payload_torque
     from .fleet import identify_files, identify_fleet
     from .floating_base import base_wrench_metrics, com_cop_check, com_positions, standing_mask
-    from .payload import JointConsistency, PayloadEstimate, identify_payload, payload_regressor, point_mass_parameters
+    from .payload import identify_payload
+    from .payload_model import JointConsistency, PayloadEstimate, payload_regressor, point_mass_parameters
     from .constraints import (
         BodyMassBounds,
         ComInEllipsoid,

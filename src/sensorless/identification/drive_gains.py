@@ -53,7 +53,7 @@ from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
-from .payload import payload_regressor, point_mass_parameters
+from .payload_model import payload_regressor, point_mass_parameters
 
 __all__ = ["DriveGains", "identify_drive_gains", "payload_torque"]
 

@@ -71,7 +71,6 @@ __all__ = [
     "lowpass_noise_gain",
     "REST_SIGMAS",
     "search_stribeck_velocity",
-    "signal_noise",
     "stribeck_grid",
     "transition_grid",
 ]

@@ -85,7 +85,7 @@ from .payload_model import JointConsistency, PayloadEstimate, payload_regressor,
 
 # the payload regressor and estimate (.payload_model) and the solver (.payload_fit) are re-exported here
 
-__all__ = ["JointConsistency", "PayloadEstimate", "identify_payload", "payload_regressor", "point_mass_parameters"]
+__all__ = ["identify_payload"]
 
 MODES = ("auto", "full", "com", "mass")
 

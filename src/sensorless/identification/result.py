@@ -17,7 +17,7 @@ from .metrics import TorqueMetrics, torque_metrics
 if TYPE_CHECKING:
     from ..regressor.normal_equations import NormalEquations
 
-__all__ = ["IdentificationResult", "body_links", "parameter_links", "versions", "write_json_atomic"]
+__all__ = ["IdentificationResult", "body_links", "parameter_links"]
 
 
 @dataclass

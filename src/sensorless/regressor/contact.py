@@ -67,11 +67,6 @@ from .terms import ModelStructure, in_robot_order
 
 __all__ = [
     "ContactStructure",
-    "contact_jacobians",
-    "contact_rotations",
-    "null_space_projector",
-    "null_space_basis",
-    "detect_contacts",
     "choose_contact_rows",
     "WRENCH_OFFSETS",
 ]

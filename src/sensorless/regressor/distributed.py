@@ -49,7 +49,7 @@ from ..errors import DataError, DistributedError, SensorlessError
 from .normal_equations import NormalEquations, compress_trajectories
 from .terms import ModelStructure
 
-__all__ = ["DistributedError", "FleetEquations", "LogReader", "compress_files", "expand_paths"]
+__all__ = ["FleetEquations", "LogReader", "compress_files", "expand_paths"]
 
 _GLOB_CHARS = frozenset("*?[")
 

@@ -58,7 +58,7 @@ from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
 
-__all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
+__all__ = ["ModelStructure"]
 
 @dataclass
 class ModelStructure:

@@ -75,7 +75,6 @@ __all__ = [
     "PSM_BODIES_AUTHORS",
     "PSM_FRAMES",
     "PSM_LIMITS",
-    "PSM_NAMES",
     "mdh_placement",
     "psm_drives",
     "psm_robot",
