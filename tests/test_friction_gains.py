@@ -120,7 +120,7 @@ def test_identify_cli_per_joint_terms_auto_friction_saved_and_reloaded(ur10_logs
         assert jt[j]["stribeck_velocity"] == pytest.approx(fr["stribeck_velocity"][j])
         assert jt[j]["coulomb_smoothing"] == pytest.approx(width[j])  # the width the law uses
     assert (out / "friction.png").stat().st_size > 10_000
-    from sensorless.estimators import load_parameters
+    from sensorless.torque_models import load_parameters
 
     st, p = load_parameters(out / "result.json", robot)
     assert st.terms_of("wrist_3_joint") == ("fv", "offset")

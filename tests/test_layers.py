@@ -11,7 +11,7 @@ own layer or below. Bottom to top:
     3  regressor                                   terms, row maps, compression
     4  identification, robots                      solve; robots authored in code (dVRK PSM)
     5  learning, control, estimation, excitation,  users of an identified model; ``report``
-       actuator, estimators, report, realtime      (plots, tables, HTML) is used by experiments
+       actuator, torque_models, report, realtime   (plots, tables, HTML) is used by experiments
     6  simulation                                  MuJoCo scenes and scenario scripts
     7  experiments, example_data                   the papers' studies; data for the documented commands
     8  cli, benchmarks, demo                       commands, speed/scale/accuracy benchmarks, the demo
@@ -33,7 +33,7 @@ LAYERS = {
     "data": 2,
     "regressor": 3,
     "identification": 4, "robots": 4,
-    "learning": 5, "control": 5, "estimation": 5, "excitation": 5, "actuator": 5, "estimators": 5, "report": 5,
+    "learning": 5, "control": 5, "estimation": 5, "excitation": 5, "actuator": 5, "torque_models": 5, "report": 5,
     "realtime": 5,
     "simulation": 6,
     "experiments": 7, "example_data": 7,

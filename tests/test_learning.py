@@ -11,7 +11,7 @@ import torch
 
 from sensorless.data.trajectory import Trajectory
 from sensorless.errors import DataError, SensorlessError
-from sensorless.estimators import PhysicalModel
+from sensorless.torque_models import PhysicalModel
 from sensorless.excitation import random_fourier
 from sensorless.learning import (
     HybridModel,

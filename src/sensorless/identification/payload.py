@@ -146,7 +146,7 @@ def identify_payload(
 
     ``model``: the robot's identified model without the payload — an
     :class:`~sensorless.identification.IdentificationResult`, a fitted
-    :class:`~sensorless.estimators.PhysicalModel` or a ``(structure, parameters)`` pair; any
+    :class:`~sensorless.torque_models.PhysicalModel` or a ``(structure, parameters)`` pair; any
     structure (URDF arm, a transmission such as the dVRK PSM). ``no_load``: one log per
     payload log, the same trajectory without the payload (row-aligned; positions within
     ``max_pair_dq``). ``offsets``: fit one constant torque offset per joint (True), on the

@@ -1,4 +1,4 @@
-"""Learned torque models with the fit/predict interface of :mod:`sensorless.estimators`.
+"""Learned torque models with the fit/predict interface of :mod:`sensorless.torque_models`.
 
 * :class:`HybridModel` — physical model + learned residual:
   τ̂ = τ_phys(q, q̇, q̈) + r_θ(window of q, q̇; τ_phys). The network only learns what the
@@ -24,7 +24,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..estimators import PhysicalModel, TorqueModel
+from ..torque_models import PhysicalModel, TorqueModel
 from ..errors import DataError, SensorlessError
 from ..regressor.normal_equations import iter_trajectories
 from ..regressor.terms import ModelStructure
@@ -259,7 +259,7 @@ class LearnedTorqueModel(MLPTorqueModel):
     """Pure-learning baseline: joint torques from a causal window of q, q̇ (no physics).
 
     With ``robot`` the targets are its actuated joints' efforts in model order (same rows
-    as :class:`~sensorless.estimators.PhysicalModel`). ``kind``: "mlp" (default, 2 × 256
+    as :class:`~sensorless.torque_models.PhysicalModel`). ``kind``: "mlp" (default, 2 × 256
     ReLU) or "lstm" (``hidden=(h,)`` LSTM units over the window).
     """
 
@@ -314,9 +314,9 @@ class LearnedTorqueModel(MLPTorqueModel):
 class HybridModel(_Network):
     """Physical model + learned residual: τ̂ = τ_phys + r_θ(window of q, q̇; τ_phys).
 
-    ``physical_model``: the physical base, a :class:`~sensorless.estimators.PhysicalModel`
-    (fixed parameters: :meth:`~sensorless.estimators.PhysicalModel.from_parameters`); any
-    :class:`~sensorless.estimators.TorqueModel` with ``predict`` and ``structure_`` (the target
+    ``physical_model``: the physical base, a :class:`~sensorless.torque_models.PhysicalModel`
+    (fixed parameters: :meth:`~sensorless.torque_models.PhysicalModel.from_parameters`); any
+    :class:`~sensorless.torque_models.TorqueModel` with ``predict`` and ``structure_`` (the target
     rows) is accepted. ``fit(data)`` trains
     the residual on ``data`` (e.g. a few minutes in the trocar). The physical model is fitted
     first on ``physical_data`` when given, or on ``data`` if it was never fitted

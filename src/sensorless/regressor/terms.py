@@ -462,7 +462,7 @@ class ModelStructure:
         return out
 
     def settings(self) -> dict:
-        """Round-trips through ``result.json`` (:func:`sensorless.estimators.load_parameters`).
+        """Round-trips through ``result.json`` (:func:`sensorless.torque_models.load_parameters`).
         ``coulomb_smoothing`` stays one number (the median ε) for older readers; the per-joint
         values are in ``coulomb_smoothing_by_joint``."""
         eps = self.coulomb_smoothing
