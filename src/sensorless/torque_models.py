@@ -161,7 +161,7 @@ class PhysicalModel(TorqueModel):
         """A fitted model with fixed parameters: τ̂ = W(q, q̇, q̈) π (e.g. from :func:`load_parameters`)."""
         return cls(structure.robot, structure=structure, parameters=parameters).fit()
 
-    def _structure(self) -> ModelStructure:
+    def _structure_to_fit(self) -> ModelStructure:
         if self.structure is not None:
             return self.structure
         if self.robot is None:
@@ -171,7 +171,7 @@ class PhysicalModel(TorqueModel):
         return make(joint_terms) if make else ModelStructure(self.robot, joint_terms=joint_terms)
 
     def fit(self, data=None) -> "PhysicalModel":
-        self.structure_ = self._structure()
+        self.structure_ = self._structure_to_fit()
         if self.parameters is not None:
             params = np.asarray(self.parameters, dtype=float)
             if params.shape != (self.structure_.n_params,):

@@ -122,7 +122,7 @@ _CACHE: dict[tuple[str, int], ModelStructure] = {}
 _CACHE_LOCK = threading.Lock()
 
 
-def _structure(model: ModelStructure | _Model) -> ModelStructure:
+def _worker_structure(model: ModelStructure | _Model) -> ModelStructure:
     """The structure for this thread: unpickled once per (model, worker thread), then cached."""
     if isinstance(model, ModelStructure):
         return model
@@ -213,7 +213,7 @@ def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple
     ``plan = (n_folds, period, offset, total)`` also splits it into cross-validation folds
     (the file's total is then the sum of its folds).
     """
-    structure = _structure(model)
+    structure = _worker_structure(model)
     try:
         traj = reader(path, structure.robot)
         if plan is None:
@@ -230,7 +230,7 @@ def _length_task(model, reader, path: str, skip_bad: bool) -> "tuple[int | None,
     """Pass 1 of cross-validation folds: (samples after preprocessing, excitation period, error)."""
     from ..data.periodicity import excitation_period
 
-    structure = _structure(model)
+    structure = _worker_structure(model)
     try:
         traj = reader(path, structure.robot)
     except SensorlessError as exc:
