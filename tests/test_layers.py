@@ -1,20 +1,9 @@
-"""The package's layer order (docs: ../shared/ARCHITECTURE.md, "Layers"), checked on the source.
+"""The package's layer order and structural rules, checked on the source; docs/architecture.md
+explains them ("Layers", "Structural rules") and its layer table is ``LAYERS`` (a test keeps them equal).
 
 Every ``import`` and ``from ... import`` (module level and inside functions) of every module
 under ``src/sensorless`` is parsed with :mod:`ast`; a module may import only modules of its
-own layer or below. Bottom to top:
-
-    0  errors, io                                  typed errors, atomic writes, version info
-    1  robot, parameters, model_checks, export,    Pinocchio model, parameter conventions,
-       urdf_patch, robot_paths, xacro_expand       URDF export, confined file references, xacro
-    2  data                                        Trajectory, readers, validation, filtering
-    3  regressor                                   terms, row maps, compression
-    4  identification, robots                      solve; robots authored in code (dVRK PSM)
-    5  learning, control, estimation, excitation,  users of an identified model; ``report``
-       actuator, torque_models, report, realtime   (plots, tables, HTML) is used by experiments
-    6  simulation                                  MuJoCo scenes and scenario scripts
-    7  experiments, example_data                   the papers' studies; data for the documented commands
-    8  cli, benchmarks, demo                       commands, speed/scale/accuracy benchmarks, the demo
+own layer or below (0 errors, io … 8 cli, benchmarks, demo).
 """
 
 from __future__ import annotations
@@ -27,7 +16,7 @@ from typer.testing import CliRunner
 SRC = Path(__file__).resolve().parents[1] / "src" / "sensorless"
 
 LAYERS = {
-    "errors": 0, "io": 0, "outdir": 0, "__version__": 0, "lazy": 0,
+    "errors": 0, "io": 0, "outdir": 0, "lazy": 0, "__version__": 0,  # ``from .. import __version__``: the package's own
     "robot": 1, "parameters": 1, "model_checks": 1, "export": 1, "urdf_patch": 1,
     "robot_paths": 1, "xacro_expand": 1, "_xacro_worker": 1,
     "data": 2,
@@ -84,6 +73,16 @@ def _edges():
         mod, _ = _module_name(path)
         for target, line in _imports(path):
             yield mod, target, f"{path.relative_to(SRC.parent)}:{line}"
+
+
+def test_the_architecture_doc_lists_these_layers():
+    """docs/architecture.md's layer table names every module of ``LAYERS`` at its layer."""
+    import re
+
+    doc = (SRC.parents[1] / "docs" / "architecture.md").read_text(encoding="utf-8")
+    rows = re.findall(r"^\| (\d) \| ([^|]+) \|", doc, flags=re.M)
+    table = {name: int(layer) for layer, cell in rows for name in re.findall(r"`([\w.]+)`", cell)}
+    assert table == {name: layer for name, layer in LAYERS.items() if name != "__version__"}
 
 
 def test_every_top_level_module_has_a_layer():
