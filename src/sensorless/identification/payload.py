@@ -83,7 +83,6 @@ from .payload_fit import (
 from .payload_determinacy import LEVER_TOL, verdicts
 from .payload_model import JointConsistency, PayloadEstimate, payload_regressor, point_mass_parameters
 
-# the payload regressor and estimate (.payload_model) and the solver (.payload_fit) are re-exported here
 
 __all__ = ["identify_payload"]
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..io import versions, write_json_atomic  # re-exported: the writers live in sensorless.io
+from ..io import versions
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .metrics import TorqueMetrics, torque_metrics

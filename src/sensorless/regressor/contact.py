@@ -59,7 +59,6 @@ import numpy as np
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, setting
 from .normal_equations import NormalEquations
-# re-exported: sensorless.regressor.contact.null_space_projector etc. keep working
 from .contact_inference import infer_contacts, normal_forces
 from .contact_kinematics import contact_jacobians, contact_rotations, detect_contacts, null_space_basis, null_space_projector
 from .rowmap import ContactNullSpace, RowMap
