@@ -25,7 +25,7 @@ Compression folds the projected equations through an orthonormal null-space basi
 (nv × k, k = nv − rank Jc: 6 for four point feet on Solo12, 12 for two), since P = B Bᵀ gives
 Σ Wᵀ P W = Σ (BᵀW)ᵀ(BᵀW): k rows per sample instead of nv (see :func:`null_space_basis`,
 ``fold_basis``). The k rows are combinations of joints, so the rows are pooled
-(:meth:`~.compress.NormalEquations.add_pooled`); ``fold_basis="projector"`` keeps the nv
+(:meth:`~.normal_equations.NormalEquations.add_pooled`); ``fold_basis="projector"`` keeps the nv
 projected rows apart (per-row weights and residuals) at 2–3× the cost.
 
 With measured contact wrenches (force plates, foot F/T) the wrench moves to the known
