@@ -23,7 +23,8 @@ from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.identification.friction import friction_residual, identify_friction
+from sensorless.identification.friction import friction_residual
+from sensorless.identification.friction_search import identify_friction
 from sensorless.regressor import ModelStructure
 from sensorless.simulation import perturbed_truth, synthetic_trajectory
 

@@ -20,7 +20,7 @@ from sensorless.data import (
     validate_trajectory,
     write_npz,
 )
-from sensorless.data.validation import TooFewSamplesError
+from sensorless.errors import TooFewSamplesError
 from sensorless.errors import (
     DataError,
     ExcitationError,

@@ -68,7 +68,7 @@ def test_identify_defaults_predict_the_friction_of_a_creeping_joint(creeping_ur1
     """With the CLI defaults the creeping joint's held-out torque is predicted (it was ~0 before), and
     its held-out NRMSE is close to the other joints'."""
     from sensorless.data.prepare import load_log
-    from sensorless.estimators import load_parameters
+    from sensorless.torque_models import load_parameters
 
     d, robot, truth = creeping_ur10
     out = tmp_path / "m"

@@ -166,7 +166,7 @@ def test_estimate_force_cli_recovers_a_known_tip_force(tmp_path, panda):
     err = np.sqrt(((z["force"] - F) ** 2).mean(axis=0))
     assert np.all(err < 0.05 * np.ptp(F, axis=0).clip(min=1.0)), err
     # with a learned residual (trained on free-space data: it should change little)
-    from sensorless.estimators import PhysicalModel
+    from sensorless.torque_models import PhysicalModel
     from sensorless.learning import HybridModel
 
     HybridModel(PhysicalModel.from_parameters(structure, result.parameters), window=2, hidden=(16,), seed=0, epochs=5).fit(free).save(tmp_path / "res")
@@ -234,7 +234,7 @@ def test_psm_tip_force_recovered_from_motor_efforts():
 
 def test_psm_force_estimate_from_a_log_and_model():
     """estimate(traj, model) on the PSM: the model's torque is removed, the rest mapped to the tip."""
-    from sensorless.estimators import PhysicalModel
+    from sensorless.torque_models import PhysicalModel
     from sensorless.robots import psm_robot, psm_structure
 
     s = psm_structure()

@@ -190,7 +190,10 @@ def test_fallbacks_name_their_reason(monkeypatch):
     # a model whose step the kernel does not reproduce is refused, with the size of the difference
     dyn = ur5_dynamics(np.random.default_rng(11))
     monkeypatch.setattr(mod, "_describe", _wrong_friction(mod._describe))
-    nat, reason = native_observer(dyn)
+    def python_observer(dyn, gain, order, dt):
+        return MomentumObserver(dyn, gain=gain, order=order, dt=dt, compiled=False)
+
+    nat, reason = native_observer(dyn, reference=python_observer)
     assert nat is None and "differs from the Python step" in reason
     # a kernel built before the observer step
     monkeypatch.setattr(mod, "_lib", lambda: None)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from sensorless.data.trajectory import Trajectory
-from sensorless.identification.friction import WIDTH_GRID_SIZE, friction_curve, identify_friction
+from sensorless.identification.friction import WIDTH_GRID_SIZE, friction_curve
+from sensorless.identification.friction_search import identify_friction
 from sensorless.regressor import ModelStructure
 
 TERMS = ("fv", "fc", "stribeck", "offset", "armature")

@@ -12,7 +12,8 @@ import pytest
 from sensorless.identification.gamma import _grid_search, cross_validate_gamma
 from sensorless.identification.lmi import DEFAULT_GAMMAS, build_lmi, solve_lmi
 from sensorless.identification.unconstrained import satisfies_constraints, unconstrained_solution
-from sensorless.regressor.compress import NormalEquations, compress
+from sensorless.regressor.compress import compress
+from sensorless.regressor.normal_equations import NormalEquations
 from sensorless.regressor.terms import ModelStructure
 from sensorless.excitation import random_fourier
 from sensorless.simulation import perturbed_truth, synthetic_trajectory

@@ -59,12 +59,12 @@ def test_wls_helps_when_joint_noise_differs(panda):
 
 def test_floating_base_actuated_rows_recovery(solo12):
     """Floating-base robot with a moving base, actuated rows: base parameters recovered."""
-    from sensorless.identification.base import _random_states
+    from sensorless.identification.base import random_states
     from sensorless.data import Trajectory
 
     truth = perturbed_truth(solo12, rng=2)
     s = ModelStructure(solo12)
-    Q, V, A = _random_states(s, 300, np.random.default_rng(0))
+    Q, V, A = random_states(s, 300, np.random.default_rng(0))
     nj = len(solo12.joint_names)
     idx = [solo12.v_index(j) for j in solo12.joint_names]
     qidx = [solo12.q_index(j) for j in solo12.joint_names]

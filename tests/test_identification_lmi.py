@@ -32,16 +32,14 @@ from sensorless.identification.ellipsoids import (
     auto_ellipsoids,
     body_points,
 )
+from sensorless.data.periodicity import excitation_period
+from sensorless.identification.gamma import cross_validate_gamma, select_gamma, validation_score
 from sensorless.identification.lmi import (
     LmiProblem,
     available_solvers,
     build_lmi,
-    cross_validate_gamma,
-    excitation_period,
     mosek_available,
-    select_gamma,
     solve_lmi,
-    validation_score,
 )
 from sensorless.benchmarks.lmi import bench_lmi, random_state_equations
 from sensorless.identification.metrics import torque_metrics
@@ -452,7 +450,7 @@ def test_kuka_configuration_is_the_cv_choice(kuka, kuka_logs):
     """The configuration used above minimises the CV score on measurements_1 (≈ 40 s)."""
     import itertools
 
-    from sensorless.identification.lmi import _split_folds
+    from sensorless.identification.gamma import split_folds
 
     train = kuka_logs[1].take(slice(0, None, 2))
     period = excitation_period(train)
@@ -460,7 +458,7 @@ def test_kuka_configuration_is_the_cv_choice(kuka, kuka_logs):
     best = None
     for terms in (KUKA_TERMS, KUKA_TERMS + ("armature",)):
         s = ModelStructure(kuka, joint_terms=terms)
-        folds = _split_folds(s, train, 5, 2048, period)
+        folds = split_folds(s, train, 5, 2048, period)
         rng = functools.reduce(NormalEquations.merge, folds)
         for reg, contain, weighted in itertools.product(("pullback", "entropic", "euclidean"), (True, False), (False, True)):
             w = 1.0 / (rng.y_max - rng.y_min) ** 2 if weighted else None

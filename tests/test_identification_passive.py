@@ -141,7 +141,7 @@ def test_force_from_the_rows_of_known_generalized_force(tmp_path):
     """Rail-mounted leg, true model, consistent state (forward dynamics with the rail unactuated):
     the foot force is recovered exactly, and the rail row alone carries the vertical force."""
     from sensorless.estimation.force import CartesianForceEstimator
-    from sensorless.estimators import PhysicalModel
+    from sensorless.torque_models import PhysicalModel
     from sensorless.simulation.hopping_leg import FOOT, TRUTH, leg_robot, leg_urdf
 
     r = leg_robot(leg_urdf(TRUTH, tmp_path / "leg.urdf"))

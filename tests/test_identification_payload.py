@@ -11,11 +11,8 @@ from sensorless.data import savgol_derivatives
 from sensorless.errors import DataError, RobotModelError
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.identification.payload import (
-    identify_payload,
-    payload_regressor,
-    point_mass_parameters,
-)
+from sensorless.identification.payload import identify_payload
+from sensorless.identification.payload_model import payload_regressor, point_mass_parameters
 from sensorless.parameters import pseudo_inertia
 from sensorless.regressor import ModelStructure
 from sensorless.robot import Robot

@@ -169,7 +169,7 @@ def test_no_or_unphysical_stribeck_effect_drops_the_term(arm, fs_minus_fc):
         p[truth.joint_term_index(j, "fc")] = 2.0
         p[truth.joint_term_index(j, "stribeck")] = fs_minus_fc
     log = dataclasses.replace(traj, tau=truth.torques(p, traj) + rng.normal(0, 0.02, traj.tau.shape))
-    from sensorless.identification.friction import identify_friction
+    from sensorless.identification.friction_search import identify_friction
 
     res, fit = identify_friction(dataclasses.replace(truth, stribeck_velocity=None), [log], coulomb_smoothing=0.01)
     assert fit.stribeck_grid and not fit.stribeck_velocity  # searched on the default grid, kept nowhere

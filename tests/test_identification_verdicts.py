@@ -15,7 +15,8 @@ from sensorless.errors import IdentifiabilityWarning
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
 from sensorless.identification.verdicts import compute_verdicts, linear_split, regulariser_hessian
-from sensorless.regressor.compress import NormalEquations, compress
+from sensorless.regressor.compress import compress
+from sensorless.regressor.normal_equations import NormalEquations
 from sensorless.regressor.terms import ModelStructure
 from sensorless.simulation import perturbed_truth, synthetic_trajectory
 

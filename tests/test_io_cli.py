@@ -21,7 +21,8 @@ import pytest
 from typer.testing import CliRunner
 
 from sensorless.cli import app
-from sensorless.io import MANIFEST, atomic_output_dir, read_manifest
+from sensorless.io import atomic_output_dir
+from sensorless.outdir import MANIFEST, read_manifest
 
 runner = CliRunner()
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]

@@ -23,10 +23,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from sensorless import _outdir
+from sensorless import outdir
 from sensorless.cli import app
 from sensorless.errors import OutputError
-from sensorless.io import MANIFEST, atomic_output_dir, check_output_file, read_manifest, write_npz_atomic
+from sensorless.io import atomic_output_dir, check_output_file, write_npz_atomic
+from sensorless.outdir import MANIFEST, read_manifest
 
 runner = CliRunner()
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
@@ -165,7 +166,7 @@ def test_force_refuses_edited_files_and_unlisted_folders(tmp_path):
     (out / "mine").rmdir()
     (out / "result.txt").unlink()  # a listed file deleted by the user: nothing to lose
     _make(out, "second", force=True)
-    assert (out / "result.txt").read_text() == "second" and _outdir.is_complete(out)
+    assert (out / "result.txt").read_text() == "second" and outdir.is_complete(out)
 
 
 # ---- environment errors --------------------------------------------------------------------
@@ -210,7 +211,7 @@ def test_disk_full_force_replace_keeps_the_previous_output(log, model, tiny_fs):
     _fill(tiny_fs, 8 * 1024)
     r = _run("identify", *ROBOT, "--data", log, "--out", out, "--force")
     _error(r, str(out), "No space left on device")
-    assert (out / "result.txt").read_text() == "previous" and _outdir.is_complete(out)
+    assert (out / "result.txt").read_text() == "previous" and outdir.is_complete(out)
     _no_hidden(tiny_fs)
     r = _run("predict", *ROBOT, "--model", model, "--data", log, "--out", tiny_fs / "p.npz")
     _error(r, str(tiny_fs / "p.npz"), "No space left on device")
@@ -232,8 +233,8 @@ def test_enospc_anywhere_is_a_typed_error_naming_out(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == []
     _make(out, "previous")
     with monkeypatch.context() as m:
-        real = _outdir.digest
-        m.setattr(_outdir, "digest", lambda p: full() if ".run.tmp-" in str(p) else real(p))  # writing the manifest
+        real = outdir.digest
+        m.setattr(outdir, "digest", lambda p: full() if ".run.tmp-" in str(p) else real(p))  # writing the manifest
         with pytest.raises(OutputError, match=rf"^{out}: cannot write: No space left on device"):
             _make(out, "new", force=True)
     assert (out / "result.txt").read_text() == "previous" and sorted(p.name for p in tmp_path.iterdir()) == ["run"]
@@ -294,14 +295,14 @@ def test_eight_distinct_and_four_same_output_writers(tmp_path):
     go.touch()
     results = [(o, t, p.communicate(timeout=120)[0], p.returncode) for (o, t), p in zip(jobs, procs)]
     for o, t, _, code in results[:8]:
-        assert code == 0 and _outdir.is_complete(o) and {f.read_text()[:2] for f in o.glob("f*.txt")} == {t}
+        assert code == 0 and outdir.is_complete(o) and {f.read_text()[:2] for f in o.glob("f*.txt")} == {t}
     codes = [code for *_, code in results[8:]]
     assert set(codes) <= {0, 2} and 0 in codes, results[8:]
     for _, _, msg, code in results[8:]:
         assert code == 0 or "another sensorless run" in msg, msg
     winners = {t for _, t, _, code in results[8:] if code == 0}
     tags = {f.read_text()[:2] for f in same.glob("f*.txt")}
-    assert _outdir.is_complete(same) and len(tags) == 1 and tags <= winners and len(list(same.glob("f*.txt"))) == 5
+    assert outdir.is_complete(same) and len(tags) == 1 and tags <= winners and len(list(same.glob("f*.txt"))) == 5
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
     print({"distinct_complete": 8, "same_succeeded": len(winners), "same_refused": codes.count(2)})
 
@@ -316,9 +317,9 @@ def test_concurrent_identify_runs(log, tmp_path):
                               stderr=subprocess.PIPE, text=True) for o in jobs]
     results = [(o, p.communicate(timeout=1200)[1], p.returncode) for o, p in zip(jobs, procs)]
     for o, err, code in results[:8]:
-        assert code == 0 and _outdir.is_complete(o), err
+        assert code == 0 and outdir.is_complete(o), err
     codes = [code for *_, code in results[8:]]
-    assert set(codes) <= {0, 2} and 0 in codes and _outdir.is_complete(same), results[8:]
+    assert set(codes) <= {0, 2} and 0 in codes and outdir.is_complete(same), results[8:]
     assert all(code == 0 or "another sensorless run" in err for _, err, code in results[8:])
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
     print({"distinct_complete": 8, "same_succeeded": codes.count(0), "same_refused": codes.count(2)})

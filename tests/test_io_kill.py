@@ -25,8 +25,9 @@ from pathlib import Path
 
 import pytest
 
-from sensorless import _outdir
-from sensorless.io import atomic_output_dir, atomic_write_text, recover_output
+from sensorless import outdir
+from sensorless.io import atomic_output_dir, atomic_write_text
+from sensorless.outdir import recover_output
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 FILES = ("a.txt", "sub/b.txt", "sub/c.txt", "d/e/f.txt")
@@ -35,7 +36,7 @@ DRIVER = textwrap.dedent("""
     import errno, os, shutil, signal, sys, threading
     sys.path.insert(0, {src!r})
     from pathlib import Path
-    from sensorless import _outdir, io
+    from sensorless import outdir, io
     out, n, sig, mode, where = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5]
     calls, at = [0], [n]
 
@@ -52,14 +53,14 @@ DRIVER = textwrap.dedent("""
 
     if mode == "journal":
         def unsupported(src, dst, flags):
-            if flags == _outdir.RENAME_EXCHANGE:
+            if flags == outdir.RENAME_EXCHANGE:
                 raise OSError(errno.EINVAL, "exchange unsupported")
             return _real_renameat2(src, dst, flags)
-        _real_renameat2 = _outdir.renameat2
-        _outdir.renameat2 = unsupported
+        _real_renameat2 = outdir.renameat2
+        outdir.renameat2 = unsupported
     for name in ("rename", "replace", "mkdir", "rmdir", "unlink", "open", "pwrite", "ftruncate"):
         counted(os, name)
-    counted(_outdir, "renameat2")
+    counted(outdir, "renameat2")
     counted(shutil, "rmtree")
 
     def run():
@@ -85,7 +86,7 @@ def _write(out: Path, tag: str, force: bool = False) -> None:
 
 def _version(out: Path) -> str | None:
     """'old' or 'new' when OUT is complete (and all its files agree), else None."""
-    if not _outdir.is_complete(out):
+    if not outdir.is_complete(out):
         return None
     tags = {(out / f).read_text().split()[0] for f in FILES}
     return tags.pop() if len(tags) == 1 else None
@@ -263,12 +264,12 @@ def test_time_based_kills_of_a_real_identify_force(tiny_log, tmp_path):
         time.sleep(duration * frac)
         p.send_signal(sig)
         p.wait(timeout=600)
-        if not _outdir.is_complete(out):
+        if not outdir.is_complete(out):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 recover_output(out)
-        outcomes.append((sig.name, p.returncode, _outdir.is_complete(out)))
-        assert _outdir.is_complete(out), outcomes
+        outcomes.append((sig.name, p.returncode, outdir.is_complete(out)))
+        assert outdir.is_complete(out), outcomes
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             recover_output(out)

@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("torch")
 from sensorless.errors import DataWarning  # noqa: E402
-from sensorless.estimators import PhysicalModel  # noqa: E402
+from sensorless.torque_models import PhysicalModel  # noqa: E402
 from sensorless.excitation import random_fourier  # noqa: E402
 from sensorless.learning import HybridModel, ValidatedHybridModel, residual_scale  # noqa: E402
 from sensorless.simulation import perturbed_truth, synthetic_trajectory  # noqa: E402

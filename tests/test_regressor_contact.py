@@ -160,7 +160,7 @@ def test_cli_identifies_a_legged_robot_from_npz_logs_with_contact_flags(solo12, 
 
     from sensorless.cli import app
     from sensorless.data import read_trajectory, write_npz
-    from sensorless.estimators import load_parameters
+    from sensorless.torque_models import load_parameters
     from sensorless.experiments.contact_id import prepare_log
     from sensorless.simulation.quadruped import make_truth, simulate
 

@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 
 from sensorless.regressor import contact_kinematics, native
-from sensorless.regressor.contact import contact_jacobians, null_space_projector
+from sensorless.regressor.contact_kinematics import contact_jacobians, null_space_projector
 
 FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 RCOND = 1e-7  # ContactStructure's default

@@ -21,10 +21,11 @@ from sensorless.cli import app  # noqa: E402
 from sensorless.cli.common import load_logs  # noqa: E402
 from sensorless.errors import DataError, JointNameError  # noqa: E402
 from sensorless.identification import identify, identify_files  # noqa: E402
-from sensorless.identification.lmi import _split_folds  # noqa: E402
+from sensorless.identification.gamma import split_folds  # noqa: E402
 from sensorless.regressor import ModelStructure, compress, compress_files, expand_paths  # noqa: E402
 from sensorless.regressor.dask_cluster import connect  # noqa: E402
-from sensorless.regressor.distributed import DistributedError, LogReader, _Model, _structure  # noqa: E402
+from sensorless.regressor.distributed import LogReader, _Model, _worker_structure  # noqa: E402
+from sensorless.errors import DistributedError  # noqa: E402
 
 TOL = 1e-10
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
@@ -127,7 +128,7 @@ def test_cross_validation_folds_equal_the_local_split(fleet, structure, client, 
     """LMI γ='auto' folds: phase blocks of a period (per file, from its first sample), or contiguous blocks over all files."""
     _, files = fleet
     trajs = load_logs(files, structure.robot, None, None, None, None, 1)
-    local = _split_folds(structure, trajs, 5, 2048, period)
+    local = split_folds(structure, trajs, 5, 2048, period)
     got = compress_files(structure, files, client=client, n_folds=5, period=period)
     assert got.period == period
     assert len(got.folds) == 5
@@ -177,7 +178,7 @@ def test_skip_bad_skips_and_reports_the_file_and_equals_local_on_the_rest(with_c
     # the cross-validation folds (two passes) skip it too, and cut the other files as the local path does
     got = compress_files(structure, files, client=client, skip_bad=True, n_folds=5, period=None)
     assert [f for f, _ in got.skipped] == [bad] and got.files == fleet[1]
-    local = _split_folds(structure, load_logs(fleet[1], structure.robot, None, None, None, None, 1), 5, 2048, None)
+    local = split_folds(structure, load_logs(fleet[1], structure.robot, None, None, None, None, 1), 5, 2048, None)
     for a, b in zip(got.folds, local):
         np.testing.assert_allclose(a.A, b.A, rtol=1e-12, atol=1e-12 * np.abs(b.A).max())
 
@@ -246,10 +247,10 @@ def test_worker_killed_mid_run_gives_the_same_result(fleet, structure, tmp_path,
 def test_structure_travels_once_and_is_unpickled_once_per_thread(structure):
     m = _Model.of(structure)
     assert len(m.blob) < 2**20  # a pickled Panda structure, not data
-    a, b = _structure(m), _structure(m)
+    a, b = _worker_structure(m), _worker_structure(m)
     assert a is b and a is not structure and a.n_params == structure.n_params
     other = []
-    t = threading.Thread(target=lambda: other.append(_structure(m)))
+    t = threading.Thread(target=lambda: other.append(_worker_structure(m)))
     t.start()
     t.join()
     assert other[0] is not a  # Pinocchio Data is per-thread scratch space

@@ -156,7 +156,7 @@ def test_lmi_recovers_mass_from_one_noisy_wobble(noisy_wobble):
     within 2.5× the torque-noise floor (the study, on many logs, reaches ≈ 1.25×)."""
     from sensorless.identification.lmi import solve_lmi
     from sensorless.parameters import com_frame
-    from sensorless.regressor.compress import NormalEquations
+    from sensorless.regressor.normal_equations import NormalEquations
 
     cs, th, traj, gt, cols = noisy_wobble
     fr = filtered_rows(cs, traj, 1.0, order=2)

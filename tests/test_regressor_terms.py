@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from sensorless.identification.base import _random_states
+from sensorless.identification.base import random_states
 from sensorless.regressor import ModelStructure, NormalEquations, compress
 from sensorless.simulation import perturbed_truth
 
@@ -29,7 +29,7 @@ def test_regressor_times_parameters_equals_rnea(name, request, rng):
     robot = request.getfixturevalue(name)
     truth = perturbed_truth(robot, rng=3)
     structure = ModelStructure(truth.robot)
-    Q, V, A = _random_states(structure, 50, rng)
+    Q, V, A = random_states(structure, 50, rng)
     W = structure.evaluate(Q, V, A)
     tau = _rnea_reference(robot, truth, Q, V, A)
     rows = np.arange(robot.nv) if structure.rows == "all" else robot.actuated_v_indices
@@ -41,7 +41,7 @@ def test_regressor_times_parameters_equals_rnea(name, request, rng):
 def test_block_compression_equals_dense_normal_equations(solo12, rng):
     """The sparse block fold (add_blocks) equals WᵀW of the assembled regressor."""
     structure = ModelStructure(solo12)
-    Q, V, A = _random_states(structure, 40, rng)
+    Q, V, A = random_states(structure, 40, rng)
     W = structure.evaluate(Q, V, A)
     y = rng.normal(size=(40, structure.n_rows))
     dense = NormalEquations.zeros(structure.n_rows, structure.n_params)

@@ -201,7 +201,7 @@ def test_lmi_with_default_arguments_runs_on_the_psm():
 
 def test_estimators_accept_the_psm_robot():
     """PhysicalModel / CADModel build the PSM's own structure from its coordinate robot."""
-    from sensorless.estimators import CADModel, PhysicalModel
+    from sensorless.torque_models import CADModel, PhysicalModel
     from sensorless.robots import psm_robot
 
     s, p = psm_truth(np.random.default_rng(5), coulomb_smoothing=0.0)

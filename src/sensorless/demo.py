@@ -18,7 +18,7 @@ import numpy as np
 from rich.console import Console
 
 from .data import write_npz
-from .estimators import CADModel
+from .torque_models import CADModel
 from .excitation import random_fourier
 from .identification import identify
 from .identification.artifact import save_model_folder

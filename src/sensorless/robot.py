@@ -29,7 +29,7 @@ from .parameters import pin_inertia
 from .robots.registry import find_robot, robot_names
 from .xacro_expand import expand_xacro
 
-__all__ = ["Actuation", "Robot", "add_frame", "expand_xacro", "frame_table", "load_robot"]
+__all__ = ["Actuation", "Robot", "add_frame", "frame_table", "load_robot"]
 
 
 class Actuation:

@@ -3,7 +3,7 @@
 Each command group lives in its own module and registers itself on :data:`app`.
 """
 
-from . import contact_id, core, drive_gains, example, excite, frames, friction, hybrid_force, monitor, payload, psm, stream, torque_control  # noqa: F401  (each module registers its commands)
+from . import contact_id, identify, predict, bench, drive_gains, example, excite, frames, friction, hybrid_force, monitor, payload, psm, stream, torque_control  # noqa: F401  (each module registers its commands)
 import typer
 
 from .common import app, atomic_outdir, guarded

@@ -21,7 +21,7 @@ from .channel_options import base_velocity_option, pose_max_gap_option
 from .blas import blas_threads_for_command
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, current_context
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
 bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
@@ -145,22 +145,13 @@ def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Pat
     from ..io import atomic_output_dir
 
     command = None
-    ctx = _current_context()
+    ctx = current_context()
     if ctx is not None:
         command = {"name": " ".join(["sensorless", *ctx.command_path.split()[1:]]), "options": {
             k: v if isinstance(v, (str, int, float, bool, list, tuple, Path)) or v is None else str(v)
             for k, v in ctx.params.items()}}
     with atomic_output_dir(out, force, inputs=inputs, command=command) as tmp:
         yield tmp
-
-
-def _current_context():
-    """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
-    try:
-        from typer.main import get_current_context
-    except ImportError:  # pragma: no cover - older typer on plain click
-        from click import get_current_context
-    return get_current_context(silent=True)
 
 
 def output_file(out: Path, inputs: Iterable = (), force: bool = False) -> Path:
@@ -232,12 +223,13 @@ def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[boo
     r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
     from ..robot import add_frame
 
-    for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
+    for spec in ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
         add_frame(r, *spec)
     return r
 
 
-_ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
+#: the ``--add-frame`` specs of the running command (set by :func:`sensorless.cli.frames.frame_options`)
+ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
 _ROBOT_SOURCE: "contextvars.ContextVar[dict]" = contextvars.ContextVar("robot_source", default={})
 
 
@@ -486,7 +478,7 @@ def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> t
 
 def write_result(res: dict, out: Path) -> None:
     """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
-    from ..identification.result import write_json_atomic
+    from ..io import write_json_atomic
 
     output_file(out, force=True)  # benchmark results are regenerated in place; never a directory or FIFO
     write_json_atomic(res, out)

@@ -12,7 +12,6 @@ from .common import (
     robot_source_options,
     app,
     atomic_outdir,
-    console,
     guarded,
     load_robot_arg,
     path_inputs,
@@ -20,6 +19,7 @@ from .common import (
     lock_option,
     robot_option,
 )
+from .console import console
 from .options import Criterion
 from .progress import progress_bars
 

@@ -84,7 +84,7 @@ def estimate_force(
 
     from ..estimation.force import CartesianForceEstimator
     from ..io import write_npz_atomic
-    from ..estimators import PhysicalModel
+    from ..torque_models import PhysicalModel
 
     output_file(out, path_inputs(robot, model, data, residual), force)
     figure = _figure_path(out) if plot else None

@@ -199,7 +199,7 @@ def _identify(*, plotter, config, robot, data, validate, method, prior, regulari
                           "of q): run without --scheduler")
     if floating_base is None and contact_frames and not passive:
         floating_base = True  # a legged robot's base floats; with --passive a passive joint is the unactuated "base"
-    from ..estimators import CADModel, PhysicalModel
+    from ..torque_models import CADModel, PhysicalModel
     from ..report import metrics_table
 
     r = load_robot_arg(robot, lock, floating_base, passive)

@@ -20,7 +20,6 @@ from .common import (
     app,
     atomic_outdir,
     bench_command,
-    console,
     guarded,
     path_inputs,
     force_option,
@@ -28,6 +27,7 @@ from .common import (
     floating_base_option,
     model_options,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 from .options import ForceReference
 

@@ -17,7 +17,6 @@ from .common import (
     model_preprocessing_options,
     app,
     atomic_outdir,
-    console,
     guarded,
     output_file,
     path_inputs,
@@ -26,6 +25,7 @@ from .common import (
     force_option,
     model_options,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 
 

@@ -12,7 +12,8 @@ import typer
 
 from ..errors import OptionError
 from .applied_model import MODEL_HELP, robot_and_model
-from .common import app, bench_command, console, guarded, model_options, robot_source_options
+from .common import app, bench_command, guarded, model_options, robot_source_options
+from .console import console
 from .frames import frame_options
 from .options import ForceReference
 

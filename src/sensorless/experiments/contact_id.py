@@ -39,7 +39,7 @@ from ..data.filtering import SavitzkyGolay
 from ..data.imu import base_acceleration, gravity_in_base
 from ..data.trajectory import Trajectory
 from ..errors import IdentifiabilityWarning, SensorlessError
-from ..estimators import PhysicalModel
+from ..torque_models import PhysicalModel
 from ..parameters import com_frame
 from ..regressor.compress import compress
 from ..regressor.contact import ContactStructure

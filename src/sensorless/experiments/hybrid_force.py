@@ -33,7 +33,7 @@ from ..estimation.force import CartesianForceEstimator
 from ..identification import identify, torque_metrics
 from ..identification.payload import identify_payload
 from ..identification.result import versions, write_json_atomic
-from ..estimators import PhysicalModel
+from ..torque_models import PhysicalModel
 from ..learning import HybridModel, LearnedTorqueModel
 from ..regressor import ModelStructure
 from ..simulation.surgical_arm import TIP_FRAME

@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from ..identification import identify, torque_metrics
-from ..estimators import PhysicalModel
+from ..torque_models import PhysicalModel
 from ..learning import HybridModel, ValidatedHybridModel
 from ..robots.dvrk_psm import psm_structure, read_psm_log
 from .psm_identification import psm_split_paths, select_smoothing

@@ -61,7 +61,7 @@ from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError
 from ..regressor.joint_terms import TermInputs, joint_term
-from ..regressor.terms import ModelStructure, _in_robot_order
+from ..regressor.terms import ModelStructure, in_robot_order
 
 __all__ = [
     "FrictionFit",
@@ -69,11 +69,9 @@ __all__ = [
     "moving_joints",
     "friction_curve",
     "friction_residual",
-    "identify_friction",
     "lowpass_noise_gain",
     "REST_SIGMAS",
     "search_stribeck_velocity",
-    "signal_noise",
     "stribeck_grid",
     "transition_grid",
 ]
@@ -155,7 +153,7 @@ def coulomb_smoothing_from_noise(
 
 def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajectory, list[int]]:
     r = structure.robot
-    traj = _in_robot_order(r, traj)
+    traj = in_robot_order(r, traj)
     return traj, [r.joint_names.index(j) for j in r.term_joints]
 
 
@@ -237,46 +235,6 @@ class FrictionFit:
         return dataclasses.asdict(self)
 
 
-def identify_friction(
-    structure: ModelStructure,
-    train: Iterable[Trajectory],
-    *,
-    coulomb_smoothing: "str | float" = "auto",
-    stribeck_velocity: "str | float | dict" = "auto",
-    rest_velocity: "str | float" = 0.0,
-    factor: float = 3.0,
-    identify_kwargs: dict | None = None,
-    noise_logs: Iterable[Trajectory] | None = None,
-    lowpass_hz: float | None = None,
-    width_grid: "str | dict | None" = "auto",
-):
-    """Identify with noise-aware Coulomb smoothing, a rest gate and searched Stribeck velocities.
-
-    ``coulomb_smoothing``: "auto" (ε = ``factor`` σ_v, module docstring) or ε for every joint
-    (0 = sgn). ``rest_velocity``: "auto" (δ = :data:`REST_SIGMAS` σ_v) or δ for every joint
-    (0 = no rest gate). ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck``
-    term) or vs. ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training
-    logs went through (module docstring); default: the noise of the training logs as they are.
-    ``stribeck_velocity`` may also be candidate values per joint (``{joint: [vs, …]}``).
-    ``width_grid``: "auto" (fitted transition widths, :func:`transition_grid`, when ε is "auto"),
-    candidate widths per joint, or None (w = ε).
-    Runs :func:`~sensorless.identification.identify` once with ``identify_kwargs`` (with the
-    candidates when vs or w is searched: one compression pass, :mod:`~.stribeck`). Returns
-    ``(result, FrictionFit)``.
-    """
-    from .identify import identify
-
-    train = list(train)
-    kw = dict(identify_kwargs or {})
-    s, fit, auto_vs = _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity,
-                                      factor, noise_logs, lowpass_hz, width_grid)
-    if not (auto_vs or fit.width_grid):
-        return identify(s, train, **kw), fit
-    result = identify(s, train, stribeck_grid=fit.stribeck_grid if auto_vs else None, width_grid=fit.width_grid,
-                      **kw)
-    return result, record_search(fit, result)
-
-
 def record_search(fit: FrictionFit, result) -> FrictionFit:
     """``fit`` completed with what the search of ``result`` chose (vs, fitted widths, the record)."""
     search = result.diagnostics.get("stribeck_search") or {}
@@ -299,18 +257,20 @@ def friction_structure(
     lowpass_hz: float | None = None,
     width_grid: "str | dict | None" = "auto",
 ):
-    """The structure :func:`identify_friction` would fit, with ε set from ``logs`` and, when vs is
+    """The structure :func:`~.friction_search.identify_friction` would fit, with ε set from ``logs`` and, when vs is
     "auto", the candidate grid in ``FrictionFit.stribeck_grid`` (the structure's vs is 0.1 · P95|v|
     until a fit chooses) and the candidate widths in ``FrictionFit.width_grid``: for fitting
     elsewhere, e.g. on Dask workers from ε and the grids measured on the client's log. Returns
     ``(structure, FrictionFit)``."""
-    s, fit, _ = _friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
+    s, fit, _ = friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
                                 noise_logs, lowpass_hz, width_grid)
     return s, fit
 
 
-def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity, factor, noise_logs,
-                    lowpass_hz, width_grid="auto"):
+def friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity, factor, noise_logs,
+                   lowpass_hz, width_grid="auto"):
+    """``(structure with ε and the rest gate set, FrictionFit, whether vs is searched)`` from the
+    training logs (arguments as :func:`~.friction_search.identify_friction`)."""
     joints = list(structure.robot.term_joints)
     has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
     for name, val in (("coulomb_smoothing", coulomb_smoothing), ("rest_velocity", rest_velocity)):

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import setting
 from ..parameters import pseudo_inertia
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.joint_terms import terms_where
 from .least_squares import MIN_SINGULAR_RATIO, solve_truncated_svd
 

@@ -42,7 +42,7 @@ from ..data.chunks import ChunkedLog, open_chunked
 from ..data.streamed_log import StreamedLog, scan_log
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.compress import NormalEquations, idle_core, one_blas_thread
+from ..regressor.normal_equations import NormalEquations, idle_core, one_blas_thread
 from ..regressor.joint_terms import joint_term, terms_where
 from ..regressor.terms import ModelStructure
 from .friction import FrictionFit, coulomb_smoothing_from_noise, friction_structure, record_search, stribeck_grid, \

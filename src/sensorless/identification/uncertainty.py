@@ -34,7 +34,7 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import ExcitationError, setting
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.joint_terms import terms_where
 from .base import BaseParameters
 

@@ -47,12 +47,12 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..data.filtering import _uniform_dt
+from ..data.filtering import uniform_dt
 from ..data.integral_filter import LowpassChain
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, setting
 from .joint_terms import joint_term
-from .terms import ModelStructure, _in_robot_order
+from .terms import ModelStructure, in_robot_order
 
 __all__ = ["FilteredRows", "filtered_rows", "filtered_target", "momentum_regressors", "projection_rate_error"]
 
@@ -116,7 +116,7 @@ def _state(structure: ModelStructure, traj: Trajectory):
     r = structure.robot
     if traj.v is None:
         raise DataError("acceleration-free identification needs joint velocities 'v'", traj.source)
-    tr = _in_robot_order(r, traj)
+    tr = in_robot_order(r, traj)
     if r.floating_base and (tr.base_q is None or tr.base_v is None):
         raise DataError("a floating-base robot needs base_q and base_v in the log", traj.source)
     return r.full_configuration(tr.q, tr.base_q), r.full_velocity(tr.v, tr.base_v)
@@ -128,7 +128,7 @@ def _generalised(structure: ModelStructure, traj: Trajectory, tau: np.ndarray | 
     if tau is None:
         if traj.tau is None:
             raise DataError("trajectory has no torque/effort ('tau')", traj.source)
-        tr = _in_robot_order(r, traj)
+        tr = in_robot_order(r, traj)
         tau = tr.tau[:, [r.joint_names.index(j) for j in r.actuated_joints]]
     out = np.zeros((len(traj), r.nv))
     out[:, r.actuated_v_indices] = tau
@@ -213,4 +213,4 @@ def projection_rate_error(structure, traj: Trajectory, params: np.ndarray, cutof
 
 
 def _dt(traj: Trajectory) -> float:
-    return _uniform_dt(traj, "acceleration-free identification")
+    return uniform_dt(traj, "acceleration-free identification")

@@ -109,7 +109,7 @@ def _by_joint(value, joints, what: str) -> Mapping:
     return value
 
 
-def _per_joint(value, joints, what: str) -> dict[str, float]:
+def per_joint_values(value, joints, what: str) -> dict[str, float]:
     """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
     if value is None:
         return {}

@@ -52,7 +52,7 @@ from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
 from .friction_columns import coulomb_sign, fit_keep, sliding_sign
 from .friction_state import presliding_states
-from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, _per_joint, named_joints, parse_joint_terms, parse_presliding,
+from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, per_joint_values, named_joints, parse_joint_terms, parse_presliding,
                          passive_terms)
 from .joint_terms import JOINT_TERMS, TermInputs, joint_term
 from .joint_terms.stribeck import FRICTION_LAWS
@@ -112,13 +112,13 @@ class ModelStructure:
                 self.per_joint_terms = None  # uniform after all
         self.joint_terms = tuple(t for t in JOINT_TERMS if t in self.joint_terms)
         if isinstance(self.coulomb_smoothing, Mapping):
-            self.coulomb_smoothing = _per_joint(self.coulomb_smoothing, joints, "coulomb_smoothing")
+            self.coulomb_smoothing = per_joint_values(self.coulomb_smoothing, joints, "coulomb_smoothing")
         elif not (np.isfinite(self.coulomb_smoothing) and self.coulomb_smoothing >= 0):
             raise RobotModelError(f"coulomb_smoothing must be a finite number >= 0, got {self.coulomb_smoothing!r}")
         if self.friction_law not in FRICTION_LAWS:
             raise RobotModelError(f"friction_law must be one of {FRICTION_LAWS}, got {self.friction_law!r}")
-        self.stribeck_velocity = _per_joint(self.stribeck_velocity, joints, "stribeck_velocity") or None
-        self.rest_velocity = _per_joint(self.rest_velocity, joints, "rest_velocity") or None
+        self.stribeck_velocity = per_joint_values(self.stribeck_velocity, joints, "stribeck_velocity") or None
+        self.rest_velocity = per_joint_values(self.rest_velocity, joints, "rest_velocity") or None
         need = [j for j in joints if "stribeck" in self.terms_of(j)]
         if need:  # vs of joints not given: DEFAULT_STRIBECK_VELOCITY (identification.friction searches it)
             vs = dict(self.stribeck_velocity or {})
@@ -256,7 +256,7 @@ class ModelStructure:
                 "(sensorless.data.savgol_derivatives) or map the column",
                 traj.source,
             )
-        traj = _in_robot_order(r, traj)
+        traj = in_robot_order(r, traj)
         if r.floating_base and self.rows == "all" and (traj.base_q is None or traj.base_v is None or traj.base_a is None):
             raise DataError("a floating-base robot needs base_q, base_v and base_a in the trajectory", traj.source)
         Q = r.full_configuration(traj.q, traj.base_q)
@@ -274,7 +274,7 @@ class ModelStructure:
         r = self.robot
         if traj.tau is None:
             raise DataError("trajectory has no torque/effort ('tau')", traj.source)
-        tau = _in_robot_order(r, traj).tau
+        tau = in_robot_order(r, traj).tau
         cols = [r.joint_names.index(j) for j in r.actuated_joints]
         y = np.zeros((len(traj), self.n_rows))
         y[:, self._act_row[: len(cols)]] = tau[:, cols]  # passive rows: 0, their generalized force
@@ -381,7 +381,7 @@ class ModelStructure:
         if (missing := [j for j in joints if "presliding" in self.terms_of(j) and j not in laws]) or traj.v is None:
             raise DataError(f"the presliding state needs the joint velocities and a presliding distance for "
                             f"{missing} (identify chooses it)", traj.source)
-        traj, cols = _in_robot_order(self.robot, traj), [self.robot.joint_names.index(j) for j in joints]
+        traj, cols = in_robot_order(self.robot, traj), [self.robot.joint_names.index(j) for j in joints]
         return presliding_states(traj.q[:, cols], traj.v[:, cols], [laws.get(j) for j in joints])
 
     def _rest_velocities(self) -> np.ndarray:
@@ -461,7 +461,7 @@ class ModelStructure:
         return out
 
     def settings(self) -> dict:
-        """Round-trips through ``result.json`` (:func:`sensorless.estimators.load_parameters`).
+        """Round-trips through ``result.json`` (:func:`sensorless.torque_models.load_parameters`).
         ``coulomb_smoothing`` stays one number (the median ε) for older readers; the per-joint
         values are in ``coulomb_smoothing_by_joint``."""
         eps = self.coulomb_smoothing
@@ -484,7 +484,7 @@ class ModelStructure:
         return {**out, "presliding": {j: dict(p) for j, p in self.presliding.items()}} if self.presliding else out
 
 
-def _in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:
+def in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:
     """The trajectory with joint columns in ``robot.joint_names`` order (JointNameError if impossible)."""
     if traj.joint_names == robot.joint_names:
         return traj

@@ -2,7 +2,7 @@
 robot or catalogue; :mod:`.base`), and the robots authored in code, one module each (the dVRK PSM,
 :mod:`.dvrk_psm`). ``sensorless.robot`` is the :class:`~sensorless.robot.Robot` class and its loader."""
 
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 # the PSM model (Pinocchio, regressor) is imported on first use
 _PSM_MODEL = ["COORDINATES", "LENGTHS", "MOTOR_TO_JOINT", "PSM_BODIES_AUTHORS", "PSM_FRAMES", "PSM_LIMITS",

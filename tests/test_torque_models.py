@@ -1,4 +1,4 @@
-"""The torque-model contract (sensorless.estimators.TorqueModel): an ABC with fit/predict/score,
+"""The torque-model contract (sensorless.torque_models.TorqueModel): an ABC with fit/predict/score,
 scikit-learn's parameter rules (``sklearn.base.clone`` gives an unfitted copy that fits to the
 same model), and one scoring function."""
 
@@ -11,7 +11,7 @@ pytest.importorskip("torch")
 sklearn_base = pytest.importorskip("sklearn.base")
 
 from sensorless.errors import ParameterError  # noqa: E402
-from sensorless.estimators import CADModel, PhysicalModel, TorqueModel, score  # noqa: E402
+from sensorless.torque_models import CADModel, PhysicalModel, TorqueModel, score  # noqa: E402
 from sensorless.excitation import random_fourier  # noqa: E402
 from sensorless.identification import identify  # noqa: E402
 from sensorless.learning import HybridModel, LearnedTorqueModel, MLPTorqueModel, ValidatedHybridModel  # noqa: E402
@@ -108,8 +108,6 @@ def test_one_scoring_function(panda, logs):
         m, ref = model.score(test), score(model, test)
         np.testing.assert_array_equal(m.rmse, ref.rmse)
     np.testing.assert_allclose(phys.score(test).nrmse, phys.result_.score(test).nrmse)
-    with pytest.warns(DeprecationWarning, match="use score"):  # "evaluate" now only evaluates regressors
-        np.testing.assert_array_equal(phys.result_.evaluate(test).nrmse, phys.result_.score(test).nrmse)
 
 
 def test_cad_model_follows_sklearn_rules_and_clones(panda, logs):

@@ -131,10 +131,10 @@ class PhysicalModel(TorqueModel):
     or the robot's own ``make_structure``). ``parameters``: a fixed parameter vector in that
     structure's layout; ``fit`` then keeps it and identifies nothing
     (:meth:`from_parameters`). ``friction``: keyword arguments of
-    :func:`~sensorless.identification.friction.identify_friction` (noise-aware Coulomb smoothing,
+    :func:`~sensorless.identification.friction_search.identify_friction` (noise-aware Coulomb smoothing,
     Stribeck search); ``fit`` then identifies through it, ``structure_`` is the structure it
     settled on and ``friction_fit_`` its record. ``fit`` also takes precompressed
-    :class:`~sensorless.regressor.compress.NormalEquations` (not with ``friction``).
+    :class:`~sensorless.regressor.normal_equations.NormalEquations` (not with ``friction``).
     """
 
     def __init__(
@@ -161,7 +161,7 @@ class PhysicalModel(TorqueModel):
         """A fitted model with fixed parameters: τ̂ = W(q, q̇, q̈) π (e.g. from :func:`load_parameters`)."""
         return cls(structure.robot, structure=structure, parameters=parameters).fit()
 
-    def _structure(self) -> ModelStructure:
+    def _structure_to_fit(self) -> ModelStructure:
         if self.structure is not None:
             return self.structure
         if self.robot is None:
@@ -171,7 +171,7 @@ class PhysicalModel(TorqueModel):
         return make(joint_terms) if make else ModelStructure(self.robot, joint_terms=joint_terms)
 
     def fit(self, data=None) -> "PhysicalModel":
-        self.structure_ = self._structure()
+        self.structure_ = self._structure_to_fit()
         if self.parameters is not None:
             params = np.asarray(self.parameters, dtype=float)
             if params.shape != (self.structure_.n_params,):
@@ -182,7 +182,7 @@ class PhysicalModel(TorqueModel):
             raise ParameterError("PhysicalModel.fit needs trajectories (or fixed parameters=)")
         kwargs = dict(method=self.method, **self.identify_kwargs)
         if self.friction is not None:
-            from .identification.friction import identify_friction
+            from .identification.friction_search import identify_friction
 
             self.result_, self.friction_fit_ = identify_friction(self.structure_, data, identify_kwargs=kwargs,
                                                                  **self.friction)

@@ -28,6 +28,7 @@ import hashlib
 import json
 import os
 import platform
+import secrets
 import shutil
 import sys
 import time
@@ -224,11 +225,21 @@ def _journal(out: Path) -> Path:
     return out.parent / f".{out.name}.journal"
 
 
+def _write_journal(journal: Path, text: str) -> None:
+    """Write the journal atomically: a ``.NAME.PID-HEX.tmp`` sibling (removed by
+    :func:`remove_dead_temps` if this process dies) renamed into place."""
+    tmp = journal.parent / f".{journal.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp"
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, journal)
+    except OSError as exc:
+        _unlink(tmp)
+        raise OutputError(f"{journal}: cannot write: {exc.strerror or exc}") from None
+
+
 def swap_in(tmp: Path, out: Path, token: str) -> Path | None:
     """Make the complete tree ``tmp`` become ``out``; return where the previous ``out`` now is
     (for the caller to remove), or None. ``out`` is complete at every instant."""
-    from .io import atomic_write_text
-
     if not out.exists():
         try:
             renameat2(tmp, out, RENAME_NOREPLACE)
@@ -245,7 +256,7 @@ def swap_in(tmp: Path, out: Path, token: str) -> Path | None:
             raise
     old = out.parent / f".{out.name}.old-{token}"
     journal = _journal(out)
-    atomic_write_text(journal, json.dumps({"out": out.name, "old": old.name, "new": tmp.name, "pid": os.getpid()}))
+    _write_journal(journal, json.dumps({"out": out.name, "old": old.name, "new": tmp.name, "pid": os.getpid()}))
     os.rename(out, old)
     try:
         os.rename(tmp, out)
