@@ -28,7 +28,8 @@ from sensorless.identification import (
     identify,
     read_weights_file,
 )
-from sensorless.identification.lmi import DEFAULT_GAMMAS, GammaSelection
+from sensorless.identification.gamma import GammaSelection
+from sensorless.identification.lmi import DEFAULT_GAMMAS
 from sensorless.parameters import check_physical_consistency
 from sensorless.regressor import ModelStructure
 

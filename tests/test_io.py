@@ -21,13 +21,12 @@ import numpy as np
 import pytest
 
 from sensorless.errors import OutputError, SensorlessError
+from sensorless.outdir import MANIFEST, read_manifest
 from sensorless.io import (
-    MANIFEST,
     atomic_open,
     atomic_output_dir,
     atomic_write_text,
     check_output_file,
-    read_manifest,
     write_json_atomic,
     write_npz_atomic,
 )

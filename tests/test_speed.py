@@ -26,10 +26,10 @@ from sensorless.data import write_npz
 from sensorless.data.trajectory import Trajectory
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.identification.base import _random_states
+from sensorless.identification.base import random_states
 from sensorless.regressor import ContactStructure, ModelStructure, NormalEquations, compress
-from sensorless.regressor.compress import syrk_fold
-from sensorless.regressor.contact import null_space_basis, null_space_projector
+from sensorless.regressor.normal_equations import syrk_fold
+from sensorless.regressor.contact_kinematics import null_space_basis, null_space_projector
 from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
@@ -54,7 +54,7 @@ def test_subtree_columns_are_structural_zeros_and_the_blockwise_fold_is_exact(re
     robot = request.getfixturevalue(name)
     s = ModelStructure(robot)
     rng = np.random.default_rng(1)
-    Q, V, A = _random_states(s, 200, rng)
+    Q, V, A = random_states(s, 200, rng)
     W = s.evaluate(Q, V, A)
     for r, (c0, c1) in enumerate(s.row_body_columns()):
         outside = np.r_[0:c0, c1 : s.n_body_params]
@@ -204,11 +204,11 @@ def test_identify_no_plot_writes_no_png_and_the_plot_is_a_decimated_window(ur5, 
 
 
 def test_plot_window_predicts_only_the_decimated_samples(ur5, tmp_path, monkeypatch):
-    import sensorless.cli.core as core
+    import sensorless.cli.identify_outputs as outputs
 
     truth = perturbed_truth(ur5, rng=0)
     log = synthetic_trajectory(truth, random_fourier(ur5, rng=1).sample(1000, 30.0), noise_std=0.1, rng=2)
-    assert len(log) > core.PLOT_WINDOW
+    assert len(log) > outputs.PLOT_WINDOW
     seen = {}
 
     class Model:
@@ -219,9 +219,9 @@ def test_plot_window_predicts_only_the_decimated_samples(ur5, tmp_path, monkeypa
     import sensorless.report as report
 
     monkeypatch.setattr(report, "plot_torques_by_limb", lambda t, meas, preds, *a, **k: seen.update(points=len(t)) or {})
-    core._plot_window(log, ModelStructure(ur5), {"M": Model()}, tmp_path, "t")
-    assert seen["n"] == seen["points"] <= core.PLOT_POINTS
-    assert seen["t_end"] < log.t[core.PLOT_WINDOW]
+    outputs._plot_window(log, ModelStructure(ur5), {"M": Model()}, tmp_path, "t")
+    assert seen["n"] == seen["points"] <= outputs.PLOT_POINTS
+    assert seen["t_end"] < log.t[outputs.PLOT_WINDOW]
 
 
 def test_blockwise_fold_on_a_tree_numbered_breadth_first():
@@ -240,7 +240,7 @@ def test_blockwise_fold_on_a_tree_numbered_breadth_first():
     m.velocityLimit, m.effortLimit = 3.0 * np.ones(m.nv), 50.0 * np.ones(m.nv)
     s = ModelStructure(Robot(m, name="tree"))
     assert s.row_body_columns()[1] == (10, 40)  # subtree of j2 = {2, 4}: columns 10..40 include j3's zeros
-    Q, V, A = _random_states(s, 100, rng)
+    Q, V, A = random_states(s, 100, rng)
     W = s.evaluate(Q, V, A)
     y = rng.normal(size=(100, s.n_rows))
     dense, blocks = NormalEquations.zeros(s.n_rows, s.n_params), NormalEquations.zeros(s.n_rows, s.n_params)

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from sensorless.cli import app
 from sensorless.data import read_trajectory
 from sensorless.estimation import CartesianForceEstimator
-from sensorless.estimators import PhysicalModel
+from sensorless.torque_models import PhysicalModel
 from sensorless.identification import identify, identify_payload
 from sensorless.robot import load_robot
 from sensorless.robots import psm_structure, read_psm_log

@@ -14,19 +14,24 @@ import typer
 from typer.core import TyperCommand
 from rich.text import Text
 
-from .console import console, err_console
+from .console import err_console
 
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
 from .blas import blas_threads_for_command
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, current_context
 from .plugins import PluginGroup
 
 #: the root command; other packages add theirs through entry points (:mod:`.plugins`: the studies)
 app = typer.Typer(cls=PluginGroup, add_completion=False, no_args_is_help=True,
                   help="Dynamic models for robots without torque or force sensors.")
+
+
+#: placeholder in an option's help for the list of log formats (:func:`sensorless.data.formats.formats_help`),
+#: filled when the help is shown (:class:`MultiValueCommand`): the CLI starts without loading the readers
+LOG_FORMATS = "<log formats>"
 
 
 class MultiValueCommand(TyperCommand):
@@ -35,6 +40,16 @@ class MultiValueCommand(TyperCommand):
     glob expands to exactly that). Values run until the next token starting with ``-``.
     Only for commands without positional arguments (nothing else could own a bare token).
     Usage errors (a value not among an option's choices, a missing option) are one red line too."""
+
+    def format_help(self, ctx, formatter):
+        """The help, with :data:`LOG_FORMATS` in an option's help replaced by the registered log formats."""
+        if any(LOG_FORMATS in (getattr(p, "help", None) or "") for p in self.params):
+            from ..data.formats import formats_help  # the registry (sensorless.data: loaded for the help only)
+
+            for p in self.params:
+                if LOG_FORMATS in (getattr(p, "help", None) or ""):
+                    p.help = p.help.replace(LOG_FORMATS, formats_help())
+        return super().format_help(ctx, formatter)
 
     def parse_args(self, ctx, args):
         if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)
@@ -129,22 +144,13 @@ def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Pat
     from ..io import atomic_output_dir
 
     command = None
-    ctx = _current_context()
+    ctx = current_context()
     if ctx is not None:
         command = {"name": " ".join(["sensorless", *ctx.command_path.split()[1:]]), "options": {
             k: v if isinstance(v, (str, int, float, bool, list, tuple, Path)) or v is None else str(v)
             for k, v in ctx.params.items()}}
     with atomic_output_dir(out, force, inputs=inputs, command=command) as tmp:
         yield tmp
-
-
-def _current_context():
-    """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
-    try:
-        from typer.main import get_current_context
-    except ImportError:  # pragma: no cover - older typer on plain click
-        from click import get_current_context
-    return get_current_context(silent=True)
 
 
 def output_file(out: Path, inputs: Iterable = (), force: bool = False) -> Path:
@@ -210,27 +216,19 @@ def model_preprocessing(model, **given) -> dict:
 
 
 def load_robot_arg(robot: str, lock: Optional[List[str]], floating: Optional[bool], passive: Optional[List[str]] = None):
-    """A URDF/MJCF/xacro/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
-    motor coordinates, a transmission's coordinate robot). ``--trust-xacro`` and ``--package-path``
-    come from :func:`robot_source_options`; ``passive``: joints without actuator (``--passive``)."""
-    from ..robots.names import PSM_NAMES
-
-    if str(robot).lower() in PSM_NAMES:
-        from ..robots.dvrk_psm import psm_robot
-
-        if lock or floating or passive:
-            raise SensorlessError(f"--robot {robot}: --lock, --passive and --floating-base do not apply to the PSM model")
-        r = psm_robot()
-    else:
-        r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
+    """A URDF/MJCF/xacro file or a name of the robot registry (:mod:`sensorless.robots.registry`:
+    example-robot-data's catalogue, models built in code such as 'dvrk_psm'). ``--trust-xacro`` and
+    ``--package-path`` come from :func:`robot_source_options`; ``passive``: joints without actuator (``--passive``)."""
+    r = load_robot_cli(robot, lock_joints=lock or (), floating_base=floating, passive_joints=passive or ())
     from ..robot import add_frame
 
-    for spec in _ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
+    for spec in ADDED_FRAMES.get():  # --add-frame, parsed by cli.frames.frame_options
         add_frame(r, *spec)
     return r
 
 
-_ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
+#: the ``--add-frame`` specs of the running command (set by :func:`sensorless.cli.frames.frame_options`)
+ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_frames", default=())
 _ROBOT_SOURCE: "contextvars.ContextVar[dict]" = contextvars.ContextVar("robot_source", default={})
 
 
@@ -290,7 +288,15 @@ def load_logs(paths, robot, columns, rate, lowpass, savgol_window, decimate, *, 
     return logs
 
 
-ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
+def _robot_help() -> str:
+    from ..robots.registry import ROBOTS
+
+    code = "; ".join(f"{e.names[0]} ({e.description})" for e in ROBOTS if e.in_code)
+    return ("URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, or a registered robot name: "
+            f"example-robot-data's (e.g. panda, ur5, solo12) or built in code: {code}")
+
+
+ROBOT_HELP = _robot_help()
 
 
 # ---- the preprocessing options of commands that apply an identified model ------------------

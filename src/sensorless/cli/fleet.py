@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..errors import ExcitationError
-from .common import err_console
+from .console import err_console
 
 
 def identify_on_dask(structure, files, scheduler: str, workers, reader, method: str, skip_bad: bool, lmi_kw: dict,

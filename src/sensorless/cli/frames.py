@@ -10,7 +10,8 @@ from typing import List, Optional
 import typer
 
 from ..errors import SensorlessError
-from .common import _ADDED_FRAMES, add_options, app, console, guarded, load_robot_arg, lock_option, robot_option
+from .common import ADDED_FRAMES, add_options, app, guarded, load_robot_arg, lock_option, robot_option
+from .console import console
 from .common import floating_base_option, output_file, path_inputs, robot_source_options
 
 __all__ = ["frame_options", "frames", "parse_add_frame"]
@@ -40,11 +41,11 @@ def frame_options(fn):
 
     @functools.wraps(fn)
     def run(*args, add_frame: Optional[List[str]] = None, **kwargs):
-        token = _ADDED_FRAMES.set(tuple(parse_add_frame(s) for s in add_frame or ()))
+        token = ADDED_FRAMES.set(tuple(parse_add_frame(s) for s in add_frame or ()))
         try:
             return fn(*args, **kwargs)
         finally:
-            _ADDED_FRAMES.reset(token)
+            ADDED_FRAMES.reset(token)
 
     return add_options({"add_frame": (Optional[List[str]], lambda: typer.Option(None, help=ADD_FRAME_HELP))})(run)
 
@@ -61,7 +62,7 @@ def frames(
 ) -> None:
     """List every frame of ROBOT: its type, parent joint and frame, origin and rotation in the
     parent joint's axes, and world origin and axes at zero joint values."""
-    from ..identification.result import write_json_atomic
+    from ..io import write_json_atomic
     from ..robot import frame_table
 
     if out is not None:

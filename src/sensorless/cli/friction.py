@@ -21,15 +21,15 @@ from .common import (
     MultiValueCommand,
     app,
     atomic_outdir,
-    console,
     gains_option,
     guarded,
     log_reading_options,
     path_inputs,
     force_option,
     time_unit_option,
-    trim_option,
 )
+from .console import console
+from .logs import trim_option
 from .options import FrictionState, TimeUnit, Velocity
 from .progress import progress_bars
 

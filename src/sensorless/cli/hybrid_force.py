@@ -14,7 +14,6 @@ from .common import (
     model_logs,
     model_preprocessing_options,
     app,
-    console,
     guarded,
     output_file,
     path_inputs,
@@ -23,6 +22,7 @@ from .common import (
     model_options,
     force_option,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 from .options import ForceReference
 
@@ -67,7 +67,7 @@ def estimate_force(
 
     from ..estimation.force import CartesianForceEstimator
     from ..io import write_npz_atomic
-    from ..estimators import PhysicalModel
+    from ..torque_models import PhysicalModel
 
     output_file(out, path_inputs(robot, model, data, residual), force)
     figure = _figure_path(out) if plot else None

@@ -14,12 +14,12 @@ from .channel_options import base_velocity_option, pose_max_gap_option, wrench_f
 from .frames import frame_options
 from .logs import log_trims, preprocessing_settings, trim_option
 from .common import (
+    LOG_FORMATS,
     robot_source_options,
     log_reading_options,
     MultiValueCommand,
     app,
     atomic_outdir,
-    console,
     gains_option,
     guarded,
     load_logs,
@@ -35,6 +35,7 @@ from .common import (
     robot_option,
     warn_line,
 )
+from .console import console
 from .options import (
     RATE_HELP,
     TimeUnit,
@@ -67,8 +68,7 @@ from .progress import progress_bars
 def identify(
     config: Optional[Path] = config_option(),
     robot: str = robot_option(),
-    data: List[Path] = typer.Option(..., help="training log(s): .csv .dat .npz .parquet .h5 .mat, a folder of "
-                                         "per-signal text files, ROS .bag / .mcap / ROS 2 bag folder (docs/logs.md); "
+    data: List[Path] = typer.Option(..., help=f"training log(s): {LOG_FORMATS} (docs/logs.md); "
                                          "several after one flag (--data a.csv b.csv) or repeated"),
     validate: List[Path] = typer.Option([], help="held-out log(s) to report metrics on (several after one flag too)"),
     method: Method = typer.Option(Method.lmi, help="lmi: physically consistent, regularised toward the prior (the URDF); ols/wls: unconstrained least squares; svd: minimum-norm truncated SVD"),
@@ -199,7 +199,7 @@ def _identify(*, plotter, config, robot, data, validate, method, prior, regulari
                           "of q): run without --scheduler")
     if floating_base is None and contact_frames and not passive:
         floating_base = True  # a legged robot's base floats; with --passive a passive joint is the unactuated "base"
-    from ..estimators import CADModel, PhysicalModel
+    from ..torque_models import CADModel, PhysicalModel
     from ..report import metrics_table
 
     r = load_robot_arg(robot, lock, floating_base, passive)

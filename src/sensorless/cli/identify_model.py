@@ -7,9 +7,7 @@ from pathlib import Path
 
 
 from ..errors import OptionError, SensorlessError
-from .common import (
-    console,
-)
+from .console import console
 
 
 def _plain(structure) -> bool:

@@ -7,10 +7,10 @@ import math
 from pathlib import Path
 
 from .common import (
-    console,
     err_console,
     warn_line,
 )
+from .console import console
 
 
 PLOT_WINDOW = 20_000  # samples of the log shown in torques.png (from its start)

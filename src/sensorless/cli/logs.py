@@ -66,7 +66,7 @@ def log_settings(trim, paths, logs, log_paths=None) -> dict:
 
 def print_pairing(pairing: dict) -> None:
     """The console line of a paired run (:class:`sensorless.data.Pairing` ``to_dict()``): the lag and how."""
-    from .common import console
+    from .console import console
 
     lag = pairing.get("lag_s")
     if lag is None:

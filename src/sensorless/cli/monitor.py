@@ -18,7 +18,6 @@ from .common import (
     model_preprocessing_options,
     app,
     atomic_outdir,
-    console,
     guarded,
     path_inputs,
     force_option,
@@ -26,6 +25,7 @@ from .common import (
     floating_base_option,
     model_options,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 from .options import ForceReference
 

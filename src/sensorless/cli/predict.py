@@ -16,7 +16,6 @@ from .common import (
     model_logs,
     model_preprocessing_options,
     app,
-    console,
     guarded,
     output_file,
     path_inputs,
@@ -25,6 +24,7 @@ from .common import (
     force_option,
     model_options,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from rich.console import Console
 
 from sensorless.data import write_npz
-from sensorless.estimators import CADModel
+from sensorless.torque_models import CADModel
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
 from sensorless.identification.artifact import save_model_folder

@@ -120,10 +120,10 @@ FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 def _contact_log(robot, structure, n: int, seed: int):
     """Random Solo12 states: first half all four feet in contact (stance), second half trot pairs."""
     from sensorless.data.trajectory import Trajectory
-    from sensorless.identification.base import _random_states
+    from sensorless.identification.base import random_states
 
     rng = np.random.default_rng(seed)
-    Q, V, A = _random_states(structure, n, rng)
+    Q, V, A = random_states(structure, n, rng)
     flags = np.ones((n, 4), bool)
     half = n // 2
     flags[half::2, [1, 2]] = False

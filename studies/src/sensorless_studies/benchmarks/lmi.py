@@ -22,11 +22,11 @@ from typing import Sequence
 import numpy as np
 
 from sensorless.errors import SensorlessError
-from sensorless.regressor.compress import NormalEquations
+from sensorless.regressor.normal_equations import NormalEquations
 from sensorless.regressor.terms import ModelStructure
 from sensorless.robot import Robot, load_robot
 from sensorless.testing import perturbed_truth
-from sensorless.identification.base import _random_states
+from sensorless.identification.base import random_states
 from sensorless.identification.ellipsoids import resolve_ellipsoids
 from sensorless.identification.lmi import build_lmi
 
@@ -44,7 +44,7 @@ def random_state_equations(
     """Normal equations of ``n_samples`` random states with ``y = W params + ε``,
     ``ε_r ~ N(0, (noise · RMS(y_r))²)`` per row."""
     rng = np.random.default_rng(rng)
-    Q, V, A = _random_states(structure, n_samples, rng)
+    Q, V, A = random_states(structure, n_samples, rng)
     W = structure.evaluate(Q, V, A)
     y = W @ params
     y = y + rng.normal(size=y.shape) * noise * np.sqrt((y**2).mean(axis=0))

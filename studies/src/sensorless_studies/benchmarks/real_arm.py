@@ -66,7 +66,7 @@ def _nrmse_pair(robot, truth, model_dir: Path, log: Path, trim: "str | None"):
     preprocessed as the identified model's logs."""
     from sensorless.cli.common import model_preprocessing
     from sensorless.data.prepare import load_log
-    from sensorless.estimators import load_parameters
+    from sensorless.torque_models import load_parameters
     from sensorless.identification.metrics import torque_metrics
 
     structure, params = load_parameters(model_dir / "result.json", robot)
@@ -84,7 +84,7 @@ def _idle(robot, model_dir: Path, log: Path, gains: np.ndarray) -> dict:
     """Residual RMS at rest per joint, auto smoothing vs the same parameters with sgn(v)."""
     from sensorless.cli.common import model_preprocessing
     from sensorless.data.prepare import load_log
-    from sensorless.estimators import load_parameters
+    from sensorless.torque_models import load_parameters
 
     structure, params = load_parameters(model_dir / "result.json", robot)
     o = model_preprocessing(model_dir / "result.json")

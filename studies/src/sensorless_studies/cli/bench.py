@@ -9,7 +9,8 @@ from typing import List, Optional
 import typer
 
 from sensorless.errors import OptionError
-from sensorless.cli.common import ROBOT_HELP, console
+from sensorless.cli.common import ROBOT_HELP
+from sensorless.cli.console import console
 from sensorless.cli.options import LinearMethod
 from sensorless.cli.progress import progress_bars
 

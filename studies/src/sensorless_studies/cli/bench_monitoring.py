@@ -8,7 +8,8 @@ from typing import List, Optional
 
 import typer
 
-from sensorless.cli.common import console
+
+from sensorless.cli.console import console
 from sensorless.errors import OptionError
 
 from .common import bench_command

@@ -9,7 +9,8 @@ from typing import Optional
 
 import typer
 
-from sensorless.cli.common import add_options, console, force_option, guarded, output_file
+from sensorless.cli.common import add_options, force_option, guarded, output_file
+from sensorless.cli.console import console
 
 __all__ = ["bench_app", "experiment_app", "bench_out_option", "bench_command", "experiment_options", "write_result"]
 

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from sensorless.cli.common import atomic_outdir, console, guarded
+from sensorless.cli.common import atomic_outdir, guarded
+from sensorless.cli.console import console
 from sensorless.cli.options import Acceleration, TauLog, Training
 
 from .common import experiment_app

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from sensorless.cli.common import atomic_outdir, console, force_option, guarded
+from sensorless.cli.common import atomic_outdir, force_option, guarded
+from sensorless.cli.console import console
 
 __all__ = ["demo", "demo_app"]
 

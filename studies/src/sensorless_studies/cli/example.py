@@ -11,7 +11,8 @@ from typing import Optional
 import typer
 
 from sensorless.errors import OptionError, did_you_mean
-from sensorless.cli.common import atomic_outdir, console, force_option, guarded
+from sensorless.cli.common import atomic_outdir, force_option, guarded
+from sensorless.cli.console import console
 
 __all__ = ["example", "example_app"]
 

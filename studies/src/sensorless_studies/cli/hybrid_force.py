@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sensorless.cli.common import atomic_outdir, console, guarded
+from sensorless.cli.common import atomic_outdir, guarded
+from sensorless.cli.console import console
 
 from .common import experiment_app, experiment_options
 

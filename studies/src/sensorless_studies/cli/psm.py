@@ -10,7 +10,8 @@ from typing import Optional
 import typer
 
 from sensorless.errors import OptionError
-from sensorless.cli.common import atomic_outdir, console, guarded, path_inputs, force_option
+from sensorless.cli.common import atomic_outdir, guarded, path_inputs, force_option
+from sensorless.cli.console import console
 from sensorless.cli.options import PsmModel
 from sensorless.cli.progress import progress_bars
 

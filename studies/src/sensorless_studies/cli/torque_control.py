@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from sensorless.cli.common import atomic_outdir, console, guarded
+from sensorless.cli.common import atomic_outdir, guarded
+from sensorless.cli.console import console
 
 from .common import bench_command, experiment_app, experiment_options
 

@@ -39,7 +39,7 @@ from sensorless.data.filtering import SavitzkyGolay
 from sensorless.data.imu import base_acceleration, gravity_in_base
 from sensorless.data.trajectory import Trajectory
 from sensorless.errors import IdentifiabilityWarning, SensorlessError
-from sensorless.estimators import PhysicalModel
+from sensorless.torque_models import PhysicalModel
 from sensorless.parameters import com_frame
 from sensorless.regressor.compress import compress
 from sensorless.regressor.contact import ContactStructure

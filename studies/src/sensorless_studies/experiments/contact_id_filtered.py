@@ -48,7 +48,7 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
     unfiltered projected residual with the simulator's accelerations on the evaluation logs,
     the metric of ``--acceleration simulator`` (identified model scored, not the log).
     """
-    from sensorless.regressor.compress import NormalEquations
+    from sensorless.regressor.normal_equations import NormalEquations
     from sensorless.regressor.integral import filtered_rows, filtered_target
 
     fk = {"order": cfg.filter_order, "tau_hold": "mean" if cfg.tau_log == "mean" else "linear"}

@@ -33,7 +33,7 @@ from sensorless.estimation.force import CartesianForceEstimator
 from sensorless.identification import identify, torque_metrics
 from sensorless.identification.payload import identify_payload
 from sensorless.identification.result import versions, write_json_atomic
-from sensorless.estimators import PhysicalModel
+from sensorless.torque_models import PhysicalModel
 from sensorless.learning import HybridModel, LearnedTorqueModel
 from sensorless.regressor import ModelStructure
 from ..simulation.surgical_arm import TIP_FRAME

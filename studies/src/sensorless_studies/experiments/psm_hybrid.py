@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from sensorless.identification import identify, torque_metrics
-from sensorless.estimators import PhysicalModel
+from sensorless.torque_models import PhysicalModel
 from sensorless.learning import HybridModel, ValidatedHybridModel
 from sensorless.robots.dvrk_psm import psm_structure, read_psm_log
 from .psm_identification import psm_split_paths, select_smoothing
