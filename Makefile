@@ -8,12 +8,15 @@ STAMP := $(VENV)/.installed
 
 venv: $(STAMP)
 
-$(STAMP): pyproject.toml Makefile src/sensorless/regressor/native_kernel.cpp src/sensorless/regressor/observer_kernel.cpp src/sensorless/regressor/native_contact.cpp
+$(STAMP): pyproject.toml studies/pyproject.toml Makefile src/sensorless/regressor/native_kernel.cpp src/sensorless/regressor/observer_kernel.cpp src/sensorless/regressor/native_contact.cpp
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	# The local CPU build of torch must come first; an unpinned torch pulls CUDA wheels.
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[all]'
+	# The studies (simulations, experiments, benchmarks, example data, demo): a sibling package whose
+	# commands join `sensorless` through entry points.
+	$(PY) -m pip install --quiet -e studies
 	# Optional C++ regressor kernel (sensorless.regressor.native); without a compiler the Python path is used.
 	$(PY) -m sensorless.regressor.native_build || true
 	touch $(STAMP)
@@ -24,13 +27,13 @@ demo: $(STAMP)
 # One BLAS thread per pytest worker: two workers on two cores; threaded BLAS under
 # contention made small solves 50x slower.
 test: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n 2 tests || [ $$? -eq 5 ]
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n 2 tests studies/tests || [ $$? -eq 5 ]
 
 test-all: $(STAMP)
-	$(PY) -m pytest -q -m '' tests
+	$(PY) -m pytest -q -m '' tests studies/tests
 
 bench: $(STAMP)
-	$(VENV)/bin/sensorless benchmark identify --out benchmarks/results/identify.json
+	$(VENV)/bin/sensorless benchmark identify   # sensorless-bench/identify.json (the record: --out studies/benchmarks/results/identify.json)
 
 # The peers of `sensorless benchmark peers --against figaroh,rigeo`, each in its own venv outside the
 # repository (rigeo ships no regressor: its driver uses Pinocchio). PEERS_DIR must match --peer-venv.

@@ -7,7 +7,7 @@ A figure is marked by an HTML comment right after it (invisible on GitHub)::
 
     held-out NRMSE 2.31<!--fig peers.json cases.hard.lmi.mean_nrmse_percent .2f-->
 
-``FILE PATH [FORMAT] [xSCALE] [AGG]``: FILE is under benchmarks/results/ (or repository-relative
+``FILE PATH [FORMAT] [xSCALE] [AGG]``: FILE is under studies/benchmarks/results/ (or repository-relative
 when it holds a ``/``); PATH is dotted keys and list indices, ``*`` for every element; AGG
 (``max``, ``min``, ``mean``, ``sum``) folds a ``*`` path; SCALE multiplies (``x100`` for percent);
 FORMAT is a Python format spec (default ``g``).
@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "benchmarks" / "results"
+RESULTS = ROOT / "studies" / "benchmarks" / "results"
 NUMBER = r"[-+−]?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?:[eE][-+]?\d+)?"
 MARK = re.compile(rf"(?P<value>{NUMBER})<!--fig (?P<spec>[^>]*?)-->")
 AGGREGATES = {"max": max, "min": min, "sum": sum, "mean": lambda xs: sum(xs) / len(xs)}

@@ -55,7 +55,7 @@ def panda_train_npz(tmp_path_factory, panda):
     """A 10 s simulated Panda log (50 Hz, σ_τ = 0.1 N·m) as NPZ, shared by the output-safety tests."""
     from sensorless.data import write_npz
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     d = tmp_path_factory.mktemp("panda_log")
     truth = perturbed_truth(panda, rng=0)

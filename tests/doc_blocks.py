@@ -13,7 +13,7 @@ HTML comment (invisible on GitHub)::
 
 Blocks of one file run in order in one directory, as a user following the page would: bash with
 ``set -euo pipefail`` and the environment's ``bin`` first on PATH (an activated venv), Python by
-that environment's interpreter. The directory holds copies of ``examples/``, ``benchmarks/`` and
+that environment's interpreter. The directory holds copies of ``examples/``, ``studies/benchmarks/`` and
 ``docs/`` and a link ``../shared`` as beside a clone, so repository-relative paths work and
 nothing writes into the repository.
 """
@@ -123,7 +123,7 @@ def workspace(tmp: Path) -> Path:
     """A directory laid out like a fresh clone's root, with ``../shared`` beside it."""
     work = tmp / "repo"
     work.mkdir()
-    for name in ("examples", "benchmarks", "docs"):
+    for name in ("examples", "studies/benchmarks", "docs"):
         shutil.copytree(ROOT / name, work / name, ignore=shutil.ignore_patterns("__pycache__"))
     shared = ROOT.parent / "shared"
     if shared.exists():

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from sensorless.cli import app
 from sensorless.errors import ParameterError
 from sensorless.identification.artifact import load_friction_model, load_model_folder
-from sensorless.simulation.lugre import LuGreJoint, lugre_friction, simulate_lugre_joint, velocity_profile, write_bench_csv
+from sensorless_studies.simulation.lugre import LuGreJoint, lugre_friction, simulate_lugre_joint, velocity_profile, write_bench_csv
 
 runner = CliRunner()
 LUGRE, STATIC = LuGreJoint(), LuGreJoint(sigma0=None)

@@ -13,8 +13,8 @@ from conftest import REALDATA, realdata
 from typer.testing import CliRunner
 
 from sensorless.cli import app
-from sensorless.experiments.psm_identification import paired_payload_logs, write_psm_csv
-from sensorless.simulation.psm_logs import psm_motion, psm_truth, tip_force_efforts
+from sensorless_studies.experiments.psm_identification import paired_payload_logs, write_psm_csv
+from sensorless_studies.simulation.psm_logs import psm_motion, psm_truth, tip_force_efforts
 
 COLS = ["--columns", "q=0:7;v=7:14;tau=14:21", "--rate", "200"]
 NOISE = 0.003
@@ -196,10 +196,10 @@ def test_every_psm_name_loads_the_psm_in_every_command(tmp_path):
     """excite, identify, predict, estimate-force and payload share one loader: the names excite
     accepted are the names every command accepts (regression: only excite knew them)."""
     from sensorless.cli.common import load_robot_arg
-    from sensorless.cli.excite import PSM_NAMES
     from sensorless.robots import COORDINATES
+    from sensorless.robots.registry import find_robot
 
-    for name in PSM_NAMES + ("DVRK_PSM",):
+    for name in find_robot("dvrk_psm").names + ("DVRK_PSM",):
         assert load_robot_arg(name, None, None).joint_names == COORDINATES
     code, out = _run(["excite", "--robot", "dvrk_psm", "--harmonics", "1", "--n-samples", "20", "--maxiter", "1",
                       "--base-freq", "0.2", "--out", tmp_path / "exc"])

@@ -21,13 +21,13 @@ from sensorless.control import (
     to_delta_q_gains,
 )
 from sensorless.errors import DataError
-from sensorless.simulation.leg_model import (
+from sensorless_studies.simulation.leg_model import (
     FT_FRAME,
     SOLE_FRAME,
     plate_inertia,
     talos_right_leg,
 )
-from sensorless.simulation.position_controlled import (
+from sensorless_studies.simulation.position_controlled import (
     Q_AIR,
     Q_CONTACT,
     ActuatorParams,

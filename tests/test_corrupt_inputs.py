@@ -95,7 +95,7 @@ def test_resample_auto_says_what_it_did():
 def _current_log(path, gain_true=10.0):
     robot = load_robot(TWO_LINK)
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     tr = synthetic_trajectory(perturbed_truth(robot, rng=0), random_fourier(robot, rng=1, base_freq=0.2).sample(200.0, 10.0),
                               rng=2)

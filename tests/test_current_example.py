@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 from sensorless.cli import app
 from sensorless.data import prepare, read_trajectory
 from sensorless.identification.metrics import torque_metrics
-from sensorless.simulation.current_arm import truth_model
+from sensorless_studies.simulation.current_arm import truth_model
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "arm.md"

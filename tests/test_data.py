@@ -20,7 +20,7 @@ from sensorless.data import (
     validate_trajectory,
     write_npz,
 )
-from sensorless.data.validation import TooFewSamplesError
+from sensorless.errors import TooFewSamplesError
 from sensorless.errors import (
     DataError,
     ExcitationError,
@@ -296,7 +296,7 @@ def test_missing_file_and_unknown_extension(tmp_path):
         read_trajectory(tmp_path / "nope.npz")
     bad = tmp_path / "log.xlsx"
     bad.write_text("x")
-    with pytest.raises(DataError, match=r"unsupported file type '.xlsx'; supported: .csv, .txt, .npz"):
+    with pytest.raises(DataError, match=r"unsupported file type '.xlsx'; supported: \.csv, \.txt, \.dat, \.log, \.npz.*\.feather"):
         read_trajectory(bad)
     junk = tmp_path / "junk.npz"
     junk.write_text("not a zip")

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from sensorless.benchmarks.peers import peer_case, perturb_inertials
+from sensorless_studies.benchmarks.peers import peer_case, perturb_inertials
 from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.errors import IdentifiabilityWarning, OptionError
@@ -28,7 +28,8 @@ from sensorless.identification import (
     identify,
     read_weights_file,
 )
-from sensorless.identification.lmi import DEFAULT_GAMMAS, GammaSelection
+from sensorless.identification.gamma import GammaSelection
+from sensorless.identification.lmi import DEFAULT_GAMMAS
 from sensorless.parameters import check_physical_consistency
 from sensorless.regressor import ModelStructure
 
@@ -210,7 +211,7 @@ def test_geometry_only_ellipsoids_exclude_ur5_wrists_and_lmi_says_so(ur5, hard):
 def test_short_log_joint_terms_warn(ur5):
     """600 samples over 3 s: the default joint terms cannot be told apart from the body
     parameters (the quoted OLS 91 %): a warning names them; the 6-s log has none."""
-    from sensorless.benchmarks.peers import DEFAULT_RECIPE, Recipe
+    from sensorless_studies.benchmarks.peers import DEFAULT_RECIPE, Recipe
 
     short = Recipe(rate=200.0, cases=DEFAULT_RECIPE.cases)
     for recipe, expect in ((short, True), (DEFAULT_RECIPE, False)):

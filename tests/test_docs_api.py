@@ -17,5 +17,5 @@ def test_api_page_covers_every_public_name(tmp_path):
         names = getattr(importlib.import_module(pkg), "__all__", [])
         for name in names:
             assert f"### `{pkg}.{name}`" in text, f"{pkg}.{name} missing from the API page"
-    assert "### `sensorless.data.read_rosbag` (function)" in text
-    assert "read_rosbag(path: 'str | Path'" in text  # signatures come from inspect
+    assert "### `sensorless.data.read_trajectory` (function)" in text
+    assert "read_trajectory(path: 'str | Path', *, joint_names" in text  # signatures come from inspect

@@ -34,7 +34,7 @@ def test_logs_doc_runs_as_printed(tmp_path, monkeypatch):
     # the commands on the logs the Python block makes (the long-log section has its own data step,
     # run by tests/test_docs_run.py)
     commands = [c for c in _commands() if any(a.startswith("logs/") for a in c)]
-    assert len(commands) == 6
+    assert len(commands) == 7
     run = CliRunner().invoke
     for args in commands:
         r = run(app, args)

@@ -137,7 +137,7 @@ def test_all_joint_types_and_joint_terms(tmp_path):
 
 def test_operational_frames_are_kept_with_frames_true(tmp_path):
     """The RCM arm's tool_tip and shaft_tip (OP frames added in code) reload at the same pose."""
-    from sensorless.simulation.surgical_arm import build_surgical_arm
+    from sensorless_studies.simulation.surgical_arm import build_surgical_arm
 
     robot = build_surgical_arm(armature=False)  # URDF has no rotor inertia
     pi = robot.inertial_parameters()

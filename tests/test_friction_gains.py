@@ -1,5 +1,5 @@
 """Issue 17: per-joint terms, Stribeck / noise-aware Coulomb friction, drive gains, --data a b c,
-link names. Reduced versions of the real-arm acceptance (sensorless.benchmarks.real_arm)."""
+link names. Reduced versions of the real-arm acceptance (sensorless_studies.benchmarks.real_arm)."""
 
 from __future__ import annotations
 
@@ -17,11 +17,11 @@ from sensorless.identification.friction import (
     coulomb_smoothing_from_noise,
     lowpass_noise_gain,
     search_stribeck_velocity,
-    signal_noise,
 )
+from sensorless.data.rest import signal_noise
 from sensorless.regressor import ModelStructure
-from sensorless.regressor.terms import parse_joint_terms
-from sensorless.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
+from sensorless.regressor.joint_spec import parse_joint_terms
+from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model, with_payload
 
 COLS = "q=pos_{joint};v=vel_{joint};tau=i_{joint}"
 
@@ -120,7 +120,7 @@ def test_identify_cli_per_joint_terms_auto_friction_saved_and_reloaded(ur10_logs
         assert jt[j]["stribeck_velocity"] == pytest.approx(fr["stribeck_velocity"][j])
         assert jt[j]["coulomb_smoothing"] == pytest.approx(width[j])  # the width the law uses
     assert (out / "friction.png").stat().st_size > 10_000
-    from sensorless.estimators import load_parameters
+    from sensorless.torque_models import load_parameters
 
     st, p = load_parameters(out / "result.json", robot)
     assert st.terms_of("wrist_3_joint") == ("fv", "offset")
@@ -168,7 +168,7 @@ def test_drive_gains_from_a_pair_within_2_percent_and_cli_output_is_a_gains_file
 
 
 def test_default_derivative_window_is_0_2_seconds_and_odd():
-    from sensorless.data.prepare import default_savgol_window
+    from sensorless.data.filtering import default_savgol_window
 
     assert default_savgol_window(100.0) == 21 and default_savgol_window(1000.0) == 201
     assert default_savgol_window(50.0) == 11 and default_savgol_window(float("nan")) == 11  # at least 11
@@ -203,15 +203,15 @@ def test_rest_detection_zeroes_a_joint_at_rest_but_not_a_reversal():
 def test_payload_with_every_joint_set_aside_is_no_svd_crash():
     """Regression (issue 17): payload with nominal, wrong gains raised 'LinAlgError: SVD did not
     converge' once every joint had been set aside as contradicting (zero weights -> NaN system)."""
-    from sensorless.identification.payload import _Solver, _solve_without
+    from sensorless.identification.payload_fit import PayloadSolver, solve_without
 
     A = np.eye(10)[None].repeat(3, axis=0) * np.arange(1.0, 4.0)[:, None, None]
     A = np.concatenate([np.concatenate([A, np.zeros((3, 10, 1))], 2),
                         np.concatenate([np.zeros((3, 1, 10)), np.ones((3, 1, 1))], 2)], 1)  # 11x11 with an offset
     b = np.ones((3, 11))
-    solver = _Solver("full", False, None)
-    assert _solve_without(solver, A, b, np.zeros(3), np.ones(3, bool)) is None
-    phi = _solve_without(solver, A, b, np.array([1.0, 0.0, 1.0]), np.ones(3, bool))
+    solver = PayloadSolver("full", False, None)
+    assert solve_without(solver, A, b, np.zeros(3), np.ones(3, bool)) is None
+    phi = solve_without(solver, A, b, np.array([1.0, 0.0, 1.0]), np.ones(3, bool))
     assert phi is not None and np.all(np.isfinite(phi))
 
 
@@ -256,7 +256,7 @@ def test_clock_offset_between_two_runs_is_found_from_the_positions():
 def _single_joint_logs(panda):
     """One log per joint, only that joint moving (its encoder velocity noisy, the others' v ≡ 0)."""
     from sensorless.excitation import random_fourier
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     truth = perturbed_truth(panda, rng=0)
     rng = np.random.default_rng(3)

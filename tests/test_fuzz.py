@@ -5,7 +5,7 @@ Readers get random shapes, dtypes, NaN/inf/huge values and truncated or corrupte
 values. Properties: nothing but :class:`SensorlessError` escapes, and whatever succeeds
 holds finite values (readers: |x| ≤ MAX_ABS_VALUE; identify: finite parameters, and either
 of sane magnitude or flagged by a warning). Bounded examples keep the file under a minute;
-``benchmarks/fuzz.py`` runs the long version (≥ 10,000 inputs).
+``studies/benchmarks/fuzz.py`` runs the long version (≥ 10,000 inputs).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from sensorless.data.validation import MAX_ABS_VALUE  # noqa: E402
 from sensorless.errors import SensorlessError  # noqa: E402
 
 FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
-TWO_LINK = (Path(__file__).parent / "data" / "two_link.urdf").read_text()  # also benchmarks/fuzz.py's
+TWO_LINK = (Path(__file__).parent / "data" / "two_link.urdf").read_text()  # also studies/benchmarks/fuzz.py's
 
 _SPECIAL = st.sampled_from([0.0, -0.0, 1.0, np.nan, np.inf, -np.inf, 1e300, -1e300, 1e-300, 1e30, 1e10, 5e-324])
 _DTYPES = st.sampled_from(["f8", "f4", "i8", "u1", "bool", "c16", "M8[s]", "U3", "O"])
@@ -193,7 +193,7 @@ OPTIONS = ["--rate", "--lowpass", "--savgol-window", "--decimate", "--gamma", "-
 @pytest.fixture(scope="module")
 def small_log(tmp_path_factory, two_link):
     from sensorless.data import write_npz
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
     from sensorless.excitation import random_fourier
 
     d = tmp_path_factory.mktemp("cli")
@@ -232,20 +232,21 @@ def test_fuzz_cli_option_values(small_log, opts):
             assert not out.exists()
 
 
-# ---- issue 26: the fuzz classes of benchmarks/fuzz_classes (run through benchmarks/fuzz.py) ----------
+# ---- issue 26: the fuzz classes of studies/benchmarks/fuzz_classes (run through its fuzz.py) --------
 import json  # noqa: E402
 import os  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "studies" / "benchmarks"
 sys.path.insert(0, str(BENCH))
 from fuzz_classes import common as fc  # noqa: E402
 from fuzz_classes.common import BAD  # noqa: E402
 
 def run_fuzz(tmp_path, classes: str, scale: float) -> dict:
     out = tmp_path / "fuzz.json"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(BENCH.parent / "src"), os.environ.get("PYTHONPATH", "")])}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
     p = subprocess.run([sys.executable, str(BENCH / "fuzz.py"), "--classes", classes, "--scale", str(scale),
                         "--timeout", "5", "--jobs", "1", "--out", str(out)], capture_output=True, text=True, env=env,
                        timeout=600)

@@ -33,7 +33,7 @@ from sensorless.errors import (
 )
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
@@ -364,7 +364,7 @@ def test_malformed_or_nan_result_json_is_refused_by_predict(identified, tmp_path
     _one_line_error(_run(["predict", *ROBOT, "--model", bad, "--data", f, "--out", tmp_path / "p.npz"]), needle)
     assert not (tmp_path / "p.npz").exists()
     with pytest.raises(ParameterError):
-        from sensorless.estimators import load_parameters
+        from sensorless.torque_models import load_parameters
 
         load_parameters(bad, _panda())
 

@@ -21,13 +21,12 @@ import numpy as np
 import pytest
 
 from sensorless.errors import OutputError, SensorlessError
+from sensorless.outdir import MANIFEST, read_manifest
 from sensorless.io import (
-    MANIFEST,
     atomic_open,
     atomic_output_dir,
     atomic_write_text,
     check_output_file,
-    read_manifest,
     write_json_atomic,
     write_npz_atomic,
 )
@@ -80,7 +79,7 @@ def test_identification_result_json_has_no_bare_nan(tmp_path, panda):
     from sensorless.excitation import random_fourier
     from sensorless.identification import identify
     from sensorless.regressor import ModelStructure
-    from sensorless.simulation import perturbed_truth, synthetic_trajectory
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
 
     truth = perturbed_truth(panda, rng=0)
     traj = synthetic_trajectory(truth, random_fourier(panda, rng=1).sample(50, 10.0), noise_std=0.05, rng=2)

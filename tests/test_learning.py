@@ -11,20 +11,19 @@ import torch
 
 from sensorless.data.trajectory import Trajectory
 from sensorless.errors import DataError, SensorlessError
-from sensorless.estimators import PhysicalModel
+from sensorless.torque_models import PhysicalModel
 from sensorless.excitation import random_fourier
 from sensorless.learning import (
     HybridModel,
     LearnedTorqueModel,
     MLPTorqueModel,
-    ParameterModel,
     TrainConfig,
     WindowFeatures,
     load_network,
     sliding_window,
 )
 from sensorless.regressor import ModelStructure
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 TINY = dict(epochs=30, patience=8, batch_size=128, lr=3e-3)
 
@@ -125,9 +124,6 @@ def test_save_load_round_trip_weights_only(synthetic, tmp_path, panda):
     # the physical model can also come from saved parameters
     fixed = PhysicalModel.from_parameters(phys.structure_, phys.parameters_)
     np.testing.assert_allclose(HybridModel.load(tmp_path / "res", fixed).predict(test), hy.predict(test))
-    with pytest.warns(DeprecationWarning, match="PhysicalModel.from_parameters"):  # the old name still works
-        old = ParameterModel(phys.structure_, phys.parameters_)
-    np.testing.assert_array_equal(old.predict(test), fixed.predict(test))
     lt = LearnedTorqueModel(panda, window=2, hidden=(16,), seed=0, epochs=2).fit(train)
     lt.save(tmp_path / "lt")
     np.testing.assert_array_equal(LearnedTorqueModel.load(tmp_path / "lt", panda).predict(test), lt.predict(test))

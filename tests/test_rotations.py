@@ -6,9 +6,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
-from sensorless.simulation.mujoco_scene import quat_to_matrix
-from sensorless.simulation.quadruped_control import world_angular_velocity
-from sensorless.simulation.quadruped_log import _noisy_orientation
+from sensorless_studies.simulation.mujoco_scene import quat_to_matrix
+from sensorless_studies.simulation.quadruped_control import world_angular_velocity
+from sensorless_studies.simulation.quadruped_log import _noisy_orientation
 
 RNG = np.random.default_rng(7)
 

@@ -18,7 +18,7 @@ from sensorless.errors import OptionError
 from sensorless.excitation import random_fourier
 from sensorless.run import RunConfig, SolverConfig, identify_run, run_config_from_toml
 from sensorless.run.config import config_fields
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 runner = CliRunner()
 

@@ -1,5 +1,5 @@
 """Fast paths against the straightforward ones (issue 13 items 3–4). No timing assertions here:
-timings live in ``sensorless benchmark speed`` (benchmarks/results/speed.json).
+timings live in ``sensorless benchmark speed`` (studies/benchmarks/results/speed.json).
 
 * SYRK fold == dense MᵀM; the per-row subtree fold == the fold of the assembled regressor;
   the overlapped (threaded) compression == the sequential one.
@@ -20,17 +20,17 @@ import pinocchio as pin
 import pytest
 from typer.testing import CliRunner
 
-from sensorless.benchmarks.identify import FEET, _contact_log
+from sensorless_studies.benchmarks.identify import FEET, _contact_log
 from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.data.trajectory import Trajectory
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.identification.base import _random_states
+from sensorless.identification.base import random_states
 from sensorless.regressor import ContactStructure, ModelStructure, NormalEquations, compress
-from sensorless.regressor.compress import syrk_fold
-from sensorless.regressor.contact import null_space_basis, null_space_projector
-from sensorless.simulation import perturbed_truth, synthetic_trajectory
+from sensorless.regressor.normal_equations import syrk_fold
+from sensorless.regressor.contact_kinematics import null_space_basis, null_space_projector
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 def _rel(a, b) -> float:
@@ -54,7 +54,7 @@ def test_subtree_columns_are_structural_zeros_and_the_blockwise_fold_is_exact(re
     robot = request.getfixturevalue(name)
     s = ModelStructure(robot)
     rng = np.random.default_rng(1)
-    Q, V, A = _random_states(s, 200, rng)
+    Q, V, A = random_states(s, 200, rng)
     W = s.evaluate(Q, V, A)
     for r, (c0, c1) in enumerate(s.row_body_columns()):
         outside = np.r_[0:c0, c1 : s.n_body_params]
@@ -240,7 +240,7 @@ def test_blockwise_fold_on_a_tree_numbered_breadth_first():
     m.velocityLimit, m.effortLimit = 3.0 * np.ones(m.nv), 50.0 * np.ones(m.nv)
     s = ModelStructure(Robot(m, name="tree"))
     assert s.row_body_columns()[1] == (10, 40)  # subtree of j2 = {2, 4}: columns 10..40 include j3's zeros
-    Q, V, A = _random_states(s, 100, rng)
+    Q, V, A = random_states(s, 100, rng)
     W = s.evaluate(Q, V, A)
     y = rng.normal(size=(100, s.n_rows))
     dense, blocks = NormalEquations.zeros(s.n_rows, s.n_params), NormalEquations.zeros(s.n_rows, s.n_params)

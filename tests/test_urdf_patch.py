@@ -11,7 +11,7 @@ import pytest
 from sensorless.errors import PhysicalConsistencyError
 from sensorless.parameters import JointTerms
 from sensorless.robot import load_robot
-from sensorless.simulation import perturbed_truth
+from sensorless.testing import perturbed_truth
 from sensorless.urdf_patch import export_urdf, patch_urdf_inertials
 
 

@@ -4,7 +4,7 @@
   :func:`write_npz_atomic` write ``path`` through a hidden sibling temporary file and
   ``os.replace`` it into place (readers see the old file or the new one, never half of one).
 * :func:`atomic_output_dir` builds a whole output directory in a hidden sibling and renames
-  it into place on success. Every directory it creates holds :data:`MANIFEST` (tool,
+  it into place on success. Every directory it creates holds :data:`~sensorless.outdir.MANIFEST` (tool,
   version, command, time, files written with size and SHA-256). An existing directory is
   replaced only with ``force=True`` *and* when its manifest says sensorless wrote it, it holds
   nothing else and no listed file was edited; ``.``, ``..``, ``/``, the home directory, the working directory or any ancestor
@@ -12,7 +12,7 @@
   the output makes a concurrent run on the same path fail with a clear error instead of
   silently losing one result. SIGTERM (and SIGHUP) during the run removes the temporary
   directory before the process exits; the swap itself is kill-safe, even under SIGKILL
-  (:mod:`sensorless._outdir`, :func:`recover_output`).
+  (:mod:`sensorless.outdir`, :func:`~sensorless.outdir.recover_output`).
 * Single output files (:func:`check_output_file`) never replace an existing file without
   ``force``, an input, a file inside an input folder, or a FIFO/device/socket.
 * Files and directories get the permissions of a normal ``open``/``mkdir``
@@ -38,12 +38,11 @@ from typing import IO, Iterable, Iterator
 
 import numpy as np
 
-from . import _outdir
-from ._outdir import MANIFEST, TOOL, read_manifest, recover_output
+from . import outdir
+from .outdir import MANIFEST, TOOL, read_manifest
 from .errors import InputError, OutputError, setting
 
 __all__ = [
-    "MANIFEST",
     "atomic_open",
     "atomic_output_dir",
     "atomic_write_text",
@@ -51,8 +50,6 @@ __all__ = [
     "check_output_file",
     "jsonable",
     "read_json",
-    "read_manifest",
-    "recover_output",
     "versions",
     "write_json_atomic",
     "write_npz_atomic",
@@ -100,7 +97,7 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", encoding: str | None =
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise _oserror(path.parent, exc, "cannot create directory") from None
-    _outdir.remove_dead_temps(path)
+    outdir.remove_dead_temps(path)
     tmp = path.parent / f".{path.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp"
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # kernel applies the umask
@@ -330,7 +327,7 @@ def _check_replaceable(out: Path, force: bool, inputs) -> None:
             f"{out}: refusing to replace a directory sensorless did not create (no valid {MANIFEST}); "
             "choose a new output directory or remove it yourself"
         )
-    files, dirs = _outdir.tree(out)
+    files, dirs = outdir.tree(out)
     listed = {str(f) for f in doc["files"]}
     extra = sorted(set(files) - listed - {MANIFEST})
     if extra:
@@ -341,7 +338,7 @@ def _check_replaceable(out: Path, force: bool, inputs) -> None:
     extra = sorted(set(dirs) - known)
     if extra:
         raise OutputError(f"{out}: refusing to replace it: it holds the folder {extra[0]} sensorless did not make")
-    edited = _outdir.changed_file(out, doc, missing_ok=True)
+    edited = outdir.changed_file(out, doc, missing_ok=True)
     if edited is not None:
         raise OutputError(f"{out}: refusing to replace it: {edited} was changed since sensorless wrote it "
                           "(its SHA-256 differs from the manifest); move it away or choose another output directory")
@@ -378,7 +375,7 @@ def _terminate_as_exit() -> Iterator[list]:
 
 
 def _write_manifest(tmp: Path, command: dict | None) -> None:
-    files, dirs = _outdir.tree(tmp)
+    files, dirs = outdir.tree(tmp)
     doc = {
         "tool": TOOL,
         "version": versions().get("sensorless"),
@@ -386,7 +383,7 @@ def _write_manifest(tmp: Path, command: dict | None) -> None:
         "command": command or {},
         "files": files,
         "dirs": dirs,
-        "hashes": {f: _outdir.digest(tmp / f) for f in files},
+        "hashes": {f: outdir.digest(tmp / f) for f in files},
         "versions": versions(),
     }
     write_json_atomic(doc, tmp / MANIFEST)
@@ -424,8 +421,8 @@ def atomic_output_dir(
     is never touched. On any exception (or SIGTERM) the temporary directory is removed and
     ``out`` is left as it was; no space left, a read-only file system or a permission denied
     while writing are an OutputError naming ``out``. The swap is kill-safe (see
-    :mod:`sensorless._outdir`): first the lock is taken and any interrupted swap of an earlier
-    run is finished or undone (:func:`recover_output`).
+    :mod:`sensorless.outdir`): first the lock is taken and any interrupted swap of an earlier
+    run is finished or undone (:func:`~sensorless.outdir.recover_output`).
     """
     out = Path(out)
     inputs = [p for p in inputs if p is not None]
@@ -434,8 +431,8 @@ def atomic_output_dir(
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise _oserror(out.parent, exc, "cannot create directory") from None
-    with _outdir.lock(out), _terminate_as_exit() as terminated:
-        _outdir.recover_locked(out)
+    with outdir.lock(out), _terminate_as_exit() as terminated:
+        outdir.recover_locked(out)
         _check_replaceable(out, force, inputs)  # again, now that no other run can change it
         token = f"{os.getpid()}-{secrets.token_hex(6)}"
         tmp = out.parent / f".{out.name}.tmp-{token}"
@@ -459,7 +456,7 @@ def atomic_output_dir(
         try:
             _write_manifest(tmp, command)
             _check_replaceable(out, force, inputs)
-            previous = _outdir.swap_in(tmp, out, token)
+            previous = outdir.swap_in(tmp, out, token)
         except BaseException as exc:
             shutil.rmtree(tmp, ignore_errors=True)
             if isinstance(exc, OSError):

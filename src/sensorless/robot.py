@@ -2,7 +2,9 @@
 
 A :class:`Robot` owns one Pinocchio ``Model`` (and a ``Data`` workspace), the ordered
 list of 1-DoF joints, which of them are actuated, and whether the base floats.
-Loaders accept a URDF path, an MJCF path or an example-robot-data name.
+:func:`load_robot` accepts a URDF, xacro or MJCF path, or a name of the robot registry
+:mod:`sensorless.robots.registry` (example-robot-data's catalogue, robots built in code such as
+``dvrk_psm``).
 
 Conventions
 -----------
@@ -15,7 +17,6 @@ Conventions
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -25,9 +26,10 @@ import pinocchio as pin
 
 from .errors import JointNameError, RobotModelError, did_you_mean, setting
 from .parameters import pin_inertia
+from .robots.registry import find_robot, robot_names
 from .xacro_expand import expand_xacro
 
-__all__ = ["Actuation", "Robot", "add_frame", "expand_xacro", "frame_table", "load_robot"]
+__all__ = ["Actuation", "Robot", "add_frame", "frame_table", "load_robot"]
 
 
 class Actuation:
@@ -40,10 +42,14 @@ class Actuation:
 
     ``transmission_matrix`` is G of joints q = Gθ + q₀ driven by coordinates θ
     (:class:`~sensorless.regressor.transmission.CoordinateRobot`), None for a plain tree.
-    ``coupled``: True for such a coordinate view (its structures come from ``make_structure``)."""
+    ``coupled``: True for such a coordinate view (its structures come from ``make_structure``).
+    ``excitation_box``: the box {"lower", "upper", "velocity", "acceleration"} (arrays per joint) an
+    excitation design uses as is, declared by a robot model (the dVRK PSM: the envelope of its logs);
+    None: derived from the joint limits (:meth:`~sensorless.excitation.ExcitationLimits.from_robot`)."""
 
     transmission_matrix: "np.ndarray | None" = None
     coupled: bool = False
+    excitation_box: "dict | None" = None
     passive_joints: tuple[str, ...] = ()
 
     @property
@@ -288,6 +294,10 @@ class Robot(Actuation):
         }
 
 
+#: file suffixes of a robot description (anything else is looked up in the registry)
+MODEL_SUFFIXES = (".urdf", ".xml", ".mjcf", ".xacro")
+
+
 def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
            packages: Sequence[Path] = ()) -> tuple[pin.Model, str, str, str | None]:
     """(model, name, source, URDF path or None) of a model file or an example-robot-data name.
@@ -330,21 +340,16 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
             raise RobotModelError(f"{spec}: Pinocchio could not parse the model: {detail[:400]}{extra}") from None
         check_model(model, str(path))
         return model, path.stem, str(path), str(path) if suffix == ".urdf" else None
-    import example_robot_data as erd
-
-    if spec not in erd.robots_loader.ROBOTS:
-        known = sorted(erd.robots_loader.ROBOTS)
-        hint = did_you_mean(spec, known + ["dvrk_psm"])
+    entry = find_robot(spec)
+    if entry is None:
+        known = robot_names()
+        hint = did_you_mean(spec, known)
         hint = hint + " " if hint else ""
         raise RobotModelError(
-            f"'{spec}': neither a .urdf/.xacro/.xml file nor an example-robot-data name; {hint}"
-            f"(known names: {', '.join(known)}, and dvrk_psm)"
+            f"'{spec}': neither a .urdf/.xacro/.xml file nor a registered robot name; {hint}"
+            f"(known names: {', '.join(known)})"
         )
-    model, urdf = _erd_model(spec)
-    if floating_base is False and model.joints[1].shortname() == "JointModelFreeFlyer":
-        model.lowerVelocityLimit = -np.abs(model.upperVelocityLimit)
-        model = pin.buildReducedModel(model, [1], pin.neutral(model))
-    return model, spec, f"example-robot-data:{spec}", urdf
+    return entry.load(spec, floating_base)
 
 
 def load_robot(
@@ -359,7 +364,9 @@ def load_robot(
     package_paths: Sequence[str | Path] = (),
 ) -> Robot:
     """Load a robot from a URDF path, a xacro file (with ``trust_xacro=True`` only: it can run code),
-    an MJCF path or an example-robot-data name.
+    an MJCF path or a name of the robot registry (:mod:`sensorless.robots.registry`: example-robot-data's
+    catalogue; a robot built in code, such as ``dvrk_psm``, is returned as built, and the options below
+    do not apply to it).
 
     ``lock_joints`` are fixed at their neutral position (e.g. a gripper's fingers).
     ``passive_joints`` have no actuator (a rail, a free pivot): no torque is measured there, their
@@ -374,6 +381,15 @@ def load_robot(
     """
     from .robot_paths import package_roots
 
+    entry = None if Path(str(spec)).suffix.lower() in MODEL_SUFFIXES else find_robot(str(spec))
+    if entry is not None and entry.in_code:
+        given = [name for name, value in (("floating_base", floating_base), ("lock_joints", lock_joints),
+                                          ("actuated_joints", actuated_joints), ("passive_joints", passive_joints),
+                                          ("armature", armature)) if value]
+        if given:
+            raise RobotModelError(f"'{spec}' is {entry.description}, built in code: it does not take "
+                                  f"{', '.join(setting(g) for g in given)}")
+        return entry.load(str(spec))
     packages = package_roots(package_paths)
     model, name, source, urdf = _build(str(spec), floating_base, trust_xacro, packages)
     if lock_joints:
@@ -400,36 +416,6 @@ def load_robot(
         for j, val in armature.items():
             robot.model.armature[robot.v_index(j)] = float(val)
     return robot
-
-
-def _erd_model(name: str) -> tuple[pin.Model, str | None]:
-    """The kinematic/inertial model of an example-robot-data robot and its URDF path, loaded once.
-
-    ``erd.load`` builds the visual and collision geometry too (meshes: most of its time). For the
-    loaders that only run ``RobotLoader.__init__`` the same model is built here from the URDF path
-    without geometry, with the same SRDF step (rotor parameters → armature, reference postures) and
-    free-flyer limits; loaders with their own ``__init__`` (e.g. ``talos_legs``) go through ``erd.load``.
-    """
-    import example_robot_data as erd
-    from example_robot_data.utils import RobotLoader, getModelPath, readParamsFromSrdf
-
-    loader = erd.robots_loader.ROBOTS[name]
-    if loader.__init__ is not RobotLoader.__init__ or not loader.urdf_filename or loader.sdf_filename:
-        wrapper = loader()
-        return wrapper.robot.model, str(getattr(wrapper, "df_path", None) or "") or None
-    rel = os.path.join(loader.path, loader.urdf_subpath, loader.urdf_filename)
-    root = loader.model_path or getModelPath(rel)
-    urdf = os.path.join(root, rel)
-    model = pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer()) if loader.free_flyer else pin.buildModelFromUrdf(urdf)
-    if loader.srdf_filename:
-        srdf = os.path.join(root, loader.path, loader.srdf_subpath, loader.srdf_filename)
-        readParamsFromSrdf(model, srdf, False, loader.has_rotor_parameters, loader.ref_posture)
-    if loader.free_flyer:  # RobotLoader.addFreeFlyerJointLimits
-        ub, lb = model.upperPositionLimit, model.lowerPositionLimit
-        ub[:7], lb[:7] = 1, -1
-        model.upperPositionLimit, model.lowerPositionLimit = ub, lb
-    return model, urdf
-
 
 
 def add_frame(robot, name: str, parent: str, xyz: Sequence[float], rpy: Sequence[float] = (0.0, 0.0, 0.0)) -> int:

@@ -30,7 +30,7 @@ from .model import (
     CurrentModel,
     MotorModel,
     PiecewiseLinearModel,
-    _joint_names,
+    joint_names_or_default,
     over_estimation_fraction,
 )
 
@@ -69,7 +69,7 @@ def _prepare(arrays: dict[str, np.ndarray], joint_names: Sequence[str],
             raise NonFiniteError(f"{name} has a non-finite value at sample {i}, column {j}")
         out[name] = a
     n = shape[1]
-    names = _joint_names(joint_names, n, "columns")
+    names = joint_names_or_default(joint_names, n, "columns")
     if valid is None:
         out["valid"] = np.ones(shape, bool)
     else:

@@ -41,7 +41,7 @@ def _sgn(x: np.ndarray) -> np.ndarray:
     return np.sign(x)
 
 
-def _joint_names(names, n: int, what: str | None = None) -> tuple[str, ...]:
+def joint_names_or_default(names, n: int, what: str | None = None) -> tuple[str, ...]:
     """``names`` as a tuple (default ``joint0 … joint{n-1}``); with ``what``, there must be ``n``."""
     names = tuple(names) or tuple(f"joint{j}" for j in range(n))
     if what is not None and len(names) != n:
@@ -123,7 +123,7 @@ class MotorModel(_JointwiseModel):
         n = self.k_tau.size
         self.k_v = _per_joint(self.k_v, n)
         self.k_c = np.zeros(n) if self.k_c is None else _per_joint(self.k_c, n)
-        self.joint_names = _joint_names(self.joint_names, n, "actuator parameters")
+        self.joint_names = joint_names_or_default(self.joint_names, n, "actuator parameters")
 
     def delta_q(self, tau, dq, coulomb: bool = True) -> np.ndarray:
         """Command offset Δq for joint torque ``tau`` at velocity ``dq`` (arrays (N, n) or (n,))."""
@@ -156,7 +156,7 @@ class CurrentModel(_JointwiseModel):
         n = self.k1.size
         self.fv = _per_joint(self.fv, n)
         self.fc = _per_joint(self.fc, n)
-        self.joint_names = _joint_names(self.joint_names, n)
+        self.joint_names = joint_names_or_default(self.joint_names, n)
 
     def torque(self, current, dq) -> np.ndarray:
         return self.k1 * np.asarray(current, float) - self.fv * np.asarray(dq, float) - self.fc * _sgn(dq)
@@ -188,7 +188,7 @@ class PiecewiseLinearModel(_JointwiseModel):
     def __post_init__(self) -> None:
         for name in self.ARRAYS:
             setattr(self, name, np.asarray(getattr(self, name), float).reshape(-1, 2))
-        self.joint_names = _joint_names(self.joint_names, self.n)
+        self.joint_names = joint_names_or_default(self.joint_names, self.n)
 
     def delta_q(self, tau, dq) -> np.ndarray:
         tau, dq = np.asarray(tau, float), np.asarray(dq, float)

@@ -1,9 +1,11 @@
 """Command-line interface (typer). Every SensorlessError becomes one red line and exit code 2.
 
-Each command group lives in its own module and registers itself on :data:`app`.
+Each command group lives in its own module and registers itself on :data:`app`; the studies package
+(sensorless-studies: `example`, `experiment`, `benchmark`, `demo`) adds its commands through entry points
+(:mod:`.plugins`).
 """
 
-from . import contact_id, core, drive_gains, example, excite, frames, friction, hybrid_force, monitor, payload, psm, stream, torque_control  # noqa: F401  (each module registers its commands)
+from . import identify, predict, drive_gains, excite, frames, friction, hybrid_force, monitor, payload, stream  # noqa: F401  (each module registers its commands)
 import typer
 
 from .common import app, atomic_outdir, guarded

@@ -14,21 +14,25 @@ import typer
 from typer.core import TyperCommand
 from rich.text import Text
 
-from .console import console, err_console
+from .console import err_console
 
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
 from .blas import blas_threads_for_command
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, current_context
 from ..run.logs import load_logs
+from .plugins import PluginGroup
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dynamic models for robots without torque or force sensors.")
-bench_app = typer.Typer(no_args_is_help=True, help="Speed and scale benchmarks (JSON output).")
-experiment_app = typer.Typer(no_args_is_help=True, help="Reproductions of the papers' studies (JSON + figures).")
-app.add_typer(bench_app, name="benchmark")
-app.add_typer(experiment_app, name="experiment")
+#: the root command; other packages add theirs through entry points (:mod:`.plugins`: the studies)
+app = typer.Typer(cls=PluginGroup, add_completion=False, no_args_is_help=True,
+                  help="Dynamic models for robots without torque or force sensors.")
+
+
+#: placeholder in an option's help for the list of log formats (:func:`sensorless.data.formats.formats_help`),
+#: filled when the help is shown (:class:`MultiValueCommand`): the CLI starts without loading the readers
+LOG_FORMATS = "<log formats>"
 
 
 class MultiValueCommand(TyperCommand):
@@ -37,6 +41,16 @@ class MultiValueCommand(TyperCommand):
     glob expands to exactly that). Values run until the next token starting with ``-``.
     Only for commands without positional arguments (nothing else could own a bare token).
     Usage errors (a value not among an option's choices, a missing option) are one red line too."""
+
+    def format_help(self, ctx, formatter):
+        """The help, with :data:`LOG_FORMATS` in an option's help replaced by the registered log formats."""
+        if any(LOG_FORMATS in (getattr(p, "help", None) or "") for p in self.params):
+            from ..data.formats import formats_help  # the registry (sensorless.data: loaded for the help only)
+
+            for p in self.params:
+                if LOG_FORMATS in (getattr(p, "help", None) or ""):
+                    p.help = p.help.replace(LOG_FORMATS, formats_help())
+        return super().format_help(ctx, formatter)
 
     def parse_args(self, ctx, args):
         if not any(p.param_type_name == "argument" for p in self.params):  # (typer may vendor its own click)
@@ -131,22 +145,13 @@ def atomic_outdir(out: Path, force: bool, inputs: Iterable = ()) -> Iterator[Pat
     from ..io import atomic_output_dir
 
     command = None
-    ctx = _current_context()
+    ctx = current_context()
     if ctx is not None:
         command = {"name": " ".join(["sensorless", *ctx.command_path.split()[1:]]), "options": {
             k: v if isinstance(v, (str, int, float, bool, list, tuple, Path)) or v is None else str(v)
             for k, v in ctx.params.items()}}
     with atomic_output_dir(out, force, inputs=inputs, command=command) as tmp:
         yield tmp
-
-
-def _current_context():
-    """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
-    try:
-        from typer.main import get_current_context
-    except ImportError:  # pragma: no cover - older typer on plain click
-        from click import get_current_context
-    return get_current_context(silent=True)
 
 
 def output_file(out: Path, inputs: Iterable = (), force: bool = False) -> Path:
@@ -265,7 +270,15 @@ ROBOT_SOURCE_OPTIONS = {  # name -> (annotation, option factory)
 }
 
 
-ROBOT_HELP = "URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, example-robot-data name (e.g. panda, ur5, solo12), or dvrk_psm (coupled PSM model, motor coordinates)"
+def _robot_help() -> str:
+    from ..robots.registry import ROBOTS
+
+    code = "; ".join(f"{e.names[0]} ({e.description})" for e in ROBOTS if e.in_code)
+    return ("URDF path, xacro file (only with --trust-xacro: it can run code), MJCF path, or a registered robot name: "
+            f"example-robot-data's (e.g. panda, ur5, solo12) or built in code: {code}")
+
+
+ROBOT_HELP = _robot_help()
 
 
 # ---- the preprocessing options of commands that apply an identified model ------------------
@@ -396,39 +409,6 @@ def model_options(model: str = "result.json (or its directory) from `sensorless 
     return add_options({"robot": robot, "model": (ann, lambda: typer.Option(default, help=model))}, first=True)
 
 
-def bench_out_option(name: str):
-    """``--out`` of a benchmark: ``sensorless-bench/NAME.json`` in the working directory (never a tracked
-    file; the repository's record in benchmarks/results/ is rewritten only by naming it)."""
-    return typer.Option(Path(f"sensorless-bench/{name}.json"), help="JSON file to write")
-
-
-def bench_command(name: str, results: Optional[str] = None):
-    """Decorator: the (guarded) command ``sensorless benchmark NAME``, given an ``--out`` option
-    (:func:`bench_out_option` of ``results``, default ``name``) to which the result dict the
-    command returns is written (:func:`write_result`); one definition for every benchmark."""
-
-    def deco(fn):
-        @functools.wraps(fn)
-        def run(*args, out: Path, **kwargs) -> None:
-            write_result(fn(*args, **kwargs), out)
-
-        with_out = add_options({"out": (Path, lambda: bench_out_option(results or name))})(run)
-        return bench_app.command(name)(guarded(with_out))
-
-    return deco
-
-
-def experiment_options(out: str, quick: str, seed: str):
-    """Decorator: a study's ``--out`` (default ``out``), ``--quick`` / ``--seed`` (help ``quick``,
-    ``seed``) and ``--force`` options; one definition for the ``experiment`` commands."""
-    return add_options({
-        "out": (Path, lambda: typer.Option(Path(out), help="output directory (written atomically; default in sensorless-results/)")),
-        "quick": (bool, lambda: typer.Option(False, "--quick", help=quick)),
-        "seed": (int, lambda: typer.Option(0, help=seed)),
-        "force": (bool, force_option),
-    })
-
-
 def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> tuple[list, dict]:
     """Logs to apply a model (a ModelArtifact, or a path) to, preprocessed as its training logs were:
     each option in ``prep`` given (not None) wins, else the model's (:func:`model_preprocessing`);
@@ -442,12 +422,3 @@ def model_logs(model, paths, robot, prep: dict, *, outliers: str = "error") -> t
                       pose_max_gap=opts.get("pose_max_gap"), wrench_frames=opts.get("wrench_frames"),
                       angle_unit=opts.get("angle_unit"))
     return trajs, opts
-
-
-def write_result(res: dict, out: Path) -> None:
-    """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
-    from ..identification.result import write_json_atomic
-
-    output_file(out, force=True)  # benchmark results are regenerated in place; never a directory or FIFO
-    write_json_atomic(res, out)
-    console.print(f"wrote {out}")

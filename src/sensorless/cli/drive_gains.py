@@ -13,10 +13,7 @@ from .common import (
     robot_source_options,
     MultiValueCommand,
     app,
-    console,
-    err_console,
     guarded,
-    load_logs,
     load_robot_arg,
     output_file,
     path_inputs,
@@ -26,7 +23,8 @@ from .common import (
     lock_option,
     robot_option,
 )
-from ..run.logs import log_settings
+from ..run.logs import load_logs, log_settings
+from .console import console, err_console
 from .logs import log_trims, print_pairing, trim_option
 from .options import ALIGN_HELP, RATE_HELP, Align, TimeUnit
 from .progress import progress_bars
@@ -77,8 +75,8 @@ def drive_gains(
     from ..data.gains import resolve_gains
     from ..data.limits import current_options
     from ..identification.drive_gains import identify_drive_gains
-    from ..identification.result import write_json_atomic
-    from .payload import _vector
+    from ..io import write_json_atomic
+    from .payload import parse_vector
 
     if not (np.isfinite(payload_mass) and payload_mass > 0):
         raise OptionError(f"--payload-mass must be a positive number of kg, got {payload_mass}")
@@ -88,7 +86,7 @@ def drive_gains(
         raise OptionError(f"--block-seconds must be > 0, got {block_seconds}")
     output_file(out, path_inputs(robot, unloaded, loaded), force)
     r = load_robot_arg(robot, lock, False)
-    c = _vector(com, "--com")
+    c = parse_vector(com, "--com")
     trims = log_trims(trim, [unloaded, loaded])
     u, lo = load_logs([unloaded, loaded], r, columns, rate, lowpass, savgol_window, 1, trim=trims, resample=resample,
                       time_unit=time_unit)

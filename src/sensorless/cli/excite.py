@@ -12,7 +12,6 @@ from .common import (
     robot_source_options,
     app,
     atomic_outdir,
-    console,
     guarded,
     load_robot_arg,
     path_inputs,
@@ -20,10 +19,10 @@ from .common import (
     lock_option,
     robot_option,
 )
+from .console import console
 from .options import Criterion
 from .progress import progress_bars
 
-from ..robots.names import PSM_NAMES  # noqa: E402  (re-exported: names `--robot` accepts for the PSM)
 
 
 def _parse_box(spec: str):
@@ -102,16 +101,13 @@ def excite(
                    position_fraction=position_fraction, max_velocity=max_velocity, max_acceleration=max_acceleration)
     check_export(rate, periods, harmonics, base_freq)
 
-    if robot.lower() in PSM_NAMES:
-        from ..robots.dvrk_psm import PSM_LIMITS, psm_structure
-
-        structure = psm_structure()
-        limits = ExcitationLimits(structure.robot.joint_names, PSM_LIMITS["lower"], PSM_LIMITS["upper"],
-                                  PSM_LIMITS["velocity"], PSM_LIMITS["acceleration"])
-    else:
-        r = load_robot_arg(robot, lock, False)
-        structure = ModelStructure(r, joint_terms=tuple(t for t in joint_terms.split(",") if t))
-        limits = ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration)
+    r = load_robot_arg(robot, lock, False)
+    terms = tuple(t for t in joint_terms.split(",") if t)
+    # a coupled-joint robot (dvrk_psm) builds its own structure; a robot may declare its excitation box
+    structure = r.make_structure(terms) if r.coupled else ModelStructure(r, joint_terms=terms)
+    own = r.excitation_box
+    limits = (ExcitationLimits(r.joint_names, own["lower"], own["upper"], own["velocity"], own["acceleration"])
+              if own is not None else ExcitationLimits.from_robot(r, position_fraction, max_velocity, max_acceleration))
     boxes = [_parse_box(b) for b in box]
     with atomic_outdir(out, force, inputs=path_inputs(robot)) as tmp:
         with progress_bars() as bars:

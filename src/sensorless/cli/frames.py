@@ -9,7 +9,8 @@ from typing import List, Optional
 
 import typer
 
-from .common import ADDED_FRAMES, add_options, app, console, guarded, load_robot_arg, lock_option, robot_option
+from .common import ADDED_FRAMES, add_options, app, guarded, load_robot_arg, lock_option, robot_option
+from .console import console
 from .common import floating_base_option, output_file, path_inputs, robot_source_options
 
 __all__ = ["ADD_FRAME_OPTION", "frame_options", "frames"]
@@ -50,7 +51,7 @@ def frames(
 ) -> None:
     """List every frame of ROBOT: its type, parent joint and frame, origin and rotation in the
     parent joint's axes, and world origin and axes at zero joint values."""
-    from ..identification.result import write_json_atomic
+    from ..io import write_json_atomic
     from ..robot import frame_table
 
     if out is not None:

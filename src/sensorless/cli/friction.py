@@ -20,21 +20,20 @@ from ..errors import OptionError
 from .common import (
     MultiValueCommand,
     app,
-    bench_command,
     atomic_outdir,
-    console,
     gains_option,
     guarded,
     log_reading_options,
     path_inputs,
     force_option,
     time_unit_option,
-    trim_option,
 )
+from .console import console
+from .logs import trim_option
 from .options import FrictionState, TimeUnit, Velocity
 from .progress import progress_bars
 
-__all__ = ["bench_friction_state", "friction", "friction_model_log", "predict_friction", "read_bench_logs"]
+__all__ = ["friction", "friction_model_log", "predict_friction", "read_bench_logs"]
 
 #: the preprocessing keys a friction model stores (settings.preprocessing) and predict reuses
 BENCH_KEYS = ("columns", "gains", "rate", "time_unit", "max_gap", "velocity", "savgol_window", "angle_unit")
@@ -280,20 +279,3 @@ def _print_reversals(model, errors: dict, window: float) -> None:
             t.add_row(j, e["chosen"], _fmt(e["model"]["rmse_reversals"]), _fmt(e["static"]["rmse_reversals"]),
                       str(e["model"]["samples_near_reversals"]))
     console.print(t)
-
-
-@bench_command("friction-state")
-def bench_friction_state(
-    seeds: int = typer.Option(10, help="random velocity profiles (and noise) per simulated joint"),
-) -> dict:
-    """Simulated bench joints (LuGre with three stiffness/damping settings, and a static joint): held-out RMSE
-    near reversals of the chosen law vs the best static law, and the BIC choice."""
-    from ..benchmarks.friction_state import bench_friction_state as run
-
-    if seeds < 1:
-        raise OptionError(f"--seeds must be >= 1, got {seeds}")
-    res = run(seeds, console=console)
-    for name, d in res["truths"].items():
-        console.print(f"{name}: state chosen on {d['chosen_state']}/{seeds}; near-reversal RMSE ratio (chosen / best "
-                      f"static) median {d['median_ratio_reversals']:.3f}, max {d['max_ratio_reversals']:.3f}")
-    return res

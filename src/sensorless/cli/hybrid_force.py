@@ -1,4 +1,4 @@
-"""Commands: ``sensorless experiment hybrid-force`` and ``sensorless estimate-force``."""
+"""Command: ``sensorless estimate-force`` (the hybrid-force study is ``sensorless experiment hybrid-force``, sensorless-studies)."""
 
 from __future__ import annotations
 
@@ -14,36 +14,19 @@ from .common import (
     model_logs,
     model_preprocessing_options,
     app,
-    atomic_outdir,
-    console,
-    experiment_app,
     guarded,
     output_file,
     path_inputs,
     lock_option,
     floating_base_option,
     model_options,
-    experiment_options,
     force_option,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 from .options import ForceReference
 
-__all__ = ["estimate_force", "experiment_hybrid_force"]
-
-
-@experiment_app.command("hybrid-force")
-@guarded
-@experiment_options("sensorless-results/hybrid_force", quick="shorter logs and training (≈1 min on 2 cores)",
-                    seed="random seed (simulation, training, bootstrap)")
-def experiment_hybrid_force(out: Path, quick: bool, seed: int, force: bool) -> None:
-    """Model-based vs hybrid vs learning-only force estimation for a simulated PSM-like arm in a trocar
-    (Tables II–IV) + payload identification; writes results.json, tables.md and figures."""
-    from ..experiments.hybrid_force import run
-
-    with atomic_outdir(out, force) as tmp:
-        run(tmp, quick=quick, seed=seed, console=console)
-    console.print(f"wrote {out}/")
+__all__ = ["estimate_force"]
 
 
 @app.command("estimate-force")
@@ -84,7 +67,7 @@ def estimate_force(
 
     from ..estimation.force import CartesianForceEstimator
     from ..io import write_npz_atomic
-    from ..estimators import PhysicalModel
+    from ..torque_models import PhysicalModel
 
     output_file(out, path_inputs(robot, model, data, residual), force)
     figure = _figure_path(out) if plot else None

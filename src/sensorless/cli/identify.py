@@ -7,7 +7,8 @@ from contextlib import nullcontext
 from pathlib import Path
 from typing import Optional
 
-from .common import MultiValueCommand, app, atomic_outdir, console, guarded
+from .common import MultiValueCommand, app, atomic_outdir, guarded
+from .console import console
 from .identify_options import identify_options, run_config
 from .options import check_config, config_option
 from .progress import progress_bars

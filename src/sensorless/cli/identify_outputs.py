@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from .common import (
-    console,
     err_console,
 )
+from .console import console
 
 
 def print_bodies(result) -> None:

@@ -1,6 +1,5 @@
-"""Commands: ``sensorless monitor`` (collision detection with the momentum observer) and
-``sensorless benchmark observer`` (per-sample cost of the streaming observer), ``sensorless benchmark
-held-monitor`` (a held-still arm with stiction pushed by hand, over seeds)."""
+"""Command: ``sensorless monitor`` (collision detection with the momentum observer; its benchmarks,
+``sensorless benchmark observer`` and ``held-monitor``, are in the studies package)."""
 
 from __future__ import annotations
 
@@ -19,8 +18,6 @@ from .common import (
     model_preprocessing_options,
     app,
     atomic_outdir,
-    bench_command,
-    console,
     guarded,
     path_inputs,
     force_option,
@@ -28,10 +25,11 @@ from .common import (
     floating_base_option,
     model_options,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 from .options import ForceReference
 
-__all__ = ["monitor", "bench_observer", "bench_held_monitor"]
+__all__ = ["monitor"]
 
 
 def _parse_static_friction(spec: str, names: list[str]):
@@ -261,56 +259,3 @@ def _peak_force(F: np.ndarray, t: np.ndarray, iv) -> dict:
         return {"peak_force": None, "peak_force_norm": None, "peak_force_time": None}
     i = int(np.nanargmax(norm))
     return {"peak_force": seg[i].tolist(), "peak_force_norm": float(norm[i]), "peak_force_time": float(t[iv.start_index + i])}
-
-
-@bench_command("observer")
-def bench_observer(
-    samples: int = typer.Option(100_000, help="compiled steps per robot (timed one by one)"),
-    python_samples: int = typer.Option(2000, help="Python steps per robot, for comparison"),
-    rounds: int = typer.Option(100, help="rounds interleaving the compiled step and the bare C++ loop"),
-    robot: List[str] = typer.Option(["ur5", "solo12", "dvrk_psm"], help="robots (repeat the option)"),
-) -> dict:
-    """Per-sample cost of the momentum observer's step, compiled (C++ kernel) and in Python, against the
-    bare C++ computation of M, Cᵀv and g over the same states (UR5, Solo12, dVRK PSM; JSON)."""
-    from ..benchmarks.observer import ROBOTS, run
-
-    bad = [r for r in robot if r not in ROBOTS]
-    if bad:
-        from ..errors import OptionError
-
-        raise OptionError(f"--robot {' '.join(bad)}: not a benchmark robot; choose from {', '.join(ROBOTS)}")
-    res = run(samples, python_samples, rounds, robots=robot)
-    if res["kernel"] is None:
-        console.print(f"compiled step not measured: {res['kernel_reason']}")
-    for name, v in res["robots"].items():
-        py = v["python_step"]
-        line = f"{name} (n = {v['n']}): Python step p50 {py['p50_us']:.1f} µs"
-        if v.get("compiled"):
-            s, b = v["step"], v["bare_cpp"]
-            line += (f"; compiled step mean {s['mean_us']:.2f} µs, p50 {s['p50_us']:.2f}, p99 {s['p99_us']:.2f}, "
-                     f"p99.9 {s['p999_us']:.1f}, max {s['max_us']:.0f} µs, {s['over_1ms']} over 1 ms; bare C++ "
-                     f"M, Cᵀv, g mean {b['mean_us']:.2f} µs; ratio {v['ratio']:.2f} (p50s {v['ratio_p50']:.2f})")
-        elif v.get("reason"):
-            line += f"; Python only: {v['reason']}"
-        console.print(line)
-    console.print(f"load average {res['load_average_before'][0]:.2f} before, {res['load_average_after'][0]:.2f} after")
-    return res
-
-
-@bench_command("held-monitor", "held_monitor")
-def bench_held_monitor(
-    seeds: int = typer.Option(10, help="simulated held-still arms (seeds first_seed, first_seed + 1, …)"),
-    first_seed: int = typer.Option(0, help="first seed"),
-) -> dict:
-    """A UR5 with stiction held still and pushed 5 times per seed: pushes found, false alarms per
-    minute, force at rest vs the noise-implied force, for --order 1, 2 and without the dead zone."""
-    from ..benchmarks.held_monitor import run
-
-    res = run(seeds, first_seed)
-    for name in ("order1", "order2", "no_dead_zone"):
-        s = res[name]
-        console.print(f"{name}: all pushes found {s['all_pushes_found']}, max false alarms {s['max_false_alarms_per_minute']:.2f}"
-                      f"/min, max rest force / noise-implied {s['max_rest_force_ratio']:.2f}, "
-                      f"mean contact fraction {s['mean_contact_fraction']:.3f}")
-    return res
-

@@ -98,10 +98,17 @@ def config_option():
                              "options are saved in result.json settings.config")
 
 
+def current_context():
+    """The running command's click context (typer ≥ 0.2x vendors click as ``typer._click``)."""
+    try:
+        from typer.main import get_current_context
+    except ImportError:  # pragma: no cover - older typer on plain click
+        from click import get_current_context
+    return get_current_context(silent=True)
+
+
 def check_config() -> None:
     """Raise the problem :func:`_load_config` found in ``--config`` (OptionError, one line)."""
-    from typer.main import get_current_context
-
-    ctx = get_current_context(silent=True)
+    ctx = current_context()
     if ctx is not None and ctx.meta.get(_CONFIG_ERROR):
         raise OptionError(ctx.meta[_CONFIG_ERROR])

@@ -16,7 +16,6 @@ from .common import (
     model_preprocessing_options,
     MultiValueCommand,
     app,
-    console,
     guarded,
     force_option,
     lock_option,
@@ -25,6 +24,7 @@ from .common import (
     path_inputs,
 )
 from ..run.logs import log_settings
+from .console import console
 from .logs import print_pairing
 from .options import ALIGN_HELP, Align, PayloadMode
 from .progress import progress_bars
@@ -32,7 +32,8 @@ from .progress import progress_bars
 __all__ = ["payload"]
 
 
-def _vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
+def parse_vector(text: Optional[str], what: str) -> Optional[np.ndarray]:
+    """A 3-vector from ``"x,y,z"`` (None for None); ``what`` names the option in the error."""
     import numpy as np
     if text is None:
         return None
@@ -85,7 +86,7 @@ def payload(
     import numpy as np
     from ..identification.payload import identify_payload
     from .applied_model import robot_and_model
-    from ..identification.result import write_json_atomic
+    from ..io import write_json_atomic
 
     output_file(out, path_inputs(robot, model, data, no_load), force)
     if no_load and len(no_load) != len(data):
@@ -107,7 +108,7 @@ def payload(
                                                            [j.strip() for j in offsets.split(",") if j.strip()])
     with progress_bars() as bars:
         est = identify_payload((structure, params), logs, frame, no_load=refs, offsets=off, mode=mode,
-                               com=_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
+                               com=parse_vector(com, "--com"), n_boot=n_boot, block_seconds=block_seconds,
                                flag_sigma=flag_sigma, flag_rel=flag_rel, seed=seed,
                                progress=bars.callback("payload block bootstrap (resamples)"))
     if est.mass_at_bound and not accept_bound:
@@ -127,7 +128,7 @@ def payload(
             sl = [_scaled(t, r, scale) for t in logs]
             sr = [_scaled(t, r, scale) for t in refs] if refs is not None else None
             e = identify_payload((structure, params), sl, frame, no_load=sr, offsets=off, mode=est.mode,
-                                 com=_vector(com, "--com"), n_boot=0, block_seconds=block_seconds, seed=seed)
+                                 com=parse_vector(com, "--com"), n_boot=0, block_seconds=block_seconds, seed=seed)
             dm.append(e.mass - est.mass)
         std_g = float(np.sqrt(np.sum(np.square(dm))))
         doc.update({"mass_std_noise": est.mass_std, "mass_std_gains": std_g,

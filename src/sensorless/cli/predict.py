@@ -1,4 +1,4 @@
-"""`sensorless predict` (torques of a log from an identified model) and `sensorless demo`."""
+"""`sensorless predict`: torques of a log from an identified model (`sensorless demo` is in sensorless-studies)."""
 
 from __future__ import annotations
 
@@ -16,8 +16,6 @@ from .common import (
     model_logs,
     model_preprocessing_options,
     app,
-    atomic_outdir,
-    console,
     guarded,
     output_file,
     path_inputs,
@@ -26,6 +24,7 @@ from .common import (
     force_option,
     model_options,
 )
+from .console import console
 from .applied_model import MODEL_HELP, passive_option, robot_and_model
 
 
@@ -88,18 +87,3 @@ def predict(
         console.print(metrics_table(Path(data).name, {name: torque_metrics(meas, pred, structure.row_names)}))
     write_npz_atomic(out, **arrays)
     console.print(f"wrote {out}")
-
-
-@app.command()
-@guarded
-def demo(
-    out: Path = typer.Option(Path("demo_output"), help="output directory"),
-    seed: int = typer.Option(0, help="random seed"),
-    force: bool = force_option(),
-) -> None:
-    """End-to-end example on a simulated Panda: excite, identify, validate, export."""
-    from ..demo import run_demo
-
-    with atomic_outdir(out, force=force) as tmp:
-        run_demo(tmp, seed=seed, console=console)
-    console.print(f"wrote {out}/")

@@ -25,7 +25,7 @@ console = None
 def _console():
     if console is not None:
         return console
-    from .common import err_console
+    from .console import err_console
 
     return err_console
 

@@ -1,5 +1,5 @@
-"""Commands: ``sensorless stream`` (the collision monitor one sample at a time, stdin/UDP/ROS 2) and
-``sensorless benchmark stream`` (10⁵ samples at 1 kHz through the UDP loopback: drops, latency, CPU)."""
+"""Command: ``sensorless stream`` (the collision monitor one sample at a time, stdin/UDP/ROS 2; its benchmark,
+``sensorless benchmark stream``, is in the studies package)."""
 
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ import typer
 
 from ..errors import OptionError
 from .applied_model import MODEL_HELP, robot_and_model
-from .common import app, bench_command, console, guarded, model_options, robot_source_options
+from .common import app, guarded, model_options, robot_source_options
 from .frames import frame_options
 from .options import ForceReference
 
-__all__ = ["stream", "bench_stream"]
+__all__ = ["stream"]
 
 
 @app.command()
@@ -101,24 +101,3 @@ def _same_model(th, model_path, given) -> None:
     if a.exists() and b.exists() and not a.samefile(b):
         raise OptionError(f"--thresholds {given} were measured with the model {th.model}, not {model_path}: run "
                           "`sensorless monitor` with this --model")
-
-
-@bench_command("stream")
-def bench_stream(
-    samples: int = typer.Option(100_000, help="samples sent (at --rate: 10⁵ at 1 kHz is 100 s)"),
-    rate: float = typer.Option(1000.0, help="send rate [Hz]; also the simulated log's sample rate"),
-    format: str = typer.Option("binary", "--format", help="record encoding: binary or csv"),
-    frame: Optional[str] = typer.Option("tool0", help="force frame of the UR5 ('' for none)"),
-    work: Optional[Path] = typer.Option(None, help="folder for the simulated logs, model and thresholds (default: a "
-                                        "temporary folder, deleted)"),
-) -> dict:
-    """A UR5 `sensorless stream` subprocess fed over UDP on the loopback at --rate from a simulated pushed
-    log (model from `sensorless identify`, thresholds from `sensorless monitor`): dropped samples, latency
-    send → estimate received (p50/p99/p99.9/max) and the stream's CPU time."""
-    from ..benchmarks.stream import bench_stream as run
-
-    if samples < 1 or not rate > 0:
-        raise OptionError("--samples must be ≥ 1 and --rate > 0")
-    if format not in ("csv", "binary"):
-        raise OptionError(f"--format {format}: choose csv or binary")
-    return run(samples, rate, format, frame or None, work, console=console)

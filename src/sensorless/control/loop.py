@@ -80,7 +80,8 @@ class ContactSpec:
 
 @dataclass
 class TorqueControlLoop:
-    """Callable ``(k, reading) -> q_cmd`` for :func:`sensorless.simulation.position_controlled.simulate`.
+    """Callable ``(k, reading) -> q_cmd`` for a simulated leg's ``simulate`` (the studies package:
+    ``simulation.position_controlled``).
 
     ``reading`` must have ``q``, ``ft``, ``gyro``, ``acc``. ``feedback=False`` zeroes every
     feedback term (Kp, Ki, Ks, Kd, Kf): pure feedforward through the motor model.

@@ -42,7 +42,7 @@ from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import DataError, DataWarning, ShapeMismatchError, TimestampError, setting
-from .filtering import SavitzkyGolay, _note, default_savgol_window, butter_lowpass, sign_continuous
+from .filtering import SavitzkyGolay, note_processing, default_savgol_window, butter_lowpass, sign_continuous
 from .trajectory import Trajectory
 
 __all__ = ["BasePose", "clean_base_pose", "with_base_pose", "clip_to_pose", "base_motion_from_pose",
@@ -258,7 +258,7 @@ def with_base_pose(traj: Trajectory, t: np.ndarray, position: np.ndarray, orient
     r = pose.report
     note = (f"base pose from mocap: {r['n_held']} held and {r['n_nonfinite']} missing samples "
             f"dropped, spline/Slerp, low-pass {r['cutoff_hz']} Hz, savgol({r['window']}) derivatives")
-    return traj.with_(base_q=pose.base_q, base_v=pose.base_v, base_a=pose.base_a, units=_note(traj, note))
+    return traj.with_(base_q=pose.base_q, base_v=pose.base_v, base_a=pose.base_a, units=note_processing(traj, note))
 
 
 def clip_to_pose(traj: Trajectory, hold_tol: float = 0.0) -> Trajectory:
@@ -299,5 +299,5 @@ def base_motion_from_pose(traj: Trajectory, t: np.ndarray, base_q: np.ndarray, *
     if not keep_base_a:
         kw["base_a"] = pose.base_a
         prov["base_a"] = how
-    return traj.with_(**kw, provenance=prov, units=_note(traj, "base_v" + ("" if keep_base_a else ", base_a")
+    return traj.with_(**kw, provenance=prov, units=note_processing(traj, "base_v" + ("" if keep_base_a else ", base_a")
                                                          + " from the base pose (clean_base_pose)"))

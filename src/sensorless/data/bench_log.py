@@ -69,7 +69,7 @@ def read_bench_log(path: "str | Path", *, columns: "dict | None" = None, joints:
     ``need_acceleration``) and τ at the log's own stamps. ``columns``: a column map (default: the
     file's header conventions, or bare field words); ``joints``: the joint names of a log whose
     columns do not name them; ``velocity``: "logged" (keep a logged v) or "from-q"."""
-    from .prepare import trim_window
+    from .trims import trim_window
     from .readers import read_trajectory
 
     if velocity not in ("logged", "from-q"):

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..errors import DataError, setting
 from .trajectory import Trajectory
-from .validation import TooFewSamplesError, validate_trajectory
+from .validation import validate_trajectory
+from ..errors import TooFewSamplesError
 
 __all__ = [
     "DEFAULT_DERIVATIVE_SECONDS",
@@ -42,13 +43,14 @@ _PER_SAMPLE = ("q", "v", "a", "tau", "base_q", "base_v", "base_a")
 
 
 # ---- helpers --------------------------------------------------------------------
-def _note(traj: Trajectory, text: str) -> dict[str, str]:
+def note_processing(traj: Trajectory, text: str) -> dict[str, str]:
+    """``traj.units`` with ``text`` appended to its ``processing`` record (``; ``-separated)."""
     units = dict(traj.units)
     units["processing"] = f"{units['processing']}; {text}" if units.get("processing") else text
     return units
 
 
-def _uniform_dt(traj: Trajectory, what: str) -> float:
+def uniform_dt(traj: Trajectory, what: str) -> float:
     """Median sample period, or DataError if the sampling is not uniform."""
     if len(traj) < 2:
         raise TooFewSamplesError(f"{what} needs at least 2 samples, got {len(traj)}", traj.source)
@@ -79,7 +81,7 @@ def _per_sample_arrays(traj: Trajectory) -> dict[str, np.ndarray]:
     return out
 
 
-def _rebuild(traj: Trajectory, arrays: dict[str, np.ndarray], **changes) -> Trajectory:
+def with_arrays(traj: Trajectory, arrays: dict[str, np.ndarray], **changes) -> Trajectory:
     """``traj`` with ``arrays`` (field name, or ``extras.NAME``) replaced, and ``changes``."""
     extras = dict(traj.extras)
     kw = {}
@@ -155,7 +157,7 @@ def lowpass(
     Missing (None) fields are skipped. The base pose keeps unit quaternions (filtered sign-continuous,
     renormalised)."""
     traj = validate_trajectory(traj, check_units=False)
-    dt = _uniform_dt(traj, "lowpass")
+    dt = uniform_dt(traj, "lowpass")
     arrays: dict[str, np.ndarray] = {}
     for name in lowpass_channels(traj) if fields is None else fields:
         if name in _PER_SAMPLE:
@@ -167,16 +169,16 @@ def lowpass(
         if val is None:
             continue
         if name == "base_q":
-            pos = _with_source(butter_lowpass, traj.source, val[:, :3], cutoff_hz, 1.0 / dt, order)
-            quat = _with_source(butter_lowpass, traj.source, sign_continuous(val[:, 3:]), cutoff_hz, 1.0 / dt, order)
+            pos = with_source(butter_lowpass, traj.source, val[:, :3], cutoff_hz, 1.0 / dt, order)
+            quat = with_source(butter_lowpass, traj.source, sign_continuous(val[:, 3:]), cutoff_hz, 1.0 / dt, order)
             arrays[key] = np.hstack([pos, quat / np.linalg.norm(quat, axis=1, keepdims=True)])
         else:
-            arrays[key] = _with_source(butter_lowpass, traj.source, val, cutoff_hz, 1.0 / dt, order)
+            arrays[key] = with_source(butter_lowpass, traj.source, val, cutoff_hz, 1.0 / dt, order)
     done = [k.removeprefix("extras.") for k in arrays]
-    return _rebuild(traj, arrays, units=_note(traj, f"lowpass(butterworth order={order}, zero-phase, {cutoff_hz:g} Hz) of {done}"))
+    return with_arrays(traj, arrays, units=note_processing(traj, f"lowpass(butterworth order={order}, zero-phase, {cutoff_hz:g} Hz) of {done}"))
 
 
-def _with_source(fn, source: str, *args):
+def with_source(fn, source: str, *args):
     """Call ``fn``; re-raise a DataError without a source with ``source`` attached."""
     try:
         return fn(*args)
@@ -299,18 +301,18 @@ def savgol_derivatives(
     """Smooth ``q`` and replace ``v``, ``a`` by its first and second Savitzky-Golay
     derivatives. ``window`` defaults to :func:`default_savgol_window` (0.2 s, at least 11)."""
     traj = validate_trajectory(traj, check_units=False)
-    dt = _uniform_dt(traj, "savgol_derivatives")
+    dt = uniform_dt(traj, "savgol_derivatives")
     if polyorder < 2:
         raise DataError(f"polyorder must be >= 2 to estimate accelerations, got {polyorder}", traj.source)
     if window is None:
         window = max(default_savgol_window(1.0 / dt), polyorder + 2 if polyorder % 2 else polyorder + 1)
-    sg = _with_source(SavitzkyGolay, traj.source, window, polyorder, dt, causal)
-    q = _with_source(sg.apply, traj.source, traj.q, 0)
+    sg = with_source(SavitzkyGolay, traj.source, window, polyorder, dt, causal)
+    q = with_source(sg.apply, traj.source, traj.q, 0)
     v = sg.apply(traj.q, 1)
     a = sg.apply(traj.q, 2)
     kind = "causal" if causal else "centred"
     note = f"savgol({kind}, window={sg.window}, polyorder={polyorder}, dt={dt:.6g} s): q smoothed; v, a = d/dt, d2/dt2 of q"
-    return traj.with_(q=q, v=v, a=a, units=_note(traj, note))
+    return traj.with_(q=q, v=v, a=a, units=note_processing(traj, note))
 
 
 # ---- selection and resampling ------------------------------------------------------
@@ -333,7 +335,7 @@ def trim(
         span = f"[{traj.t[0]:.3f}, {traj.t[-1]:.3f}] s" if len(traj) else "empty"
         raise TooFewSamplesError(f"trim: no sample in [{t_start}, {t_end}] (log spans {span})", traj.source)
     out = traj.take(mask)
-    return out.with_(units=_note(out, f"trim({t_start}, {t_end}{', relative' if relative else ''})"))
+    return out.with_(units=note_processing(out, f"trim({t_start}, {t_end}{', relative' if relative else ''})"))
 
 
 def decimate(traj: Trajectory, factor: int, antialias: bool = True) -> Trajectory:
@@ -348,20 +350,20 @@ def decimate(traj: Trajectory, factor: int, antialias: bool = True) -> Trajector
     note = f"decimate(x{factor}"
     if antialias:
         traj = validate_trajectory(traj, check_units=False)
-        rate = 1.0 / _uniform_dt(traj, "decimate")
+        rate = 1.0 / uniform_dt(traj, "decimate")
         cutoff = 0.8 * rate / (2 * factor)
         arrays = {}
         for name, val in _per_sample_arrays(traj).items():
             if name == "base_q":
                 val = val.copy()
-                val[:, :3] = _with_source(butter_lowpass, traj.source, val[:, :3], cutoff, rate)
+                val[:, :3] = with_source(butter_lowpass, traj.source, val[:, :3], cutoff, rate)
                 arrays[name] = val
             else:
-                arrays[name] = _with_source(butter_lowpass, traj.source, val, cutoff, rate)
-        traj = _rebuild(traj, arrays)
+                arrays[name] = with_source(butter_lowpass, traj.source, val, cutoff, rate)
+        traj = with_arrays(traj, arrays)
         note += f", anti-alias low-pass {cutoff:g} Hz"
     out = traj.take(slice(None, None, factor))
-    return out.with_(units=_note(out, note + ")"))
+    return out.with_(units=note_processing(out, note + ")"))
 
 
 def resample_uniform(traj: Trajectory, rate_hz: float | None = None) -> Trajectory:
@@ -386,4 +388,4 @@ def resample_uniform(traj: Trajectory, rate_hz: float | None = None) -> Trajecto
     if "base_q" in arrays:
         quat = arrays["base_q"][:, 3:]
         arrays["base_q"][:, 3:] = quat / np.linalg.norm(quat, axis=1, keepdims=True)
-    return _rebuild(traj, arrays, t=t0 + t_new, units=_note(traj, f"resample_uniform({rate:g} Hz, linear)"))
+    return with_arrays(traj, arrays, t=t0 + t_new, units=note_processing(traj, f"resample_uniform({rate:g} Hz, linear)"))

@@ -27,7 +27,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import DataError, JointNameError, ShapeMismatchError, setting
-from .tabular import _is_number
+from .tabular import is_number
 from .trajectory import Trajectory
 
 __all__ = ["split_gain_modifiers", "load_gains", "resolve_gains", "currents_to_torques"]
@@ -153,7 +153,7 @@ def _read_file(path: Path) -> "list[float] | dict[str, float]":
     if not rows:
         raise DataError("gains file is empty", src)
     if all(len(r) == 2 for r in rows):  # joint,gain (optional header)
-        body = rows[1:] if not _is_number(rows[0][1]) else rows
+        body = rows[1:] if not is_number(rows[0][1]) else rows
         first = 2 if body is not rows else 1
         return {r[0]: _file_number(r[1], f"row {i + first}", src) for i, r in enumerate(body)}
     flat = [c for r in rows for c in r]

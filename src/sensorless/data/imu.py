@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DataError, RobotModelError, ShapeMismatchError, setting, did_you_mean
-from .filtering import SavitzkyGolay, _note, _uniform_dt, default_savgol_window
+from .filtering import SavitzkyGolay, note_processing, uniform_dt, default_savgol_window
 from .trajectory import Trajectory
 
 __all__ = ["IMU_KEY", "base_acceleration", "gravity_in_base", "imu_base_acceleration", "imu_frame_base_acceleration"]
@@ -144,7 +144,7 @@ def base_acceleration(
     model frame), else by differentiating ``base_v[:, :3]``."""
     if traj.base_q is None or traj.base_v is None:
         raise DataError("base acceleration needs base_q and base_v (a floating-base log)", traj.source)
-    dt = _uniform_dt(traj, "base_acceleration")
+    dt = uniform_dt(traj, "base_acceleration")
     if window is None:  # the package's one default derivative window (0.2 s)
         window = default_savgol_window(1.0 / dt)
     sg = SavitzkyGolay(window=window, polyorder=polyorder, dt=dt)
@@ -167,4 +167,4 @@ def base_acceleration(
         base_a = dv
     note = (f"base_a: {'linear from imu_acc' + (f' at frame {imu_frame}' if imu_frame else '') + ', ' if has_imu else ''}savgol(window={window}, polyorder={polyorder}) "
             f"derivative of base_v{'[3:]' if has_imu else ''}")
-    return traj.with_(base_a=base_a, units=_note(traj, note))
+    return traj.with_(base_a=base_a, units=note_processing(traj, note))

@@ -48,7 +48,7 @@ import warnings
 import numpy as np
 
 from ..errors import DataError, DataWarning, OptionError, TimestampError, setting
-from .filtering import MAX_JITTER, SavitzkyGolay, _note, _with_source, savgol_derivatives
+from .filtering import MAX_JITTER, SavitzkyGolay, note_processing, with_source, savgol_derivatives
 from .filtering import DEFAULT_DERIVATIVE_SECONDS, DEFAULT_SAVGOL_WINDOW, default_savgol_window
 from .filtering import decimate as _decimate
 from .filtering import lowpass as _lowpass
@@ -63,8 +63,8 @@ from .trajectory import Trajectory
 from .trims import LogTrims, TrimWindow, trim_window
 from .validation import validate_trajectory
 
-__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "parse_resample", "DEFAULT_SAVGOL_WINDOW", "VELOCITY_SOURCES",
-           "BASE_VELOCITY_SOURCES", "DEFAULT_DERIVATIVE_SECONDS", "default_savgol_window"]
+__all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "parse_resample", "VELOCITY_SOURCES",
+           "BASE_VELOCITY_SOURCES"]
 
 VELOCITY_SOURCES = ("logged", "from-q")
 #: where the base twist comes from: ``auto`` (from the logged base pose when no base velocity is logged),
@@ -246,10 +246,10 @@ def prepare(
             "v": f"derived: d/dt q, {how}", "a": f"derived: d²/dt² q, {how}"})
     elif derive_a:
         dt = float(np.median(np.diff(traj.t)))
-        sg = _with_source(SavitzkyGolay, src, w, _POLYORDER, dt)
-        a = _with_source(sg.apply, src, traj.v, 1)
+        sg = with_source(SavitzkyGolay, src, w, _POLYORDER, dt)
+        a = with_source(sg.apply, src, traj.v, 1)
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
-        traj = traj.with_(a=a, units=_note(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
+        traj = traj.with_(a=a, units=note_processing(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
                           provenance={**traj.provenance, "a": f"derived: d/dt of logged v, {how}"})
     if derive_a and traj.extras.get("contact") is not None:
         traj = _widen_contacts(traj, w // 2)

@@ -1,5 +1,6 @@
-"""Read logs (CSV and whitespace text, NPZ, Parquet, HDF5, MATLAB .mat, a folder of per-signal
-text files; ROS bags and MCAP via :mod:`.rosbag`) into a validated :class:`Trajectory`.
+"""Read logs (CSV and whitespace text, NPZ, Parquet, HDF5, MATLAB .mat, Arrow IPC / Feather, a folder of
+per-signal text files; ROS bags and MCAP via :mod:`.rosbag`) into a validated :class:`Trajectory`.
+The format of a path is the first of the registry :mod:`.formats` that claims it (``sniff``).
 
 Fields are ``t, q, v, a, tau`` (plus ``current``, ``command`` → ``extras`` and
 ``base_q, base_v, base_a``). Without ``columns`` each field is found under one of the names of
@@ -41,13 +42,14 @@ import numpy as np
 from ..errors import DataError, ShapeMismatchError, setting
 from ..io import check_input_file
 from .angles import check_angle_unit, to_radians
-from .arrays import EXTRA_KEYS, as_float, read_hdf5, read_npz
+from .arrays import EXTRA_KEYS, as_float
+from .formats import SUPPORTED_EXTENSIONS, find_format
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
-from .limits import current_options, prescan_text, read_options
+from .limits import current_options, read_options
 from .names import FIELD_NAMES, RawLog, warn_unused
 from .orientation import orient_samples
-from .tabular import Columns, fields_from_frame, read_parquet_table, read_text_table
+from .tabular import Columns
 from .timebase import check_rate, check_time_unit, to_seconds
 from .trajectory import Trajectory, as_float_array
 from .validation import JOINT_EXTRAS, validate_trajectory
@@ -55,23 +57,9 @@ from .validation import JOINT_EXTRAS, validate_trajectory
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["read_trajectory", "write_npz", "SUPPORTED_EXTENSIONS", "FIELDS"]
+__all__ = ["read_trajectory", "write_npz", "FIELDS"]
 
-SUPPORTED_EXTENSIONS = {
-    ".csv": "text",
-    ".txt": "text",
-    ".npz": "npz",
-    ".parquet": "parquet",
-    ".pq": "parquet",
-    ".h5": "hdf5",
-    ".hdf5": "hdf5",
-    ".mat": "mat",
-    ".dat": "text",
-    ".log": "text",
-}
 FIELDS = tuple(FIELD_NAMES)
-#: what array files hold (the readers' word for their items): they may store channels × samples
-ARRAY_ITEMS = ("arrays", "datasets", "variables")
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
 
 
@@ -125,16 +113,12 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
     src = str(path)
     if not path.exists():
         raise DataError("no such file", src)
-    from .rosbag import is_rosbag, read_rosbag, rosbag_options
-
     if not path.is_dir():
         check_input_file(path, "log file")  # a FIFO or device would block or never end
-    if is_rosbag(path):  # ROS 1/2 bag or MCAP: topics instead of columns (sensorless.data.rosbag)
-        if gains is not None or rate is not None or time_unit is not None or angle_unit != "rad":
-            raise DataError("gains, rate, time_unit and angle_unit do not apply to a ROS bag (its stamps are in "
-                            "seconds, its joint positions in radians)", src)
-        return read_rosbag(path, joint_names=joint_names, robot=robot, allow_duplicate_times=allow_duplicate_times,
-                           outliers=outliers, **rows, **rosbag_options(columns, src))
+    fmt = find_format(path)
+    if fmt is not None and fmt.trajectory:  # e.g. a ROS 1/2 bag or MCAP: topics instead of columns
+        return fmt.read(path, columns, joint_names, robot=robot, gains=gains, rate=rate, time_unit=time_unit,
+                        angle_unit=angle_unit, allow_duplicate_times=allow_duplicate_times, outliers=outliers, **rows)
     columns, column_gains, gain_field = split_gain_modifiers(columns, src)
     if column_gains is not None:
         if gains is not None:
@@ -145,11 +129,11 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         if unknown:
             raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {list(FIELDS)}", src)
     check_time_unit(time_unit, rate, src)
-    raw, what = _read_raw(path, src, columns, joint_names)
+    raw, what = _read_raw(fmt, path, src, columns, joint_names)
     warn_unused(src, raw.unused, what)
     n_hint = (len(joint_names) if joint_names is not None else len(raw.names) if raw.names is not None
               else len(robot.joint_names) if robot is not None else None)
-    flipped = orient_samples(raw, n_hint, src) if what in ARRAY_ITEMS else []  # tables are sample-major
+    flipped = orient_samples(raw, n_hint, src) if fmt.arrays else []  # tables are sample-major
     traj = _assemble(raw, src, joint_names, rate, robot, time_unit)
     if flipped:
         traj.units["layout"] = f"stored channels × samples, transposed: {', '.join(flipped)}"
@@ -161,31 +145,15 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
     return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers, **rows)
 
 
-def _read_raw(path: Path, src: str, columns, joint_names) -> tuple[RawLog, str]:
-    """What the reader of ``path``'s format found (a folder: per-signal files; a MATLAB v7.3 file
-    whatever its name), and what its unused items are (files, arrays, columns)."""
-    if path.is_dir():
-        from .textlog import read_signal_folder
-
-        return read_signal_folder(path, columns), "files"
-    if not path.is_file():
+def _read_raw(fmt, path: Path, src: str, columns, joint_names) -> tuple[RawLog, str]:
+    """What the reader of ``path``'s format ``fmt`` (:mod:`.formats`) found, and what its unused items
+    are (files, arrays, columns)."""
+    if not (path.is_dir() or path.is_file()):
         raise DataError("not a regular file", src)
-    kind = SUPPORTED_EXTENSIONS.get(path.suffix.lower())
-    if kind is None:
+    if fmt is None:
         raise DataError(f"unsupported file type '{path.suffix}'; supported: {', '.join(SUPPORTED_EXTENSIONS)} "
                         "or a folder of per-signal text files", src)
-    from .matlab import is_mat73, read_mat
-
-    if kind == "mat" or (kind == "hdf5" and is_mat73(path)):
-        return read_mat(path, columns), "variables"
-    if kind == "npz":
-        return read_npz(path, columns), "arrays"
-    if kind == "hdf5":
-        return read_hdf5(path, columns), "datasets"
-    if kind == "text":
-        prescan_text(path, src)  # line length, field count and size bounded before pandas
-    df, header = read_text_table(path) if kind == "text" else (read_parquet_table(path), True)
-    return fields_from_frame(df, src, columns, joint_names, header), "columns"
+    return fmt.read(path, columns, joint_names), fmt.items
 
 
 _EXPECTED = {"contact": "n_feet", "contact_forces": "n_feet, 3 or 6", IMU_KEY: "3"}

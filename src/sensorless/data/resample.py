@@ -22,9 +22,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import DataError, TimestampError, setting
-from .filtering import MAX_JITTER, _rebuild, sign_continuous
+from .filtering import MAX_JITTER, with_arrays, sign_continuous
 from .trajectory import Trajectory
-from .validation import TooFewSamplesError
+from ..errors import TooFewSamplesError
 
 __all__ = ["Timing", "timing", "resample", "DEFAULT_MAX_GAP", "CUBIC_FIELDS"]
 
@@ -173,4 +173,4 @@ def resample(
     units["processing"] = f"{units['processing']}; {note}" if units.get("processing") else note
     prov = {**traj.provenance, "resampled": {"rate_hz": rate, "max_gap_periods": max_gap,
                                              "duplicates_merged": info.duplicates, "before": info.to_dict()}}
-    return _rebuild(traj, out, t=tu[0] + grid, units=units, provenance=prov)
+    return with_arrays(traj, out, t=tu[0] + grid, units=units, provenance=prov)

@@ -126,7 +126,8 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0, perio
     """Measure ``log`` for the streamed preprocessing (module docstring), one joint at a time; None
     when the whole-log path must handle it. Raises NonFiniteError / TimestampError naming the sample.
     ``period``: find the excitation period (for cross-validation folds; else ``StreamedLog.period`` is None)."""
-    from .resample import MAX_JITTER, timing
+    from .resample import timing
+    from .filtering import MAX_JITTER
     from .timebase import to_seconds
 
     src, N = str(log.path), log.n_samples

@@ -34,7 +34,8 @@ _RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
 Columns = Mapping[str, "str | int | Sequence[str | int]"]
 
 
-def _is_number(tok: str) -> bool:
+def is_number(tok: str) -> bool:
+    """Whether the text token parses as a float."""
     try:
         float(tok)
         return True
@@ -61,7 +62,7 @@ def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
         raise DataError("file is empty", src)
     sep = next((s for s in (",", ";", "\t") if s in first), r"\s+")
     tokens = [tok.strip().strip("\"'") for tok in (first.split(sep) if sep != r"\s+" else first.split())]
-    header = any(tok and not _is_number(tok) for tok in tokens)
+    header = any(tok and not is_number(tok) for tok in tokens)
     try:
         df = pd.read_csv(
             path, sep=sep, header=0 if header else None, comment="#", skipinitialspace=True, encoding="utf-8-sig"

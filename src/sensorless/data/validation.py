@@ -35,7 +35,7 @@ from .trims import TrimWindow, trim_window
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["validate_trajectory", "TooFewSamplesError", "JOINT_EXTRAS", "MAX_ABS_VALUE"]
+__all__ = ["validate_trajectory", "JOINT_EXTRAS", "MAX_ABS_VALUE"]
 
 #: ``extras`` keys holding one column per joint; they are reordered with the joints.
 JOINT_EXTRAS = ("current", "command")

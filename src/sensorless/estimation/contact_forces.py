@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, setting
-from ..regressor.contact import contact_jacobians
+from ..regressor.contact_kinematics import contact_jacobians
 from .momentum import MomentumDynamics, MomentumObserver
 
 __all__ = ["ContactForceEstimate", "estimate_contact_forces", "solve_contact_forces"]

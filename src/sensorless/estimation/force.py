@@ -315,7 +315,7 @@ class CartesianForceEstimator:
         """τ_ext = τ_measured − model.predict(traj) (− residual.predict_residual(traj)) → F.
 
         ``model`` is a fitted torque model: a physical one (``structure_`` and ``parameters_``, e.g.
-        :class:`~sensorless.estimators.PhysicalModel`, identified with or without contacts) is evaluated
+        :class:`~sensorless.torque_models.PhysicalModel`, identified with or without contacts) is evaluated
         on the rows of known generalized force without its row map (module docstring); any other
         model's ``predict`` gives the actuated rows (a hybrid or a learned model). ``residual``: an
         optional object with ``predict_residual(traj)`` (a learned correction, actuated rows).

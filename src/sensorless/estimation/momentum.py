@@ -50,7 +50,7 @@ from ..regressor.friction_state import FrictionLaw, FrictionStateIntegrator
 from ..errors import DataError, RobotModelError, ShapeMismatchError, TimestampError
 from ..parameters import pin_inertia
 
-__all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "depth_first_model", "observer_filter"]
+__all__ = ["MomentumDynamics", "MomentumObserver", "ObserverResult", "depth_first_model"]
 
 
 def depth_first_model(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
@@ -369,7 +369,7 @@ class MomentumObserver:
             else:
                 from .native_observer import native_observer
 
-                self._native, self.compiled_reason = native_observer(self.dynamics)
+                self._native, self.compiled_reason = native_observer(self.dynamics, reference=_python_observer)
             if self._want and self._native is None:
                 raise RobotModelError(f"the compiled observer step is not available: {self.compiled_reason}")
         return self._native
@@ -457,6 +457,11 @@ class MomentumObserver:
         yp = _df2t(b_p, a, p - self._p0, self._zp)
         yu = _df2t(b_u, a, tf + beta, self._zu)
         return yp - yu
+
+
+def _python_observer(dyn, gain: float, order: int, dt: float) -> MomentumObserver:
+    """The Python step the compiled one is checked against (:func:`~.native_observer.native_observer`)."""
+    return MomentumObserver(dyn, gain=gain, order=order, dt=dt, compiled=False)
 
 
 def _df2t(b: np.ndarray, a: np.ndarray, x: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -5,9 +5,9 @@ see :mod:`sensorless.regressor.native`) holds a copy of the identified model (th
 identified inertias, armature, gravity), the friction and drive terms, the presliding state, the
 observer's filter state and the collision check, and computes one sample of
 :meth:`~.momentum.MomentumObserver.step` (M, Cᵀv and g by Pinocchio's C++ algorithms) into
-preallocated buffers. :func:`native_observer` describes a :class:`~.momentum.MomentumDynamics` to
-the kernel and accepts it only when its steps equal the Python step's (relative 1e-9) on random
-states; otherwise, and when the kernel is not built or ``SENSORLESS_NATIVE=0``, it returns the
+preallocated buffers. :func:`native_observer` describes a dynamics object with a ``kernel_spec()``
+(a :class:`~.momentum.MomentumDynamics`) to the kernel and, given the Python ``reference`` observer,
+accepts it only when its steps equal the reference's (relative 1e-9) on random states; otherwise, and when the kernel is not built or ``SENSORLESS_NATIVE=0``, it returns the
 reason and the Python step is used.
 """
 
@@ -16,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import weakref
+from typing import Callable
 
 import numpy as np
 
@@ -182,9 +183,8 @@ class NativeObserver:
 def _describe(lib, dyn) -> "tuple[int | None, str | None, dict]":
     """A kernel observer of ``dyn`` (handle, None, sizes) or (None, the reason, {})."""
     from ..regressor.terms import ModelStructure
-    from .momentum import MomentumDynamics
 
-    if not isinstance(dyn, MomentumDynamics):
+    if not callable(getattr(dyn, "kernel_spec", None)):
         return None, f"{type(dyn).__name__} (not a MomentumDynamics) runs in Python", {}
     s, spec = dyn.structure, dyn.kernel_spec()
     for name in ("joint_features", "coulomb_sign", "sliding_sign"):
@@ -254,10 +254,11 @@ def _add_joint_friction(lib, h, s, spec: dict) -> None:
                                    coef(k, "stribeck"), coef(k, "offset"))
 
 
-def native_observer(dyn, check: bool = True) -> "tuple[NativeObserver | None, str | None]":
-    """(the kernel's observer of ``dyn``, None), or (None, why the Python step is used). With ``check``
-    the kernel's steps must equal the Python step's on random states (relative 1e-9; once per dynamics
-    object)."""
+def native_observer(dyn, reference: "Callable | None" = None) -> "tuple[NativeObserver | None, str | None]":
+    """(the kernel's observer of ``dyn``, None), or (None, why the Python step is used). With a
+    ``reference`` (``reference(dyn, gain, order, dt)``: the Python observer, e.g.
+    ``MomentumObserver(dyn, gain=gain, order=order, dt=dt, compiled=False)``) the kernel's steps must
+    equal the reference's on random states (relative 1e-9; checked once per dynamics object)."""
     lib = _lib()
     if lib is None:
         if native.library() is None:
@@ -268,24 +269,23 @@ def native_observer(dyn, check: bool = True) -> "tuple[NativeObserver | None, st
     if h is None:
         return None, reason
     obs = NativeObserver(lib, h, dyn.n, sizes["nj"], sizes["na"], sizes["floating"], dyn.model.nq, dyn.model.nv)
-    if check:
+    if reference is not None:
         if dyn not in _CHECKED:
-            _CHECKED[dyn] = _check(dyn)
+            _CHECKED[dyn] = _check(dyn, reference)
         verdict = _CHECKED[dyn]
         if verdict is not None:
             return None, verdict
     return obs, None
 
 
-def _check(dyn, samples: int = 12) -> "str | None":
-    """None when the kernel's steps equal the Python step's on random states, else the reason."""
+def _check(dyn, reference: Callable, samples: int = 12) -> "str | None":
+    """None when the kernel's steps equal the Python ``reference`` observer's on random states, else the reason."""
     from ..data.integral_filter import observer_filter
-    from .momentum import MomentumObserver
 
     rng = np.random.default_rng(0)
     states = random_states(dyn, samples, rng)
-    ref = MomentumObserver(dyn, gain=40.0, order=2, dt=1e-3, compiled=False)
-    nat, _ = native_observer(dyn, check=False)
+    ref = reference(dyn, 40.0, 2, 1e-3)
+    nat, _ = native_observer(dyn)
     nat.set_filter(*observer_filter(40.0, 2, 1e-3))
     worst = 0.0
     for q, v, tau, bq, bv in zip(*states):

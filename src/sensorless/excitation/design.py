@@ -39,7 +39,7 @@ from scipy.optimize import minimize
 
 from ..data import Trajectory, write_npz
 from ..errors import ExcitationError
-from ..identification.result import versions, write_json_atomic
+from ..io import versions, write_json_atomic
 from .criteria import CRITERIA, excitation_metrics
 from .fourier import FourierTrajectory
 from .problem import FourierProblem

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import ParameterError, SensorlessError, setting
 from ..io import check_input_file, read_json
+from ..regressor.joint_terms import joint_term, terms_where
 from .artifact_schema import (Checker, check_preprocessing_settings, check_robot_settings, check_structure_settings,
                               check_verdicts, summary)
 
@@ -292,7 +293,7 @@ def _check_bodies(c: Checker, structure, params: np.ndarray, physical: bool) -> 
     start = getattr(structure, "n_block_params", nb)  # the joint-term block (drive terms are not constrained)
     for i in range(start, len(params)):
         term = labels[i].rsplit(".", 1)[-1]
-        if term in ("fv", "fc", "armature") and params[i] < -_CONSISTENCY_TOL * max(1.0, float(np.max(np.abs(params[start:])))):
+        if term in terms_where("nonnegative") and params[i] < -_CONSISTENCY_TOL * max(1.0, float(np.max(np.abs(params[start:])))):
             raise c.fail(f"parameters.{labels[i]}", f"{term} = {params[i]:.6g} is negative; a physically "
                                                     "consistent (lmi) model has it ≥ 0")
 
@@ -373,8 +374,8 @@ def save_model_folder(directory: str | Path, result, doc: dict | None = None, *,
         return doc
     law = {j: {"stribeck_velocity": float((s.stribeck_velocity or {}).get(j, 0.0)) if "stribeck" in s.terms_of(j)
                else 0.0, "coulomb_smoothing": s.smoothing_of(j)} for j in s.robot.term_joints}
-    # the presliding state (its amplitude, k and play) lives in result.json only: a URDF has no friction state
-    terms = JointTerms.from_dict({j: {**{t: x for t, x in d.items() if t != "presliding"}, **law[j]}
+    # terms the registry does not export (the presliding state: its amplitude, k and play) live in result.json only
+    terms = JointTerms.from_dict({j: {**{t: x for t, x in d.items() if joint_term(t).exported}, **law[j]}
                                   for j, d in result.joint_terms().items()})
     write_joint_terms(terms, directory / "joint_terms.json")
     try:

@@ -282,7 +282,8 @@ def check_robot_settings(c: Checker, value: Any, key: str = "settings.robot") ->
 # ---- settings (the model structure) ---------------------------------------------------------
 def check_structure_settings(c: Checker, s: Mapping) -> None:
     """Types and ranges of the structure keys of ``settings`` (the constructors check the rest)."""
-    from ..regressor.joint_spec import FRICTION_LAWS, JOINT_TERMS
+    from ..regressor.joint_terms import JOINT_TERMS
+    from ..regressor.joint_terms.stribeck import FRICTION_LAWS
 
     if s.get("structure") == "transmission":
         for name in ("coordinates", "tree_joints", "bodies"):

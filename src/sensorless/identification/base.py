@@ -77,7 +77,9 @@ class BaseParameters:
         }
 
 
-def _random_states(structure: ModelStructure, n: int, rng: np.random.Generator):
+def random_states(structure: ModelStructure, n: int, rng: np.random.Generator):
+    """``n`` random (Q, V, A) of ``structure``'s robot: joint positions uniform within the limits (±π
+    where unlimited), a random unit-quaternion base pose for a floating base, V ~ N(0, 2²), A ~ N(0, 5²)."""
     r = structure.robot
     lo, hi = r.position_limits()
     lo = np.where(np.isfinite(lo), lo, -np.pi)
@@ -98,11 +100,11 @@ def base_parameters(structure: ModelStructure, *, n_samples: int | None = None, 
     rng = np.random.default_rng(seed)
     p = structure.n_params
     n = n_samples or max(20, int(np.ceil(3 * p / max(structure.n_rows, 1))))
-    Q, V, A = _random_states(structure, n, rng)
+    Q, V, A = random_states(structure, n, rng)
     Z = (rng.uniform(-1.0, 1.0, (n, len(structure.robot.term_joints)))  # a friction state anywhere in [−1, 1]
          if "presliding" in getattr(structure, "joint_terms", ()) else None)
     W = structure.evaluate(Q, V, A, *(() if Z is None else (Z,))).reshape(-1, p)
-    Q, V, A = _random_states(structure, n, rng)
+    Q, V, A = random_states(structure, n, rng)
     slow = V * 10.0 ** rng.uniform(-5.0, 0.0, V.shape) / np.maximum(np.abs(V), 1e-12)  # |v| log-uniform
     W_all = np.concatenate([W, SLOW_WEIGHT * structure.evaluate(Q, slow, A, *(() if Z is None else (Z,))).reshape(-1, p)])
     rms = np.sqrt(np.mean(W ** 2, axis=0))  # per equation row over the generic states, physical units

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import RobotModelError, setting
 from ..parameters import as_bodies, pseudo_inertia, pseudo_inertia_basis
+from ..regressor.joint_terms import terms_where
 from ..regressor.terms import ModelStructure
 from .ellipsoids import BoundingEllipsoid
 
@@ -219,9 +220,10 @@ class ComInEllipsoid:
 
 @dataclass
 class NonNegativeFriction:
-    """``fv ≥ 0`` and ``fc ≥ 0`` (the terms that are modelled)."""
+    """``fv ≥ 0`` and ``fc ≥ 0`` (the terms that are modelled): the joint terms the registry marks
+    ``nonnegative`` other than the rotor inertia (:class:`NonNegativeArmature`)."""
 
-    terms: tuple[str, ...] = ("fv", "fc")
+    terms: tuple[str, ...] = tuple(t for t in terms_where("nonnegative") if t not in terms_where("acceleration"))
     name: str = "friction_nonnegative"
     hint: str = "drop NonNegativeFriction (e.g. if the torque sign convention is reversed)"
 
@@ -232,13 +234,14 @@ class NonNegativeFriction:
 
 @dataclass
 class NonNegativeArmature:
-    """Rotor inertia ``armature ≥ 0``."""
+    """Rotor inertia ``armature ≥ 0`` (the ``nonnegative`` joint terms on v̇)."""
 
+    terms: tuple[str, ...] = tuple(t for t in terms_where("nonnegative") if t in terms_where("acceleration"))
     name: str = "armature_nonnegative"
     hint: str = "drop NonNegativeArmature"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
-        idx = ctx.term_indices("armature")
+        idx = np.concatenate([ctx.term_indices(t) for t in self.terms] or [np.zeros(0, dtype=int)])
         return [x[idx] >= 0] if idx.size else []
 
 

@@ -53,7 +53,7 @@ from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, JointNameError
 from ..robot import Robot
-from .payload import payload_regressor, point_mass_parameters
+from .payload_model import payload_regressor, point_mass_parameters
 
 __all__ = ["DriveGains", "identify_drive_gains", "payload_torque"]
 
@@ -95,9 +95,9 @@ class DriveGains:
 
 def payload_torque(robot: Robot, traj: Trajectory, frame: str, mass: float, com=None) -> np.ndarray:
     """Torque (N, n_actuated) of a point mass ``mass`` at ``com`` (frame coordinates) at ``frame``."""
-    from ..regressor.terms import _in_robot_order
+    from ..regressor.terms import in_robot_order
 
-    traj = _in_robot_order(robot, traj)
+    traj = in_robot_order(robot, traj)
     if traj.v is None or traj.a is None:
         raise DataError("the loaded log needs v and v̇ (logged or derived)", traj.source)
     phi = point_mass_parameters(float(mass), np.zeros(3) if com is None else np.asarray(com, dtype=float))

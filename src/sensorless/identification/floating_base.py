@@ -20,7 +20,7 @@ import pinocchio as pin
 from ..data.trajectory import Trajectory
 from ..errors import DataError
 from ..regressor.contact import ContactStructure
-from ..regressor.terms import _in_robot_order
+from ..regressor.terms import in_robot_order
 
 __all__ = ["base_wrench_metrics", "com_cop_check", "com_positions", "standing_mask"]
 
@@ -38,7 +38,7 @@ def base_wrench_metrics(structure: ContactStructure, params: np.ndarray, traj: T
     pred, meas = s.torques(params, traj)[:, :6], s.target(traj)[:, :6]
     from scipy.spatial.transform import Rotation  # imported on use: scipy.spatial costs ~0.1 s at start-up
 
-    R = Rotation.from_quat(np.asarray(_in_robot_order(s.robot, traj).base_q)[:, 3:7]).as_matrix()
+    R = Rotation.from_quat(np.asarray(in_robot_order(s.robot, traj).base_q)[:, 3:7]).as_matrix()
     err = np.einsum("nij,nkj->nki", R, (pred - meas).reshape(-1, 2, 3))  # (N, [force, moment], 3)
     ref = np.einsum("nij,nkj->nki", R, meas.reshape(-1, 2, 3))
 
@@ -112,7 +112,7 @@ def com_cop_check(
     out["windows"] = [[float(traj.t[a]), float(traj.t[b - 1])] for a, b in zip(edges[::2], edges[1::2])]
     part = traj.take(mask)
     fl = flags[mask]
-    Q = s.robot.full_configuration(_in_robot_order(s.robot, part).q, part.base_q)
+    Q = s.robot.full_configuration(in_robot_order(s.robot, part).q, part.base_q)
     n_c = len(s.contact_frames)
     f = s.measured_wrenches(part)
     w = np.zeros((len(part), n_c, 6))

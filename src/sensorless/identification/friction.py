@@ -60,7 +60,8 @@ import numpy as np
 from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.terms import ModelStructure, _in_robot_order
+from ..regressor.joint_terms import TermInputs, joint_term
+from ..regressor.terms import ModelStructure, in_robot_order
 
 __all__ = [
     "FrictionFit",
@@ -68,11 +69,9 @@ __all__ = [
     "moving_joints",
     "friction_curve",
     "friction_residual",
-    "identify_friction",
     "lowpass_noise_gain",
     "REST_SIGMAS",
     "search_stribeck_velocity",
-    "signal_noise",
     "stribeck_grid",
     "transition_grid",
 ]
@@ -154,16 +153,17 @@ def coulomb_smoothing_from_noise(
 
 def _act_columns(structure: ModelStructure, traj: Trajectory) -> tuple[Trajectory, list[int]]:
     r = structure.robot
-    traj = _in_robot_order(r, traj)
+    traj = in_robot_order(r, traj)
     return traj, [r.joint_names.index(j) for j in r.term_joints]
 
 
 def _friction_params(structure: ModelStructure, params: np.ndarray) -> np.ndarray:
-    """``params`` with everything but the velocity-dependent friction terms and offset zeroed."""
+    """``params`` with everything but the velocity-dependent friction terms and offset zeroed (the joint
+    terms not on v̇)."""
     p = np.zeros_like(params)
     for j in structure.robot.term_joints:
         for t in structure.terms_of(j):
-            if t != "armature":
+            if not joint_term(t).acceleration:
                 k = structure.joint_term_index(j, t)
                 p[k] = params[k]
     return p
@@ -184,7 +184,7 @@ def friction_curve(structure: ModelStructure, params: np.ndarray, v: np.ndarray)
     v = np.atleast_2d(np.asarray(v, dtype=float))
     V = np.zeros((v.shape[0], structure.robot.nv))
     V[:, structure.robot.term_v_indices] = v
-    Z = np.sign(v) if "presliding" in structure.joint_terms else None  # steady sliding: s_c = sgn v
+    Z = np.sign(v) if any(joint_term(t).stateful for t in structure.joint_terms) else None  # steady sliding: sgn v
     F = structure.joint_features(V, np.zeros_like(V), Z)  # armature column 0 at zero acceleration
     nt, n = len(structure.joint_terms), len(structure.robot.term_joints)
     phi = _friction_params(structure, params)[structure.n_body_params:].reshape(n, nt) if nt else np.zeros((n, 0))
@@ -197,16 +197,18 @@ def search_stribeck_velocity(
     """The vs in ``grid`` whose least-squares fit of r on the joint's friction columns
     ([v, T, T − (1 − exp(−(v/vs)²)) sgn v, 1] with T = tanh(v/ε), those in ``terms``) leaves the
     smallest residual; returns (vs, residual sum of squares per grid point)."""
-    from ..regressor.friction_columns import stribeck_decay
-
     v, r = np.asarray(v, dtype=float), np.asarray(r, dtype=float)
     ok = np.isfinite(v) & np.isfinite(r)
     v, r = v[ok], r[ok]
-    sgn = np.tanh(v / eps) if eps > 0 else np.sign(v)
-    fixed = [c for t, c in (("fv", v), ("fc", sgn), ("offset", np.ones_like(v))) if t in terms]
+
+    def columns(vs: float, names) -> list:  # the registry's columns of one joint (no rest gate)
+        x = TermInputs(v[:, None], np.zeros((v.size, 1)), np.array([eps]), np.zeros(1), np.array([vs]))
+        return [joint_term(t).column(x)[:, 0] for t in names]
+
+    fixed = columns(1.0, [t for t in ("fv", "fc", "offset") if t in terms])
     sse = np.full(len(grid), np.inf)
     for i, vs in enumerate(grid):
-        X = np.column_stack(fixed + [sgn - stribeck_decay(v, vs, np.sign(v))])
+        X = np.column_stack(fixed + columns(vs, ["stribeck"]))
         coef, *_ = np.linalg.lstsq(X, r, rcond=None)
         sse[i] = float(np.sum((r - X @ coef) ** 2))
     return float(grid[int(np.argmin(sse))]), sse
@@ -233,46 +235,6 @@ class FrictionFit:
         return dataclasses.asdict(self)
 
 
-def identify_friction(
-    structure: ModelStructure,
-    train: Iterable[Trajectory],
-    *,
-    coulomb_smoothing: "str | float" = "auto",
-    stribeck_velocity: "str | float | dict" = "auto",
-    rest_velocity: "str | float" = 0.0,
-    factor: float = 3.0,
-    identify_kwargs: dict | None = None,
-    noise_logs: Iterable[Trajectory] | None = None,
-    lowpass_hz: float | None = None,
-    width_grid: "str | dict | None" = "auto",
-):
-    """Identify with noise-aware Coulomb smoothing, a rest gate and searched Stribeck velocities.
-
-    ``coulomb_smoothing``: "auto" (ε = ``factor`` σ_v, module docstring) or ε for every joint
-    (0 = sgn). ``rest_velocity``: "auto" (δ = :data:`REST_SIGMAS` σ_v) or δ for every joint
-    (0 = no rest gate). ``stribeck_velocity``: "auto" (grid search per joint with a ``stribeck``
-    term) or vs. ``noise_logs``/``lowpass_hz``: the unfiltered logs and the low-pass the training
-    logs went through (module docstring); default: the noise of the training logs as they are.
-    ``stribeck_velocity`` may also be candidate values per joint (``{joint: [vs, …]}``).
-    ``width_grid``: "auto" (fitted transition widths, :func:`transition_grid`, when ε is "auto"),
-    candidate widths per joint, or None (w = ε).
-    Runs :func:`~sensorless.identification.identify` once with ``identify_kwargs`` (with the
-    candidates when vs or w is searched: one compression pass, :mod:`~.stribeck`). Returns
-    ``(result, FrictionFit)``.
-    """
-    from .identify import identify
-
-    train = list(train)
-    kw = dict(identify_kwargs or {})
-    s, fit, auto_vs = _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity,
-                                      factor, noise_logs, lowpass_hz, width_grid)
-    if not (auto_vs or fit.width_grid):
-        return identify(s, train, **kw), fit
-    result = identify(s, train, stribeck_grid=fit.stribeck_grid if auto_vs else None, width_grid=fit.width_grid,
-                      **kw)
-    return result, record_search(fit, result)
-
-
 def record_search(fit: FrictionFit, result) -> FrictionFit:
     """``fit`` completed with what the search of ``result`` chose (vs, fitted widths, the record)."""
     search = result.diagnostics.get("stribeck_search") or {}
@@ -295,18 +257,20 @@ def friction_structure(
     lowpass_hz: float | None = None,
     width_grid: "str | dict | None" = "auto",
 ):
-    """The structure :func:`identify_friction` would fit, with ε set from ``logs`` and, when vs is
+    """The structure :func:`~.friction_search.identify_friction` would fit, with ε set from ``logs`` and, when vs is
     "auto", the candidate grid in ``FrictionFit.stribeck_grid`` (the structure's vs is 0.1 · P95|v|
     until a fit chooses) and the candidate widths in ``FrictionFit.width_grid``: for fitting
     elsewhere, e.g. on Dask workers from ε and the grids measured on the client's log. Returns
     ``(structure, FrictionFit)``."""
-    s, fit, _ = _friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
+    s, fit, _ = friction_setup(structure, list(logs), coulomb_smoothing, stribeck_velocity, 0.0, factor,
                                 noise_logs, lowpass_hz, width_grid)
     return s, fit
 
 
-def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity, factor, noise_logs,
-                    lowpass_hz, width_grid="auto"):
+def friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest_velocity, factor, noise_logs,
+                   lowpass_hz, width_grid="auto"):
+    """``(structure with ε and the rest gate set, FrictionFit, whether vs is searched)`` from the
+    training logs (arguments as :func:`~.friction_search.identify_friction`)."""
     joints = list(structure.robot.term_joints)
     has_stribeck = [j for j in joints if "stribeck" in structure.terms_of(j)]
     for name, val in (("coulomb_smoothing", coulomb_smoothing), ("rest_velocity", rest_velocity)):
@@ -345,7 +309,7 @@ def _friction_setup(structure, train, coulomb_smoothing, stribeck_velocity, rest
     grid = None
     limits = dict(zip(structure.robot.joint_names, structure.robot.velocity_limits()))
     vlim = np.array([limits.get(j, np.inf) for j in joints])
-    law = [j for j in joints if {"fc", "stribeck"} & set(structure.terms_of(j))]
+    law = [j for j in joints if any(joint_term(t).reversal for t in structure.terms_of(j))]
     if auto_w:
         width_grid = transition_grid(speed, eps, joints, law, vlim)
     elif isinstance(width_grid, str):

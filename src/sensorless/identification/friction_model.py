@@ -67,7 +67,7 @@ class FrictionModel:
             if missing:
                 raise JointNameError(f"joint(s) {missing} are not in the log (it has {list(tr.joint_names)})",
                                      tr.source)
-        from ..regressor.compress import one_blas_thread  # small products: threaded BLAS only waits
+        from ..regressor.normal_equations import one_blas_thread  # small products: threaded BLAS only waits
 
         self.fits_: dict[str, JointFit] = {}
         with one_blas_thread():

@@ -34,7 +34,8 @@ import numpy as np
 from ..data.periodicity import excitation_period
 from ..data.trajectory import Trajectory
 from ..errors import DataError, IdentifiabilityWarning, SolverError
-from ..regressor.compress import NormalEquations, compress
+from ..regressor.compress import compress
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi
@@ -285,7 +286,7 @@ def select_gamma(
     return sel
 
 
-def _split_folds(
+def split_folds(
     structure: ModelStructure,
     data: Trajectory | Iterable[Trajectory] | Sequence[NormalEquations],
     n_folds: int,
@@ -293,6 +294,10 @@ def _split_folds(
     period: float | str | None,
     tick: Callable[[], None] = lambda: None,
 ) -> list[NormalEquations]:
+    """The ``n_folds`` cross-validation folds of ``data`` as normal equations. With a ``period``
+    (``"auto"``: :func:`~sensorless.data.periodicity.excitation_period`), fold f holds the samples in
+    phase block f of the period; without, the concatenated logs are cut into ``n_folds`` contiguous
+    pieces. Given normal equations (at least 2) are the folds."""
     items = [data] if isinstance(data, Trajectory) else list(data)
     if items and all(isinstance(i, NormalEquations) for i in items):
         if len(items) < 2:
@@ -381,7 +386,7 @@ def cross_validate_gamma(
         if progress is not None:
             progress(done[0], total)
 
-    folds = _split_folds(structure, items, n_folds, chunk, period, tick)
+    folds = split_folds(structure, items, n_folds, chunk, period, tick)
     ellipsoids = build_kwargs.pop("ellipsoids", None)
     prior = build_kwargs.get("prior")
     ell = resolve_ellipsoids(structure.robot, ellipsoids, prior=structure.prior() if prior is None else prior)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from .base import BaseParameters
 
 __all__ = ["identifiability_report"]

@@ -17,7 +17,8 @@ from ..data.outliers import OUTLIER_MODES
 from ..data.trajectory import Trajectory
 from ..data.validation import validate_trajectory
 from ..errors import DataError, ExcitationError, IdentifiabilityWarning, OptionError, SolverError, setting
-from ..regressor.compress import NormalEquations, compress
+from ..regressor.compress import compress
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
 from .base import BaseParameters, base_parameters

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ExcitationError, SolverError
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from .base import BaseParameters
 
 __all__ = ["LeastSquaresSolution", "solve_least_squares", "solve_truncated_svd", "condition_number", "excitation_check",

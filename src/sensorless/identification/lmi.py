@@ -48,7 +48,6 @@ from typing import Any, Mapping, Sequence
 import cvxpy as cp
 import numpy as np
 
-from ..data.periodicity import excitation_period
 from ..errors import DataError, ExcitationError, SolverError, python_only, setting
 from ..parameters import (
     ConsistencyReport,
@@ -56,7 +55,7 @@ from ..parameters import (
     from_pseudo_inertia,
     pseudo_inertia,
 )
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .constraints import (
@@ -77,7 +76,6 @@ __all__ = [
     "available_solvers",
     "body_reports",
     "build_lmi",
-    "excitation_period",
     "mosek_available",
     "solve_lmi",
 ]
@@ -428,15 +426,3 @@ def solve_lmi(
         ellipsoids=ellipsoids, row_weights=row_weights, eps=eps, rank_tol=rank_tol,
     )
     return prob.solve(gamma, solver=solver, accept_inaccurate=accept_inaccurate, verbose=verbose)
-
-
-# γ selection lives in .gamma; the old import paths keep working (lazily: .gamma imports this module)
-_MOVED = ("GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score", "_split_folds")
-
-
-def __getattr__(name: str):
-    if name in _MOVED:
-        from . import gamma
-
-        return getattr(gamma, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

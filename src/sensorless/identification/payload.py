@@ -66,27 +66,25 @@ import numpy as np
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, setting
 from ..parameters import pseudo_inertia
-from ..regressor.compress import iter_trajectories
+from ..regressor.normal_equations import iter_trajectories
 from ..regressor.terms import ModelStructure
 from .payload_fit import (
-    MAX_COM,  # noqa: F401 (re-exported)
-    _Blocks,
-    _inertia_excitation,
-    _offset_inflation,
-    _per_joint,
-    _sandwich,
-    _solve_spd,
-    _solve_without,
-    _Solver,
-    _System,
-    _unconstrained_mass,
+    PayloadBlocks,
+    inertia_excitation,
+    offset_inflation,
+    joint_consistency,
+    sandwich,
+    solve_spd,
+    solve_without,
+    PayloadSolver,
+    PayloadSystem,
+    unconstrained_mass,
 )
 from .payload_determinacy import LEVER_TOL, verdicts
 from .payload_model import JointConsistency, PayloadEstimate, payload_regressor, point_mass_parameters
 
-# the payload regressor and estimate (.payload_model) and the solver (.payload_fit) are re-exported here
 
-__all__ = ["JointConsistency", "PayloadEstimate", "identify_payload", "payload_regressor", "point_mass_parameters"]
+__all__ = ["identify_payload"]
 
 MODES = ("auto", "full", "com", "mass")
 
@@ -147,7 +145,7 @@ def identify_payload(
 
     ``model``: the robot's identified model without the payload — an
     :class:`~sensorless.identification.IdentificationResult`, a fitted
-    :class:`~sensorless.estimators.PhysicalModel` or a ``(structure, parameters)`` pair; any
+    :class:`~sensorless.torque_models.PhysicalModel` or a ``(structure, parameters)`` pair; any
     structure (URDF arm, a transmission such as the dVRK PSM). ``no_load``: one log per
     payload log, the same trajectory without the payload (row-aligned; positions within
     ``max_pair_dq``). ``offsets``: fit one constant torque offset per joint (True), on the
@@ -193,7 +191,7 @@ def identify_payload(
         if unknown:
             raise DataError(f"offsets for unknown joint(s) {unknown}; the model's joints are {joints}")
         off_mask = np.array([j in names for j in joints])
-    blocks = _Blocks(rows)
+    blocks = PayloadBlocks(rows)
     ss_before = np.zeros(rows)
     n_total = 0
     for k, traj in enumerate(logs):
@@ -229,13 +227,13 @@ def identify_payload(
         keep = np.ones(rows, bool) if keep is None else keep
         if weights != "auto":
             return keep.astype(float)
-        sys0 = _System(A_r, b_r, keep.astype(float), mask)
-        phi0 = _solve_spd(sys0.Ar + 1e-12 * np.trace(sys0.Ar) * np.eye(10) / 10, sys0.br)
+        sys0 = PayloadSystem(A_r, b_r, keep.astype(float), mask)
+        phi0 = solve_spd(sys0.Ar + 1e-12 * np.trace(sys0.Ar) * np.eye(10) / 10, sys0.br)
         res = row_ss(phi0, sys0.offsets_for(phi0)) / n
         return keep / np.maximum(res, 1e-12 * max(res.max(), 1e-300))
 
     w = row_weights(off_mask)
-    inflation = _offset_inflation(A_r, b_r, w)
+    inflation = offset_inflation(A_r, b_r, w)
     if auto_offsets:
         off_mask = np.array([v < max_offset_inflation for v in inflation])
         w = row_weights(off_mask)
@@ -243,10 +241,10 @@ def identify_payload(
 
     def fit(wts: np.ndarray) -> dict:
         """The estimate and its uncertainty from the joints with weight > 0."""
-        system = _System(A_r, b_r, wts, off_mask)
+        system = PayloadSystem(A_r, b_r, wts, off_mask)
         if np.linalg.eigvalsh(system.Ar)[-1] <= 0:
             raise ExcitationError("the log does not move the payload frame (zero payload regressor)")
-        excitation = _inertia_excitation(system.Ar)
+        excitation = inertia_excitation(system.Ar)
         used = mode if mode != "auto" else ("full" if excitation > inertia_threshold else "com")
         det = verdicts(system.Ar, mode=used, inertia_excitation=excitation, inertia_threshold=inertia_threshold,
                        mass_from_com=False)
@@ -265,7 +263,7 @@ def identify_payload(
                                       f"given ({', '.join(f'{x:g}' for x in com_arr)} m) m·c carries no mass either")
             used = "mass"
             det = {**det, "mass": "from the given CoM", "inertia": "assumed (point mass)"}
-        solver = _Solver(used, consistent, com_arr)
+        solver = PayloadSolver(used, consistent, com_arr)
         phi, cov_unit, Gphi = solver(system.Ar, system.br)
         o = system.offsets_for(phi)
         res_ss = row_ss(phi, o)
@@ -275,7 +273,7 @@ def identify_payload(
         # HAC (block sandwich) covariance of φ = Gφ x, offsets profiled out
         nb = len(blocks.n)
         scores = np.array([system.profile_score(blocks.A[i], blocks.b[i], wts, phi, o) for i in range(nb)]) @ Gphi
-        cov = Gphi @ _sandwich(Gphi.T @ system.Ar @ Gphi, scores) @ Gphi.T
+        cov = Gphi @ sandwich(Gphi.T @ system.Ar @ Gphi, scores) @ Gphi.T
         com_std = None
         if used != "mass" and phi[0] > 0:
             Jc = np.zeros((3, 10))  # c = h / m
@@ -288,7 +286,7 @@ def identify_payload(
             samples = []
             for k in range(n_boot):
                 Ab, bb, _, _ = blocks.total(rng.integers(0, nb, nb))
-                sb = _System(Ab, bb, wts, off_mask)
+                sb = PayloadSystem(Ab, bb, wts, off_mask)
                 samples.append(solver(sb.Ar, sb.br)[0])
                 if progress is not None:
                     progress(k + 1, n_boot)
@@ -313,14 +311,14 @@ def identify_payload(
     checks: list = []
     for _ in range(rows):
         if excluded.any():
-            phi_x = _solve_without(F["solver"], A_r, b_r, w * ~excluded, off_mask)
+            phi_x = solve_without(F["solver"], A_r, b_r, w * ~excluded, off_mask)
             if phi_x is None:  # the joints left cannot determine the payload: no headline without the flagged ones
                 names = [joints[r] for r in np.flatnonzero(excluded)]
                 raise ExcitationError(
                     f"joint(s) {names} contradict the other joints' payload torque, and without them the log does "
                     f"not determine the payload at '{frame}'; check their torque channels and drive gains")
             phi_ok = phi_x
-        checks = _per_joint(blocks, A_r, b_r, w, phi_ok, F["cov"], off_mask, joints, flag_sigma, flag_rel, excluded)
+        checks = joint_consistency(blocks, A_r, b_r, w, phi_ok, F["cov"], off_mask, joints, flag_sigma, flag_rel, excluded)
         bad = [r for r, c in enumerate(checks) if c.flagged and not excluded[r]]
         if not bad:
             final.update({r: c for r, c in enumerate(checks) if not excluded[r]})
@@ -359,5 +357,5 @@ def identify_payload(
                      "n_blocks": F["nb"], "residual_variance_factor": F["s2"],
                      "mass_without_flagged": float(phi[0]) if excluded.any() else None,
                      "mass_with_flagged": mass_all if excluded.any() else None,
-                     "mass_unconstrained": _unconstrained_mass(F["system"], phi, com_arr)},
+                     "mass_unconstrained": unconstrained_mass(F["system"], phi, com_arr)},
     )

@@ -16,7 +16,7 @@ MAX_COM = 10.0
 it only happens when the fitted mass is ≈ 0 and c = (m c)/m is noise over noise."""
 
 
-class _Blocks:
+class PayloadBlocks:
     """Per-block, per-row normal equations of [Y_p, 1] z ≈ r (11 columns: φ and the row's offset)."""
 
     def __init__(self, rows: int) -> None:
@@ -39,7 +39,7 @@ class _Blocks:
                 sum(self.n[i] for i in sel))
 
 
-class _System:
+class PayloadSystem:
     """Weighted normal equations in z = [φ (10), o (rows)] and their reduction to φ."""
 
     def __init__(self, A: np.ndarray, b: np.ndarray, w: np.ndarray, offsets: np.ndarray) -> None:
@@ -66,7 +66,7 @@ class _System:
         return g_p - (self.Apo / self.Aoo) @ g_o
 
 
-class _Solver:
+class PayloadSolver:
     """The estimator of one mode on reduced weighted normal equations (A 10×10, b 10)."""
 
     def __init__(self, mode: str, consistent: bool, com: np.ndarray | None) -> None:
@@ -90,7 +90,7 @@ class _Solver:
                 G[1:4, 1:4] = np.eye(3)
                 G[4:, 0] = point_mass_parameters(1.0, c)[4:]
                 Ar, br = G.T @ A @ G, G.T @ b
-                x = _solve_spd(Ar, br)
+                x = solve_spd(Ar, br)
                 c_new = x[1:4] / x[0] if x[0] > 0 else np.zeros(3)
                 if not (x[0] > 0 and np.all(np.isfinite(c_new)) and np.linalg.norm(c_new) < MAX_COM):
                     x, c_new = np.zeros(4), np.zeros(3)  # no (physical) payload: m ≤ 0 or CoM out of reach
@@ -99,7 +99,7 @@ class _Solver:
                 c = c_new
             phi = point_mass_parameters(x[0], c) if x[0] > 0 else np.zeros(10)
             return phi, G @ np.linalg.pinv(Ar) @ G.T, G
-        phi = _solve_spd(A, b)
+        phi = solve_spd(A, b)
         cov = np.linalg.pinv(A)
         if self.consistent and np.linalg.eigvalsh(pseudo_inertia(phi))[0] < 0:
             phi = self._sdp(A, b)
@@ -130,13 +130,13 @@ class _Solver:
         return kappa * np.asarray(x.value) / s
 
 
-def _solve_without(solver, A_r, b_r, w, off_mask) -> "np.ndarray | None":
+def solve_without(solver, A_r, b_r, w, off_mask) -> "np.ndarray | None":
     """φ from the joints with weight w > 0, or None when they cannot determine it (a
     singular or non-finite reduced system, e.g. every joint set aside)."""
     if not np.any(w > 0):
         return None
     with np.errstate(divide="ignore", invalid="ignore"):
-        sys_x = _System(A_r, b_r, w, off_mask)
+        sys_x = PayloadSystem(A_r, b_r, w, off_mask)
     if not (np.all(np.isfinite(sys_x.Ar)) and np.all(np.isfinite(sys_x.br))):
         return None
     try:
@@ -146,14 +146,15 @@ def _solve_without(solver, A_r, b_r, w, off_mask) -> "np.ndarray | None":
     return phi if np.all(np.isfinite(phi)) else None
 
 
-def _solve_spd(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+def solve_spd(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with A x = b; the least-squares solution when A is singular."""
     try:
         return np.linalg.solve(A, b)
     except np.linalg.LinAlgError:
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-def _inertia_excitation(A: np.ndarray) -> float:
+def inertia_excitation(A: np.ndarray) -> float:
     """Smallest singular value of the column-equilibrated inertia block after removing the
     mass/CoM directions (Schur complement), relative to the largest of the whole matrix."""
     s = np.sqrt(np.maximum(np.diag(A), 1e-300))
@@ -162,14 +163,14 @@ def _inertia_excitation(A: np.ndarray) -> float:
     return float(np.linalg.eigvalsh(S)[0] / np.linalg.eigvalsh(As)[-1])
 
 
-def _sandwich(H: np.ndarray, scores: np.ndarray) -> np.ndarray:
+def sandwich(H: np.ndarray, scores: np.ndarray) -> np.ndarray:
     """H⁻¹ (Σ s sᵀ) H⁻¹ · B/(B − k) for per-block scores (B, k)."""
     B, k = scores.shape
     Hi = np.linalg.pinv(H)
     return Hi @ (scores.T @ scores) @ Hi * (B / max(B - k, 1))
 
 
-def _unconstrained_mass(system: _System, phi: np.ndarray, com: np.ndarray) -> float:
+def unconstrained_mass(system: PayloadSystem, phi: np.ndarray, com: np.ndarray) -> float:
     """Least-squares mass with the CoM fixed (at the estimate, or ``com`` when m = 0) and no
     positivity: shows how negative the data would have it when the estimate is clamped at 0."""
     c = phi[1:4] / phi[0] if phi[0] > 0 else com
@@ -178,13 +179,13 @@ def _unconstrained_mass(system: _System, phi: np.ndarray, com: np.ndarray) -> fl
     return float(g @ system.br) / a if a > 0 else float("nan")
 
 
-def _offset_inflation(A_r: np.ndarray, b_r: np.ndarray, w: np.ndarray) -> np.ndarray:
+def offset_inflation(A_r: np.ndarray, b_r: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Per joint: factor by which an offset on that joint alone multiplies the (white-noise)
     variance of the mass, from the mass / first-moment block of the reduced normal equations."""
     rows = A_r.shape[0]
 
     def var_m(mask) -> float:
-        return float(np.linalg.pinv(_System(A_r, b_r, w, mask).Ar[:4, :4])[0, 0])
+        return float(np.linalg.pinv(PayloadSystem(A_r, b_r, w, mask).Ar[:4, :4])[0, 0])
 
     base = var_m(np.zeros(rows, bool))
     if base <= 0:
@@ -192,7 +193,7 @@ def _offset_inflation(A_r: np.ndarray, b_r: np.ndarray, w: np.ndarray) -> np.nda
     return np.array([var_m(np.eye(rows, dtype=bool)[j]) / base for j in range(rows)])
 
 
-def _scalar_fit(blocks: _Blocks, A_r, b_r, w, u, offsets, rows, hac: bool = True) -> tuple[float, float, dict]:
+def _scalar_fit(blocks: PayloadBlocks, A_r, b_r, w, u, offsets, rows, hac: bool = True) -> tuple[float, float, dict]:
     """Mass m of the payload shape u from the equations of ``rows`` only (their offsets free
     where ``offsets``), with its HAC standard error: x = [m, o_r …], row r has features T_rᵀ = [Y_r u, e_r]."""
     rows = [r for r in rows]
@@ -209,16 +210,16 @@ def _scalar_fit(blocks: _Blocks, A_r, b_r, w, u, offsets, rows, hac: bool = True
     g = sum(w[r] * T[r].T @ b_r[r] for r in rows)
     if not rows or H[0, 0] <= 1e-14 * max(np.abs(H).max(), 1e-300):
         return float("nan"), float("inf"), {}
-    x = _solve_spd(H, g)
+    x = solve_spd(H, g)
     if not hac:
         return float(x[0]), float("nan"), {}
     scores = np.array([sum(w[r] * T[r].T @ (blocks.b[i][r] - blocks.A[i][r] @ (T[r] @ x)) for r in rows)
                        for i in range(len(blocks.n))])
-    std = float(np.sqrt(max(_sandwich(H, scores)[0, 0], 0.0)))
+    std = float(np.sqrt(max(sandwich(H, scores)[0, 0], 0.0)))
     return float(x[0]), std, {r: float(x[1 + off_rows.index(r)]) for r in off_rows}
 
 
-def _per_joint(blocks: _Blocks, A_r, b_r, w, phi, cov, offsets, joints, flag_sigma, flag_rel, excluded) -> list[JointConsistency]:
+def joint_consistency(blocks: PayloadBlocks, A_r, b_r, w, phi, cov, offsets, joints, flag_sigma, flag_rel, excluded) -> list[JointConsistency]:
     """Per joint: the mass its equation alone implies vs the mass all other informative joints
     (``excluded`` left out) imply, payload shape u = φ/m fixed, offsets free where fitted
     (module docstring). Standard errors: HAC of the scalar fit plus the propagated uncertainty

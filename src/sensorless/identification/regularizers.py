@@ -60,7 +60,8 @@ class Regularizer(Protocol):
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> cp.Expression: ...
 
 
-def _regularised(J0: np.ndarray, delta: float) -> np.ndarray:
+def eigenvalue_floor(J0: np.ndarray, delta: float) -> np.ndarray:
+    """The symmetric part of ``J0`` with its eigenvalues raised to at least ``delta``: V max(λ, δ) Vᵀ."""
     lam, V = np.linalg.eigh(0.5 * (J0 + J0.T))
     return (V * np.maximum(lam, delta)) @ V.T
 
@@ -127,7 +128,7 @@ class ConstantPullback:
 
     def factor(self, ctx: LmiContext) -> sp.csr_matrix:
         """Block-diagonal ``F`` (10 n × 10 n) with ``‖F (x − x0)‖²`` = the body part."""
-        blocks = [_pullback_factor(_regularised(ctx.scaled_prior_pseudo_inertia(k), self.delta)) for k in range(ctx.n_bodies)]
+        blocks = [_pullback_factor(eigenvalue_floor(ctx.scaled_prior_pseudo_inertia(k), self.delta)) for k in range(ctx.n_bodies)]
         return sp.block_diag(blocks, format="csr")
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> cp.Expression:
@@ -148,7 +149,7 @@ class Entropic:
         const = 0.0
         lin = np.zeros(ctx.structure.n_body_params)
         for k in range(ctx.n_bodies):
-            J0 = _regularised(ctx.scaled_prior_pseudo_inertia(k), self.delta)
+            J0 = eigenvalue_floor(ctx.scaled_prior_pseudo_inertia(k), self.delta)
             lin[ctx.body_slice(k)] = np.einsum("iab,ab->i", _BASIS, np.linalg.inv(J0))  # tr(J0⁻¹ A_i)
             const += np.linalg.slogdet(J0)[1] - 4.0
             terms.append(-cp.log_det(ctx.scaled_pseudo_inertia(x, k)))

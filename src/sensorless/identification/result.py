@@ -9,15 +9,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..io import versions, write_json_atomic  # re-exported: the writers live in sensorless.io
+from ..io import versions, write_json_atomic  # noqa: F401  write_json_atomic: the studies (cli/psm.py, experiments) still import it from here until they move
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .metrics import TorqueMetrics, torque_metrics
 
 if TYPE_CHECKING:
-    from ..regressor.compress import NormalEquations
+    from ..regressor.normal_equations import NormalEquations
 
-__all__ = ["IdentificationResult", "body_links", "parameter_links", "versions", "write_json_atomic"]
+__all__ = ["IdentificationResult", "body_links", "parameter_links"]
 
 
 @dataclass
@@ -69,13 +69,6 @@ class IdentificationResult:
         """Per-joint metrics of the prediction on a (held-out) trajectory (:func:`~.metrics.torque_metrics`,
         as every model's ``score``)."""
         return torque_metrics(self.structure.target(traj), self.predict(traj), self.structure.row_names)
-
-    def evaluate(self, traj: Trajectory) -> TorqueMetrics:
-        """Deprecated name of :meth:`score` ("evaluate" is kept for evaluating a regressor or a trajectory)."""
-        import warnings
-
-        warnings.warn("IdentificationResult.evaluate() is deprecated; use score()", DeprecationWarning, stacklevel=2)
-        return self.score(traj)
 
     def mass_properties(self) -> dict | None:
         """Identified total mass Σ m_k [kg] and CoM [m] (base frame, neutral configuration) of a

@@ -20,7 +20,8 @@ import numpy as np
 
 from ..errors import setting
 from ..parameters import pseudo_inertia
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
+from ..regressor.joint_terms import terms_where
 from .least_squares import MIN_SINGULAR_RATIO, solve_truncated_svd
 
 __all__ = ["GAMMA_FLOOR_MIN", "PRIOR_TRUST", "active_bounds", "gamma_floor", "gamma_guard"]
@@ -82,7 +83,7 @@ def active_bounds(lmi: dict, params: np.ndarray, structure) -> dict:
             bodies[rep.get("name", str(k))] = hits
     joints = []
     for j in structure.robot.term_joints:
-        for t in ("fv", "fc", "armature"):
+        for t in terms_where("nonnegative"):
             if t in structure.terms_of(j) and params[structure.joint_term_index(j, t)] <= 0.0:
                 joints.append(f"{j}.{t}")
     return {"bodies": bodies, "joint_terms_at_zero": joints}

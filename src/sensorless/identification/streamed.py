@@ -42,7 +42,8 @@ from ..data.chunks import ChunkedLog, open_chunked
 from ..data.streamed_log import StreamedLog, scan_log
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.compress import NormalEquations, idle_core, one_blas_thread
+from ..regressor.normal_equations import NormalEquations, idle_core, one_blas_thread
+from ..regressor.joint_terms import joint_term, terms_where
 from ..regressor.terms import ModelStructure
 from .friction import FrictionFit, coulomb_smoothing_from_noise, friction_structure, record_search, stribeck_grid, \
     transition_grid
@@ -118,7 +119,7 @@ def streamed_friction(structure: ModelStructure, slog: StreamedLog, coulomb_smoo
     rest = np.zeros(len(joints))
     limits = dict(zip(structure.robot.joint_names, structure.robot.velocity_limits()))
     vlim = np.array([limits.get(j, np.inf) for j in joints])
-    law = [j for j in joints if {"fc", "stribeck"} & set(structure.terms_of(j))]
+    law = [j for j in joints if any(joint_term(t).reversal for t in structure.terms_of(j))]
     widths = transition_grid(speed, eps, joints, law, vlim) if auto_eps and structure.friction_law == "blend" else None
     low = np.array([min([eps[k]] + (widths or {}).get(j, [])) for k, j in enumerate(joints)])
     if auto_vs:
@@ -163,7 +164,7 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     ``overlap``: fold chunk k in a helper thread while chunk k + 1 is read and evaluated (default: when
     a core is idle, as :func:`~sensorless.regressor.compress`); the sums do not depend on it."""
     track = bool(getattr(structure, "track_left_out", False))
-    if structure.row_map.per_sample or "presliding" in getattr(structure, "joint_terms", ()):
+    if structure.row_map.per_sample or set(terms_where("stateful")) & set(getattr(structure, "joint_terms", ())):
         raise DataError("the streamed pass folds per-joint rows of a fixed map (no contacts, no presliding)")
     nes = [NormalEquations.zeros(structure.n_rows, structure.n_params, left_out=track) for _ in range(max(n_folds, 1))]
     fold_of = _fold_index(slog, n_folds) if n_folds > 1 else None
@@ -344,7 +345,7 @@ def streamable(stream: "bool | None", data: list, robot, prep: dict, *, schedule
 
     if stream is False or scheduler is not None or skip_bad or imu_frame or contact_frames or passive:
         return None
-    if len(data) != 1 or getattr(robot, "floating_base", False) or "presliding" in (joint_terms or ""):
+    if len(data) != 1 or getattr(robot, "floating_base", False) or any(t in (joint_terms or "") for t in terms_where("stateful")):
         return None
     trim = prep.get("trim")
     if trim is not None and (not hasattr(trim, "window_for") or trim.window_for(data[0]) is not None):

@@ -47,7 +47,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import DataError
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from .base import base_parameters
 

@@ -34,7 +34,8 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import ExcitationError, setting
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
+from ..regressor.joint_terms import terms_where
 from .base import BaseParameters
 
 __all__ = [
@@ -50,7 +51,7 @@ __all__ = [
 MAX_RELATIVE_STD = 1.0
 NO_MOTION = {"revolute": 1e-3, "prismatic": 1e-3}
 LOW_MOTION = {"revolute": 0.05, "prismatic": 0.01}
-_MOTION_TERMS = ("fv", "fc", "stribeck", "armature", "presliding")  # joint terms that need the joint to move
+_MOTION_TERMS = terms_where("needs_motion")  # joint terms that need the joint to move (the registry's flag)
 
 
 @dataclass

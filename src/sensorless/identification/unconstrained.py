@@ -64,8 +64,7 @@ def satisfies_constraints(problem, x: np.ndarray) -> bool:
             if any((_BASIS16.T @ ctx.scaled_Q(k).ravel()) @ x[ctx.body_slice(k)] < 0 for k, _ in ctx.bounded_bodies()):
                 return False
         elif isinstance(b, (NonNegativeFriction, NonNegativeArmature)):
-            terms = b.terms if isinstance(b, NonNegativeFriction) else ("armature",)
-            idx = np.concatenate([ctx.term_indices(t) for t in terms])
+            idx = np.concatenate([ctx.term_indices(t) for t in b.terms] or [np.zeros(0, dtype=int)])
             if idx.size and x[idx].min() < 0:
                 return False
         elif constraint_violation(b, ctx.params(x), ctx) > 0:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..regressor.compress import NormalEquations
+from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 
 __all__ = ["DATA_REL_STD", "NULL_CUTOFF", "NULL_FRACTION", "JOINT_UNIT", "VERDICTS", "compute_verdicts",
@@ -72,7 +72,7 @@ def regulariser_hessian(structure: ModelStructure, prior: np.ndarray, lmi: dict,
                         A: np.ndarray, c: float, n_samples: int) -> np.ndarray:
     """``H`` (p×p) of ``γ/N · R`` in π coordinates, times ``c`` (the solver's objective is relative)."""
     from ..parameters import pseudo_inertia
-    from .regularizers import REGULARIZERS, _regularised, pullback_matrix
+    from .regularizers import REGULARIZERS, eigenvalue_floor, pullback_matrix
 
     p, nb = structure.n_params, structure.n_body_params
     if not gamma or regularization is None:
@@ -93,7 +93,7 @@ def regulariser_hessian(structure: ModelStructure, prior: np.ndarray, lmi: dict,
         if getattr(reg, "name", "") == "euclidean":
             Mx[sl, sl] = np.eye(10)
         else:
-            Mx[sl, sl] = pullback_matrix(_regularised(pseudo_inertia(x0[sl]), getattr(reg, "delta", 1e-3)))
+            Mx[sl, sl] = pullback_matrix(eigenvalue_floor(pseudo_inertia(x0[sl]), getattr(reg, "delta", 1e-3)))
     jw = float(getattr(reg, "joint_weight", 1.0))
     Mx[nb:, nb:] = jw * np.eye(p - nb)
     return (gamma * c / max(n_samples, 1)) * (Mx / np.outer(scale, scale))

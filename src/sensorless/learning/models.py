@@ -1,4 +1,4 @@
-"""Learned torque models with the fit/predict interface of :mod:`sensorless.estimators`.
+"""Learned torque models with the fit/predict interface of :mod:`sensorless.torque_models`.
 
 * :class:`HybridModel` — physical model + learned residual:
   τ̂ = τ_phys(q, q̇, q̈) + r_θ(window of q, q̇; τ_phys). The network only learns what the
@@ -8,9 +8,6 @@
 * :class:`MLPTorqueModel` — configurable black box (default 5 × 2048, LeakyReLU) with
   user-supplied ``features(traj)`` and ``targets(traj)`` callables, e.g. actuation from
   a legged robot's sensor measurements.
-* :func:`ParameterModel` — deprecated alias of
-  :meth:`~sensorless.estimators.PhysicalModel.from_parameters` (fixed structure and parameters,
-  e.g. from ``load_parameters``); kept importable, warns.
 
 All networks are trained by :func:`~sensorless.learning.mlp.train_network` (Adam,
 ReduceLROnPlateau, early stopping on a block validation split, seeded) on standardised
@@ -20,7 +17,6 @@ inputs and targets, and saved as weights + JSON (:mod:`sensorless.learning.io`).
 from __future__ import annotations
 
 import contextlib
-import warnings
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
@@ -28,9 +24,9 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..estimators import PhysicalModel, TorqueModel
+from ..torque_models import PhysicalModel, TorqueModel
 from ..errors import DataError, SensorlessError
-from ..regressor.compress import iter_trajectories
+from ..regressor.normal_equations import iter_trajectories
 from ..regressor.terms import ModelStructure
 from ..robot import Robot
 from .features import Standardizer, WindowFeatures
@@ -43,7 +39,7 @@ from .mlp import (
     train_network,
 )
 
-__all__ = ["HybridModel", "LearnedTorqueModel", "MLPTorqueModel", "ParameterModel", "TrainConfig"]
+__all__ = ["HybridModel", "LearnedTorqueModel", "MLPTorqueModel"]
 
 FeatureFn = Callable[[Trajectory], np.ndarray]
 
@@ -263,7 +259,7 @@ class LearnedTorqueModel(MLPTorqueModel):
     """Pure-learning baseline: joint torques from a causal window of q, q̇ (no physics).
 
     With ``robot`` the targets are its actuated joints' efforts in model order (same rows
-    as :class:`~sensorless.estimators.PhysicalModel`). ``kind``: "mlp" (default, 2 × 256
+    as :class:`~sensorless.torque_models.PhysicalModel`). ``kind``: "mlp" (default, 2 × 256
     ReLU) or "lstm" (``hidden=(h,)`` LSTM units over the window).
     """
 
@@ -315,19 +311,12 @@ class LearnedTorqueModel(MLPTorqueModel):
             return obj
 
 
-def ParameterModel(structure: ModelStructure, parameters: np.ndarray) -> PhysicalModel:
-    """Deprecated: use :meth:`PhysicalModel.from_parameters` (τ̂ = W(q, q̇, q̈) π, fixed π)."""
-    warnings.warn("ParameterModel is deprecated; use sensorless.estimators.PhysicalModel.from_parameters",
-                  DeprecationWarning, stacklevel=2)
-    return PhysicalModel.from_parameters(structure, parameters)
-
-
 class HybridModel(_Network):
     """Physical model + learned residual: τ̂ = τ_phys + r_θ(window of q, q̇; τ_phys).
 
-    ``physical_model``: the physical base, a :class:`~sensorless.estimators.PhysicalModel`
-    (fixed parameters: :meth:`~sensorless.estimators.PhysicalModel.from_parameters`); any
-    :class:`~sensorless.estimators.TorqueModel` with ``predict`` and ``structure_`` (the target
+    ``physical_model``: the physical base, a :class:`~sensorless.torque_models.PhysicalModel`
+    (fixed parameters: :meth:`~sensorless.torque_models.PhysicalModel.from_parameters`); any
+    :class:`~sensorless.torque_models.TorqueModel` with ``predict`` and ``structure_`` (the target
     rows) is accepted. ``fit(data)`` trains
     the residual on ``data`` (e.g. a few minutes in the trocar). The physical model is fitted
     first on ``physical_data`` when given, or on ``data`` if it was never fitted

@@ -29,8 +29,8 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, DataWarning
-from ..estimators import PhysicalModel, TorqueModel
-from ..regressor.compress import iter_trajectories
+from ..torque_models import PhysicalModel, TorqueModel
+from ..regressor.normal_equations import iter_trajectories
 from .features import Standardizer, WindowFeatures
 from .mlp import build_network, deterministic_torch, train_network
 from .models import HybridModel

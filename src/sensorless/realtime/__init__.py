@@ -8,7 +8,7 @@ records, :mod:`.transport` the endpoints (stdin/stdout, UDP on the loopback) and
 
 from .monitor import StreamMonitor, StreamThresholds
 from .records import FORMATS, RecordLayout
-from .transport import LatencyHistogram, StreamStats, parse_endpoint, run_stream
+from .transport import LatencyHistogram, parse_endpoint, run_stream
 
-__all__ = ["FORMATS", "LatencyHistogram", "RecordLayout", "StreamMonitor", "StreamStats", "StreamThresholds",
+__all__ = ["FORMATS", "LatencyHistogram", "RecordLayout", "StreamMonitor", "StreamThresholds",
            "parse_endpoint", "run_stream"]

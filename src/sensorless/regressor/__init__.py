@@ -1,30 +1,17 @@
 """Regressor terms and streaming compression."""
 
-from .compress import NormalEquations, compress, iter_trajectories
-from .contact import (
-    WRENCH_OFFSETS,
-    ContactStructure,
-    choose_contact_rows,
-    contact_jacobians,
-    contact_rotations,
-    detect_contacts,
-    null_space_basis,
-    null_space_projector,
-)
-from .distributed import DistributedError, FleetEquations, LogReader, compress_files, expand_paths
-from .rowmap import ActuatedRows, ContactNullSpace, RowMap, TransmissionRows
-from .terms import JOINT_TERMS, ModelStructure
+from .compress import compress
+from .normal_equations import NormalEquations
+from .contact import ContactStructure
+from .contact_kinematics import detect_contacts, null_space_projector
+from .distributed import LogReader, compress_files, expand_paths
+from .terms import ModelStructure
+from .joint_terms import JOINT_TERMS
 
 __all__ = [
-    "ActuatedRows", "ContactNullSpace", "RowMap", "TransmissionRows",
     "ContactStructure",
-    "WRENCH_OFFSETS",
-    "choose_contact_rows",
-    "contact_jacobians",
-    "contact_rotations",
     "detect_contacts",
-    "null_space_basis",
     "null_space_projector",
     "JOINT_TERMS",
-    "ModelStructure", "NormalEquations", "compress", "iter_trajectories",
-    "DistributedError", "FleetEquations", "LogReader", "compress_files", "expand_paths"]
+    "ModelStructure", "NormalEquations", "compress",
+    "LogReader", "compress_files", "expand_paths"]

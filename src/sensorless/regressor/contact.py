@@ -25,7 +25,7 @@ Compression folds the projected equations through an orthonormal null-space basi
 (nv × k, k = nv − rank Jc: 6 for four point feet on Solo12, 12 for two), since P = B Bᵀ gives
 Σ Wᵀ P W = Σ (BᵀW)ᵀ(BᵀW): k rows per sample instead of nv (see :func:`null_space_basis`,
 ``fold_basis``). The k rows are combinations of joints, so the rows are pooled
-(:meth:`~.compress.NormalEquations.add_pooled`); ``fold_basis="projector"`` keeps the nv
+(:meth:`~.normal_equations.NormalEquations.add_pooled`); ``fold_basis="projector"`` keeps the nv
 projected rows apart (per-row weights and residuals) at 2–3× the cost.
 
 With measured contact wrenches (force plates, foot F/T) the wrench moves to the known
@@ -58,20 +58,14 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, setting
-from .compress import NormalEquations
-# re-exported: sensorless.regressor.contact.null_space_projector etc. keep working
+from .normal_equations import NormalEquations
 from .contact_inference import infer_contacts, normal_forces
 from .contact_kinematics import contact_jacobians, contact_rotations, detect_contacts, null_space_basis, null_space_projector
 from .rowmap import ContactNullSpace, RowMap
-from .terms import ModelStructure, _in_robot_order
+from .terms import ModelStructure, in_robot_order
 
 __all__ = [
     "ContactStructure",
-    "contact_jacobians",
-    "contact_rotations",
-    "null_space_projector",
-    "null_space_basis",
-    "detect_contacts",
     "choose_contact_rows",
     "WRENCH_OFFSETS",
 ]
@@ -409,7 +403,7 @@ class ContactStructure(ModelStructure):
 
     def project(self, traj: Trajectory, tau: np.ndarray) -> np.ndarray:
         """Map actuated torques (N, n_actuated) of any model (e.g. a black-box MLP) to P Sᵀ τ."""
-        ordered = _in_robot_order(self.robot, traj)
+        ordered = in_robot_order(self.robot, traj)
         Q = self.robot.full_configuration(ordered.q, ordered.base_q)
         full = np.zeros((len(traj), self.robot.nv))
         full[:, self.robot.actuated_v_indices] = tau

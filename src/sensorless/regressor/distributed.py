@@ -1,15 +1,15 @@
 """Fleet-scale compression on Dask: files → partial normal equations → tree sum.
 
-The compressed normal equations (:mod:`.compress`) are sums over samples, hence over files,
+The compressed normal equations (:mod:`.normal_equations`) are sums over samples, hence over files,
 
     A_r = Σ_files Σ_i W_{i,r}ᵀ W_{i,r},   b_r = Σ_files Σ_i W_{i,r}ᵀ y_{i,r},   c_r = …
 
 so identification over many logs is a map-reduce. Each Dask task reads one file on its
 worker, preprocesses it exactly like the local path (:class:`LogReader`, i.e.
 ``cli.common.load_log``: read → low-pass → Savitzky–Golay → decimate) and folds it with
-:func:`~.compress.compress`. The partial sums are added by a fixed tree of merge tasks
+:func:`~.normal_equations.compress_trajectories`. The partial sums are added by a fixed tree of merge tasks
 (``split_every`` inputs per node, so the summation order does not depend on which task
-finishes first) and the client receives one :class:`~.compress.NormalEquations` of size
+finishes first) and the client receives one :class:`~.normal_equations.NormalEquations` of size
 O(rows · p²). Only the pickled model structure (scattered once to every worker, unpickled
 once per worker thread because a Pinocchio ``Data`` is per-thread scratch space) and the
 reader settings travel; the arrays never leave the worker that read them.
@@ -24,7 +24,7 @@ the file is skipped and listed in :attr:`FleetEquations.skipped`. The client com
 Two-step WLS needs no second pass over the files: the per-row equations give every row's
 OLS residual ‖W_r π − y_r‖² = πᵀA_rπ − 2πᵀb_r + c_r exactly. LMI with γ chosen by
 cross-validation needs the samples split into folds exactly as
-``identification.gamma._split_folds`` does: pass 1 returns each file's length and excitation
+``identification.gamma.split_folds`` does: pass 1 returns each file's length and excitation
 period, pass 2 folds each file's samples into ``n_folds`` partial equations.
 """
 
@@ -46,10 +46,10 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, DistributedError, SensorlessError
-from .compress import NormalEquations, compress
+from .normal_equations import NormalEquations, compress_trajectories
 from .terms import ModelStructure
 
-__all__ = ["DistributedError", "FleetEquations", "LogReader", "compress_files", "expand_paths"]
+__all__ = ["FleetEquations", "LogReader", "compress_files", "expand_paths"]
 
 _GLOB_CHARS = frozenset("*?[")
 
@@ -122,7 +122,7 @@ _CACHE: dict[tuple[str, int], ModelStructure] = {}
 _CACHE_LOCK = threading.Lock()
 
 
-def _structure(model: ModelStructure | _Model) -> ModelStructure:
+def _worker_structure(model: ModelStructure | _Model) -> ModelStructure:
     """The structure for this thread: unpickled once per (model, worker thread), then cached."""
     if isinstance(model, ModelStructure):
         return model
@@ -193,7 +193,7 @@ def _named(exc: SensorlessError, path: str) -> SensorlessError:
 
 
 def _fold_parts(traj: Trajectory, n_folds: int, period: float | None, offset: int, total: int):
-    """This file's share of each cross-validation fold, as ``gamma._split_folds`` cuts them:
+    """This file's share of each cross-validation fold, as ``gamma.split_folds`` cuts them:
     phase blocks ``⌊((t − t₀) mod period) / period · n_folds⌋`` per file when a period is
     known, else contiguous blocks of the concatenated samples (``offset`` = samples before this file)."""
     if period is not None:
@@ -213,12 +213,12 @@ def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple
     ``plan = (n_folds, period, offset, total)`` also splits it into cross-validation folds
     (the file's total is then the sum of its folds).
     """
-    structure = _structure(model)
+    structure = _worker_structure(model)
     try:
         traj = reader(path, structure.robot)
         if plan is None:
-            return _Part(compress(structure, traj, chunk=chunk), None, [path], [])
-        folds = [None if part is None else compress(structure, part, chunk=chunk) for part in _fold_parts(traj, *plan)]
+            return _Part(compress_trajectories(structure, traj, chunk=chunk), None, [path], [])
+        folds = [None if part is None else compress_trajectories(structure, part, chunk=chunk) for part in _fold_parts(traj, *plan)]
         return _Part(functools.reduce(_add, folds), folds, [path], [])
     except SensorlessError as exc:
         if not skip_bad:
@@ -230,7 +230,7 @@ def _length_task(model, reader, path: str, skip_bad: bool) -> "tuple[int | None,
     """Pass 1 of cross-validation folds: (samples after preprocessing, excitation period, error)."""
     from ..data.periodicity import excitation_period
 
-    structure = _structure(model)
+    structure = _worker_structure(model)
     try:
         traj = reader(path, structure.robot)
     except SensorlessError as exc:

@@ -9,8 +9,8 @@ included), linear in the parameters θ = [π, φ]:
   Y_b = Y(q, v, 0) − D_v Y_p(q, v), i.e. b = C v + g − Ṁ v = g − Cᵀ v (Ṁ = C + Cᵀ),
   where D_v is the derivative along the motion, q ⊕ (±ε v), by a central difference of
   Pinocchio's regressor (exact to O(ε²); no time derivative of the data);
-* joint terms: armature I_a puts v_j in Y_p (p_j += I_a v_j); viscous, Coulomb and offset
-  put their features [v, sgn v, 1] in Y_b.
+* joint terms (:mod:`.joint_terms`): a term on v̇ (armature I_a) puts v_j in Y_p (p_j += I_a v_j);
+  the others (viscous, Coulomb, offset, ...) put their columns [v, sgn v, 1, ...] in Y_b.
 
 No accelerations appear: apply one stable low-pass L(s) = (λ/(s + λ))ⁿ (n = ``order``)
 to both sides, from zero state at t₀,
@@ -47,11 +47,12 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..data.filtering import _uniform_dt
+from ..data.filtering import uniform_dt
 from ..data.integral_filter import LowpassChain
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, setting
-from .terms import ModelStructure, _in_robot_order
+from .joint_terms import joint_term
+from .terms import ModelStructure, in_robot_order
 
 __all__ = ["FilteredRows", "filtered_rows", "filtered_target", "momentum_regressors", "projection_rate_error"]
 
@@ -86,7 +87,7 @@ def momentum_regressors(structure: ModelStructure, Q: np.ndarray, V: np.ndarray,
     for k, row in enumerate(act):
         c = nb + k * nt
         for t_i, term in enumerate(structure.joint_terms):
-            if term == "armature":
+            if joint_term(term).acceleration:  # a column v̇: its momentum column is v
                 Yp[:, row, c + t_i] = V[:, row]
             else:
                 Yb[:, row, c + t_i] = F[:, k, t_i]
@@ -115,7 +116,7 @@ def _state(structure: ModelStructure, traj: Trajectory):
     r = structure.robot
     if traj.v is None:
         raise DataError("acceleration-free identification needs joint velocities 'v'", traj.source)
-    tr = _in_robot_order(r, traj)
+    tr = in_robot_order(r, traj)
     if r.floating_base and (tr.base_q is None or tr.base_v is None):
         raise DataError("a floating-base robot needs base_q and base_v in the log", traj.source)
     return r.full_configuration(tr.q, tr.base_q), r.full_velocity(tr.v, tr.base_v)
@@ -127,7 +128,7 @@ def _generalised(structure: ModelStructure, traj: Trajectory, tau: np.ndarray | 
     if tau is None:
         if traj.tau is None:
             raise DataError("trajectory has no torque/effort ('tau')", traj.source)
-        tr = _in_robot_order(r, traj)
+        tr = in_robot_order(r, traj)
         tau = tr.tau[:, [r.joint_names.index(j) for j in r.actuated_joints]]
     out = np.zeros((len(traj), r.nv))
     out[:, r.actuated_v_indices] = tau
@@ -212,4 +213,4 @@ def projection_rate_error(structure, traj: Trajectory, params: np.ndarray, cutof
 
 
 def _dt(traj: Trajectory) -> float:
-    return _uniform_dt(traj, "acceleration-free identification")
+    return uniform_dt(traj, "acceleration-free identification")

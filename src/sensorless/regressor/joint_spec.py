@@ -1,8 +1,8 @@
 """Per-joint settings of a model structure, as users write them: which joint terms each
 joint has (``"fv,fc"`` or ``"j1=fv,fc;*=fv"``, :func:`parse_joint_terms`) and per-joint
 numbers such as the Coulomb smoothing or the Stribeck velocity (one value, or a mapping with
-an optional ``'*'`` for the joints not named). The terms themselves are described in
-:mod:`.terms`.
+an optional ``'*'`` for the joints not named). The terms themselves are the registry
+:mod:`.joint_terms`.
 """
 
 from __future__ import annotations
@@ -12,18 +12,14 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import RobotModelError, did_you_mean
+from .joint_terms import JOINT_TERMS, terms_where
 
-__all__ = ["DEFAULT_STRIBECK_VELOCITY", "FRICTION_LAWS", "JOINT_TERMS", "PASSIVE_TERMS", "parse_joint_terms",
-           "parse_presliding",
-           "passive_terms"]
+__all__ = ["DEFAULT_STRIBECK_VELOCITY", "PASSIVE_TERMS", "parse_joint_terms", "parse_presliding", "passive_terms"]
 
-JOINT_TERMS = ("fv", "fc", "stribeck", "offset", "armature", "presliding")
-#: terms a passive joint (no actuator) can have: its friction. No offset (there is no torque sensor
-#: to be offset; on a rail along gravity it would be m·g again) and no armature (no rotor).
-PASSIVE_TERMS = ("fv", "fc", "stribeck")
-#: forms of the Stribeck column (:mod:`.terms`): "blend" (fs tanh(v/ε) − (fs − fc)(1 − e^{−(v/vs)²}) sgn v,
-#: written since the transition width is fitted) and "product" (e^{−(v/vs)²} tanh(v/ε), older models)
-FRICTION_LAWS = ("blend", "product")
+#: terms a passive joint (no actuator) can have: its friction (the registry's ``passive`` flag,
+#: :mod:`.joint_terms`). No offset (there is no torque sensor to be offset; on a rail along gravity it
+#: would be m·g again) and no armature (no rotor).
+PASSIVE_TERMS = terms_where("passive")
 #: Stribeck velocity vs [rad/s or m/s] of a joint whose vs is not given
 DEFAULT_STRIBECK_VELOCITY = 0.1
 
@@ -113,7 +109,7 @@ def _by_joint(value, joints, what: str) -> Mapping:
     return value
 
 
-def _per_joint(value, joints, what: str) -> dict[str, float]:
+def per_joint_values(value, joints, what: str) -> dict[str, float]:
     """A number for every joint, or a mapping (with optional '*'), as {joint: float >= 0}."""
     if value is None:
         return {}

@@ -22,7 +22,7 @@ Inverse dynamics with per-joint friction and rotor inertia is linear in the para
   joints); a term a joint does not have is a zero column, so its parameter is fixed at 0
   (it is not a base parameter) and :meth:`ModelStructure.terms_of` lists the real ones.
 
-* Drive terms (``drives``, :class:`~.extra_terms.DriveTerm`; empty here, a transmission's
+* Drive terms (``drives``, :class:`~.drive_terms.DriveTerm`; empty here, a transmission's
   friction, motor inertia and springs): a column g_d f_{d,p}(θ, θ̇, θ̈) on every kept row,
   one parameter coupling several rows.
 
@@ -50,15 +50,17 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Robot
-from .friction_columns import coulomb_sign, fit_keep, sliding_sign, stribeck_decay
+from .friction_columns import coulomb_sign, fit_keep, sliding_sign
 from .friction_state import presliding_states
-from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, FRICTION_LAWS, JOINT_TERMS, _per_joint, named_joints,
-                         parse_joint_terms, parse_presliding, passive_terms)
+from .joint_spec import (DEFAULT_STRIBECK_VELOCITY, per_joint_values, named_joints, parse_joint_terms, parse_presliding,
+                         passive_terms)
+from .joint_terms import JOINT_TERMS, TermInputs, joint_term
+from .joint_terms.stribeck import FRICTION_LAWS
 from .rowmap import ActuatedRows, RowMap
 from .native import native_regressor
 from .native import threads as native_threads
 
-__all__ = ["JOINT_TERMS", "ModelStructure", "parse_joint_terms"]
+__all__ = ["ModelStructure"]
 
 @dataclass
 class ModelStructure:
@@ -110,13 +112,13 @@ class ModelStructure:
                 self.per_joint_terms = None  # uniform after all
         self.joint_terms = tuple(t for t in JOINT_TERMS if t in self.joint_terms)
         if isinstance(self.coulomb_smoothing, Mapping):
-            self.coulomb_smoothing = _per_joint(self.coulomb_smoothing, joints, "coulomb_smoothing")
+            self.coulomb_smoothing = per_joint_values(self.coulomb_smoothing, joints, "coulomb_smoothing")
         elif not (np.isfinite(self.coulomb_smoothing) and self.coulomb_smoothing >= 0):
             raise RobotModelError(f"coulomb_smoothing must be a finite number >= 0, got {self.coulomb_smoothing!r}")
         if self.friction_law not in FRICTION_LAWS:
             raise RobotModelError(f"friction_law must be one of {FRICTION_LAWS}, got {self.friction_law!r}")
-        self.stribeck_velocity = _per_joint(self.stribeck_velocity, joints, "stribeck_velocity") or None
-        self.rest_velocity = _per_joint(self.rest_velocity, joints, "rest_velocity") or None
+        self.stribeck_velocity = per_joint_values(self.stribeck_velocity, joints, "stribeck_velocity") or None
+        self.rest_velocity = per_joint_values(self.rest_velocity, joints, "rest_velocity") or None
         need = [j for j in joints if "stribeck" in self.terms_of(j)]
         if need:  # vs of joints not given: DEFAULT_STRIBECK_VELOCITY (identification.friction searches it)
             vs = dict(self.stribeck_velocity or {})
@@ -254,7 +256,7 @@ class ModelStructure:
                 "(sensorless.data.savgol_derivatives) or map the column",
                 traj.source,
             )
-        traj = _in_robot_order(r, traj)
+        traj = in_robot_order(r, traj)
         if r.floating_base and self.rows == "all" and (traj.base_q is None or traj.base_v is None or traj.base_a is None):
             raise DataError("a floating-base robot needs base_q, base_v and base_a in the trajectory", traj.source)
         Q = r.full_configuration(traj.q, traj.base_q)
@@ -272,7 +274,7 @@ class ModelStructure:
         r = self.robot
         if traj.tau is None:
             raise DataError("trajectory has no torque/effort ('tau')", traj.source)
-        tau = _in_robot_order(r, traj).tau
+        tau = in_robot_order(r, traj).tau
         cols = [r.joint_names.index(j) for j in r.actuated_joints]
         y = np.zeros((len(traj), self.n_rows))
         y[:, self._act_row[: len(cols)]] = tau[:, cols]  # passive rows: 0, their generalized force
@@ -355,22 +357,19 @@ class ModelStructure:
         v = V[:, self._act]
         if not self.joint_terms:
             return np.zeros(v.shape + (0,))
-        joints = self.robot.term_joints
-        sgn = (lambda: self.coulomb_sign(v))
-        vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
-        cols = {
-            "fv": lambda: v,
-            "fc": sgn,
-            "stribeck": lambda: (np.exp(-((v / vs) ** 2)) * sgn() if self.friction_law == "product"
-                                 else sgn() - stribeck_decay(v, vs, self.sliding_sign(v))),
-            "offset": lambda: np.ones_like(v),
-            "armature": lambda: A[:, self._act],
-            "presliding": lambda: _state_rows(Z, v.shape),
-        }
-        F = np.stack([cols[t]() for t in self.joint_terms], axis=2)
+        x = self.term_inputs(v, A[:, self._act], Z)
+        F = np.stack([joint_term(t).column(x) for t in self.joint_terms], axis=2)
         if getattr(self, "per_joint_terms", None) is not None:
             F *= self.term_mask[None, :, :]
         return F
+
+    def term_inputs(self, v: np.ndarray, a: np.ndarray, Z: "np.ndarray | None" = None) -> TermInputs:
+        """The signals the joint-term columns are made of (:class:`~.joint_terms.TermInputs`), for term-joint
+        velocities ``v`` and accelerations ``a`` (N, n_term_joints): this structure's ε, δ, vs and law."""
+        joints = self.robot.term_joints
+        vs = np.array([(self.stribeck_velocity or {}).get(j, 1.0) for j in joints])
+        eps = np.array([self.smoothing_of(j) for j in joints])
+        return TermInputs(v, a, eps, self._rest_velocities(), vs, self.friction_law, Z)
 
     def friction_states(self, traj: Trajectory) -> "np.ndarray | None":
         """The presliding state s_c of each term joint along the log ``traj`` from 0 (N, n_term_joints,
@@ -382,7 +381,7 @@ class ModelStructure:
         if (missing := [j for j in joints if "presliding" in self.terms_of(j) and j not in laws]) or traj.v is None:
             raise DataError(f"the presliding state needs the joint velocities and a presliding distance for "
                             f"{missing} (identify chooses it)", traj.source)
-        traj, cols = _in_robot_order(self.robot, traj), [self.robot.joint_names.index(j) for j in joints]
+        traj, cols = in_robot_order(self.robot, traj), [self.robot.joint_names.index(j) for j in joints]
         return presliding_states(traj.q[:, cols], traj.v[:, cols], [laws.get(j) for j in joints])
 
     def _rest_velocities(self) -> np.ndarray:
@@ -401,7 +400,7 @@ class ModelStructure:
     def fit_mask(self, V: np.ndarray) -> "np.ndarray | None":
         """(N, n_rows) 0/1 weights of the equations in the fit (:func:`.friction_columns.fit_keep` on
         each term joint's row); None when nothing is left out."""
-        law = [bool({"fc", "stribeck"} & set(self.terms_of(j))) for j in self.robot.term_joints]
+        law = [any(joint_term(t).reversal for t in self.terms_of(j)) for j in self.robot.term_joints]
         keep_j = fit_keep(V[:, self._act], self._rest_velocities(), np.array(law, dtype=bool))
         if keep_j is None:
             return None
@@ -462,7 +461,7 @@ class ModelStructure:
         return out
 
     def settings(self) -> dict:
-        """Round-trips through ``result.json`` (:func:`sensorless.estimators.load_parameters`).
+        """Round-trips through ``result.json`` (:func:`sensorless.torque_models.load_parameters`).
         ``coulomb_smoothing`` stays one number (the median ε) for older readers; the per-joint
         values are in ``coulomb_smoothing_by_joint``."""
         eps = self.coulomb_smoothing
@@ -485,13 +484,7 @@ class ModelStructure:
         return {**out, "presliding": {j: dict(p) for j, p in self.presliding.items()}} if self.presliding else out
 
 
-def _state_rows(Z, shape) -> np.ndarray:  # the presliding column's rows
-    if Z is None or np.shape(Z) != shape:
-        raise DataError("the 'presliding' term depends on the history of q: evaluate whole logs (regressor, torques)")
-    return np.asarray(Z, dtype=float)
-
-
-def _in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:
+def in_robot_order(robot: Robot, traj: Trajectory) -> Trajectory:
     """The trajectory with joint columns in ``robot.joint_names`` order (JointNameError if impossible)."""
     if traj.joint_names == robot.joint_names:
         return traj

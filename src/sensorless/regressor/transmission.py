@@ -14,7 +14,7 @@ Pinocchio's joint-torque regressor Y(q, v, v̇) (τ_q = Y π)
 
     τ_θ = Gᵀ Y(Gθ + q₀, Gθ̇, Gθ̈) π + Σ_d g_d f_d,
 
-where f_d are the drive terms of :mod:`.extra_terms` (friction, motor inertia and springs
+where f_d are the drive terms of :mod:`.drive_terms` (friction, motor inertia and springs
 on drive coordinates s_d = g_dᵀθ). :class:`TransmissionStructure` is a
 :class:`~sensorless.regressor.ModelStructure` in coordinate space made of three parts:
 
@@ -38,7 +38,7 @@ import pinocchio as pin
 from ..errors import JointNameError, RobotModelError
 from ..parameters import PARAMETER_NAMES
 from ..robot import Actuation, Robot
-from .extra_terms import DriveTerm
+from .drive_terms import DriveTerm
 from .rowmap import TransmissionRows
 from .terms import ModelStructure
 

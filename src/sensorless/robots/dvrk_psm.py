@@ -37,7 +37,7 @@ Gravity is −9.81 m/s² along z of the base frame 0 (the authors' default). m5.
 (dVRK joints = M · motors, M = [[1.0186, 0, 0], [−0.8306, 0.6089, 0.6089], [0, −1.2177, 1.2177]];
 the tree uses the authors' rounded coupling 1.0186 / −0.8306 / 1.2178).
 
-Drive terms (:class:`~sensorless.regressor.extra_terms.DriveTerm`), as in the authors' model:
+Drive terms (:class:`~sensorless.regressor.drive_terms.DriveTerm`), as in the authors' model:
 viscous + Coulomb + offset friction on q1, q2, q3, q4, on the wrist pitch, on each jaw and
 on the jaw opening (jaw_2 − jaw_1, the q6–q7 coupled friction) and directly on motors 6 and 7;
 motor (rotor) inertia on q4, on the wrist pitch and on motors 6 and 7; a torsion spring
@@ -59,7 +59,7 @@ import pinocchio as pin
 
 from ..data import Trajectory, lowpass, read_trajectory
 from ..errors import DataError, RobotModelError
-from ..regressor.extra_terms import DriveTerm
+from ..regressor.drive_terms import DriveTerm
 from ..regressor.transmission import (
     TransmissionStructure,
     add_body_joint,
@@ -75,7 +75,6 @@ __all__ = [
     "PSM_BODIES_AUTHORS",
     "PSM_FRAMES",
     "PSM_LIMITS",
-    "PSM_NAMES",
     "mdh_placement",
     "psm_drives",
     "psm_robot",
@@ -171,9 +170,6 @@ def _frames() -> list[tuple[str, str, pin.SE3]]:
 PSM_FRAMES = ("rcm", "tool_tip")
 """Operational frames of the PSM tree besides one frame per joint (see :func:`psm_tree`)."""
 
-from .names import PSM_NAMES  # noqa: E402  (names the command line accepts for the PSM model)
-
-
 def psm_tree() -> tuple[Robot, np.ndarray]:
     """The Pinocchio tree (massless bodies; 12 joints) and its coupling matrix G (12 × 7).
 
@@ -255,6 +251,7 @@ def psm_structure(
     )
     default_drives = drives if isinstance(drives, str) else drive_list
     structure.robot.factory = functools.partial(_rebuild, bodies, default_drives)  # picklable (Dask workers)
+    structure.robot.excitation_box = PSM_LIMITS  # excitation design uses the logs' envelope as is
     return structure
 
 

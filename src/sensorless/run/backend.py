@@ -75,7 +75,7 @@ class LocalBackend:
 
     def fit(self, structure, train: list, data: list, skipped: list, val: list, lmi_kw: dict, row_sigma,
             progress=None) -> Fit:
-        from ..estimators import PhysicalModel
+        from ..torque_models import PhysicalModel
 
         c, j = self.job.config, self.job
         method, eps, vs = c.solver.method, j.eps, j.vs
@@ -134,7 +134,7 @@ class DaskBackend:
     def fit(self, structure, train: list, data: list, skipped: list, val: list, lmi_kw: dict, row_sigma,
             progress=None) -> Fit:
         from ..data.limits import current_options
-        from ..estimators import PhysicalModel
+        from ..torque_models import PhysicalModel
         from ..regressor.distributed import LogReader
 
         c, j = self.job.config, self.job

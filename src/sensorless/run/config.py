@@ -37,8 +37,8 @@ def _f(default: Any = None, help: str | None = None, *, flags: tuple[str, ...] =
 class LogsConfig:
     """The logs and how they are read and preprocessed (``sensorless.data.load_log``)."""
 
-    data: tuple[Path, ...] = _f((), "training log(s): .csv .dat .npz .parquet .h5 .mat, a folder of per-signal text "
-                                "files, ROS .bag / .mcap / ROS 2 bag folder (docs/logs.md); several after one flag "
+    data: tuple[Path, ...] = _f((), "training log(s): <log formats> (the registry sensorless.data.formats; docs/logs.md); "
+                                "several after one flag "
                                 "(--data a.csv b.csv) or repeated", required=True)
     validate: tuple[Path, ...] = _f((), "held-out log(s) to report metrics on (several after one flag too)")
     columns: str | None = _f(None, "column map, e.g. 'q=0:7;v=7:14;tau=14:21' or 'q=pos_{joint}'")

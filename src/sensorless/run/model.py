@@ -31,28 +31,17 @@ def parse_add_frame(spec: str) -> tuple:
 
 def load_run_robot(spec, lock: Sequence[str] = (), floating_base: bool | None = None, passive: Sequence[str] = (),
                    *, frames: Sequence = (), trust_xacro: bool = False, package_paths: Sequence = ()):
-    """A URDF/MJCF/xacro/example-robot-data robot, or a model shipped in code ('dvrk_psm': the PSM in
-    motor coordinates), with ``frames`` (``(name, parent, xyz, rpy)``, :func:`parse_add_frame`) added."""
+    """A URDF/MJCF/xacro file or a name of the robot registry (:mod:`sensorless.robots.registry`), with
+    ``frames`` (``(name, parent, xyz, rpy)``, :func:`parse_add_frame`) added."""
     from ..errors import UntrustedModelError
     from ..robot import add_frame, load_robot
-    from ..robots.names import PSM_NAMES
     from ..xacro_expand import refuse_xacro
 
-    if str(spec).lower() in PSM_NAMES:
-        from ..robots.dvrk_psm import psm_robot
-
-        if lock or floating_base or passive:
-            raise SensorlessError(f"{setting('model.robot', str(spec))}: {setting('model.lock')}, "
-                                  f"{setting('model.passive')} and {setting('model.floating_base')} do not apply "
-                                  "to the PSM model")
-        r = psm_robot()
-    else:
-        try:
-            r = load_robot(spec, trust_xacro=trust_xacro, package_paths=tuple(package_paths),
-                           lock_joints=tuple(lock or ()), floating_base=floating_base,
-                           passive_joints=tuple(passive or ()))
-        except UntrustedModelError:
-            refuse_xacro(Path(str(spec)), f"rerun with {setting('trust_xacro', True)}")
+    try:
+        r = load_robot(spec, trust_xacro=trust_xacro, package_paths=tuple(package_paths),
+                       lock_joints=tuple(lock or ()), floating_base=floating_base, passive_joints=tuple(passive or ()))
+    except UntrustedModelError:
+        refuse_xacro(Path(str(spec)), f"rerun with {setting('trust_xacro', True)}")
     for f in frames:
         add_frame(r, *f)
     return r

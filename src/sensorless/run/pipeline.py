@@ -158,7 +158,7 @@ def _identify(config: RunConfig, bars, say, figures) -> Run:
     from ..data.trims import LogTrims
     from ..data.wrench_frames import wrench_frame_map
     from ..errors import setting
-    from ..estimators import CADModel
+    from ..torque_models import CADModel
     from ..identification.weights import weights_option
     from ..regressor.distributed import expand_paths
     from .figures import figure_jobs

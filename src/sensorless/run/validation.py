@@ -28,7 +28,7 @@ def check_plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prio
 def ols_baseline(fit, row_sigma):
     """Unconstrained least squares on the compressed equations of ``fit`` (a :class:`~.backend.Fit`), for
     the comparison table; None when it cannot be solved (its identifiability is not reported)."""
-    from ..estimators import PhysicalModel
+    from ..torque_models import PhysicalModel
 
     try:
         with warnings.catch_warnings():

@@ -1,0 +1,114 @@
+"""`sensorless identify`'s fixed costs removed without changing its output (issue 28, deliverable 1).
+No timing assertions: the times are in ``sensorless benchmark identify-e2e``.
+
+* friction.png evaluates only the samples it draws: the same dots as evaluating every sample;
+* the figure process draws the same PNG bytes as the command's own process, and when it fails
+  (or no core is idle for it) the command draws them itself (exit 0, every figure written);
+* the OLS baseline solved on the fit's compressed equations (Stribeck candidates selected) equals
+  a second pass over the logs;
+* ``identify(validated=True)`` (the CLI's logs, checked once by the reader) gives the same result;
+* the benchmark runs fresh processes and records both times.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from sensorless.cli import app
+from sensorless.data import write_npz
+from sensorless.excitation import random_fourier
+from sensorless.identification import identify
+from sensorless.identification.friction import friction_residual
+from sensorless.identification.friction_search import identify_friction
+from sensorless.regressor import ModelStructure
+from sensorless.testing import perturbed_truth, synthetic_trajectory
+
+
+def _log(robot, seconds: float, rate: float = 200.0, rng: int = 1):
+    truth = perturbed_truth(robot, rng=0)
+    return synthetic_trajectory(truth, random_fourier(robot, rng=rng).sample(rate, seconds), noise_std=0.1, rng=rng + 1)
+
+
+def test_friction_dots_from_the_drawn_samples_equal_those_of_every_sample(ur5):
+    from sensorless.report.friction_plot import friction_panels
+
+    s = ModelStructure(ur5, joint_terms=("fv", "fc", "offset", "armature"))
+    logs = [_log(ur5, 12.0, rng=1), _log(ur5, 15.0, rng=3)]  # 2400 + 3000 samples > 4000 drawn
+    params = s.prior() + np.random.default_rng(0).normal(scale=0.05, size=s.n_params)
+    pairs = [friction_residual(s, params, t) for t in logs]
+    V, R = np.concatenate([v for v, _ in pairs]), np.concatenate([r for _, r in pairs])
+    idx = np.random.default_rng(0).choice(len(V), 4000, replace=False)
+    panels = friction_panels(s, params, logs, max_points=4000)
+    np.testing.assert_allclose(panels["V"], V[idx], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(panels["R"], R[idx], rtol=1e-12, atol=1e-9)
+    assert [lab[0].split(":")[0] for lab in panels["labels"]] == list(ur5.term_joints)
+
+
+def test_figure_process_writes_the_png_the_command_would(tmp_path):
+    from sensorless.cli.figure_process import FigureProcess
+    from sensorless.report.plot_process import draw_job
+
+    t = np.linspace(0.0, 2.0, 300)
+    meas = np.stack([np.sin(t), np.cos(t)], axis=1)
+    job = dict(t=t, measured=meas, predictions={"LMI": 0.9 * meas, "CAD": 1.1 * meas}, rows=["a", "b"],
+               units=["N·m", "N"], title="test")
+    with FigureProcess() as fp:
+        assert fp.submit([("torques", job, tmp_path / "child.png")])
+        assert fp.wait()
+    draw_job("torques", job, tmp_path / "here.png")
+    assert (tmp_path / "child.png").read_bytes() == (tmp_path / "here.png").read_bytes()
+
+
+def test_identify_draws_its_figures_itself_when_the_figure_process_fails(ur5, tmp_path, monkeypatch):
+    f = write_npz(_log(ur5, 10.0), tmp_path / "log.npz")
+    monkeypatch.setattr("sensorless.cli.figure_process.idle_core", lambda: True)  # whatever the load
+    monkeypatch.setattr(sys, "executable", "/bin/false")  # the child exits at once, without drawing
+    r = CliRunner().invoke(app, ["identify", "--robot", "ur5", "--data", str(f), "--method", "ols",
+                                 "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    for name in ("torques.png", "friction.png", "result.json", "report.html"):
+        assert (tmp_path / "m" / name).stat().st_size > 1000, name
+    assert "data:image/png;base64" in (tmp_path / "m" / "report.html").read_text()
+
+
+def test_ols_baseline_on_the_compressed_equations_equals_a_second_pass(ur5):
+    train = _log(ur5, 20.0)
+    s = ModelStructure(ur5, joint_terms=("fv", "fc", "stribeck", "offset", "armature"))
+    result, fit = identify_friction(s, [train], identify_kwargs=dict(method="wls"))
+    assert fit.stribeck_grid  # the equations are the selected candidates' ones
+    from_equations = identify(result.structure, result.equations, method="ols")
+    second_pass = identify(result.structure, [train], method="ols")
+    scale = np.abs(second_pass.parameters).max()
+    assert np.abs(from_equations.parameters - second_pass.parameters).max() < 1e-9 * scale
+    w1, w2 = from_equations.diagnostics["row_weights"], second_pass.diagnostics["row_weights"]
+    assert w1.keys() == w2.keys() and all(abs(w1[j] - w2[j]) < 1e-9 * w2[j] for j in w2)
+
+
+def test_identify_on_logs_validated_by_the_reader_is_unchanged(ur5, tmp_path):
+    from sensorless.data import read_trajectory
+
+    f = write_npz(_log(ur5, 6.0), tmp_path / "log.npz")
+    traj = read_trajectory(f, robot=ur5)
+    a = identify(ur5, [traj], method="ols", outliers="keep")
+    b = identify(ur5, [traj], method="ols", outliers="keep", validated=True)
+    assert np.array_equal(a.parameters, b.parameters)
+    assert a.diagnostics["joint_position_range"] == b.diagnostics["joint_position_range"]
+
+
+@pytest.mark.slow  # ~20 s: nine identify processes; the figures themselves come from the benchmark run
+def test_benchmark_identify_e2e_records_both_times_per_case(tmp_path):
+    out = tmp_path / "e2e.json"
+    r = CliRunner().invoke(app, ["benchmark", "identify-e2e", "--repeats", "1", "--long-samples", "3000",
+                                 "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(out.read_text())
+    for case in ("hard", "hard_ols", "long"):
+        s = doc["seconds"][case]
+        assert 0 < s["result_json"]["best"] <= s["exit"]["best"] and s["cpu"]["best"] > 0
+    assert doc["seconds"]["python"]["exit"]["best"] < doc["seconds"]["hard"]["exit"]["best"]
+    assert doc["long_samples"] == 3000
