@@ -27,9 +27,8 @@ from sensorless_studies.simulation.leg_model import (
     plate_inertia,
     talos_right_leg,
 )
+from sensorless_studies.simulation.leg_protocols import Q_AIR, Q_CONTACT
 from sensorless_studies.simulation.position_controlled import (
-    Q_AIR,
-    Q_CONTACT,
     ActuatorParams,
     PositionControlledLeg,
     SensorNoise,

@@ -9,7 +9,8 @@ import pytest
 
 from sensorless.data import base_acceleration, imu_base_acceleration, read_trajectory, write_npz
 from sensorless.errors import DataError
-from sensorless_studies.simulation.quadruped import NoiseSpec, make_truth, simulate
+from sensorless.testing import NoiseSpec
+from sensorless_studies.simulation.quadruped import make_truth, simulate
 
 
 def test_specific_force_oracle_with_offset_against_pinocchio(solo12, rng):
@@ -60,7 +61,7 @@ def test_imu_beats_differentiating_the_base_twist(wobble):
 
 
 def test_npz_and_cli_path_fill_base_acceleration_from_the_imu(solo12, wobble, tmp_path):
-    from sensorless.cli.common import load_logs
+    from sensorless.run.logs import load_logs
 
     traj, gt = wobble
     path = write_npz(traj, tmp_path / "w.npz")  # no base_a in the file, imu_acc is

@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from sensorless.cli import app
-from sensorless.cli.common import load_logs
+from sensorless.run.logs import load_logs
 from sensorless.data import Trajectory, TrimWindow, prepare, read_trajectory, resample, timing, trim_window
 from sensorless.errors import DataError, JointNameError, ShapeMismatchError, TimestampError
 from sensorless.excitation import random_fourier

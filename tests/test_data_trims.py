@@ -40,7 +40,7 @@ def test_each_log_is_cut_to_its_own_window_while_reading(tmp_path, ur5):
     """Two runs written with the same stamps; each log's window is cut before the time checks."""
     import pandas as pd
 
-    from sensorless.cli.common import load_logs
+    from sensorless.run.logs import load_logs
 
     t = np.arange(500) * 0.01
     for name in ("u.csv", "l.csv"):

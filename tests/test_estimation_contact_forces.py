@@ -16,7 +16,9 @@ pytest.importorskip("mujoco")
 
 @pytest.fixture(scope="module")
 def trot():
-    from sensorless_studies.simulation.quadruped import JOINT_TERMS, NoiseSpec, make_truth, simulate
+    from sensorless.testing import NoiseSpec
+    from sensorless_studies.simulation.quadruped import make_truth, simulate
+    from sensorless_studies.simulation.quadruped_log import JOINT_TERMS
     from sensorless_studies.simulation.quadruped_profiles import PROFILES, quadruped_robot
 
     nom = quadruped_robot("solo12")

@@ -9,7 +9,7 @@ import functools
 import numpy as np
 import pytest
 
-from sensorless.identification.gamma import _grid_search, cross_validate_gamma
+from sensorless.identification.gamma import grid_search, cross_validate_gamma
 from sensorless.identification.lmi import DEFAULT_GAMMAS, build_lmi, solve_lmi
 from sensorless.identification.unconstrained import satisfies_constraints, unconstrained_solution
 from sensorless.regressor.compress import compress
@@ -26,7 +26,7 @@ def _search(values, search="bracket"):
         calls.append(i)
         return values[i]
 
-    ran = _grid_search(len(values), f, search)
+    ran = grid_search(len(values), f, search)
     return ran, calls
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorless.identification.urdf_values import _greedy_prefixes
+from sensorless.identification.urdf_values import greedy_prefixes
 
 
 def _naive(order, reach):
@@ -35,7 +35,7 @@ def test_bisection_greedy_is_the_plain_greedy(seed):
         calls.append(tuple(ks))
         return oracle(ks)
 
-    kept, cand = _greedy_prefixes(order, reach)
+    kept, cand = greedy_prefixes(order, reach)
     kept0, cand0 = _naive(order, oracle)
     assert kept == kept0
     assert (cand is None and cand0 is None) or np.array_equal(cand, cand0)

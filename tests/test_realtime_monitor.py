@@ -24,8 +24,8 @@ from sensorless.realtime import LatencyHistogram, RecordLayout, StreamMonitor, S
 from sensorless.realtime.ros2 import joint_state_sample, stamp_gap, stamp_seconds
 from sensorless.regressor import ModelStructure
 from sensorless.robot import load_robot
-from sensorless_studies.simulation.arm_push import NoiseSpec, Push, simulate_pushes
-from sensorless.testing import perturbed_truth
+from sensorless_studies.simulation.arm_push import Push, simulate_pushes
+from sensorless.testing import NoiseSpec, perturbed_truth
 
 PUSHES = [Push(4.0, 4.6, (0.0, 0.0, -30.0), "tool0"), Push(5.5, 6.0, (20.0, -10.0, 0.0), "tool0")]
 

@@ -18,13 +18,13 @@ distributed = pytest.importorskip("distributed")
 
 from sensorless_studies.simulation.fleet_logs import write_fleet_logs  # noqa: E402
 from sensorless.cli import app  # noqa: E402
-from sensorless.cli.common import load_logs  # noqa: E402
+from sensorless.run.logs import load_logs  # noqa: E402
 from sensorless.errors import DataError, JointNameError  # noqa: E402
 from sensorless.identification import identify, identify_files  # noqa: E402
 from sensorless.identification.gamma import split_folds  # noqa: E402
 from sensorless.regressor import ModelStructure, compress, compress_files, expand_paths  # noqa: E402
 from sensorless.regressor.dask_cluster import connect  # noqa: E402
-from sensorless.regressor.distributed import LogReader, _Model, _worker_structure  # noqa: E402
+from sensorless.regressor.distributed import LogReader, PickledModel, worker_structure  # noqa: E402
 from sensorless.errors import DistributedError  # noqa: E402
 
 TOL = 1e-10
@@ -245,12 +245,12 @@ def test_worker_killed_mid_run_gives_the_same_result(fleet, structure, tmp_path,
 
 
 def test_structure_travels_once_and_is_unpickled_once_per_thread(structure):
-    m = _Model.of(structure)
+    m = PickledModel.of(structure)
     assert len(m.blob) < 2**20  # a pickled Panda structure, not data
-    a, b = _worker_structure(m), _worker_structure(m)
+    a, b = worker_structure(m), worker_structure(m)
     assert a is b and a is not structure and a.n_params == structure.n_params
     other = []
-    t = threading.Thread(target=lambda: other.append(_worker_structure(m)))
+    t = threading.Thread(target=lambda: other.append(worker_structure(m)))
     t.start()
     t.join()
     assert other[0] is not a  # Pinocchio Data is per-thread scratch space

@@ -49,7 +49,9 @@ def test_projected_filtered_regressor_and_pdot_term():
     is measured (it is the documented approximation)."""
     pytest.importorskip("mujoco")
     from sensorless.regressor.contact import ContactStructure
-    from sensorless_studies.simulation.quadruped import JOINT_TERMS, NoiseSpec, make_truth, simulate
+    from sensorless.testing import NoiseSpec
+    from sensorless_studies.simulation.quadruped import make_truth, simulate
+    from sensorless_studies.simulation.quadruped_log import JOINT_TERMS
     from sensorless_studies.simulation.quadruped_profiles import PROFILES, quadruped_robot
 
     nom = quadruped_robot("solo12")
@@ -120,7 +122,8 @@ def test_arm_recovery_from_filtered_rows(arm):
 def noisy_wobble():
     pytest.importorskip("mujoco")
     from sensorless.regressor.contact import ContactStructure
-    from sensorless_studies.simulation.quadruped import NoiseSpec, make_truth, simulate
+    from sensorless.testing import NoiseSpec
+    from sensorless_studies.simulation.quadruped import make_truth, simulate
     from sensorless_studies.simulation.quadruped_profiles import PROFILES, quadruped_robot
 
     nom = quadruped_robot("solo12")

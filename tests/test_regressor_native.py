@@ -40,10 +40,10 @@ def test_kernel_equals_pinocchio_on_random_states(name):
 
 
 def test_compress_and_regressor_with_and_without_the_kernel_are_identical(monkeypatch):
-    from sensorless_studies.benchmarks.speed import _fourier_log
+    from sensorless_studies.benchmarks.speed import fourier_log
 
     robot = load_robot("ur5")
-    traj = _fourier_log(robot, 1500)
+    traj = fourier_log(robot, 1500)
     s = ModelStructure(robot)
     with_kernel = compress(s, traj, chunk=512)
     W_kernel = s.regressor(next(traj.chunks(100)))  # the full regressor: the body block is a strided view of it

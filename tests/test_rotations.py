@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from sensorless_studies.simulation.mujoco_scene import quat_to_matrix
 from sensorless_studies.simulation.quadruped_control import world_angular_velocity
-from sensorless_studies.simulation.quadruped_log import _noisy_orientation
+from sensorless_studies.simulation.quadruped_log import noisy_orientation
 
 RNG = np.random.default_rng(7)
 
@@ -49,7 +49,7 @@ def test_world_angular_velocity_is_the_derivative_of_the_rotation():
 def test_noisy_orientation_is_right_multiplied_exp_of_the_noise():
     q = _unit_quats(20)
     sigma = 0.05
-    out = _noisy_orientation(q, sigma, np.random.default_rng(3))
+    out = noisy_orientation(q, sigma, np.random.default_rng(3))
     dtheta = np.random.default_rng(3).normal(size=(20, 3)) * sigma
     for k in range(len(q)):
         R_expected = pin.Quaternion(q[k]).toRotationMatrix() @ pin.exp3(dtheta[k])

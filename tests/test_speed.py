@@ -20,7 +20,7 @@ import pinocchio as pin
 import pytest
 from typer.testing import CliRunner
 
-from sensorless_studies.benchmarks.identify import FEET, _contact_log
+from sensorless_studies.benchmarks.identify import FEET, contact_log
 from sensorless.cli import app
 from sensorless.data import write_npz
 from sensorless.data.trajectory import Trajectory
@@ -108,7 +108,7 @@ def test_null_space_fold_gives_the_projected_normal_equations_and_solution(solo1
     frames = FEET + ("FL_FOOT",)
     ns = ContactStructure(solo12, contact_frames=frames)
     pr = ContactStructure(solo12, contact_frames=frames, fold_basis="projector")
-    log = _contact_log(solo12, ContactStructure(solo12, contact_frames=FEET), 600, seed=3)
+    log = contact_log(solo12, ContactStructure(solo12, contact_frames=FEET), 600, seed=3)
     flags = log.extras["contact"].copy()
     flags[-40:] = False
     twice = flags[:, :1] & (np.arange(len(log)) % 3 == 0)[:, None]

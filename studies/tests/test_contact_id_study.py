@@ -99,7 +99,7 @@ def test_imu_base_acceleration_makes_stance_identification_realistic(tmp_path):
 
 def _need_spot():
     from sensorless.errors import RobotModelError
-    from sensorless_studies.simulation.quadruped import spot_mjcf
+    from sensorless_studies.simulation.quadruped_profiles import spot_mjcf
 
     try:
         spot_mjcf()

@@ -17,15 +17,13 @@ from sensorless.estimation import CartesianForceEstimator
 from sensorless.regressor import ModelStructure
 from sensorless_studies.simulation.surgical_arm import TIP_FRAME, build_surgical_arm
 from sensorless_studies.simulation.trocar import (
-    WORKSPACES,
     BodyWall,
     SimulationSettings,
     SphereObject,
     TrocarSimulator,
-    multisine_motion,
     perturbed_arm,
-    probing_motion,
 )
+from sensorless_studies.simulation.trocar_motions import WORKSPACES, multisine_motion, probing_motion
 
 AXES = ("x", "y", "z")
 

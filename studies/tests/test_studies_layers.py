@@ -1,78 +1,74 @@
-"""The studies package's layer order, checked on its source (the library's: tests/test_layers.py).
+"""The studies package's layer order and structural rules, checked on its source with the library's
+checkers (``tests/structural_rules.py``; the library's own: tests/test_layers.py).
 
 Every import (module level and inside functions) of every module under ``studies/src/sensorless_studies``
-is parsed with :mod:`ast`; a module may import only modules of its own layer or below, and any public
-module of the library ``sensorless`` (never a ``_private`` module of it). Bottom to top:
+is parsed with :mod:`ast`; a module may import only modules of its own layer or below, and only the public
+names and modules of the library ``sensorless``. Bottom to top:
 
     0  simulation                MuJoCo scenes, simulated robots and logs with known ground truth
     1  experiments               the papers' studies
     2  example_data              the data of the documented commands (some written by a study's code)
     3  benchmarks, demo          speed, scale and accuracy benchmarks; the end-to-end demo
     4  cli                       the commands, added to ``sensorless`` through entry points
+
+As in the library: no module imports another module's ``_private`` names, the modules form no import
+cycle, no module is a re-export shim, and the studies' tests import no private name either.
 """
 
 from __future__ import annotations
 
-import ast
+import importlib.util
 import tomllib
 from pathlib import Path
 
 STUDIES = Path(__file__).resolve().parents[1]
 SRC = STUDIES / "src" / "sensorless_studies"
+LIBRARY = STUDIES.parent / "src" / "sensorless"
 
 LAYERS = {"simulation": 0, "experiments": 1, "example_data": 2, "benchmarks": 3, "demo": 3, "cli": 4}
 
 
-def _imports(path: Path) -> list[tuple[str, int]]:
-    """Absolute names of the modules ``path`` imports (relative imports resolved), with line numbers."""
-    parts = list(path.relative_to(SRC.parent).with_suffix("").parts)
-    package = parts[:-1]
-    out = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            out += [(a.name, node.lineno) for a in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package[: len(package) - node.level + 1]
-                if node.module:
-                    out.append((".".join(base + [node.module]), node.lineno))
-                else:
-                    out += [(".".join(base + [a.name]), node.lineno) for a in node.names]
-            else:
-                out.append((node.module, node.lineno))
-    return out
+def _structural_rules():
+    """The library tests' checker module (``tests/`` is not a package the studies' tests can import)."""
+    spec = importlib.util.spec_from_file_location(
+        "sensorless_structural_rules", STUDIES.parent / "tests" / "structural_rules.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
-def _top(name: str) -> str | None:
-    parts = name.split(".")
-    return parts[1] if len(parts) > 1 else None
+rules = _structural_rules()
 
 
 def test_every_study_module_has_a_layer():
-    names = {p.stem for p in SRC.glob("*.py") if p.stem != "__init__"} | {
-        p.name for p in SRC.iterdir() if (p / "__init__.py").exists()}
-    assert names - set(LAYERS) == set(), "give each new top-level module or package a layer in LAYERS"
+    assert rules.unlayered(SRC, LAYERS) == set(), "give each new top-level module or package a layer in LAYERS"
 
 
 def test_study_imports_point_down_the_layers():
-    bad = []
-    for path in sorted(SRC.rglob("*.py")):
-        src = _top(".".join(path.relative_to(SRC.parent).with_suffix("").parts))
-        for name, line in _imports(path):
-            if not name.startswith("sensorless_studies."):
-                continue
-            dst = _top(name)
-            if src is not None and dst != src and LAYERS[dst] > LAYERS[src]:
-                bad.append(f"{path.relative_to(STUDIES)}:{line}: {src} (layer {LAYERS[src]}) imports {name}")
+    bad = rules.layer_violations(SRC, LAYERS)
     assert bad == [], "\n".join(bad)
 
 
-def test_the_studies_import_no_private_library_module():
-    """The studies use the library's public modules only (``sensorless._lazy`` and the like are its own)."""
-    bad = [f"{p.relative_to(STUDIES)}:{line}: {name}" for p in sorted(SRC.rglob("*.py"))
-           for name, line in _imports(p)
-           if name.split(".")[0] == "sensorless" and any(part.startswith("_") for part in name.split(".")[1:])]
-    assert bad == [], "\n".join(bad)
+def test_the_studies_use_only_public_names():
+    """No study imports another study module's private name, nor a private name or module of the library."""
+    bad = rules.private_imports(SRC, LIBRARY)
+    assert bad == [], "make the name public in its owner (drop the underscore, add a docstring) or move it " \
+                      "to the module that owns the concept:\n" + "\n".join(bad)
+
+
+def test_the_studies_have_no_import_cycles():
+    bad = rules.import_cycles(SRC)
+    assert bad == [], "move the shared piece into the module that owns the concept:\n" + "\n".join(bad)
+
+
+def test_the_studies_have_no_reexport_shims():
+    bad = rules.shims(SRC, LIBRARY)
+    assert bad == [], "import names from the module that defines them:\n" + "\n".join(bad)
+
+
+def test_the_studies_tests_import_no_private_name():
+    bad = rules.imports_of_tests(STUDIES / "tests", SRC, LIBRARY)
+    assert bad == [], "make the name public in its owner (drop the underscore, add a docstring):\n" + "\n".join(bad)
 
 
 def test_every_study_command_is_an_entry_point_the_library_lists():

@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from .common import (
-    err_console,
-)
-from .console import console
+from .console import console, err_console
 
 
 def print_bodies(result) -> None:

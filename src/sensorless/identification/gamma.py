@@ -11,7 +11,7 @@ Cost. Each fold's program is compiled once with γ a cvxpy Parameter (DPP), so a
 only a conic solve (cvxpy reuses Clarabel's workspace). The default ``search="bracket"`` does not
 solve every γ of the grid: a golden-section search on the grid indices evaluates ≈ 6 of the 20
 default γ (× folds), and falls back to the whole grid when the evaluated scores are not strictly
-unimodal (:func:`_grid_search`). ``search="exhaustive"`` solves every γ with the conic solver, as
+unimodal (:func:`grid_search`). ``search="exhaustive"`` solves every γ with the conic solver, as
 before. ``search="closed-form"`` is the bracket search in which a (fold, γ) whose unconstrained
 minimiser satisfies every constraint takes that exact solution without a conic solve
 (:mod:`.unconstrained`; TALOS: 5 conic solves instead of 30). It is more accurate than the conic
@@ -41,7 +41,7 @@ from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi
 from .unconstrained import regularizer_metric, unconstrained_solution
 
-__all__ = ["GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "select_gamma", "validation_score"]
+__all__ = ["GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "grid_search", "select_gamma", "validation_score"]
 
 GAMMA_SEARCHES = ("bracket", "exhaustive", "closed-form")
 _BRACKET_MIN = 6  # grids shorter than this are scanned whole
@@ -137,7 +137,7 @@ def _unimodal(values: Sequence[float]) -> bool:
     return bool(np.all(np.diff(v[: m + 1]) < 0) and np.all(np.diff(v[m:]) > 0))
 
 
-def _grid_search(n: int, evaluate: Callable[[int], float], search: str = "bracket") -> str:
+def grid_search(n: int, evaluate: Callable[[int], float], search: str = "bracket") -> str:
     """Call ``evaluate(i)`` (i = 0 … n−1, each at most once) on enough grid points to find its argmin.
 
     "exhaustive": every point. "bracket" (or "closed-form"): golden-section search on the indices — the bracket
@@ -245,7 +245,7 @@ class _FoldScorer:
         return float(self.fold_scores[i].mean())
 
     def select(self, search: str, warn: bool) -> GammaSelection:
-        ran = _grid_search(len(self.gammas), self, search)
+        ran = grid_search(len(self.gammas), self, search)
         scores = self.fold_scores.mean(axis=1)  # nan: not evaluated, inf: a fold failed
         if not np.any(np.isfinite(scores)):
             raise SolverError(f"no gamma could be solved: {self.failures}")
@@ -368,7 +368,7 @@ def cross_validate_gamma(
     minimises the mean score over folds; ``build_kwargs`` as :func:`solve_lmi`. The default
     grid starts at γ = 0 (no prior); a winner at an edge of the grid warns (``warn``, see
     :func:`select_gamma`). ``search``: "bracket" (default: a golden-section search on the grid,
-    the whole grid when its scores are not unimodal) or "exhaustive" (:func:`_grid_search`).
+    the whole grid when its scores are not unimodal) or "exhaustive" (:func:`grid_search`).
     ``progress(done, total)`` is called after each fold is compressed and each LMI solved, with
     total = the exhaustive count n_folds · (1 + n_γ) (n_folds · n_γ for precompressed folds); a
     bracket search that ends early reports ``(total, total)`` last. ``workers`` threads solve the

@@ -19,7 +19,7 @@ import warnings
 
 import numpy as np
 
-__all__ = ["URDF_VALUES", "urdf_inertials", "urdf_comment"]
+__all__ = ["URDF_VALUES", "greedy_prefixes", "urdf_inertials", "urdf_comment"]
 
 URDF_VALUES = ("prior", "regularised")
 
@@ -72,7 +72,7 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     def reach(ks: list[int]) -> np.ndarray | None:
         return _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(ks, dtype=int), P0[ks, 0])
 
-    kept, cand = _greedy_prefixes(order, reach)
+    kept, cand = greedy_prefixes(order, reach)
     cand = pi if cand is None else cand
     # then every other direction the data do not see goes to the prior too (CoMs and inertias of
     # bodies the log cannot resolve, e.g. links seen only through the floating-base rows)
@@ -93,7 +93,7 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     return cand, info
 
 
-def _greedy_prefixes(order: list[int], reach) -> tuple[list[int], np.ndarray | None]:
+def greedy_prefixes(order: list[int], reach) -> tuple[list[int], np.ndarray | None]:
     """The greedy ``for k in order: keep k if reach(kept + [k]) is not None`` — ``(kept, reach(kept))``
     — in O(log n) calls per body it rejects: fixing a subset of the masses relaxes fixing them all,
     so ``reach(kept + rest[:j])`` succeeds for every j up to the first body the greedy rejects, found by

@@ -49,7 +49,7 @@ from ..errors import DataError, DistributedError, SensorlessError
 from .normal_equations import NormalEquations, compress_trajectories
 from .terms import ModelStructure
 
-__all__ = ["FleetEquations", "LogReader", "compress_files", "expand_paths"]
+__all__ = ["FleetEquations", "LogReader", "PickledModel", "compress_files", "expand_paths", "worker_structure"]
 
 _GLOB_CHARS = frozenset("*?[")
 
@@ -101,14 +101,14 @@ class LogReader:
 
 
 @dataclass(frozen=True)
-class _Model:
+class PickledModel:
     """A model structure as pickled bytes plus their digest (the per-worker cache key)."""
 
     token: str
     blob: bytes
 
     @classmethod
-    def of(cls, structure: ModelStructure) -> "_Model":
+    def of(cls, structure: ModelStructure) -> "PickledModel":
         try:
             blob = pickle.dumps(structure, protocol=pickle.HIGHEST_PROTOCOL)
         except Exception as exc:  # noqa: BLE001 - e.g. a robot built from an unpicklable object
@@ -122,7 +122,7 @@ _CACHE: dict[tuple[str, int], ModelStructure] = {}
 _CACHE_LOCK = threading.Lock()
 
 
-def _worker_structure(model: ModelStructure | _Model) -> ModelStructure:
+def worker_structure(model: ModelStructure | PickledModel) -> ModelStructure:
     """The structure for this thread: unpickled once per (model, worker thread), then cached."""
     if isinstance(model, ModelStructure):
         return model
@@ -213,7 +213,7 @@ def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple
     ``plan = (n_folds, period, offset, total)`` also splits it into cross-validation folds
     (the file's total is then the sum of its folds).
     """
-    structure = _worker_structure(model)
+    structure = worker_structure(model)
     try:
         traj = reader(path, structure.robot)
         if plan is None:
@@ -230,7 +230,7 @@ def _length_task(model, reader, path: str, skip_bad: bool) -> "tuple[int | None,
     """Pass 1 of cross-validation folds: (samples after preprocessing, excitation period, error)."""
     from ..data.periodicity import excitation_period
 
-    structure = _worker_structure(model)
+    structure = worker_structure(model)
     try:
         traj = reader(path, structure.robot)
     except SensorlessError as exc:
@@ -327,7 +327,7 @@ def compress_files(
     t0 = time.perf_counter()
     runner = _Local(structure, progress)
     if client is not None:
-        runner = _Dask(client, _Model.of(structure), retries, split_every, progress)
+        runner = _Dask(client, PickledModel.of(structure), retries, split_every, progress)
     folds_plan: list[tuple | None] = [None] * len(paths)
     found_period, skipped_first = None, []
     if n_folds is not None:
@@ -392,7 +392,7 @@ def _raise_failed(part):
 class _Dask:
     """The map-reduce on a Dask cluster: one task per file, a fixed merge tree, gathered on the client."""
 
-    def __init__(self, client, model: _Model, retries: int, split_every: int, progress):
+    def __init__(self, client, model: PickledModel, retries: int, split_every: int, progress):
         self.client, self.retries, self.progress = client, retries, progress
         self.split_every = max(int(split_every), 2)
         self.tag = uuid.uuid4().hex[:8]

@@ -167,7 +167,7 @@ def bench_dask(
     tmp_root: str | None = None,
 ) -> dict:
     """Run the benchmark described in the module docstring; returns a JSON-able dict."""
-    from sensorless.identification.result import versions
+    from sensorless.io import versions
     from sensorless.robot import load_robot
     from ..simulation.fleet_logs import write_fleet_logs
 

@@ -18,12 +18,12 @@ import pinocchio as pin
 
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
-from sensorless.identification.result import versions
+from sensorless.io import versions
 from sensorless.regressor import ModelStructure
 from sensorless.robot import load_robot
 from sensorless.testing import perturbed_truth, streamed_fourier_log
 
-__all__ = ["bench_identify", "bare_regressor_cost"]
+__all__ = ["bench_identify", "bare_regressor_cost", "contact_log"]
 
 
 def bare_regressor_cost(robot, n: int = 20000, seed: int = 0) -> float:
@@ -117,7 +117,7 @@ def bench_identify(robot_name: str, sizes: list[int], console=None, seed: int = 
 FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 
 
-def _contact_log(robot, structure, n: int, seed: int):
+def contact_log(robot, structure, n: int, seed: int):
     """Random Solo12 states: first half all four feet in contact (stance), second half trot pairs."""
     from sensorless.data.trajectory import Trajectory
     from sensorless.identification.base import random_states
@@ -146,7 +146,7 @@ def bench_contact(n_samples: int = 100_000, seed: int = 0, console=None, methods
 
     robot = load_robot("solo12")
     structure = ContactStructure(robot, contact_frames=FEET)
-    log = _contact_log(robot, structure, n_samples, seed)
+    log = contact_log(robot, structure, n_samples, seed)
     t0 = time.perf_counter()
     ne = compress(structure, log, chunk=256)
     t_compress = time.perf_counter() - t0
@@ -159,7 +159,7 @@ def bench_contact(n_samples: int = 100_000, seed: int = 0, console=None, methods
     sub = log.take(np.r_[0:10_000, n_samples // 2 : n_samples // 2 + 10_000] if n_samples >= 40_000 else slice(None))
     Q, _, _ = structure.state(sub)
     flags = structure.contacts(sub)
-    from sensorless.regressor.contact import contact_jacobians, null_space_projector
+    from sensorless.regressor.contact_kinematics import contact_jacobians, null_space_projector
 
     groups = []  # (pattern rows, Jacobians of the active contacts) per contact pattern
     tj = time.perf_counter()

@@ -29,7 +29,7 @@ GOALS = {"per_sample_over_bare_cpp_at_largest": "<= 3", "peak_memory_ratio_large
 
 
 def write_ur5_log(path: Path, n: int, seed: int = 0, accelerations: bool = False) -> Path:
-    """The UR5 benchmark log of :func:`~sensorless_studies.benchmarks.speed` (``_fourier_log``) as t, q, dq, tau
+    """The UR5 benchmark log of :func:`~sensorless_studies.benchmarks.speed.fourier_log` as t, q, dq, tau
     (and the simulated ddq with ``accelerations``)."""
     from sensorless.excitation import random_fourier
     from sensorless.robot import load_robot
@@ -97,7 +97,7 @@ def _run(args: list[str], env: dict) -> tuple[float, float]:
 def bench_long_log(sizes: list[int], *, repeats: int = 1, extra_args: tuple[str, ...] = (), work: "Path | None" = None,
                    console=None) -> dict:
     """Runs of ``sensorless identify`` on UR5 logs of ``sizes`` samples (module docstring)."""
-    from sensorless.identification.result import versions
+    from sensorless.io import versions
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
     load_before = os.getloadavg()

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["bench_speed"]
+__all__ = ["bench_speed", "fourier_log"]
 
 GOALS = {
     "compression_over_bare_regressor": "<= 1.3",
@@ -39,7 +39,7 @@ GOALS = {
 }
 
 
-def _fourier_log(robot, n: int, seed: int = 0):
+def fourier_log(robot, n: int, seed: int = 0):
     """An in-memory n-sample synthetic log (UR5-style: 5 harmonics at 0.1 Hz, 1 kHz, noise 0.1 N·m)."""
     from sensorless.data.trajectory import Trajectory
     from sensorless.excitation import random_fourier
@@ -74,7 +74,7 @@ def bench_compression(robot_name: str, n: int, repeats: int) -> dict:
 
     lock = ["panda_finger_joint1", "panda_finger_joint2"] if robot_name == "panda" else ()
     robot = load_robot(robot_name, lock_joints=lock)
-    log = _fourier_log(robot, n)
+    log = fourier_log(robot, n)
     s = ModelStructure(robot)
     Q, V, A = s.state(log)
     m, d, f = robot.model, robot.data, pin.computeJointTorqueRegressor
@@ -135,14 +135,14 @@ def bench_contact_speed(n: int, n_compress: int, repeats: int) -> dict:
     """The batched projector (the C++ kernel when built, and the NumPy route) and the null-space basis vs a
     per-sample ``numpy.linalg.pinv`` loop on the same Solo12 Jacobians, interleaved best-of-``repeats`` (the
     pinv loop too), and the contact compression with the null-space fold vs the 18-row projector fold."""
-    from .identify import FEET, _contact_log
+    from .identify import FEET, contact_log
     from sensorless.regressor import ContactStructure, compress, native
-    from sensorless.regressor.contact import contact_jacobians, null_space_basis, null_space_projector
+    from sensorless.regressor.contact_kinematics import contact_jacobians, null_space_basis, null_space_projector
     from sensorless.robot import load_robot
 
     robot = load_robot("solo12")
     s = ContactStructure(robot, contact_frames=FEET)
-    log = _contact_log(robot, s, n, seed=0)
+    log = contact_log(robot, s, n, seed=0)
     Q, _, _ = s.state(log)
     flags = s.contacts(log)
     groups = []
@@ -266,7 +266,7 @@ def bench_cli(n_identify: int, repeats: int, parts=("startup", "identify")) -> d
         return res
     out: dict = {"identify_cli_seconds": {"plot": [], "no_plot": []}}
     with tempfile.TemporaryDirectory() as tmp:
-        log = write_npz(_fourier_log(load_robot("ur5"), n_identify), Path(tmp) / "ur5.npz")
+        log = write_npz(fourier_log(load_robot("ur5"), n_identify), Path(tmp) / "ur5.npz")
         for k in range(repeats):
             for key, extra in (("plot", []), ("no_plot", ["--no-plot"])):
                 out["identify_cli_seconds"][key].append(_cli(

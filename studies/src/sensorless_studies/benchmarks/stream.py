@@ -56,8 +56,8 @@ def _logs(work: Path, samples: int, rate: float, frame: str, seed: int = 0):
     """Training and pushed logs (npz) in ``work``; returns the pushed log and its pushes."""
     from sensorless.data import write_npz
     from sensorless.robot import load_robot
-    from ..simulation.arm_push import NoiseSpec, simulate_pushes
-    from sensorless.testing import perturbed_truth
+    from ..simulation.arm_push import simulate_pushes
+    from sensorless.testing import NoiseSpec, perturbed_truth
 
     nom = load_robot("ur5")
     truth = perturbed_truth(nom, rng=seed + 1)

@@ -53,7 +53,7 @@ def experiment_options(out: str, quick: str, seed: str):
 
 def write_result(res: dict, out: Path) -> None:
     """A benchmark's JSON (parent folders made, written atomically) and the line saying so."""
-    from sensorless.identification.result import write_json_atomic
+    from sensorless.io import write_json_atomic
 
     output_file(out, force=True)  # benchmark results are regenerated in place; never a directory or FIFO
     write_json_atomic(res, out)

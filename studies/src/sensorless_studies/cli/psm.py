@@ -40,7 +40,7 @@ def psm_identify(
     'q=0:7;v=7:14;tau=14:21' --rate 200 --lowpass 5.4`, plus Coulomb smoothing chosen by cross-validation."""
     from rich.table import Table
 
-    from sensorless.identification.result import write_json_atomic
+    from sensorless.io import write_json_atomic
     from ..experiments.psm_identification import psm_identification_study
     from sensorless.identification.artifact import save_model_folder
 

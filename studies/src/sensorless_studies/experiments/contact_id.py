@@ -26,9 +26,7 @@ hardware).
 
 from __future__ import annotations
 
-import json
 import time
-import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -36,17 +34,27 @@ from typing import Any
 import numpy as np
 
 from sensorless.data.filtering import SavitzkyGolay
-from sensorless.data.imu import base_acceleration, gravity_in_base
+from sensorless.data.imu import base_acceleration
 from sensorless.data.trajectory import Trajectory
-from sensorless.errors import IdentifiabilityWarning, SensorlessError
+from sensorless.errors import SensorlessError
 from sensorless.torque_models import PhysicalModel
-from sensorless.parameters import com_frame
 from sensorless.regressor.compress import compress
 from sensorless.regressor.contact import ContactStructure
 from sensorless.robot import Robot
 from ..simulation.quadruped_profiles import PROFILES, quadruped_robot
+from .contact_id_comparison import (
+    acceptance_checks,
+    estimators,
+    fit_all,
+    jsonable,
+    mlp_epochs,
+    projected_rmse,
+    save,
+    table,
+    with_parameters,
+)
 
-__all__ = ["ContactStudyConfig", "run", "prepare_log", "sensor_features", "projected_rmse"]
+__all__ = ["ContactStudyConfig", "run", "prepare_log"]
 
 JOINT_TERMS = ("fv", "fc", "armature")
 #: training regimes (:meth:`ContactStudyConfig.make`) and joint-acceleration sources (``acceleration``)
@@ -152,19 +160,6 @@ def prepare_log(traj: Trajectory, window: int = 9, imu: bool = False) -> Traject
     return base_acceleration(traj.with_(a=sg.apply(traj.v, deriv=1)), window=window, use_imu=imu)
 
 
-def sensor_features(traj: Trajectory) -> np.ndarray:
-    """What the black-box model sees: q, v, base twist, gravity in the base frame, contact flags."""
-    gz = -gravity_in_base(traj.base_q, 1.0)  # world z axis in the base frame
-    contact = np.asarray(traj.extras["contact"], dtype=float)
-    return np.hstack([traj.q, traj.v, traj.base_v, gz, contact])
-
-
-def projected_rmse(structure: ContactStructure, traj: Trajectory, predicted: np.ndarray, target: np.ndarray) -> float:
-    """sqrt(mean ‖r_n‖² / n_actuated) of a projected residual (N, nv)."""
-    r = predicted - target
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)) / structure.robot.n_actuated))
-
-
 # ---- the study ------------------------------------------------------------------------------
 @dataclass
 class _Sets:
@@ -174,7 +169,8 @@ class _Sets:
 
 
 def _simulate(cfg: ContactStudyConfig, nominal: Robot, console) -> _Sets:
-    from ..simulation.quadruped import NoiseSpec, make_truth, simulate
+    from sensorless.testing import NoiseSpec
+    from ..simulation.quadruped import make_truth, simulate
 
     truth = make_truth(nominal, cfg.truth_seed)
     noise = NoiseSpec(tau=PROFILES[cfg.robot].truth.torque_noise)
@@ -219,67 +215,6 @@ def _subset(pool: list[Trajectory], n: int, rng: np.random.Generator) -> Traject
     return whole.take(idx)
 
 
-def _mlp_epochs(cfg: ContactStudyConfig, n: int) -> int:
-    if cfg.mlp_sample_budget <= 0:
-        return cfg.mlp_epochs
-    return int(np.clip(cfg.mlp_sample_budget // max(n, 1), 3, cfg.mlp_epochs))
-
-
-def _parameter_errors(structure: ContactStructure, params: np.ndarray, true_params: np.ndarray) -> dict:
-    nb = structure.robot.n_bodies
-    est = params[: 10 * nb].reshape(nb, 10)
-    tru = true_params[: 10 * nb].reshape(nb, 10)
-    m_e, c_e, _ = com_frame(est)
-    m_t, c_t, _ = com_frame(tru)
-    out = {
-        "total_mass_true": float(m_t.sum()),
-        "total_mass_estimated": float(m_e.sum()),
-        "total_mass_relative_error": float(abs(m_e.sum() - m_t.sum()) / m_t.sum()),
-        "link_mass_abs_error_mean": float(np.mean(np.abs(m_e - m_t))),
-        "link_mass_relative_error_median": float(np.median(np.abs(m_e - m_t) / np.maximum(m_t, 1e-9))),
-        "link_com_error_mean_m": float(np.mean(np.linalg.norm(c_e - c_t, axis=1))),
-    }
-    for term in ("fv", "fc", "armature"):
-        if term in structure.joint_terms:
-            idx = [structure.joint_term_index(j, term) for j in structure.robot.actuated_joints]
-            out[f"{term}_abs_error_mean"] = float(np.mean(np.abs(params[idx] - true_params[idx])))
-            out[f"{term}_true_mean"] = float(np.mean(np.abs(true_params[idx])))
-    return out
-
-
-def _estimators(cfg: ContactStudyConfig, structure: ContactStructure, n: int) -> dict:
-    """The compared torque models, unfitted (one loop fits and scores them all):
-
-    * LMI: physically consistent, pullback prior weight ``cfg.gamma``, unweighted rows;
-    * SVD: unconstrained minimum-norm truncated SVD (identify's default two-step weights);
-    * MLP: black box on :func:`sensor_features`, its torques projected for scoring.
-    """
-    from sensorless.learning.models import MLPTorqueModel
-
-    return {
-        "LMI": PhysicalModel(structure=structure, method="lmi", gamma=cfg.gamma, regularization="pullback",
-                             weights=None),
-        "SVD": PhysicalModel(structure=structure, method="svd"),
-        "MLP": MLPTorqueModel(hidden=cfg.mlp_hidden, activation=cfg.mlp_activation, features=sensor_features,
-                              epochs=_mlp_epochs(cfg, n), seed=cfg.seed, num_threads=2,
-                              batch_size=min(256, max(32, n // 8))),
-    }
-
-
-def _fit_all(models: dict, ne, train: Trajectory, t_equations: float, seconds: dict) -> dict:
-    """Fit every model (the physical ones on the shared equations ``ne``, built in
-    ``t_equations`` s, the others on ``train``); wall times into ``seconds``."""
-    for name, model in models.items():
-        physical = isinstance(model, PhysicalModel)
-        t = time.perf_counter()
-        with warnings.catch_warnings():
-            if name == "LMI":  # as the direct solver call it replaces: identifiability is SVD's report
-                warnings.simplefilter("ignore", IdentifiabilityWarning)
-            model.fit(ne if physical else train)
-        seconds[name.lower()] = (t_equations if physical else 0.0) + time.perf_counter() - t
-    return models
-
-
 def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: ContactStudyConfig | None = None,
         **overrides) -> dict:
     """Run the study; write results.json, sample_efficiency.png and table.md into ``out``."""
@@ -295,9 +230,9 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
                                  contact_offset=sets.pool_truth[0].foot_radius, coulomb_smoothing=cfg.coulomb_smoothing)
     true_params = sets.pool_truth[0].truth.parameters(JOINT_TERMS)
     if cfg.acceleration == "none":
-        from .contact_id_filtered import _run_acceleration_free  # imports this module's helpers
+        from .contact_id_filtered import run_acceleration_free
 
-        return _run_acceleration_free(cfg, sets, structure, true_params, nominal, out, console, t_start)
+        return run_acceleration_free(cfg, sets, structure, true_params, nominal, out, console, t_start)
 
     # targets, projectors and noise floors of the evaluation sets, computed once
     evals = {}
@@ -324,14 +259,14 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
         t = time.perf_counter()
         ne = compress(structure, train, chunk=256)  # shared by the physical models
         t_compress = time.perf_counter() - t
-        row["mlp_epochs"] = _mlp_epochs(cfg, n)
-        models = _fit_all(_estimators(cfg, structure, n), ne, train, t_compress, row["seconds"])
+        row["mlp_epochs"] = mlp_epochs(cfg, n)
+        models = fit_all(estimators(cfg, structure, n), ne, train, t_compress, row["seconds"])
         for name, model in models.items():
             predict = (model.predict if isinstance(model, PhysicalModel)
                        else (lambda tr, m=model: structure.project(tr, m.predict(tr))))
             row["rmse"][name] = {g: float(np.mean([projected_rmse(structure, tr, predict(tr), y) for tr, y, _ in v]))
                                  for g, v in evals.items()}
-        rows.append(_with_parameters(row, structure, models, true_params))
+        rows.append(with_parameters(row, structure, models, true_params))
         if console is not None:
             r = row["rmse"]
             console.print(
@@ -343,34 +278,17 @@ def run(out: Path, quick: bool = False, seed: int = 0, console=None, config: Con
     residual = _soft_contact_residual(sets)
     results = {
         "study": "contact-id",
-        "config": _jsonable(asdict(cfg)),
+        "config": jsonable(asdict(cfg)),
         "robot": cfg.robot,
         "noise": asdict(sets.pool_truth[0].noise),
         "noise_floor_rmse": floors,
         "true_parameters_rmse": true_rmse,
         "soft_contact_residual": residual,
         "rows": rows,
-        "checks": _checks(rows, floors, true_rmse),
+        "checks": acceptance_checks(rows, floors, true_rmse),
         "wall_seconds": time.perf_counter() - t_start,
     }
-    return _save(results, out, _table(results))
-
-
-def _with_parameters(row: dict, structure: ContactStructure, models: dict, true_params: np.ndarray) -> dict:
-    """``row`` with the LMI and SVD fits' parameter errors and the LMI solver's status."""
-    lmi = models["LMI"]
-    row["parameters"] = {k: _parameter_errors(structure, models[k].parameters_, true_params) for k in ("LMI", "SVD")}
-    row["lmi_status"] = lmi.result_.diagnostics["lmi"]["status"]
-    row["lmi_consistent"] = lmi.result_.diagnostics["lmi"]["consistent"]
-    return row
-
-
-def _save(results: dict, out: Path, table: str) -> dict:
-    """Write ``results.json``, ``table.md`` and the sample-efficiency figure into ``out``; return ``results``."""
-    (out / "results.json").write_text(json.dumps(results, indent=2))
-    (out / "table.md").write_text(table)
-    _figure(results, out / "sample_efficiency.png")
-    return results
+    return save(results, out, table(results))
 
 
 def _soft_contact_residual(sets: _Sets) -> dict:
@@ -382,74 +300,3 @@ def _soft_contact_residual(sets: _Sets) -> dict:
     return {k: res[k] for k in ("samples", "residual_rms", "residual_median", "residual_max", "reference_rms", "relative")}
 
 
-def _checks(rows: list[dict], floors: dict, true_rmse: dict) -> dict:
-    """The acceptance properties, evaluated on this run."""
-    if not rows:
-        return {}
-    big, small = rows[-1], rows[0]
-    groups = ("validation", "ood_trot", "ood_jump")
-    return {
-        "lmi_beats_svd_everywhere": all(r["rmse"]["LMI"][g] < r["rmse"]["SVD"][g] for r in rows for g in groups),
-        "lmi_beats_mlp_smallest_set": all(small["rmse"]["LMI"][g] < small["rmse"]["MLP"][g] for g in groups),
-        "lmi_beats_mlp_ood_every_size": all(r["rmse"]["LMI"][g] < r["rmse"]["MLP"][g] for r in rows for g in ("ood_trot", "ood_jump")),
-        "jump_lmi_over_mlp_largest": big["rmse"]["LMI"]["ood_jump"] / big["rmse"]["MLP"]["ood_jump"],
-        "jump_lmi_over_svd_largest": big["rmse"]["LMI"]["ood_jump"] / big["rmse"]["SVD"]["ood_jump"],
-        "jump_lmi_over_svd_worst": max(r["rmse"]["LMI"]["ood_jump"] / r["rmse"]["SVD"]["ood_jump"] for r in rows),
-        "jump_lmi_over_mlp_worst": max(r["rmse"]["LMI"]["ood_jump"] / r["rmse"]["MLP"]["ood_jump"] for r in rows),
-        "validation_lmi_over_noise_floor_largest": big["rmse"]["LMI"]["validation"] / floors["validation"],
-        "validation_lmi_over_true_parameters_largest": big["rmse"]["LMI"]["validation"] / true_rmse["validation"],
-        "total_mass_error_largest": big["parameters"]["LMI"]["total_mass_relative_error"],
-        "mlp_wins_in_distribution_largest": big["rmse"]["MLP"]["validation"] < big["rmse"]["LMI"]["validation"],
-    }
-
-
-_TABLE_HEAD = ("| train samples | model | validation | OOD trot | OOD jump |", "|---|---|---|---|---|")
-
-
-def _table_line(n_train, label: str, rmse: dict) -> str:
-    """``| n_train | label | validation | OOD trot | OOD jump |`` with RMSEs to 4 decimals."""
-    return f"| {n_train} | {label} | {' | '.join(f'{rmse[g]:.4f}' for g in ('validation', 'ood_trot', 'ood_jump'))} |"
-
-
-def _model_lines(rows: list[dict], key: str = "rmse") -> list[str]:
-    """One table line per training size and model, from ``row[key][model]``."""
-    return [_table_line(r["n_train"], m, r[key][m]) for r in rows for m in ("LMI", "SVD", "MLP")]
-
-
-def _table(res: dict) -> str:
-    """Markdown table in the form of the paper's Table I (projected-torque RMSE, N·m)."""
-    lines = [*_TABLE_HEAD, *_model_lines(res["rows"]),
-             _table_line("—", "noise floor", res["noise_floor_rmse"]),
-             _table_line("—", "true parameters", res["true_parameters_rmse"])]
-    return "\n".join(lines) + "\n"
-
-
-def _figure(res: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    groups = (("validation", "validation (5 logs)"), ("ood_trot", "OOD trot"), ("ood_jump", "OOD jump"))
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), sharey=True)
-    n = [r["n_train"] for r in res["rows"]]
-    for ax, (g, title) in zip(axes, groups):
-        for m, style in (("LMI", "o-"), ("SVD", "s--"), ("MLP", "^-.")):
-            ax.loglog(n, [r["rmse"][m][g] for r in res["rows"]], style, label=m)
-        ax.axhline(res["noise_floor_rmse"][g], color="k", lw=0.8, ls=":", label="noise floor")
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel("training samples")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("projected torque RMSE [N·m]")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    return x

@@ -12,25 +12,25 @@ from typing import Any
 import numpy as np
 
 from sensorless.data.trajectory import Trajectory
-from .contact_id import (
-    _checks,
-    _estimators,
-    _fit_all,
-    _jsonable,
-    _mlp_epochs,
-    _TABLE_HEAD,
-    _model_lines,
-    _save,
-    _table,
-    _table_line,
-    _with_parameters,
+from .contact_id_comparison import (
+    TABLE_HEAD,
+    acceptance_checks,
+    estimators,
+    fit_all,
+    jsonable,
+    mlp_epochs,
+    model_lines,
     projected_rmse,
+    save,
+    table,
+    table_line,
+    with_parameters,
 )
 
-__all__: list[str] = []
+__all__ = ["run_acceleration_free"]
 
 
-def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path, console, t_start) -> dict:
+def run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path, console, t_start) -> dict:
     """The study on the filtered momentum regressor: L[P Sᵀτ] = W_f θ (no v̇ anywhere).
 
     Training: for every size, random samples of the pool; each log is filtered whole and
@@ -96,9 +96,9 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
     for n in sizes:
         idx = draws[n]
         row: dict[str, Any] = {"n_train": n, "rmse": {}, "rmse_exact_acceleration": {}, "seconds": {}}
-        models = _fit_all(_estimators(cfg, structure, n), nes[n], whole.take(idx), t_rows, row["seconds"])
+        models = fit_all(estimators(cfg, structure, n), nes[n], whole.take(idx), t_rows, row["seconds"])
         lmi, svd, mlp = models["LMI"], models["SVD"], models["MLP"]
-        row["mlp_epochs"] = _mlp_epochs(cfg, n)
+        row["mlp_epochs"] = mlp_epochs(cfg, n)
         mlp_tau = {g: [mlp.predict(tr) for tr, _, _ in v] for g, v in evals.items()}
         filt = {
             "LMI": lambda g, i, tr, fr: fr.W @ lmi.parameters_,
@@ -116,7 +116,7 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
             row["rmse_exact_acceleration"][name] = {
                 g: float(np.mean([projected_rmse(structure, tr, unf[name](g, i, tr), y) for i, (tr, y, _) in enumerate(v)]))
                 for g, v in exact.items()}
-        rows.append(_with_parameters(row, structure, models, true_params))
+        rows.append(with_parameters(row, structure, models, true_params))
         if console is not None:
             r, x = row["rmse"], row["rmse_exact_acceleration"]
             console.print(
@@ -126,7 +126,7 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
                 f"(exact-acc LMI {x['LMI']['ood_jump']:.4f} MLP {x['MLP']['ood_jump']:.4f}) | "
                 f"mass err {100 * row['parameters']['LMI']['total_mass_relative_error']:.2f} %"
             )
-    checks = _checks(rows, floors, true_rmse)
+    checks = acceptance_checks(rows, floors, true_rmse)
     if rows:
         big = rows[-1]
         checks["validation_lmi_over_all_signals_floor_largest"] = big["rmse"]["LMI"]["validation"] / floors_all["validation"]
@@ -136,20 +136,20 @@ def _run_acceleration_free(cfg, sets, structure, true_params, nominal, out: Path
         checks["trot_lmi_over_mlp_largest"] = big["rmse"]["LMI"]["ood_trot"] / big["rmse"]["MLP"]["ood_trot"]
     results = {
         "study": "contact-id", "formulation": "acceleration-free filtered momentum regressor",
-        "config": _jsonable(asdict(cfg)), "robot": cfg.robot, "noise": asdict(sets.pool_truth[0].noise),
+        "config": jsonable(asdict(cfg)), "robot": cfg.robot, "noise": asdict(sets.pool_truth[0].noise),
         "noise_floor_rmse": floors, "noise_floor_all_signals_rmse": floors_all, "formulation_rmse": formulation,
         "true_parameters_rmse": true_rmse, "noise_floor_exact_acceleration_rmse": floors_exact, "rows": rows,
         "checks": checks, "wall_seconds": time.perf_counter() - t_start,
     }
-    return _save(results, out, _table(results) + _table_exact(results))
+    return save(results, out, table(results) + _table_exact(results))
 
 
 def _table_exact(res: dict) -> str:
     """The acceleration-free run's extra rows: floors in the filtered space, and the models
     scored unfiltered with the simulator's accelerations (comparable to --acceleration simulator)."""
-    lines = [_table_line("—", "noise floor, all signals", res["noise_floor_all_signals_rmse"]),
-             _table_line("—", "formulation (true parameters, noiseless)", res["formulation_rmse"]),
+    lines = [table_line("—", "noise floor, all signals", res["noise_floor_all_signals_rmse"]),
+             table_line("—", "formulation (true parameters, noiseless)", res["formulation_rmse"]),
              "", "Unfiltered projected RMSE with the simulator's accelerations on the evaluation logs:", "",
-             *_TABLE_HEAD, *_model_lines(res["rows"], "rmse_exact_acceleration"),
-             _table_line("—", "noise floor", res["noise_floor_exact_acceleration_rmse"])]
+             *TABLE_HEAD, *model_lines(res["rows"], "rmse_exact_acceleration"),
+             table_line("—", "noise floor", res["noise_floor_exact_acceleration_rmse"])]
     return "\n".join(lines) + "\n"

@@ -32,7 +32,7 @@ from sensorless.data.trajectory import Trajectory
 from sensorless.estimation.force import CartesianForceEstimator
 from sensorless.identification import identify, torque_metrics
 from sensorless.identification.payload import identify_payload
-from sensorless.identification.result import versions, write_json_atomic
+from sensorless.io import versions, write_json_atomic
 from sensorless.torque_models import PhysicalModel
 from sensorless.learning import HybridModel, LearnedTorqueModel
 from sensorless.regressor import ModelStructure

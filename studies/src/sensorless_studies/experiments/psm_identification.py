@@ -24,7 +24,7 @@ import numpy as np
 from sensorless.data import Trajectory
 from sensorless.errors import DataError
 from sensorless.identification import identify, torque_metrics
-from sensorless.identification.result import versions
+from sensorless.io import versions
 from sensorless.robots.dvrk_psm import psm_structure, published_parameters, read_psm_log
 
 __all__ = [
@@ -235,7 +235,7 @@ def paired_payload_logs(
     noise (``noise_std`` per coordinate, correlation time ``corr_seconds``) in both and the
     session ``offset`` in the second. Joint names are the structure's coordinates.
     """
-    from sensorless.identification.payload import payload_regressor
+    from sensorless.identification.payload_model import payload_regressor
 
     rng = np.random.default_rng(seed)
     th, thd, thdd = structure.state(motion)

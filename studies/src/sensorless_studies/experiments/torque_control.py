@@ -49,20 +49,16 @@ from sensorless.control import (
 )
 from sensorless.control.inverse_dynamics import InverseDynamics
 from sensorless.data import SavitzkyGolay
-from sensorless.identification.result import versions, write_json_atomic
+from sensorless.io import versions, write_json_atomic
 from ..simulation.leg_model import FT_FRAME, JOINTS, SOLE_FRAME, plate_inertia
+from ..simulation.leg_protocols import Q_AIR, Q_CONTACT, increasing_sinusoids, quasi_static_protocol, swing_trajectory
 from ..simulation.position_controlled import (
-    Q_AIR,
-    Q_CONTACT,
     ActuatorParams,
     PositionControlledLeg,
     SensorNoise,
     SimLog,
-    increasing_sinusoids,
     leg_estimator,
-    quasi_static_protocol,
     simulate,
-    swing_trajectory,
 )
 from .torque_control_figures import SHORT, figures
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..simulation.leg_model import JOINTS
-from ..simulation.position_controlled import Q_AIR
+from ..simulation.leg_protocols import Q_AIR
 
 __all__ = ["figures"]
 

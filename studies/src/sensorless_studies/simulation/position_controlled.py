@@ -29,8 +29,8 @@ convention of :class:`~sensorless.estimation.joint_torque.FTSensor`), gyro and
 accelerometer on the pelvis. Ground truth per tick: link-side torques, contact wrench.
 Readings are those of the last physics sub-step of a tick (0.5 ms sensor latency).
 
-Protocols: :func:`increasing_sinusoids` (q_d = q_mid + (a0 + a t) sin 2π f t) and
-:func:`quasi_static_protocol` (slow high-torque motions with external foot forces in the
+Protocols (:mod:`.leg_protocols`): :func:`~.leg_protocols.increasing_sinusoids` (q_d = q_mid + (a0 + a t) sin 2π f t) and
+:func:`~.leg_protocols.quasi_static_protocol` (slow high-torque motions with external foot forces in the
 air, or pushing into the floor in contact).
 """
 
@@ -54,29 +54,16 @@ from .leg_model import (
     right_leg_mjspec,
     talos_right_leg,
 )
-from .leg_protocols import (  # noqa: F401 (re-exported)
-    Q_AIR,
-    Q_CONTACT,
-    SWING_WAYPOINTS,
-    increasing_sinusoids,
-    quasi_static_protocol,
-    swing_trajectory,
-)
+from .leg_protocols import Q_AIR, Q_CONTACT
 
 __all__ = [
-    "Q_AIR",
-    "Q_CONTACT",
-    "SWING_WAYPOINTS",
     "ActuatorParams",
     "PositionControlledLeg",
     "Reading",
     "SensorNoise",
     "SimLog",
-    "increasing_sinusoids",
     "leg_estimator",
-    "quasi_static_protocol",
     "simulate",
-    "swing_trajectory",
 ]
 
 

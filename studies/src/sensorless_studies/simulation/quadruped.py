@@ -62,27 +62,18 @@ from sensorless.errors import RobotModelError, SimulationError
 from sensorless.robot import Robot, load_robot
 from .mujoco_scene import MujocoScene, build_scene
 from .quadruped_control import Controller, LegIK, references
-from .quadruped_log import JOINT_TERMS, Episode, SimulationTruth, assemble
-from .quadruped_plans import SCENARIOS, _Context
-from .quadruped_profiles import PROFILES, QuadrupedProfile, profile_for, quadruped_robot, spot_mjcf
+from .quadruped_log import Episode, SimulationTruth, assemble
+from .quadruped_plans import SCENARIOS, PlanContext
+from .quadruped_profiles import QuadrupedProfile, profile_for
 from sensorless.testing import NoiseSpec, TruthModel, perturbed_truth
 
 #: what the torque log holds: the actuator force of the logged step, or its mean over the log period
 TAU_LOGS = ("sample", "mean")
 
 __all__ = [
-    "JOINT_TERMS",
-    "PROFILES",
-    "SCENARIOS",
     "TAU_LOGS",
-    "NoiseSpec",
-    "QuadrupedProfile",
-    "SimulationError",
-    "SimulationTruth",
     "dataset",
     "make_truth",
-    "quadruped_robot",
-    "spot_mjcf",
     "simulate",
     "stance_residual",
 ]
@@ -202,7 +193,7 @@ def simulate(
     ik = LegIK(nominal, prof.feet)
     feet_b = ik.positions(q_stand)
     height = prof.foot_radius - float(feet_b[:, 2].mean())
-    ctx = _Context(nominal, prof, feet_b, height, t_grid, settle)
+    ctx = PlanContext(nominal, prof, feet_b, height, t_grid, settle)
     plan = SCENARIOS[scenario](**scenario_kwargs).plan(ctx, plan_rng)
     ref = references(ctx, plan, q_stand, ik_stride)
 
@@ -393,7 +384,7 @@ def stance_residual(
                     Jc[n, 3 * i : 3 * i + 3] = J[:3] + truth.foot_radius * ez @ J[3:]
                 else:
                     Jc[n, 3 * i : 3 * i + 3] = J[:3]
-    from sensorless.regressor.contact import null_space_projector
+    from sensorless.regressor.contact_kinematics import null_space_projector
 
     P = null_space_projector(Jc)
     res = np.einsum("nij,nj->ni", P, lhs - tau)

@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 from sensorless.errors import RobotModelError, SimulationError
 from sensorless.robot import Robot
 from .mujoco_scene import MujocoScene
-from .quadruped_plans import _Context, _Plan
+from .quadruped_plans import PlanContext, Plan
 from .quadruped_profiles import QuadrupedProfile
 
 __all__ = ["Controller", "LegIK", "References", "references", "world_angular_velocity"]
@@ -114,7 +114,7 @@ class References:
     ik_error: float
 
 
-def references(ctx: _Context, plan: _Plan, q_stand: np.ndarray, stride: int) -> References:
+def references(ctx: PlanContext, plan: Plan, q_stand: np.ndarray, stride: int) -> References:
     from scipy.interpolate import CubicSpline
 
     t = ctx.t

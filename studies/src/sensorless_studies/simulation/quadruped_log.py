@@ -20,7 +20,7 @@ from sensorless.data.trajectory import Trajectory
 from sensorless.robot import Robot
 from .mujoco_scene import MujocoScene, mj_to_pin_state
 from .quadruped_control import References
-from .quadruped_plans import _Plan
+from .quadruped_plans import Plan
 from sensorless.testing import NoiseSpec, TruthModel, add_white_noise
 
 #: the joint terms the simulated quadruped has (and its logs' truth parameters are laid out in)
@@ -30,7 +30,7 @@ _STATE = ("t", "q", "v", "a", "tau", "base_q", "base_v", "base_a")
 #: its other per-sample arrays (what :meth:`SimulationTruth.take` slices besides the state)
 _CONTACT = ("contact", "contact_forces", "contact_points", "foot_height", "friction_torque")
 
-__all__ = ["Episode", "RunOutcome", "SimulationTruth", "assemble"]
+__all__ = ["Episode", "RunOutcome", "SimulationTruth", "assemble", "noisy_orientation"]
 
 
 @dataclass(kw_only=True)
@@ -126,7 +126,7 @@ class Episode(RunOutcome):
     scene: MujocoScene
     truth: TruthModel
     nominal: Robot
-    plan: _Plan
+    plan: Plan
     ref: References
     log: dict[str, np.ndarray]
     log_rate: float
@@ -137,7 +137,7 @@ class Episode(RunOutcome):
     kwargs: dict[str, Any]
 
 
-def _noisy_orientation(quat_xyzw: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+def noisy_orientation(quat_xyzw: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
     """q ⊗ exp(δθ), δθ ~ N(0, σ² I) a rotation vector in the base frame; unit quaternions [x y z w]."""
     noisy = (Rotation.from_quat(quat_xyzw) * Rotation.from_rotvec(rng.normal(size=(len(quat_xyzw), 3)) * sigma)).as_quat()
     return noisy / np.linalg.norm(noisy, axis=1, keepdims=True)
@@ -169,7 +169,7 @@ def assemble(ep: Episode, noise: NoiseSpec, rng: np.random.Generator) -> tuple[T
     bq = base_q.copy()
     bq[:, :3] = add_white_noise(base_q[:, :3], noise.base_position, rng)
     if noise.base_orientation > 0 and N:
-        bq[:, 3:] = _noisy_orientation(base_q[:, 3:], noise.base_orientation, rng)
+        bq[:, 3:] = noisy_orientation(base_q[:, 3:], noise.base_orientation, rng)
     bv = base_v.copy()
     bv[:, :3] = add_white_noise(base_v[:, :3], noise.base_linear_velocity, rng)
     bv[:, 3:] = add_white_noise(base_v[:, 3:], noise.base_angular_velocity, rng)

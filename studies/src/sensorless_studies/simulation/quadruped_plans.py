@@ -17,7 +17,7 @@ import numpy as np
 from sensorless.robot import Robot
 from .quadruped_profiles import QuadrupedProfile
 
-__all__ = ["SCENARIOS", "Crawl", "Jump", "Trot", "Wobble"]
+__all__ = ["SCENARIOS", "Crawl", "Jump", "Plan", "PlanContext", "Trot", "Wobble"]
 
 
 def _minjerk(s: np.ndarray) -> np.ndarray:
@@ -41,7 +41,9 @@ def _sines(
 
 
 @dataclass
-class _Context:
+class PlanContext:
+    """What a scenario plans from: the nominal robot, its profile, the stand posture and the control grid."""
+
     robot: Robot  # nominal (controller) model
     profile: QuadrupedProfile
     feet_b: np.ndarray  # nominal foot-centre positions in the base frame at the stand posture (F, 3)
@@ -51,7 +53,9 @@ class _Context:
 
 
 @dataclass
-class _Plan:
+class Plan:
+    """A scenario's references on the control grid: base pose, foot-centre targets and planned stance."""
+
     base_pos: np.ndarray  # (K, 3) world
     base_rpy: np.ndarray  # (K, 3)
     feet: np.ndarray  # (K, F, 3) world foot-centre targets
@@ -92,18 +96,18 @@ class Wobble:
     amplitude: float = 1.0  # × the default amplitudes (2 cm, 3.5 cm height, 0.15–0.2 rad)
     freq: tuple[float, float] = (0.2, 1.5)  # [Hz], range the sines' frequencies are drawn from
 
-    def plan(self, ctx: _Context, rng) -> _Plan:
+    def plan(self, ctx: PlanContext, rng) -> Plan:
         t = ctx.t
         amp = {k: v * self.amplitude for k, v in _WOBBLE_AMP.items()}
         dpos, rpy, comps = _wobble_offsets(rng, t, ctx.t0, amp, self.freq)
         base = dpos + np.array([0.0, 0.0, ctx.height])
         feet = np.broadcast_to(ctx.feet_b + np.array([0, 0, ctx.height]), (t.size,) + ctx.feet_b.shape).copy()
         stance = np.ones(feet.shape[:2], dtype=bool)
-        return _Plan(base, rpy, feet, stance, _settings(self, comps, freq=list(self.freq)))
+        return Plan(base, rpy, feet, stance, _settings(self, comps, freq=list(self.freq)))
 
 
 def _stepping_feet(
-    ctx: _Context,
+    ctx: PlanContext,
     base: np.ndarray,
     rpy: np.ndarray,
     swings: list[list[tuple[float, float]]],
@@ -161,7 +165,7 @@ class Trot:
     wobble: float = 0.3  # × the wobble amplitudes (no x, y; half the yaw)
     ramp: float = 1.0  # [s] of the velocity ramp
 
-    def plan(self, ctx: _Context, rng) -> _Plan:
+    def plan(self, ctx: PlanContext, rng) -> Plan:
         t, t0 = ctx.t, ctx.t0
         period = self.period * rng.uniform(0.9, 1.1)
         swing_height = self.swing_height * rng.uniform(0.8, 1.2)
@@ -191,7 +195,7 @@ class Trot:
                     swings[f].append((start, start + swing_dur))
                 start += period
         feet, stance = _stepping_feet(ctx, base, rpy, swings, swing_height, stance_dur)
-        return _Plan(base, rpy, feet, stance, _settings(self, comps, period=period, swing_height=swing_height))
+        return Plan(base, rpy, feet, stance, _settings(self, comps, period=period, swing_height=swing_height))
 
 
 @dataclass(frozen=True)
@@ -206,7 +210,7 @@ class Crawl:
     sway: float = 0.6  # how far the base moves to the support triangle's centroid (0–1)
     wobble: float = 0.2  # base wobble scale (0.2: 2 cm height, 0.05 rad roll/pitch, 0.08 rad yaw)
 
-    def plan(self, ctx: _Context, rng) -> _Plan:
+    def plan(self, ctx: PlanContext, rng) -> Plan:
         t, t0 = ctx.t, ctx.t0
         period = self.period * rng.uniform(0.9, 1.1)
         order = ctx.profile.crawl_order
@@ -255,7 +259,7 @@ class Crawl:
         }
         dpos, rpy, comps = _wobble_offsets(rng, t, t0, amp, (0.2, 0.8))
         base += dpos
-        return _Plan(base, rpy, feet, stance, _settings(self, comps, period=period))
+        return Plan(base, rpy, feet, stance, _settings(self, comps, period=period))
 
 
 @dataclass(frozen=True)
@@ -269,7 +273,7 @@ class Jump:
     extension: float = 0.035  # [m] above the standing height at take-off
     rest: tuple[float, float] = (0.4, 0.8)  # [s] between jumps, drawn
 
-    def plan(self, ctx: _Context, rng) -> _Plan:
+    def plan(self, ctx: PlanContext, rng) -> Plan:
         t, t0 = ctx.t, ctx.t0
         g = 9.81
         h0 = ctx.height
@@ -326,7 +330,7 @@ class Jump:
         air = ~stance[:, 0]
         # in flight the legs keep the take-off posture (feet fixed relative to the base)
         feet[air] = base[air, None, :] + ctx.feet_b + np.array([0, 0, -self.extension])
-        return _Plan(base, rpy, feet, stance, {**asdict(self), "jumps": jumps}, flights)
+        return Plan(base, rpy, feet, stance, {**asdict(self), "jumps": jumps}, flights)
 
 
 SCENARIOS: dict[str, type] = {"wobble": Wobble, "trot": Trot, "crawl": Crawl, "jump": Jump}

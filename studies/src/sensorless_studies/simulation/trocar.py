@@ -43,22 +43,18 @@ import pinocchio as pin
 from sensorless.data.trajectory import Trajectory
 from sensorless.robot import Robot
 from .surgical_arm import TIP_FRAME, build_surgical_arm
-from .trocar_motions import _AMAX, _VMAX, WORKSPACES, DesiredMotion, multisine_motion, probing_motion  # noqa: F401 (re-exported)
+from .trocar_motions import AMAX, VMAX, WORKSPACES, DesiredMotion, multisine_motion, probing_motion
 
 __all__ = [
-    "WORKSPACES",
     "ArmTruth",
     "BodyWall",
-    "DesiredMotion",
     "SimulationSettings",
     "SphereObject",
     "SurgicalDatasets",
     "TrocarSimulator",
     "make_datasets",
-    "multisine_motion",
     "payload_log",
     "perturbed_arm",
-    "probing_motion",
 ]
 
 
@@ -351,7 +347,7 @@ def make_datasets(seed: int = 0, *, quick: bool = False, durations: dict | None 
     free = sim.run(multisine_motion(W["full"], dur["free_space"], dt=dt, rng=r[1]), trocar=False, contact=False, rng=r[2], name="free_space")
     a = sim.run(multisine_motion(W["split_train"], dur["split"], dt=dt, rng=r[3]), trocar=False, contact=False, rng=r[4], name="split_train")
     b = sim.run(multisine_motion(W["split_test"], dur["split"], dt=dt, rng=r[5]), trocar=False, contact=False, rng=r[6], name="split_test")
-    tv, ta = _VMAX * 0.6, _AMAX * 0.6
+    tv, ta = VMAX * 0.6, AMAX * 0.6
     tr_ms = sim.run(multisine_motion(W["trocar"], dur["trocar_multisine"], dt=dt, rng=r[7], vmax=tv, amax=ta),
                     trocar=True, contact=False, rng=r[8], name="trocar_multisine")
     tr_pr = sim.run(probing_motion(sphere, dur["trocar_probe"], dt=dt, rng=r[9]), trocar=True, contact=False, rng=r[10], name="trocar_air_palpation")

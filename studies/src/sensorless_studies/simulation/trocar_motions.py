@@ -4,16 +4,13 @@ probing sequences (quintic segments), as reference q, q̇, q̈ on the simulation
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Sequence
+from typing import Protocol, Sequence
 
 import numpy as np
 
 from .surgical_arm import JAW_LENGTH, WRIST_LENGTH, direction_to_angles
 
-if TYPE_CHECKING:
-    from .trocar import SphereObject
-
-__all__ = ["WORKSPACES", "DesiredMotion", "multisine_motion", "probing_motion"]
+__all__ = ["AMAX", "VMAX", "WORKSPACES", "DesiredMotion", "ProbeTarget", "multisine_motion", "probing_motion"]
 
 
 @dataclass
@@ -36,8 +33,16 @@ WORKSPACES = {
     "split_test": ((0.15, 0.9), (0.0, 0.7), (0.02, 0.22), (-2.0, 2.0), (-1.2, 1.2), (-1.2, 1.2)),
     "trocar": ((-0.32, 0.32), (-0.32, 0.32), (0.09, 0.21), (-1.5, 1.5), (-0.8, 0.8), (-0.8, 0.8)),
 }
-_VMAX = np.array([0.8, 0.8, 0.12, 2.0, 2.0, 2.0])
-_AMAX = np.array([3.0, 3.0, 0.5, 8.0, 8.0, 8.0])
+#: default bounds of the desired joint speeds and accelerations (yaw, pitch, insertion [m], roll, wrist p, wrist y)
+VMAX = np.array([0.8, 0.8, 0.12, 2.0, 2.0, 2.0])
+AMAX = np.array([3.0, 3.0, 0.5, 8.0, 8.0, 8.0])
+
+
+class ProbeTarget(Protocol):
+    """What :func:`probing_motion` palpates (e.g. :class:`~.trocar.SphereObject`)."""
+
+    def hit_distance(self, u: np.ndarray) -> float:
+        """Distance along the unit ray ``u`` from the RCM (origin) to the surface (nan: miss)."""
 
 
 def multisine_motion(
@@ -48,8 +53,8 @@ def multisine_motion(
     rng: np.random.Generator | int = 0,
     components: int = 4,
     freq: tuple[float, float] = (0.05, 0.4),
-    vmax: np.ndarray = _VMAX,
-    amax: np.ndarray = _AMAX,
+    vmax: np.ndarray = VMAX,
+    amax: np.ndarray = AMAX,
 ) -> DesiredMotion:
     """Sum of random sines per joint, scaled so q stays in ``box`` and |q̇|, |q̈| under the bounds.
 
@@ -90,7 +95,7 @@ def _quintic(t: np.ndarray, times: np.ndarray, points: np.ndarray):
 
 
 def probing_motion(
-    sphere: SphereObject,
+    sphere: ProbeTarget,
     duration: float,
     *,
     dt: float = 1e-3,
@@ -142,5 +147,5 @@ def probing_motion(
         times.append(times[-1] + rng.uniform(0.6, 1.0))
     t = np.arange(int(round(duration / dt))) * dt
     q3, v3, a3 = _quintic(t, np.array(times), np.array(pts))
-    wrist = multisine_motion(wrist_box, duration, dt=dt, rng=rng, vmax=_VMAX[3:] * 0.5, amax=_AMAX[3:] * 0.5)
+    wrist = multisine_motion(wrist_box, duration, dt=dt, rng=rng, vmax=VMAX[3:] * 0.5, amax=AMAX[3:] * 0.5)
     return DesiredMotion(t, np.hstack([q3, wrist.q]), np.hstack([v3, wrist.v]), np.hstack([a3, wrist.a]))
