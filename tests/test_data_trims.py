@@ -23,14 +23,14 @@ def test_a_window_for_every_log_and_one_per_log():
 
 
 def test_a_name_matching_no_log_or_several_is_an_error_naming_it():
-    with pytest.raises(OptionError, match=r"--trim nope.csv=...: 'nope.csv' matches none of the logs"):
+    with pytest.raises(OptionError, match=r"`trim` nope.csv=...: 'nope.csv' matches none of the logs"):
         LogTrims.parse(["nope.csv=1:2"]).resolve(LOGS)
     with pytest.raises(OptionError, match=r"'loaded.csv' is ambiguous, it matches runs/a/loaded.csv, runs/b/loaded.csv"):
         LogTrims.parse(["loaded.csv=1:2"]).resolve(LOGS)
     assert str(LogTrims.parse(["a/loaded.csv=1:2"]).resolve(LOGS)[1]) == "1:2"  # more of the path: one log
     with pytest.raises(OptionError, match="two windows for every log"):
         LogTrims.parse(["1:2", "3:4"])
-    with pytest.raises(OptionError, match=r"--trim 'unloaded.csv=1-2'.*START:END"):
+    with pytest.raises(OptionError, match=r"`trim` 'unloaded.csv=1-2'.*START:END"):
         LogTrims.parse(["unloaded.csv=1-2"])
     with pytest.raises(OptionError, match="named twice"):
         LogTrims.parse(["unloaded.csv=1:2", "a/unloaded.csv=3:4"]).resolve(LOGS)
@@ -87,7 +87,7 @@ def test_identify_and_predict_take_per_log_windows_and_record_them(tmp_path):
     assert t[-1] - t[0] == pytest.approx(2.0, abs=0.03)
     r = CliRunner().invoke(app, ["predict", *common[:2], "--model", str(tmp_path / "m"), "--data", str(val),
                                  "--trim", "train.csv=3:5", "--out", str(tmp_path / "q.npz")])
-    assert r.exit_code == 2 and "'train.csv' matches none of the logs" in " ".join(r.output.split())
+    assert r.exit_code == 2 and "--trim train.csv=...: 'train.csv' matches none of the logs" in " ".join(r.output.split())
 
 
 def test_a_config_file_gives_one_window_as_a_string(tmp_path):

@@ -79,8 +79,9 @@ def test_frame_map_and_its_errors(legs, world_log):
     bag = world_log.with_(base_q=None, extras={"wrench": world_log.extras["contact_forces"]})
     np.testing.assert_array_equal(express_wrenches(bag, legs, world).extras["contact_forces"],
                                   world_log.extras["contact_forces"])
-    with pytest.raises(RobotModelError, match="did you mean 'left_sole_link'"):
+    with pytest.raises(RobotModelError, match="did you mean 'left_sole_link'") as unknown:
         wrench_frame_map("left_sole_lnk,contact", FEET, legs)
+    assert "(in Python: sensorless.robot.frame_table(robot) lists them)" in str(unknown.value)  # the CLI: the command
     with pytest.raises(OptionError, match="gives 1 frame"):
         wrench_frame_map("left_ft", FEET, legs)
     with pytest.raises(OptionError, match="`contact_frames`"):
@@ -150,6 +151,8 @@ def test_cli_added_sensor_frame_and_errors(legs, world_log, tmp_path):
             "--contact-dims", "6,6", "--joint-terms", "", "--method", "ols", "--out", str(tmp_path / "bad")]
     res = CliRunner().invoke(app, base + ["--contact-mode", "wrench", "--wrench-frame", "left_sole_lnk,contact"])
     assert res.exit_code == 2 and "did you mean 'left_sole_link'" in res.output and not (tmp_path / "bad").exists()
+    flat = " ".join(res.output.split())
+    assert "(`sensorless frames --robot ...` lists its" in flat and "in Python" not in flat
     res = CliRunner().invoke(app, base + ["--contact-mode", "wrench", "--wrench-frame", "left_ft"])
     assert res.exit_code == 2 and "one per contact frame" in res.output
     res = CliRunner().invoke(app, base + ["--wrench-frame", "contact"])

@@ -121,7 +121,7 @@ def test_records_roundtrip_and_bad_records():
 def test_endpoints_refuse_remote_hosts():
     assert parse_endpoint("udp://127.0.0.1:9000", "--input").port == 9000
     assert parse_endpoint("udp://[::1]:9000", "--input").host == "::1"
-    with pytest.raises(OptionError, match="not a loopback address.*--allow-remote"):
+    with pytest.raises(OptionError, match="not a loopback address.*`allow_remote=True`"):
         parse_endpoint("udp://192.0.2.7:9000", "--input")
     assert parse_endpoint("udp://192.0.2.7:9000", "--input", allow_remote=True).host == "192.0.2.7"
     with pytest.raises(OptionError, match="expected udp://HOST:PORT"):

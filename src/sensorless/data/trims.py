@@ -133,15 +133,15 @@ def _parts(path: "str | os.PathLike") -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class LogTrims:
-    """The ``--trim`` values of a command: ``default`` cuts every log, ``named`` entries
-    ``(NAME, window)`` one log each (NAME: the log's path as given, a trailing part of it,
-    or its file name), winning over ``default``."""
+    """The trim windows of a run (setting `` `trim` ``; the CLI's ``--trim``): ``default`` cuts every
+    log, ``named`` entries ``(NAME, window)`` one log each (NAME: the log's path as given, a trailing
+    part of it, or its file name), winning over ``default``."""
 
     default: TrimWindow | None = None
     named: tuple[tuple[str, TrimWindow], ...] = ()
 
     @classmethod
-    def parse(cls, values: "str | TrimWindow | Sequence[str] | LogTrims | None", option: str = "--trim") -> "LogTrims":
+    def parse(cls, values: "str | TrimWindow | Sequence[str] | LogTrims | None", option: str = setting("trim")) -> "LogTrims":
         """``None``, one window, or a list of ``WINDOW`` (at most one) and ``NAME=WINDOW`` items."""
         if isinstance(values, LogTrims):
             return values
@@ -179,7 +179,7 @@ class LogTrims:
         own = [w for n, w in self.named if self._matches(n, path)]
         return own[0] if own else self.default
 
-    def check(self, paths: Iterable["str | os.PathLike"], option: str = "--trim") -> None:
+    def check(self, paths: Iterable["str | os.PathLike"], option: str = setting("trim")) -> None:
         """OptionError for a NAME that matches none of ``paths``, several different files, or a
         log that two NAMEs match."""
         paths = [str(p) for p in paths]
@@ -198,7 +198,7 @@ class LogTrims:
                     raise OptionError(f"{option}: log {p} is named twice ('{by_log[p]}' and '{name}'); give it one window")
                 by_log[p] = name
 
-    def resolve(self, paths: Sequence["str | os.PathLike"], option: str = "--trim") -> list[TrimWindow | None]:
+    def resolve(self, paths: Sequence["str | os.PathLike"], option: str = setting("trim")) -> list[TrimWindow | None]:
         """One window (or None) per path, after :meth:`check`."""
         self.check(paths, option)
         return [self.window_for(p) for p in paths]

@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DataError, OptionError, RobotModelError, setting, did_you_mean
+from ..errors import DataError, OptionError, RobotModelError, did_you_mean, python_only, setting
 from .trajectory import Trajectory
 
 __all__ = ["WORLD", "CONTACT", "check_frame", "wrench_frame_map", "express_wrenches"]
@@ -50,7 +50,8 @@ def check_frame(robot, name: str, what: str = "`wrench_frames`") -> int:
     hint = did_you_mean(name, names, cutoff=0.5)
     hint = f"; {hint}" if hint else ""
     raise RobotModelError(f"{what}: the model {robot.name} has no frame '{name}'{hint} "
-                          f"(`sensorless frames --robot ...` lists its {len(names)} frames)")
+                          f"(`sensorless frames --robot ...` lists its {len(names)} frames"
+                          f"{python_only('sensorless.robot.frame_table(robot) lists them')})")
 
 
 def wrench_frame_map(spec: "str | Sequence[str] | Mapping[str, str] | None", contact_frames: Sequence[str],

@@ -60,7 +60,7 @@ def parse_endpoint(spec: str, option: str, allow_remote: bool = False) -> Endpoi
             raise OptionError(f"{option} {spec}: expected udp://HOST:PORT, e.g. udp://127.0.0.1:9870")
         if not allow_remote and not _loopback(host):
             raise OptionError(f"{option} {spec}: {host} is not a loopback address; samples and estimates stay on this "
-                              "machine unless --allow-remote is given")
+                              f"machine unless {setting('allow_remote', True)} is given")
         return Endpoint("udp", host, p)
     raise OptionError(f"{option} {spec}: expected stdin/stdout, udp://127.0.0.1:PORT or ros2:TOPIC")
 
@@ -284,7 +284,7 @@ def run_stream(monitor, src: Endpoint, dst: Endpoint, fmt: str, *, out_fmt: str 
                     if sig.name:
                         raise _Stop
                     if max_samples and stats.samples >= max_samples:
-                        stats.stopped_by = f"--max-samples {max_samples}"
+                        stats.stopped_by = setting("max_samples", max_samples)
                         break
             except _Stop:
                 stats.stopped_by = sig.name or "signal"
