@@ -88,11 +88,7 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", encoding: str | None =
     if mode not in ("w", "wb"):
         raise ValueError(f"atomic_open: mode must be 'w' or 'wb', got {mode!r}")
     path = Path(path)
-    if path.is_dir():
-        raise OutputError(f"{path}: is a directory; give a file name")
-    kind = _special_kind(path)
-    if kind:
-        raise OutputError(f"{path}: is {kind}; refusing to replace it with a regular file")
+    _refuse_non_file(path, "give a file name", "; refusing to replace it with a regular file")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -186,6 +182,16 @@ def _special_kind(path: str | os.PathLike, st_mode: int | None = None) -> str | 
             else "a device" if stat.S_ISCHR(st_mode) or stat.S_ISBLK(st_mode) else "not a regular file")
 
 
+def _refuse_non_file(path: Path, directory: str, special: str) -> None:
+    """OutputError when ``path`` is a directory (``"PATH: is a directory; " + directory``) or a special
+    file (``"PATH: is KIND" + special``)."""
+    if path.is_dir():
+        raise OutputError(f"{path}: is a directory; {directory}")
+    kind = _special_kind(path)
+    if kind:
+        raise OutputError(f"{path}: is {kind}{special}")
+
+
 def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = (), force: bool = False) -> Path:
     """``path`` if a command may write this output file; else :class:`~sensorless.errors.OutputError`.
 
@@ -195,11 +201,8 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
     an existing file without ``force``.
     """
     path = Path(path)
-    if path.is_dir():
-        raise OutputError(f"{path}: is a directory; the output needs a file name (e.g. {path / 'out.npz'})")
-    kind = _special_kind(path)
-    if kind:
-        raise OutputError(f"{path}: is {kind}, not a regular file; refusing to write over it")
+    _refuse_non_file(path, f"the output needs a file name (e.g. {path / 'out.npz'})",
+                     ", not a regular file; refusing to write over it")
     real = _real(path)
     for p in inputs:
         if p is None:

@@ -122,6 +122,9 @@ def _scaled_lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
 # ---- asymmetric least squares: the Newton solver -------------------------------------
 @dataclass
 class AsymmetricSolution:
+    """What :func:`asymmetric_least_squares` returns: the estimate θ, the Newton iterations and whether they
+    converged, the fraction of over-estimated samples, the objective and the wall time [s]."""
+
     theta: np.ndarray
     iterations: int
     converged: bool

@@ -17,12 +17,28 @@ from typing import List, Optional
 import typer
 
 from ..errors import OptionError, SensorlessError
-from .common import load_robot_arg
+from .common import (load_robot_arg, log_reading_options, model_options, model_preprocessing_options,
+                     robot_source_options)
+from .frames import frame_options
 
-__all__ = ["MODEL_HELP", "passive_option", "robot_and_model"]
+__all__ = ["MODEL_HELP", "applied_model_options", "passive_option", "robot_and_model"]
 
 MODEL_HELP = ("identified model: result.json (or its directory) from `sensorless identify`; or a robot description "
               "(.urdf/.xml) whose own inertial parameters are the model (the prior, no friction); default: --robot's own")
+
+
+def applied_model_options(model_help: str = MODEL_HELP, *, robot_required: bool = True, frames: bool = False):
+    """Decorator: the options of a command that applies a model to a log, in this order: the robot
+    source, ``--add-frame`` (with ``frames``), the model's preprocessing (``prep``), ``--robot`` and an
+    optional ``--model`` (help ``model_help``; ``--robot`` optional unless ``robot_required``) and the
+    log-reading options. One definition for predict, monitor and estimate-force."""
+
+    def deco(fn):
+        fn = model_options(model_help, required=False, robot_required=robot_required)(log_reading_options()(fn))
+        fn = model_preprocessing_options()(fn)
+        return robot_source_options(frame_options(fn) if frames else fn)
+
+    return deco
 
 
 def passive_option():

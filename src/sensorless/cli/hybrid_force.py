@@ -7,23 +7,9 @@ from pathlib import Path
 import typer
 
 from ..errors import SensorlessError
-from .frames import frame_options
-from .common import (
-    robot_source_options,
-    log_reading_options,
-    model_logs,
-    model_preprocessing_options,
-    app,
-    guarded,
-    output_file,
-    path_inputs,
-    lock_option,
-    floating_base_option,
-    model_options,
-    force_option,
-)
+from .common import app, floating_base_option, force_option, guarded, lock_option, model_logs, output_file, path_inputs
 from .console import console
-from .applied_model import MODEL_HELP, passive_option, robot_and_model
+from .applied_model import applied_model_options, passive_option, robot_and_model
 from .options import ForceReference
 
 __all__ = ["estimate_force"]
@@ -31,11 +17,7 @@ __all__ = ["estimate_force"]
 
 @app.command("estimate-force")
 @guarded
-@robot_source_options
-@frame_options
-@model_preprocessing_options()
-@model_options(MODEL_HELP, required=False)
-@log_reading_options()
+@applied_model_options(frames=True)
 def estimate_force(
     robot: str,
     model: Path | None,

@@ -4,32 +4,31 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
 from ..errors import SensorlessError
-from .frames import frame_options
-from .common import (
-    robot_source_options,
-    log_reading_options,
-    model_logs,
-    model_preprocessing_options,
-    app,
-    atomic_outdir,
-    guarded,
-    path_inputs,
-    force_option,
-    lock_option,
-    floating_base_option,
-    model_options,
-)
+from .common import (app, atomic_outdir, floating_base_option, force_option, guarded, lock_option, model_logs,
+                     path_inputs)
 from .console import console
-from .applied_model import MODEL_HELP, passive_option, robot_and_model
+from .applied_model import MODEL_HELP, applied_model_options, passive_option, robot_and_model
 from .options import ForceReference
 
 __all__ = ["monitor"]
+
+
+def _nonnegative(text: str, not_a_number: str, out_of_range: str) -> float:
+    """``float(text)`` when finite and ≥ 0; else a SensorlessError with the message given for each case."""
+    try:
+        x = float(text)
+    except ValueError:
+        raise SensorlessError(not_a_number) from None
+    if not (math.isfinite(x) and x >= 0):
+        raise SensorlessError(out_of_range)
+    return x
 
 
 def _parse_static_friction(spec: str, names: list[str]):
@@ -41,13 +40,8 @@ def _parse_static_friction(spec: str, names: list[str]):
     parts = [p.strip() for p in text.replace(";", ",").split(",") if p.strip()]
 
     def num(v: str, what: str) -> float:
-        try:
-            x = float(v)
-        except ValueError:
-            raise SensorlessError(f"--static-friction {what}: '{v}' is not a number of N·m") from None
-        if not (np.isfinite(x) and x >= 0):
-            raise SensorlessError(f"--static-friction {what}: must be finite and ≥ 0 N·m, got '{v}'")
-        return x
+        return _nonnegative(v, f"--static-friction {what}: '{v}' is not a number of N·m",
+                            f"--static-friction {what}: must be finite and ≥ 0 N·m, got '{v}'")
 
     if parts and all("=" in p for p in parts):
         given = {k.strip(): num(v, k.strip()) for k, v in (p.split("=", 1) for p in parts)}
@@ -68,11 +62,7 @@ def _parse_static_friction(spec: str, names: list[str]):
 
 @app.command()
 @guarded
-@robot_source_options
-@frame_options
-@model_preprocessing_options()
-@model_options(MODEL_HELP + " or `sensorless friction`", required=False, robot_required=False)
-@log_reading_options()
+@applied_model_options(MODEL_HELP + " or `sensorless friction`", robot_required=False, frames=True)
 def monitor(
     robot: Optional[str],
     model: Optional[Path],
@@ -152,12 +142,8 @@ def monitor(
     fs_spec = _parse_static_friction(static_friction, names)
     speed: object = "auto"
     if rest_speed.strip().lower() != "auto":
-        try:
-            speed = float(rest_speed)
-        except ValueError:
-            raise SensorlessError(f"--rest-speed must be 'auto' or a speed in rad/s, got '{rest_speed}'") from None
-        if not (np.isfinite(speed) and speed >= 0):
-            raise SensorlessError(f"--rest-speed must be ≥ 0 rad/s, got '{rest_speed}'")
+        speed = _nonnegative(rest_speed, f"--rest-speed must be 'auto' or a speed in rad/s, got '{rest_speed}'",
+                             f"--rest-speed must be ≥ 0 rad/s, got '{rest_speed}'")
     settings = MonitorSettings(quiet=quiet.strip(), k=k, false_alarm_rate=false_alarm_rate, gain=gain, order=order,
                                static_friction=fs_spec if isinstance(fs_spec, str) else tuple(map(float, fs_spec)),
                                static_margin=static_margin, rest_speed=speed, warmup=warmup,

@@ -10,30 +10,14 @@ import typer
 
 from ..errors import OptionError, SensorlessError
 from .options import Outliers
-from .common import (
-    robot_source_options,
-    log_reading_options,
-    model_logs,
-    model_preprocessing_options,
-    app,
-    guarded,
-    output_file,
-    path_inputs,
-    lock_option,
-    floating_base_option,
-    force_option,
-    model_options,
-)
+from .common import app, floating_base_option, force_option, guarded, lock_option, model_logs, output_file, path_inputs
 from .console import console
-from .applied_model import MODEL_HELP, passive_option, robot_and_model
+from .applied_model import MODEL_HELP, applied_model_options, passive_option, robot_and_model
 
 
 @app.command()
 @guarded
-@robot_source_options
-@model_preprocessing_options()
-@model_options(MODEL_HELP + " or `sensorless friction`", required=False, robot_required=False)
-@log_reading_options()
+@applied_model_options(MODEL_HELP + " or `sensorless friction`", robot_required=False)
 def predict(
     robot: Optional[str],
     model: Optional[Path],

@@ -88,15 +88,21 @@ def load_gains(spec: Any) -> "float | list[float] | dict[str, float]":
     raise DataError(f"gains must be a number, a list, a {{joint: gain}} mapping or a file, got {type(spec).__name__}")
 
 
-def _number(val: Any, what: str, src: str) -> float:
-    what = f" {what}" if what else ""
+def _gain(val: Any, src: str, not_a_number: str, not_finite: str) -> float:
+    """``float(val)``, finite and non-zero (else a DataError with the message given for each case)."""
     try:
         out = float(val)
     except (TypeError, ValueError):
-        raise DataError(f"gain{what} is not a number: {val!r}", src) from None
+        raise DataError(not_a_number, src) from None
     if not np.isfinite(out) or out == 0:
-        raise DataError(f"gain{what} must be finite and non-zero, got {val!r}", src)
+        raise DataError(not_finite, src)
     return out
+
+
+def _number(val: Any, what: str, src: str) -> float:
+    what = f" {what}" if what else ""
+    return _gain(val, src, f"gain{what} is not a number: {val!r}",
+                 f"gain{what} must be finite and non-zero, got {val!r}")
 
 
 def _parse_inline(text: str, src: str) -> "list[float] | dict[str, float]":
@@ -115,13 +121,8 @@ def _parse_inline(text: str, src: str) -> "list[float] | dict[str, float]":
 
 def _file_number(val: Any, where: str, src: str) -> float:
     """A gain read from a file; the message names the row/key, never the file's text."""
-    try:
-        out = float(val)
-    except (TypeError, ValueError):
-        raise DataError(f"gains file {where}: not a number", src) from None
-    if not np.isfinite(out) or out == 0:
-        raise DataError(f"gains file {where}: a gain must be finite and non-zero", src)
-    return out
+    return _gain(val, src, f"gains file {where}: not a number",
+                 f"gains file {where}: a gain must be finite and non-zero")
 
 
 def _key(name: Any) -> str:

@@ -161,20 +161,10 @@ class LmiSolution:
         return all(r.consistent for r in self.consistency)
 
     def summary(self) -> dict:
-        return {
-            "status": self.status,
-            "solver": self.solver,
-            "objective": self.objective,
-            "relative_residual": self.relative_residual,
-            "regularization_term": self.regularization_term,
-            "setup_seconds": self.setup_seconds,
-            "solve_seconds": self.solve_seconds,
-            "consistent": self.consistent,
-            "projected": self.projected,
-            "attempts": [list(a) for a in self.attempts],
-            "bodies": [r.to_dict() for r in self.consistency],
-            "settings": self.settings,
-        }
+        scalars = ("status", "solver", "objective", "relative_residual", "regularization_term", "setup_seconds",
+                   "solve_seconds", "consistent", "projected")
+        return {**{k: getattr(self, k) for k in scalars}, "attempts": [list(a) for a in self.attempts],
+                "bodies": [r.to_dict() for r in self.consistency], "settings": self.settings}
 
 
 def _data_factor(

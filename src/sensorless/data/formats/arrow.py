@@ -8,19 +8,18 @@ The table's size is checked against the memory budget (:mod:`..limits`) before i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import DataError
 from ..limits import check_log_size
-from ..names import RawLog
-from ..tabular import fields_from_frame
+from .base import LogFormat
 
-__all__ = ["ArrowIpc"]
+__all__ = ["ARROW"]
 
 
 def read_arrow_table(path: Path):
-    """The pandas frame of an Arrow IPC file or stream, or Feather file (DataError naming the file)."""
+    """The pandas frame of an Arrow IPC file or stream, or Feather file (DataError naming the file), and
+    True: its columns are named."""
     import pyarrow as pa
     import pyarrow.feather as feather
 
@@ -39,20 +38,7 @@ def read_arrow_table(path: Path):
     except Exception as exc:  # noqa: BLE001  e.g. a column type pandas cannot hold
         raise DataError(f"cannot convert the Arrow table ({type(exc).__name__}: {exc})", src) from None
     df.columns = [str(c) for c in df.columns]
-    return df.reset_index(drop=True)
+    return df.reset_index(drop=True), True
 
 
-@dataclass(frozen=True)
-class ArrowIpc:
-    name = "arrow"
-    suffixes = (".arrow", ".feather")
-    description = ".arrow/.feather"
-    items = "columns"
-    arrays = False
-    trajectory = False
-
-    def sniff(self, path: Path) -> bool:
-        return path.suffix.lower() in self.suffixes
-
-    def read(self, path: Path, columns, joint_names) -> RawLog:
-        return fields_from_frame(read_arrow_table(path), str(path), columns, joint_names, True)
+ARROW = LogFormat("arrow", ".arrow/.feather", suffixes=(".arrow", ".feather"), table=read_arrow_table)

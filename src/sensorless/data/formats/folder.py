@@ -2,26 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
-from ..names import RawLog
 from ..textlog import read_signal_folder
+from .base import LogFormat
 
-__all__ = ["SignalFolder"]
+__all__ = ["FOLDER"]
 
-
-@dataclass(frozen=True)
-class SignalFolder:
-    name = "folder"
-    suffixes = ()
-    description = "a folder of per-signal text files"
-    items = "files"
-    arrays = False
-    trajectory = False
-
-    def sniff(self, path: Path) -> bool:
-        return path.is_dir()
-
-    def read(self, path: Path, columns, joint_names) -> RawLog:
-        return read_signal_folder(path, columns)
+FOLDER = LogFormat("folder", "a folder of per-signal text files", items="files", claims=Path.is_dir,
+                   reader=read_signal_folder)

@@ -3,26 +3,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
-
 from ..arrays import read_hdf5
-from ..names import RawLog
+from .base import LogFormat
 
-__all__ = ["Hdf5"]
+__all__ = ["HDF5"]
 
-
-@dataclass(frozen=True)
-class Hdf5:
-    name = "hdf5"
-    suffixes = (".h5", ".hdf5")
-    description = ".h5/.hdf5"
-    items = "datasets"
-    arrays = True
-    trajectory = False
-
-    def sniff(self, path: Path) -> bool:
-        return path.suffix.lower() in self.suffixes
-
-    def read(self, path: Path, columns, joint_names) -> RawLog:
-        return read_hdf5(path, columns)
+HDF5 = LogFormat("hdf5", ".h5/.hdf5", suffixes=(".h5", ".hdf5"), items="datasets", arrays=True, reader=read_hdf5)

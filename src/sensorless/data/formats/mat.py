@@ -2,27 +2,18 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 from ..matlab import is_mat73, read_mat
-from ..names import RawLog
+from .base import LogFormat
 
-__all__ = ["Mat"]
+__all__ = ["MAT"]
 
 
-@dataclass(frozen=True)
-class Mat:
-    name = "mat"
-    suffixes = (".mat",)
-    description = ".mat"
-    items = "variables"
-    arrays = True
-    trajectory = False
+def _mat73_as_hdf5(path: Path) -> bool:
+    """A MATLAB v7.3 file saved as ``.h5``/``.hdf5``."""
+    return path.suffix.lower() in (".h5", ".hdf5") and is_mat73(path)
 
-    def sniff(self, path: Path) -> bool:
-        suffix = path.suffix.lower()
-        return suffix in self.suffixes or (suffix in (".h5", ".hdf5") and is_mat73(path))
 
-    def read(self, path: Path, columns, joint_names) -> RawLog:
-        return read_mat(path, columns)
+MAT = LogFormat("mat", ".mat", suffixes=(".mat",), items="variables", arrays=True, claims=_mat73_as_hdf5,
+                reader=read_mat)

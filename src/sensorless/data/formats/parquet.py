@@ -2,26 +2,17 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
-from ..names import RawLog
-from ..tabular import fields_from_frame, read_parquet_table
+from ..tabular import read_parquet_table
+from .base import LogFormat
 
-__all__ = ["Parquet"]
+__all__ = ["PARQUET"]
 
 
-@dataclass(frozen=True)
-class Parquet:
-    name = "parquet"
-    suffixes = (".parquet", ".pq")
-    description = ".parquet"
-    items = "columns"
-    arrays = False
-    trajectory = False
+def _table(path: Path):
+    """The Parquet table; its columns are named."""
+    return read_parquet_table(path), True
 
-    def sniff(self, path: Path) -> bool:
-        return path.suffix.lower() in self.suffixes
 
-    def read(self, path: Path, columns, joint_names) -> RawLog:
-        return fields_from_frame(read_parquet_table(path), str(path), columns, joint_names, True)
+PARQUET = LogFormat("parquet", ".parquet", suffixes=(".parquet", ".pq"), table=_table)

@@ -2,30 +2,19 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 from ..limits import prescan_text
-from ..names import RawLog
-from ..tabular import fields_from_frame, read_text_table
+from ..tabular import read_text_table
+from .base import LogFormat
 
-__all__ = ["TextTable"]
+__all__ = ["TEXT"]
 
 
-@dataclass(frozen=True)
-class TextTable:
-    name = "text"
-    suffixes = (".csv", ".txt", ".dat", ".log")
-    description = ".csv/.txt/.dat/.log text"
-    items = "columns"
-    arrays = False
-    trajectory = False
+def _table(path: Path):
+    """The table and whether it has a header; line length, field count and size bounded before pandas."""
+    prescan_text(path, str(path))
+    return read_text_table(path)
 
-    def sniff(self, path: Path) -> bool:
-        return path.suffix.lower() in self.suffixes
 
-    def read(self, path: Path, columns, joint_names) -> RawLog:
-        src = str(path)
-        prescan_text(path, src)  # line length, field count and size bounded before pandas
-        df, header = read_text_table(path)
-        return fields_from_frame(df, src, columns, joint_names, header)
+TEXT = LogFormat("text", ".csv/.txt/.dat/.log text", suffixes=(".csv", ".txt", ".dat", ".log"), table=_table)

@@ -7,32 +7,32 @@ constraints, the identifiability check, the friction curve and the model export 
 here instead of listing names. :data:`REGISTRY`'s order is the column order of every joint's
 block (labels ``joint.term``), so a new term goes at the end: existing models keep their columns.
 
-To add a term: one file here with a frozen class (name, description, flags, ``column``), one line
-in :data:`REGISTRY`, one oracle test (its column against a direct computation,
-``tests/test_regressor_joint_terms.py``).
+To add a term: one file here with its column function and a :class:`~.base.JointTerm` (name,
+description, column and the flags that differ from the defaults), one line in :data:`REGISTRY`, one
+oracle test (its column against a direct computation, ``tests/test_regressor_joint_terms.py``).
 """
 
 from __future__ import annotations
 
-from .armature import Armature
+from .armature import ARMATURE
 from .base import JointTerm, TermInputs
-from .coulomb import Coulomb
-from .offset import Offset
-from .presliding import Presliding
-from .stribeck import Stribeck
-from .viscous import Viscous
-from .viscous_asymmetry import ViscousAsymmetry
+from .coulomb import COULOMB
+from .offset import OFFSET
+from .presliding import PRESLIDING
+from .stribeck import STRIBECK
+from .viscous import VISCOUS
+from .viscous_asymmetry import VISCOUS_ASYMMETRY
 
 __all__ = ["JOINT_TERMS", "JointTerm", "REGISTRY", "TermInputs", "joint_term", "terms_where"]
 
 REGISTRY: tuple[JointTerm, ...] = (
-    Viscous(),
-    Coulomb(),
-    Stribeck(),
-    Offset(),
-    Armature(),
-    Presliding(),
-    ViscousAsymmetry(),
+    VISCOUS,
+    COULOMB,
+    STRIBECK,
+    OFFSET,
+    ARMATURE,
+    PRESLIDING,
+    VISCOUS_ASYMMETRY,
 )
 #: the term names, in column order
 JOINT_TERMS: tuple[str, ...] = tuple(t.name for t in REGISTRY)

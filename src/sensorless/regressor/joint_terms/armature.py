@@ -3,28 +3,17 @@ joint has no rotor). In the acceleration-free form its momentum column is v (:mo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .base import TermInputs
+from .base import JointTerm, TermInputs
 
-__all__ = ["Armature"]
+__all__ = ["ARMATURE"]
 
 
-@dataclass(frozen=True)
-class Armature:
+def _column(x: TermInputs) -> np.ndarray:
     """Column v̇."""
+    return x.a
 
-    name = "armature"
-    description = "reflected rotor inertia Ia·v̇"
-    passive = False
-    needs_motion = True
-    acceleration = True
-    nonnegative = True
-    reversal = False
-    stateful = False
-    exported = True
 
-    def column(self, x: TermInputs) -> np.ndarray:
-        return x.a
+ARMATURE = JointTerm("armature", "reflected rotor inertia Ia·v̇", _column,
+                     acceleration=True, nonnegative=True, exported=True)

@@ -17,12 +17,16 @@ none of them lists term names:
 * ``stateful``: the column depends on the history of q (whole logs, not chunks); its steady value
   while sliding at constant velocity is sgn v;
 * ``exported``: the value is written to ``joint_terms.json`` (else it lives in ``result.json`` only).
+
+A new term is unexported by default: ``joint_terms.json`` has a fixed set of fields
+(:class:`sensorless.parameters.JointTerms`).
 """
 
 from __future__ import annotations
 
+from dataclasses import KW_ONLY, dataclass
 from functools import cached_property
-from typing import Protocol, runtime_checkable
+from typing import Callable
 
 import numpy as np
 
@@ -54,21 +58,22 @@ class TermInputs:
         return sliding_sign(self.v, self.rest)
 
 
-@runtime_checkable
-class JointTerm(Protocol):
-    """One joint term: its ``name`` (the parameter label ``joint.name``), a one-line ``description``,
-    the capability flags of the module docstring and its column."""
+@dataclass(frozen=True)
+class JointTerm:
+    """One joint term: its ``name`` (the parameter label ``joint.name``), a one-line ``description``, its
+    ``column`` (:class:`TermInputs` → the column per term joint, shape (N, n)) and the capability flags of
+    the module docstring. The flags default to a term of actuated joints only that needs motion, is
+    memoryless, sign-free, continuous at a reversal and lives in result.json only; a term states the
+    flags that differ."""
 
     name: str
     description: str
-    passive: bool
-    needs_motion: bool
-    acceleration: bool
-    nonnegative: bool
-    reversal: bool
-    stateful: bool
-    exported: bool
-
-    def column(self, x: TermInputs) -> np.ndarray:
-        """The term's column per term joint, shape (N, n)."""
-        ...
+    column: Callable[[TermInputs], np.ndarray]
+    _: KW_ONLY
+    passive: bool = False
+    needs_motion: bool = True
+    acceleration: bool = False
+    nonnegative: bool = False
+    reversal: bool = False
+    stateful: bool = False
+    exported: bool = False

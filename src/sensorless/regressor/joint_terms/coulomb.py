@@ -3,28 +3,17 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .base import TermInputs
+from .base import JointTerm, TermInputs
 
-__all__ = ["Coulomb"]
+__all__ = ["COULOMB"]
 
 
-@dataclass(frozen=True)
-class Coulomb:
+def _column(x: TermInputs) -> np.ndarray:
     """Column T (:attr:`TermInputs.coulomb_sign`)."""
+    return x.coulomb_sign
 
-    name = "fc"
-    description = "Coulomb friction fc·tanh(v/ε) (sgn v for ε = 0)"
-    passive = True
-    needs_motion = True
-    acceleration = False
-    nonnegative = True
-    reversal = True
-    stateful = False
-    exported = True
 
-    def column(self, x: TermInputs) -> np.ndarray:
-        return x.coulomb_sign
+COULOMB = JointTerm("fc", "Coulomb friction fc·tanh(v/ε) (sgn v for ε = 0)", _column,
+                    passive=True, nonnegative=True, reversal=True, exported=True)

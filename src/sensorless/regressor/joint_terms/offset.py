@@ -3,28 +3,16 @@ a passive joint has no torque sensor to be offset)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .base import TermInputs
+from .base import JointTerm, TermInputs
 
-__all__ = ["Offset"]
+__all__ = ["OFFSET"]
 
 
-@dataclass(frozen=True)
-class Offset:
+def _column(x: TermInputs) -> np.ndarray:
     """Column 1."""
+    return np.ones_like(x.v)
 
-    name = "offset"
-    description = "constant torque offset o"
-    passive = False
-    needs_motion = False
-    acceleration = False
-    nonnegative = False
-    reversal = False
-    stateful = False
-    exported = True
 
-    def column(self, x: TermInputs) -> np.ndarray:
-        return np.ones_like(x.v)
+OFFSET = JointTerm("offset", "constant torque offset o", _column, needs_motion=False, exported=True)

@@ -5,31 +5,19 @@ presliding distance and play live in result.json only (a URDF has no friction st
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ...errors import DataError
-from .base import TermInputs
+from .base import JointTerm, TermInputs
 
-__all__ = ["Presliding"]
+__all__ = ["PRESLIDING"]
 
 
-@dataclass(frozen=True)
-class Presliding:
+def _column(x: TermInputs) -> np.ndarray:
     """Column s_c (:attr:`TermInputs.z`)."""
+    if x.z is None or np.shape(x.z) != x.v.shape:
+        raise DataError("the 'presliding' term depends on the history of q: evaluate whole logs (regressor, torques)")
+    return np.asarray(x.z, dtype=float)
 
-    name = "presliding"
-    description = "presliding state s_c (Dahl/LuGre type, whole logs)"
-    passive = False
-    needs_motion = True
-    acceleration = False
-    nonnegative = False
-    reversal = False
-    stateful = True
-    exported = False
 
-    def column(self, x: TermInputs) -> np.ndarray:
-        if x.z is None or np.shape(x.z) != x.v.shape:
-            raise DataError("the 'presliding' term depends on the history of q: evaluate whole logs (regressor, torques)")
-        return np.asarray(x.z, dtype=float)
+PRESLIDING = JointTerm("presliding", "presliding state s_c (Dahl/LuGre type, whole logs)", _column, stateful=True)

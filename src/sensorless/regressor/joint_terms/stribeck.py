@@ -11,34 +11,23 @@ Law "product" (older models, read from result.json files): column e^{−(v/vs)²
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..friction_columns import stribeck_decay
-from .base import TermInputs
+from .base import JointTerm, TermInputs
 
-__all__ = ["FRICTION_LAWS", "Stribeck"]
+__all__ = ["FRICTION_LAWS", "STRIBECK"]
 
 #: forms of the Stribeck column (module docstring)
 FRICTION_LAWS = ("blend", "product")
 
 
-@dataclass(frozen=True)
-class Stribeck:
+def _column(x: TermInputs) -> np.ndarray:
     """Column T − (1 − e^{−(v/vs)²}) sgn v ("blend") or e^{−(v/vs)²} T ("product")."""
+    if x.friction_law == "product":
+        return np.exp(-((x.v / x.vs) ** 2)) * x.coulomb_sign
+    return x.coulomb_sign - stribeck_decay(x.v, x.vs, x.sliding_sign)
 
-    name = "stribeck"
-    description = "Stribeck friction (fs − fc)·[T − (1 − exp(−(v/vs)²)) sgn v]"
-    passive = True
-    needs_motion = True
-    acceleration = False
-    nonnegative = False
-    reversal = True
-    stateful = False
-    exported = True
 
-    def column(self, x: TermInputs) -> np.ndarray:
-        if x.friction_law == "product":
-            return np.exp(-((x.v / x.vs) ** 2)) * x.coulomb_sign
-        return x.coulomb_sign - stribeck_decay(x.v, x.vs, x.sliding_sign)
+STRIBECK = JointTerm("stribeck", "Stribeck friction (fs − fc)·[T − (1 − exp(−(v/vs)²)) sgn v]", _column,
+                     passive=True, reversal=True, exported=True)

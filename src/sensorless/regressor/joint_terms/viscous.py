@@ -2,28 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .base import TermInputs
+from .base import JointTerm, TermInputs
 
-__all__ = ["Viscous"]
+__all__ = ["VISCOUS"]
 
 
-@dataclass(frozen=True)
-class Viscous:
+def _column(x: TermInputs) -> np.ndarray:
     """Column v."""
+    return x.v
 
-    name = "fv"
-    description = "viscous friction fv·v"
-    passive = True
-    needs_motion = True
-    acceleration = False
-    nonnegative = True
-    reversal = False
-    stateful = False
-    exported = True
 
-    def column(self, x: TermInputs) -> np.ndarray:
-        return x.v
+VISCOUS = JointTerm("fv", "viscous friction fv·v", _column, passive=True, nonnegative=True, exported=True)

@@ -11,28 +11,17 @@ fv⁺, fv⁻ ≥ 0 is not imposed by the consistent fit (check them in result.js
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .base import TermInputs
+from .base import JointTerm, TermInputs
 
-__all__ = ["ViscousAsymmetry"]
+__all__ = ["VISCOUS_ASYMMETRY"]
 
 
-@dataclass(frozen=True)
-class ViscousAsymmetry:
+def _column(x: TermInputs) -> np.ndarray:
     """Column |v|."""
+    return np.abs(x.v)
 
-    name = "fv_asym"
-    description = "direction-dependent viscous friction fv_asym·|v| (fv± = fv ± fv_asym)"
-    passive = True
-    needs_motion = True
-    acceleration = False
-    nonnegative = False
-    reversal = False
-    stateful = False
-    exported = False
 
-    def column(self, x: TermInputs) -> np.ndarray:
-        return np.abs(x.v)
+VISCOUS_ASYMMETRY = JointTerm("fv_asym", "direction-dependent viscous friction fv_asym·|v| (fv± = fv ± fv_asym)",
+                              _column, passive=True)
