@@ -15,7 +15,6 @@ import dataclasses
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-import numpy as np
 
 from ..regressor.distributed import FleetEquations, compress_files
 from ..regressor.terms import ModelStructure

@@ -52,7 +52,6 @@ r_j = τ_j − [Y π]_j − Ia_j v̇_j (for a friction-only log or a plot).
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from typing import Iterable, Sequence
 
 import numpy as np

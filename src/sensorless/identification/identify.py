@@ -16,7 +16,7 @@ import numpy as np
 from ..data.outliers import OUTLIER_MODES
 from ..data.trajectory import Trajectory
 from ..data.validation import validate_trajectory
-from ..errors import DataError, ExcitationError, IdentifiabilityWarning, OptionError, SolverError, setting
+from ..errors import DataError, IdentifiabilityWarning, OptionError, SolverError, setting
 from ..regressor.compress import compress
 from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 
 from ..errors import OptionError, setting
 from ..regressor.terms import ModelStructure

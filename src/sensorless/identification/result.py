@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..data.trajectory import Trajectory
-from ..io import versions, write_json_atomic  # noqa: F401  write_json_atomic: the studies (cli/psm.py, experiments) still import it from here until they move
+from ..io import versions
 from ..regressor.terms import ModelStructure
 from .base import BaseParameters
 from .metrics import TorqueMetrics, torque_metrics
