@@ -13,7 +13,7 @@ The scheme (flat, one name per module; the prefix plays the role of a folder):
 * a CLI module is tested by the files that run its command (``["payload", ...]``);
 * otherwise the module is in :data:`EXEMPT`, with the file that tests it and why (a private back end, a
   helper tested through the module that uses it, a figure tested with its command), or is a CLI helper every
-  command uses (:data:`CLI_SHARED`) or a CLI wrapper of the studies (:data:`STUDY_WRAPPERS`).
+  command uses (:data:`CLI_SHARED`).
 
 Conversely every test file is named after a library module or subpackage, or is one of the
 project-wide tests (:data:`PROJECT_WIDE`) or a study's test (:data:`STUDIES`).
@@ -28,7 +28,6 @@ from pathlib import Path
 
 TESTS = Path(__file__).resolve().parent
 SRC = TESTS.parent / "src" / "sensorless"
-STUDY_PACKAGES = {"simulation", "experiments", "benchmarks", "example_data"}  # moving to sensorless_studies
 
 # module (path under src/sensorless, no suffix) -> (test file that exercises it, why it has no file of its own)
 EXEMPT = {
@@ -75,7 +74,6 @@ EXEMPT = {
     "cli/blas": ("test_speed.py", "BLAS threads per command"),
 }
 # CLI modules that only wrap studies (benchmark/experiment commands): they move with the studies
-STUDY_WRAPPERS = {"cli/bench", "cli/contact_id", "cli/example", "cli/psm", "cli/torque_control", "cli/fleet"}
 # CLI helpers shared by every command: exercised by every CLI test, the error-language table first
 CLI_SHARED = {"cli/common", "cli/console", "cli/flags", "cli/channel_options", "cli/logs"}
 
@@ -94,7 +92,7 @@ def library_modules() -> tuple[str, ...]:
     out = []
     for p in sorted(SRC.rglob("*.py")):
         rel = p.relative_to(SRC).with_suffix("").as_posix()
-        if rel.split("/")[0] in STUDY_PACKAGES or rel == "demo" or rel.endswith("__init__"):
+        if rel.endswith("__init__"):
             continue
         out.append(rel)
     return tuple(out)
@@ -236,7 +234,7 @@ def covered(module: str) -> bool:
 
 def test_every_library_module_has_a_test_file_under_a_guessable_name():
     missing = [m for m in library_modules()
-               if not covered(m) and m not in EXEMPT and m not in STUDY_WRAPPERS and m not in CLI_SHARED]
+               if not covered(m) and m not in EXEMPT and m not in CLI_SHARED]
     assert not missing, ("no tests/test_<subpackage>_<module>*.py (nor a subpackage file importing it) for "
                          + ", ".join(missing) + "; name the module's tests so, or add it to EXEMPT with the reason")
 
