@@ -35,7 +35,6 @@ EXEMPT = {
     "run/figures": ("test_run.py", "a stage of identify_run (figure jobs); test_run.py runs it end to end, Python run == CLI run bitwise"),
     "run/friction": ("test_run.py", "a stage of identify_run (the friction law); test_run.py runs it end to end, Python run == CLI run bitwise"),
     "run/logs": ("test_run.py", "a stage of identify_run (reading the logs); test_run.py runs it end to end, Python run == CLI run bitwise"),
-    "run/validation": ("test_run.py", "a stage of identify_run (baseline, held-out scores, plausibility); test_run.py runs it end to end, Python run == CLI run bitwise"),
     "lazy": ("test_speed.py", "private PEP 562 helper of every package's __init__; its effect (nothing heavy "
                                "loaded by `import sensorless.cli`) is the start-up test"),
     "outdir": ("test_io.py", "private back end of sensorless.io.atomic_output_dir (manifest, lock, swap)"),
