@@ -31,7 +31,6 @@ SRC = TESTS.parent / "src" / "sensorless"
 
 # module (path under src/sensorless, no suffix) -> (test file that exercises it, why it has no file of its own)
 EXEMPT = {
-    "run/figures": ("test_run.py", "a stage of identify_run (figure jobs); test_run.py runs it end to end, Python run == CLI run bitwise"),
     "lazy": ("test_speed.py", "private PEP 562 helper of every package's __init__; its effect (nothing heavy "
                                "loaded by `import sensorless.cli`) is the start-up test"),
     "outdir": ("test_io.py", "private back end of sensorless.io.atomic_output_dir (manifest, lock, swap)"),
