@@ -9,14 +9,11 @@ import numpy as np
 import pytest
 
 from sensorless.data import write_npz
-from sensorless.data.trims import LogTrims
 from sensorless.excitation import random_fourier
 from sensorless.run import RunConfig, identify_run
 from sensorless.run.figures import PLOT_POINTS, figure_jobs, plot_window
-from sensorless.run.logs import load_logs
 from sensorless.testing import perturbed_truth, synthetic_trajectory
 
-PREP = dict(columns=None, rate=None, lowpass=None, savgol_window=None, decimate=1, trim=LogTrims.parse(None))
 
 
 @pytest.fixture(scope="module")

@@ -6,6 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from typer.testing import CliRunner
+
+from sensorless.cli import app
 
 from sensorless.errors import OptionError, RobotModelError, SensorlessError
 from sensorless.regressor import ModelStructure
@@ -22,6 +25,14 @@ def test_dvrk_psm_loads_through_the_registry_and_refuses_joint_options():
     for kw in (dict(lock=["outer_yaw"]), dict(passive=["outer_yaw"]), dict(floating_base=True)):
         with pytest.raises(RobotModelError, match="dvrk_psm"):
             load_run_robot("dvrk_psm", **kw)
+
+
+def test_the_command_names_the_flag_a_registry_robot_refuses(tmp_path):
+    (tmp_path / "a.npz").touch()
+    r = CliRunner().invoke(app, ["identify", "--robot", "dvrk_psm", "--lock", "outer_yaw", "--data",
+                                 str(tmp_path / "a.npz"), "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "dvrk_psm" in r.output and "does not take --lock" in r.output, r.output
+    assert not (tmp_path / "o").exists()
 
 
 def test_added_frames_sit_where_the_spec_says(ur5):
