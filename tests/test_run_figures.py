@@ -15,7 +15,6 @@ from sensorless.run.figures import PLOT_POINTS, figure_jobs, plot_window
 from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
-
 @pytest.fixture(scope="module")
 def path(tmp_path_factory, ur5):
     """A 30 s UR5 log at 100 Hz: more samples than a figure shows."""
