@@ -100,11 +100,6 @@ def _print_line(label: str, style: str, message: str) -> None:
     err_console.print(Text.assemble((label, style), " ", message), highlight=False, soft_wrap=True)
 
 
-def warn_line(message: object) -> None:
-    """One yellow ``warning:`` line on stderr, settings named in the command's flags (:func:`cli_words`)."""
-    _print_line("warning:", "yellow", one_line(cli_words(message)))
-
-
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     name = getattr(category, "__name__", "Warning")
     prefix = "" if name in ("UserWarning", "IdentifiabilityWarning", "DataWarning") else f"{name}: "
@@ -230,24 +225,9 @@ ADDED_FRAMES: "contextvars.ContextVar[tuple]" = contextvars.ContextVar("added_fr
 _ROBOT_SOURCE: "contextvars.ContextVar[dict]" = contextvars.ContextVar("robot_source", default={})
 
 
-def load_robot_cli(spec, **kwargs):
-    """:func:`~sensorless.robot.load_robot` with the command's ``--trust-xacro`` / ``--package-path``;
-    a refused xacro file names the flag."""
-    from ..errors import UntrustedModelError
-    from ..robot import load_robot
-    from ..xacro_expand import refuse_xacro
-
-    source = _ROBOT_SOURCE.get()
-    try:
-        return load_robot(spec, trust_xacro=source.get("trust_xacro", False),
-                          package_paths=source.get("package_paths", ()), **kwargs)
-    except UntrustedModelError:
-        refuse_xacro(Path(str(spec)), "rerun with `trust_xacro=True`")
-
-
 def robot_source_options(fn):
     """Decorator: ``--trust-xacro`` and ``--package-path DIR`` (repeatable) for a command that loads
-    a robot; :func:`load_robot_cli` reads them while the command runs."""
+    a robot; :func:`load_robot_arg` reads them while the command runs."""
 
     @functools.wraps(fn)
     def run(*args, trust_xacro: bool = False, package_path: Optional[List[Path]] = None, **kwargs):
