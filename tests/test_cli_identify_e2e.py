@@ -2,7 +2,8 @@
 No timing assertions: the times are in ``sensorless benchmark identify-e2e``.
 
 * friction.png evaluates only the samples it draws: the same dots as evaluating every sample;
-* the figure process draws the same PNG bytes as the command's own process, and when it fails
+* the figure process draws the same PNG bytes as the command's own process (also the half of its
+  jobs drawn by its forked copy), and when it fails
   (or no core is idle for it) the command draws them itself (exit 0, every figure written);
 * the OLS baseline solved on the fit's compressed equations (Stribeck candidates selected) equals
   a second pass over the logs;
@@ -62,6 +63,26 @@ def test_figure_process_writes_the_png_the_command_would(tmp_path):
         assert fp.wait()
     draw_job("torques", job, tmp_path / "here.png")
     assert (tmp_path / "child.png").read_bytes() == (tmp_path / "here.png").read_bytes()
+
+
+def test_forked_drawing_writes_the_same_pngs_and_surfaces_a_failed_job(tmp_path):
+    """The figure process draws half its jobs in a forked copy: the same bytes as drawing them in
+    order here; a job the copy cannot draw is drawn again here, so its error is raised, not lost."""
+    from sensorless.report.plot_process import draw_jobs
+
+    t = np.linspace(0.0, 2.0, 300)
+    meas = np.stack([np.sin(t), np.cos(t)], axis=1)
+    jobs = [("torques", dict(t=t, measured=meas * k, predictions={"LMI": 0.9 * meas}, rows=["a", "b"],
+                             units=["N·m", "N"], title=f"job {k}"), tmp_path / f"{name}{k}.png")
+            for k in (1, 2, 3) for name in ("forked",)]
+    draw_jobs(jobs, fork=True)
+    draw_jobs([(kind, kw, tmp_path / path.name.replace("forked", "serial")) for kind, kw, path in jobs], fork=False)
+    for k in (1, 2, 3):
+        assert (tmp_path / f"forked{k}.png").read_bytes() == (tmp_path / f"serial{k}.png").read_bytes()
+    bad = [jobs[0], ("no-such-figure", {}, tmp_path / "bad.png")]  # the second job goes to the copy
+    with pytest.raises(ValueError, match="no-such-figure"):
+        draw_jobs(bad, fork=True)
+    assert not (tmp_path / "bad.png").exists()
 
 
 def test_identify_draws_its_figures_itself_when_the_figure_process_fails(ur5, tmp_path, monkeypatch):

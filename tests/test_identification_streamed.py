@@ -135,6 +135,39 @@ def test_chunked_compression_equals_the_whole_log(logs, ur5, candidates):
             _same_rows(tot.left_out.A, ref.left_out.A)
 
 
+@pytest.mark.parametrize("candidates", [False, True])
+def test_cross_validation_folds_are_the_streamed_folds(logs, ur5, candidates):
+    """The whole-log folds of ``--gamma auto`` (one pass, phase blocks) equal the streamed pass's fold by
+    fold, and sum to the whole log's equations: the masks of the fit (reversals, rest) are the whole
+    log's in both, not those of a fold's samples cut out of it."""
+    from sensorless.identification.gamma import split_folds
+
+    d, _ = logs
+    whole = load_log(d / "clean.npz", ur5, None, None, None, None, 1)
+    slog = scan_log(open_chunked(d / "clean.npz", ur5.joint_names))
+    assert slog.period is not None  # phase blocks: a fold's samples are not contiguous
+    s0 = ModelStructure(ur5, joint_terms=("fv", "fc", "stribeck", "offset", "armature"))
+    _, law = friction_structure(s0, [whole])
+    s, _ = friction_structure(s0, [], coulomb_smoothing=law.coulomb_smoothing, stribeck_velocity=law.stribeck_grid,
+                              width_grid=law.width_grid)
+    st = StribeckCandidates(s, law.stribeck_grid, law.width_grid) if candidates else s
+    assert st.fit_mask(whole.v) is not None and not st.fit_mask(whole.v).all()  # masks are exercised
+    folds = split_folds(st, [whole], 5, 2048, slog.period)
+    streamed = fold_stream(st, slog, n_folds=5, chunk=2048)
+    for a, b in zip(folds, streamed):
+        assert a.n_samples == b.n_samples
+        for x, y in ((a.A, b.A), (a.b, b.b), (a.c, b.c)):
+            _same_rows(x, y)
+    ref = compress(st, whole, chunk=2048)
+    tot = folds[0]
+    for ne in folds[1:]:
+        tot = tot.merge(ne)
+    for x, y in ((tot.A, ref.A), (tot.b, ref.b), (tot.c, ref.c), (tot.y_min, ref.y_min), (tot.y_max, ref.y_max)):
+        _same_rows(x, y)
+    if candidates:
+        _same_rows(tot.left_out.A, ref.left_out.A)
+
+
 def _identify(args, out):
     res = runner.invoke(app, ["identify", "--robot", "ur5", "--out", str(out), "--no-plot", *args])
     assert res.exit_code == 0, res.output

@@ -35,15 +35,16 @@ from ..data.periodicity import excitation_period
 from ..data.trajectory import Trajectory
 from ..errors import DataError, IdentifiabilityWarning, SolverError
 from ..regressor.compress import compress
-from ..regressor.normal_equations import NormalEquations
+from ..regressor.normal_equations import NormalEquations, compress_folds
 from ..regressor.terms import ModelStructure
 from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi
 from .unconstrained import regularizer_metric, unconstrained_solution
 
-__all__ = ["GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "grid_search", "select_gamma", "validation_score"]
+__all__ = ["CV_FOLDS", "GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "grid_search", "select_gamma", "validation_score"]
 
 GAMMA_SEARCHES = ("bracket", "exhaustive", "closed-form")
+CV_FOLDS = 5  # folds of ``--gamma auto``
 _BRACKET_MIN = 6  # grids shorter than this are scanned whole
 _GOLDEN = 0.3819660112501051  # 1 − 1/φ
 
@@ -293,11 +294,14 @@ def split_folds(
     chunk: int,
     period: float | str | None,
     tick: Callable[[], None] = lambda: None,
+    progress: Callable[[int], None] | None = None,
 ) -> list[NormalEquations]:
     """The ``n_folds`` cross-validation folds of ``data`` as normal equations. With a ``period``
     (``"auto"``: :func:`~sensorless.data.periodicity.excitation_period`), fold f holds the samples in
     phase block f of the period; without, the concatenated logs are cut into ``n_folds`` contiguous
-    pieces. Given normal equations (at least 2) are the folds."""
+    pieces. One pass over the samples (:func:`~sensorless.regressor.normal_equations.compress_folds`):
+    the masks of the fit are the whole log's, and the folds sum to its equations. Given normal
+    equations (at least 2) are the folds. ``progress(n)``: as :func:`compress`'s."""
     items = [data] if isinstance(data, Trajectory) else list(data)
     if items and all(isinstance(i, NormalEquations) for i in items):
         if len(items) < 2:
@@ -312,30 +316,33 @@ def split_folds(
     if period is not None:
         if not float(period) > 0:  # type: ignore[arg-type]
             raise DataError(f"period must be positive, got {period}")
-        folds = []
+        blocks = [np.floor(((t.t - t.t[0]) % period) / period * n_folds).astype(int) for t in trajs]  # type: ignore[operator]
         for f in range(n_folds):
-            parts = []
-            for t in trajs:
-                block = np.floor(((t.t - t.t[0]) % period) / period * n_folds).astype(int)  # type: ignore[operator]
-                if np.any(block == f):
-                    parts.append(t.take(block == f))
-            if not parts:
+            if not any(np.any(b == f) for b in blocks):
                 raise DataError(f"no sample falls in phase block {f} of {n_folds}; is the period of {period} s right?")
-            folds.append(compress(structure, parts, chunk=chunk))
-            tick()
-        return folds
-    edges = np.linspace(0, total, n_folds + 1).round().astype(int)
-    starts = np.cumsum([0] + [len(t) for t in trajs])
-    folds = []
-    for f in range(n_folds):
-        parts = []
-        for t, s in zip(trajs, starts[:-1]):
-            lo, hi = max(edges[f] - s, 0), min(edges[f + 1] - s, len(t))
-            if hi > lo:
-                parts.append(t.take(slice(lo, hi)))
-        folds.append(compress(structure, parts, chunk=chunk))
+        fold_of = lambda k, t: lambda lo, hi: blocks[k][lo:hi]  # noqa: E731
+    else:
+        edges = np.linspace(0, total, n_folds + 1).round().astype(int)
+        starts = np.cumsum([0] + [len(t) for t in trajs])
+        fold_of = lambda k, t: lambda lo, hi: np.searchsorted(edges, starts[k] + np.arange(lo, hi), side="right") - 1  # noqa: E731
+    if structure.row_map.per_sample:  # contacts fold their own equations: each fold compressed from its samples
+        folds = [compress(structure, _fold_parts(trajs, fold_of, f), chunk=chunk, progress=progress)
+                 for f in range(n_folds)]
+    else:
+        folds = compress_folds(structure, trajs, fold_of, n_folds, chunk=chunk, progress=progress)
+    for _ in folds:
         tick()
     return folds
+
+
+def _fold_parts(trajs: list[Trajectory], fold_of, f: int) -> list[Trajectory]:
+    """The samples of fold ``f``, one trajectory per log that has some."""
+    parts = []
+    for k, t in enumerate(trajs):
+        mask = fold_of(k, t)(0, len(t)) == f
+        if mask.any():
+            parts.append(t.take(mask))
+    return parts
 
 
 def cross_validate_gamma(
@@ -343,7 +350,7 @@ def cross_validate_gamma(
     data: Trajectory | Iterable[Trajectory] | Sequence[NormalEquations],
     gammas: Sequence[float] = DEFAULT_GAMMAS,
     *,
-    n_folds: int = 5,
+    n_folds: int = CV_FOLDS,
     score: str = "residual",
     period: float | str | None = None,
     solver: str | None = None,

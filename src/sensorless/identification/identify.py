@@ -52,6 +52,18 @@ CONSTRAINT_RESIDUAL_RISE = 1.2
 JOINT_TERM_MAX_VIF = 1e3
 
 
+
+def _fold_pass(structure, data: list, chunk: int, progress) -> tuple[list[NormalEquations], NormalEquations]:
+    """The cross-validation folds of ``--gamma auto`` (:func:`~.gamma.split_folds`: phase blocks of the
+    excitation period, one pass) and the whole log's equations as their sum: one pass over the
+    samples instead of one for the fit and another for the folds (the same sums up to rounding)."""
+    import functools
+
+    from .gamma import CV_FOLDS, split_folds
+
+    folds = split_folds(structure, data, CV_FOLDS, chunk, "auto", progress=progress)
+    return folds, functools.reduce(NormalEquations.merge, folds)
+
 def identify(
     model: Robot | ModelStructure,
     data: Trajectory | Iterable[Trajectory] | NormalEquations,
@@ -164,8 +176,12 @@ def identify(
         data = data if isinstance(data, NormalEquations) else list(data)
     cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
     t0 = time.perf_counter()
-    ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
-                                                                  progress=progress)
+    if method == "lmi" and gamma == "auto" and not folds and not isinstance(data, NormalEquations) \
+            and not structure.row_map.per_sample:
+        folds, ne = _fold_pass(cand or structure, data, chunk, progress)
+    else:
+        ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
+                                                                      progress=progress)
     t_compress = time.perf_counter() - t0
     if channels is not None:
         check_torque_channels(channels)

@@ -42,7 +42,7 @@ from ..data.chunks import ChunkedLog, open_chunked
 from ..data.streamed_log import StreamedLog, scan_log
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.normal_equations import NormalEquations, idle_core, one_blas_thread
+from ..regressor.normal_equations import NormalEquations, fold_chunk, idle_core, one_blas_thread
 from ..regressor.joint_terms import joint_term, terms_where
 from ..regressor.terms import ModelStructure
 from .friction import FrictionFit, coulomb_smoothing_from_noise, friction_structure, record_search, stribeck_grid, \
@@ -170,7 +170,6 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     fold_of = _fold_index(slog, n_folds) if n_folds > 1 else None
     dense = not structure.row_map.selects_rows or structure.n_block_params != structure.n_body_params
     cols = None if dense else structure.row_body_columns()
-    rows = structure.term_rows
     if overlap is None:
         overlap = idle_core()
     bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if overlap else 1)]
@@ -192,11 +191,11 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
                 keep = keep[(0 if prev_v is None else 1):][:n]
             prev_v = V[n - 1 : n]
             folds = fold_of(s, s + n) if fold_of is not None else None
-            job = (nes, folds, structure, Wb, F, y, keep, rows, cols, track)
+            job = (nes, folds, structure, Wb, F, y, keep, cols, track)
             if overlap:
-                pending[slot] = pool.submit(_fold_chunk, *job)
+                pending[slot] = pool.submit(fold_chunk, *job)
             else:
-                _fold_chunk(*job)
+                fold_chunk(*job)
             if progress is not None:
                 progress(n)
         for f in pending:
@@ -205,36 +204,6 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     for ne in nes:
         ne.mirror_upper()
     return nes
-
-
-def _fold_chunk(nes, folds, structure, Wb, F, y, keep, rows, cols, track) -> None:
-    """A chunk's samples into the equations of their folds (``folds``: per sample, or None: all in one),
-    one contiguous run of a fold at a time (views, no copies: a phase block spans many samples)."""
-    if folds is None:
-        _fold(nes[0], structure, Wb, F, y, keep, rows, cols, track)
-        return
-    edges = np.concatenate([[0], np.flatnonzero(np.diff(folds)) + 1, [len(folds)]])
-    for a, b in zip(edges[:-1], edges[1:]):
-        _fold(nes[int(folds[a])], structure, Wb[a:b], F[a:b], y[a:b], None if keep is None else keep[a:b], rows, cols,
-              track)
-
-
-def _fold(ne: NormalEquations, structure, Wb, F, y, keep, rows, cols, track: bool) -> None:
-    """One chunk into ``ne``, as :func:`~sensorless.regressor.compress` folds it (equations left out of
-    the fit zeroed, and folded apart when tracked)."""
-    y_stats = None
-    if keep is not None:
-        out = keep == 0
-        if out.any():
-            if track:
-                i = np.flatnonzero(out.any(axis=1))
-                o = out[i]
-                ne.left_out.add_blocks(Wb[i] * o[:, :, None], F[i] * o[:, rows, None], rows, y[i] * o, cols,
-                                       upper_only=True)
-            y_stats, y = y, y.copy()
-            Wb[out], y[out] = 0.0, 0.0  # in place: this chunk's own buffers (or copies of a fold's samples)
-            F[out[:, rows]] = 0.0
-    ne.add_blocks(Wb, F, rows, y, cols, upper_only=True, y_stats=y_stats)
 
 
 def _plot_samples(slog: StreamedLog, n: int):

@@ -40,7 +40,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError
 from .terms import ModelStructure
 
-__all__ = ["NormalEquations", "compress_trajectories", "iter_trajectories", "one_blas_thread", "syrk_fold"]
+__all__ = ["NormalEquations", "compress_folds", "compress_trajectories", "fold_chunk", "fold_into", "iter_trajectories", "one_blas_thread", "syrk_fold"]
 
 
 def _dsyrk():
@@ -228,10 +228,30 @@ def compress_trajectories(
     """Evaluate the regressor chunk by chunk in this process and fold it into :class:`NormalEquations`
     (:func:`~sensorless.regressor.compress.compress` on trajectories; its docstring gives the options).
     """
+    return compress_folds(structure, data, None, 1, chunk=chunk, progress=progress, overlap=overlap)[0]
+
+
+def compress_folds(
+    structure: ModelStructure,
+    data: Trajectory | Iterable[Trajectory],
+    fold_of: "Callable[[int, Trajectory], Callable[[int, int], np.ndarray]] | None",
+    n_folds: int,
+    *,
+    chunk: int = 2048,
+    progress: Callable[[int], None] | None = None,
+    overlap: bool | None = None,
+) -> list[NormalEquations]:
+    """:func:`compress_trajectories` with each sample folded into the equations of its fold:
+    ``fold_of(k, traj)(start, stop)`` gives the folds (0 … n_folds − 1) of samples [start, stop) of
+    the k-th trajectory. One pass: every chunk's regressor is evaluated once, and the masks of the
+    fit (rest, reversals) are those of the whole log, so the folds sum to the whole log's equations
+    (up to rounding). Structures that fold their own equations (contacts) take ``fold_of=None``."""
     track = bool(getattr(structure, "track_left_out", False))
-    ne = NormalEquations.zeros(structure.n_rows, structure.n_params, left_out=track)
+    nes = [NormalEquations.zeros(structure.n_rows, structure.n_params, left_out=track) for _ in range(max(n_folds, 1))]
     row_map = structure.row_map
     own_fold = row_map.per_sample  # a map that changes per sample (contacts): the structure folds its equations
+    if own_fold and fold_of is not None:
+        raise DataError("equations folded per sample (contacts) cannot be split into folds in one pass")
     # per-row subtree columns only where each kept row is one row of Pinocchio's joint-torque regressor
     # and the block is the bodies alone (a transmission's Gᵀ rows and drive columns couple rows: fold every column)
     dense = not row_map.selects_rows or structure.n_block_params != structure.n_body_params
@@ -243,16 +263,17 @@ def compress_trajectories(
         bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if pool else 1)]
         pending = [None, None]
         k = 0
-        for traj in iter_trajectories(data):
+        for n_traj, traj in enumerate(iter_trajectories(data)):
             seen = True
             prev_v = None
+            folds_in = fold_of(n_traj, traj) if fold_of is not None else None
             # a presliding state depends on the history of q: integrated along this whole log from 0
             states = getattr(structure, "friction_states", None)
             Z = states(traj) if states is not None and not own_fold else None
             for start, part in enumerate(traj.chunks(chunk)):
                 start *= chunk
                 if own_fold:
-                    structure.fold(ne, part)
+                    structure.fold(nes[0], part)
                     if progress is not None:
                         progress(len(part))
                     continue
@@ -265,22 +286,12 @@ def compress_trajectories(
                 y = structure.target(part)
                 keep = _fit_mask(structure, traj, start, len(part), V, prev_v)
                 prev_v = V[-1:]
-                y_stats = None
-                if keep is not None:  # equations left out of the fit (at rest, at a reversal): zero rows, in place
-                    out = keep == 0
-                    if track and out.any():  # ... folded apart, only the samples with such rows
-                        i = np.flatnonzero(out.any(axis=1))
-                        o = out[i]
-                        ne.left_out.add_blocks(Wb[i] * o[:, :, None], F[i] * o[:, structure.term_rows, None],
-                                               structure.term_rows, y[i] * o, cols, upper_only=True)
-                    y_stats = y.copy()
-                    Wb[out], y[out] = 0.0, 0.0
-                    F[out[:, structure.term_rows]] = 0.0
-                args = (Wb, F, structure.term_rows, y, cols, y_stats)
+                folds = None if folds_in is None else np.asarray(folds_in(start, start + len(part)))
+                args = (nes, folds, structure, Wb, F, y, keep, cols, track)
                 if pool:
-                    pending[slot] = pool.submit(_fold_chunk, ne, *args)
+                    pending[slot] = pool.submit(fold_chunk, *args)
                 else:
-                    _fold_chunk(ne, *args)
+                    fold_chunk(*args)
                 k += 1
                 if progress is not None:
                     progress(len(part))
@@ -290,8 +301,42 @@ def compress_trajectories(
     if not seen:
         raise DataError("no trajectory was given")
     if not own_fold:
-        ne.mirror_upper()
-    return ne
+        for ne in nes:
+            ne.mirror_upper()
+    return nes
+
+
+def fold_chunk(nes: list, folds: "np.ndarray | None", structure, Wb, F, y, keep, cols, track: bool) -> None:
+    """A chunk's samples into the equations of their folds (``folds``: per sample, or None: all into
+    ``nes[0]``), one contiguous run of a fold at a time (views, no copies: a phase block spans many
+    samples). Runs in the helper thread with ``overlap``; chunks are folded in order."""
+    if folds is None:
+        fold_into(nes[0], structure, Wb, F, y, keep, cols, track)
+        return
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(folds)) + 1, [len(folds)]])
+    for a, b in zip(edges[:-1], edges[1:]):
+        fold_into(nes[int(folds[a])], structure, Wb[a:b], F[a:b], y[a:b], None if keep is None else keep[a:b],
+                  cols, track)
+
+
+def fold_into(ne: NormalEquations, structure, Wb, F, y, keep, cols, track: bool) -> None:
+    """One chunk (regressor block ``Wb``, joint features ``F``, targets ``y``) into ``ne``: the
+    equations left out of the fit (``keep == 0``: at rest, at a reversal) zeroed in place, and folded
+    apart into ``ne.left_out`` when tracked (only the samples with such rows)."""
+    rows = structure.term_rows
+    y_stats = None
+    if keep is not None:
+        out = keep == 0
+        if out.any():
+            if track:
+                i = np.flatnonzero(out.any(axis=1))
+                o = out[i]
+                ne.left_out.add_blocks(Wb[i] * o[:, :, None], F[i] * o[:, rows, None], rows, y[i] * o, cols,
+                                       upper_only=True)
+            y_stats, y = y, y.copy()
+            Wb[out], y[out] = 0.0, 0.0  # in place: this chunk's own buffer (or a view of it)
+            F[out[:, rows]] = 0.0
+    ne.add_blocks(Wb, F, rows, y, cols, upper_only=True, y_stats=y_stats)
 
 
 def _fit_mask(structure, traj: Trajectory, start: int, n: int, V: np.ndarray, prev_v: "np.ndarray | None"):
@@ -314,11 +359,6 @@ def idle_core() -> bool:
         return cores > 1 and os.getloadavg()[0] < cores - 1
     except OSError:  # pragma: no cover - no load average on this platform
         return cores > 1
-
-
-def _fold_chunk(ne: NormalEquations, Wb, F, act_rows, y, cols, y_stats=None) -> None:
-    """One chunk into ``ne`` (runs in the helper thread with ``overlap``; folds are sequential)."""
-    ne.add_blocks(Wb, F, act_rows, y, cols, upper_only=True, y_stats=y_stats)
 
 
 class _NoPool:

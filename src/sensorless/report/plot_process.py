@@ -1,20 +1,25 @@
 """The child side of :class:`~sensorless.cli.figure_process.FigureProcess`: figures drawn off a
 command's critical path.
 
-``python -m sensorless.report.plot_process`` imports matplotlib, then reads a pickled list of
-jobs on stdin, draws each and writes its PNG atomically, and prints ``ok``. A job is
-``("torques", kwargs, path)`` → :func:`~.plots.plot_torques` or ``("friction", panels, path)``
-→ :func:`~.friction_plot.plot_friction_panels`: plain arrays and strings computed by the parent (no
+``python -m sensorless.report.plot_process`` imports matplotlib and draws two tiny figures of each
+kind into memory (:func:`warm_up`: fonts, glyph caches and the drawing code paths are loaded then,
+~0.3 s that would otherwise follow the fit), then reads a pickled list of jobs on stdin, draws
+each and writes its PNG atomically, and prints ``ok``. With several jobs it forks once (the
+copy shares everything already imported and warmed) and the two processes draw half the jobs
+each, on the two cores the waiting command leaves free. A job is ``("torques", kwargs, path)`` →
+:func:`~.plots.plot_torques` or ``("friction", panels, path)`` →
+:func:`~.friction_plot.plot_friction_panels`: plain arrays and strings computed by the parent (no
 robot model, so the child never imports Pinocchio or the identification stack).
 """
 
 from __future__ import annotations
 
+import os
 import pickle
 import sys
 from pathlib import Path
 
-__all__ = ["draw_job"]
+__all__ = ["draw_job", "draw_jobs", "warm_up"]
 
 
 def draw_job(kind: str, kwargs: dict, path) -> Path:
@@ -33,19 +38,68 @@ def draw_job(kind: str, kwargs: dict, path) -> Path:
     return Path(path)
 
 
+def warm_up() -> None:
+    """Draw one small figure of each kind into memory: what the first real figure would pay once
+    (font files, glyph layout, the Agg and PNG code paths) is paid before the jobs arrive."""
+    import io
+
+    import numpy as np
+
+    from .figure_kit import DPI
+    from .friction_plot import draw_friction
+    from .plots import torque_figure
+
+    y = np.sin(np.linspace(0.0, 1.0, 50))[:, None]
+    for fig in (torque_figure(y[:, 0], y, {"A": y, "B": y}, ["j"], units=["N·m"], title="τ"),
+                draw_friction(y, y, y, y, y, [("j: fv", "N·m", "rad/s")], title="τ")):
+        fig.savefig(io.BytesIO(), format="png", dpi=DPI)
+
+
+def draw_jobs(jobs: list, fork: bool | None = None) -> None:
+    """Draw every job; with ``fork`` (default: several jobs, ``os.fork`` available and this process
+    single-threaded, as the figure process is) a forked copy draws every other job meanwhile. A job
+    the copy fails to draw is drawn here after it."""
+    import threading
+
+    jobs = list(jobs)
+    if fork is None:
+        fork = len(jobs) > 1 and hasattr(os, "fork") and threading.active_count() == 1
+    theirs, mine = (jobs[1::2], jobs[0::2]) if fork else ([], jobs)
+    pid = _fork() if theirs else None
+    if pid == 0:  # the copy: its jobs, then gone without running the parent's exit handlers
+        code = 1
+        try:
+            for job in theirs:
+                draw_job(*job)
+            code = 0
+        finally:
+            os._exit(code)
+    for job in mine + (theirs if pid is None else []):
+        draw_job(*job)
+    if pid is not None:
+        _, status = os.waitpid(pid, 0)
+        if os.waitstatus_to_exitcode(status) != 0:
+            for job in theirs:  # each PNG is written atomically: a failed copy left none half-written
+                draw_job(*job)
+
+
+def _fork() -> int | None:
+    try:
+        sys.stdout.flush()
+        return os.fork()
+    except OSError:  # no memory or process slot: draw them all here
+        return None
+
+
 def _main() -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    from . import figure_kit, friction_plot, plots  # noqa: F401  (imported while the parent works)
-    from matplotlib.backends import backend_agg  # noqa: F401
-    from matplotlib import figure  # noqa: F401
-
+    warm_up()
     data = sys.stdin.buffer.read()
     if not data:  # the parent needed no figures (or stopped)
         return 0
-    for kind, kwargs, path in pickle.loads(data):
-        draw_job(kind, kwargs, path)
+    draw_jobs(pickle.loads(data))
     sys.stdout.write("ok")
     sys.stdout.flush()
     return 0
