@@ -23,6 +23,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import datetime as _dt
 import errno
 import json
@@ -59,7 +60,12 @@ __all__ = [
 # ---- version info -----------------------------------------------------------------------
 def versions() -> dict:
     """Python and key package versions (for result files and manifests)."""
-    import importlib.metadata as md
+    return dict(_versions())
+
+
+@functools.lru_cache(maxsize=1)
+def _versions() -> dict:
+    import importlib.metadata as md  # reads every installed package's metadata: ~40 ms, once per process
 
     out = {"python": platform.python_version()}
     for pkg in ("sensorless", "pin", "numpy", "scipy", "cvxpy", "clarabel"):

@@ -383,6 +383,18 @@ def auto_ellipsoids(
         raise ValueError(f"prior_slack must be a number >= 1, got {prior_slack}")
     if not (np.isfinite(com_margin) and com_margin >= 0.0):
         raise ValueError(f"com_margin must be a number >= 0, got {com_margin}")
+    if not (geometry is None or isinstance(geometry, str)):  # a caller's GeometryModel: not memoised
+        return _auto_ellipsoids(robot, geometry, margin, prior, contain_prior, prior_slack, com_margin)
+    # memoised on the robot: a run asks for the same ellipsoids for the fit, each γ fold and the checks
+    p0 = robot.inertial_parameters() if prior is None else np.asarray(prior, dtype=float)
+    key = (geometry, margin, p0.tobytes(), contain_prior, prior_slack, com_margin)
+    memo = robot.__dict__.setdefault("_auto_ellipsoids", {})
+    if key not in memo:
+        memo[key] = _auto_ellipsoids(robot, geometry, margin, prior, contain_prior, prior_slack, com_margin)
+    return dict(memo[key])
+
+
+def _auto_ellipsoids(robot, geometry, margin, prior, contain_prior, prior_slack, com_margin) -> dict:
     lost: set = set()
     if isinstance(geometry, str):
         if geometry != "auto":
