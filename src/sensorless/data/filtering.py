@@ -1,4 +1,5 @@
-"""Filtering, differentiation and resampling of trajectories (thin layers over scipy.signal).
+"""Filtering, differentiation and resampling of trajectories (thin layers over scipy.signal; the
+Savitzky–Golay arithmetic is SciPy's, from :mod:`.savgol`, which avoids importing scipy.signal).
 
 All operations act along axis 0 (samples), return a new :class:`Trajectory` and append
 a note to ``units["processing"]`` saying what was done. Filters that assume a constant
@@ -15,6 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import DataError, setting
+from .savgol import savgol_coeffs, savgol_filter
 from .trajectory import Trajectory
 from .validation import validate_trajectory
 from ..errors import TooFewSamplesError
@@ -223,8 +225,6 @@ class SavitzkyGolay:
             raise DataError(f"dt must be a positive number of seconds, got {self.dt!r}")
         self.window, self.polyorder, self.dt = int(self.window), int(self.polyorder), float(self.dt)
         pos = self.window - 1 if self.causal else None
-        from scipy.signal import savgol_coeffs
-
         try:
             with np.errstate(all="raise"):
                 self.coeffs = {
@@ -264,8 +264,6 @@ class SavitzkyGolay:
         if x.ndim == 0 or x.shape[0] < w:
             n = 0 if x.ndim == 0 else x.shape[0]
             raise TooFewSamplesError(f"{n} samples are fewer than the Savitzky-Golay window ({w})")
-        from scipy.signal import savgol_filter
-
         if not self.causal:
             return savgol_filter(x, w, self.polyorder, deriv=deriv, delta=self.dt, axis=0, mode="interp")
         y = np.empty_like(x)

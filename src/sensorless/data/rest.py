@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DataError
+from .savgol import savgol_coeffs, savgol_filter
 
 __all__ = ["CREEP_SECONDS", "CREEP_SIGMAS", "RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "creep_drift", "rest_mask",
            "signal_noise", "zero_at_rest"]
@@ -65,8 +66,6 @@ def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndar
         x = x[:, None]
     if x.shape[0] < window + 2:
         raise DataError(f"{x.shape[0]} samples are too few to estimate the noise (need > {window + 2})")
-    from scipy.signal import savgol_coeffs, savgol_filter  # imported on use (CLI start-up)
-
     r = x - savgol_filter(x, window, polyorder, axis=0, mode="interp")
     c0 = savgol_coeffs(window, polyorder)[window // 2]
     r = r[window:-window] if x.shape[0] > 3 * window else r

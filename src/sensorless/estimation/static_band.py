@@ -321,9 +321,8 @@ def rest_speeds(traj, names, window: int | None = None) -> tuple[np.ndarray, np.
     ``REST_SIGMAS`` times the velocity noise (of the logged v, or of a Savitzky–Golay v of
     ``window`` samples from q); the range is ``RANGE_SIGMAS`` σ_q, at least two encoder steps
     (the smallest non-zero change of q)."""
-    from scipy.signal import savgol_coeffs
-
     from ..data.rest import RANGE_SIGMAS, REST_SIGMAS, signal_noise
+    from ..data.savgol import savgol_coeffs
 
     joints = list(traj.joint_names)
     missing = [n for n in names if n not in joints]
