@@ -10,6 +10,7 @@ place at once) and until the process exits. Cases, interleaved, best of ``repeat
   :func:`~sensorless_studies.benchmarks.peers.peer_case`), the defaults (LMI, γ by cross-validation);
 * ``hard_ols``: the same log, ``--method ols``;
 * ``long``: a ``long_samples``-sample UR5 Fourier log, the defaults;
+* ``hard_no_plot``, ``hard_ols_no_plot``: the first two with ``--no-plot`` (what the figures add);
 * ``python``: ``python -c pass`` (the floor of any command on this machine), in the same run.
 
 The CPU seconds of each run (its own and its figure process's) are recorded too: on a loaded
@@ -78,11 +79,13 @@ def bench_identify_e2e(*, repeats: int = 5, long_samples: int = 100_000, console
 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     load_before = os.getloadavg()
-    times: dict[str, list[dict]] = {"python": [], "hard": [], "hard_ols": [], "long": []}
+    times: dict[str, list[dict]] = {"python": [], "hard": [], "hard_ols": [], "long": [], "hard_no_plot": [],
+                                    "hard_ols_no_plot": []}
     with tempfile.TemporaryDirectory(prefix="sensorless-e2e-") as tmp:
         tmp = Path(tmp)
         logs = _logs(tmp, long_samples)
-        cases = {"hard": (logs["hard"], []), "hard_ols": (logs["hard"], ["--method", "ols"]), "long": (logs["long"], [])}
+        cases = {"hard": (logs["hard"], []), "hard_ols": (logs["hard"], ["--method", "ols"]), "long": (logs["long"], []),
+                 "hard_no_plot": (logs["hard"], ["--no-plot"]), "hard_ols_no_plot": (logs["hard"], ["--method", "ols", "--no-plot"])}
         for k in range(repeats):
             times["python"].append(_timed([sys.executable, "-c", "pass"], env, None))
             for name, (log, extra) in cases.items():
@@ -104,6 +107,8 @@ def bench_identify_e2e(*, repeats: int = 5, long_samples: int = 100_000, console
         "commands": {"hard": "sensorless identify --robot ur5 --data hard.npz --out DIR",
                      "hard_ols": "sensorless identify --robot ur5 --data hard.npz --method ols --out DIR",
                      "long": f"sensorless identify --robot ur5 --data <{long_samples}-sample npz> --out DIR",
+                     "hard_no_plot": "sensorless identify --robot ur5 --data hard.npz --no-plot --out DIR",
+                     "hard_ols_no_plot": "sensorless identify --robot ur5 --data hard.npz --method ols --no-plot --out DIR",
                      "python": "python -c pass"},
         "long_samples": long_samples,
         "repeats": repeats,
