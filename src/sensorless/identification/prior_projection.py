@@ -6,15 +6,18 @@ In the scaled parameters ``x = π̂/S + y`` (``S``: per-body mass/length scales)
     s.t.  B diag(S) y = 0,   x[10k] = m0_k / S[10k] (k fixed),   J(x_k) ⪰ 0 for every body k
 
 ``J`` the 4×4 pseudo-inertia (:func:`sensorless.parameters.pseudo_inertia_basis`), congruent to the
-unscaled one, so the cone is the same. As Clarabel's QP ``min ½yᵀPy + qᵀy, Ay + s = b, s ∈ K``:
-``P = 2I``, ``q = 2(π̂ − t)/S`` (0 without target); ``K`` = a zero cone (the equalities) × one
-``PSDTriangleConeT(4)`` per body, whose ``s = svec(J)``: the upper triangle by columns, off-diagonal
-entries × √2 (``svec(J)ᵀsvec(K) = tr(JK)``).
+unscaled one, so the cone is the same. As Clarabel's QP ``min ½vᵀPv + qᵀv, Av + s = b, s ∈ K``:
+``v = y``, ``P = 2I``, ``q = 0``; with a target ``v = (z, y)`` and ``z = y + (π̂ − t)/S`` as n more
+equalities, ``P = diag(2I, 0)``. ``K`` = a zero cone (the equalities) × one ``PSDTriangleConeT(4)``
+per body, whose ``s = svec(J)``: the upper triangle by columns, off-diagonal entries × √2
+(``svec(J)ᵀsvec(K) = tr(JK)``). These are, entry for entry and with the same sparsity, the data cvxpy
+1.9 compiled the program to for Clarabel (a test checks it), so model.urdf is unchanged to the bit.
 
-Why not cvxpy (the program's oracle in the tests): ``import cvxpy`` costs ~0.9 s (it pulls
-``scipy.stats``) and each of the 5–7 solves of a model.urdf rebuilt and recompiled the problem
-(~45–50 ms each, 0.34 s of a 600-sample UR5 ``sensorless identify --method ols``), which otherwise
-needs no cvxpy; ``import clarabel`` takes ~10 ms and one solve here a few ms.
+Why not cvxpy (kept as the tests' oracle): ``import cvxpy`` costs ~0.9 s (it pulls ``scipy.stats``)
+and cvxpy rebuilt and recompiled each solve (~25 ms a solve, 6–18 solves a model.urdf): on the
+600-sample UR5 hard-case log, choosing model.urdf's values took 0.45 s of ``sensorless identify
+--method ols`` (which needs cvxpy for nothing else) and 0.12 s of the LMI default; here 0.05 s and
+0.02 s (``import clarabel``: ~10 ms; a solve: ~3 ms).
 """
 
 from __future__ import annotations
@@ -55,6 +58,7 @@ def conic_data(pi, B, S, fix, m0, target=None):
     basis = svec(pseudo_inertia_basis()).T  # (10 svec entries, 10 parameters)
     A = sp.vstack([sp.csc_matrix(E), F, sp.block_diag([-basis] * nb)], format="csc")
     b = np.concatenate([np.zeros(len(E)), m0 / S[10 * fix] - x0[10 * fix], (x0.reshape(nb, 10) @ basis.T).ravel()])
+    A.eliminate_zeros()  # Clarabel keeps stored zeros in its KKT pattern
     n_zero = A.shape[0] - 10 * nb
     if target is None:
         return 2.0 * sp.identity(n, format="csc"), np.zeros(n), A, b, (n_zero, nb)
