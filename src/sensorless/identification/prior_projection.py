@@ -13,7 +13,7 @@ per body, whose ``s = svec(J)``: the upper triangle by columns, off-diagonal ent
 (``svec(J)ᵀsvec(K) = tr(JK)``). These are, entry for entry and with the same sparsity, the data cvxpy
 1.9 compiled the program to for Clarabel (a test checks it), so model.urdf is unchanged to the bit.
 
-Why not cvxpy (kept as the tests' oracle): ``import cvxpy`` costs ~0.9 s (it pulls ``scipy.stats``)
+Why not cvxpy (kept as the tests' oracle): ``import cvxpy`` costs ~0.7 s after NumPy (it pulls ``scipy.stats``)
 and cvxpy rebuilt and recompiled each solve (~25 ms a solve, 6–18 solves a model.urdf): on the
 600-sample UR5 hard-case log, choosing model.urdf's values took 0.45 s of ``sensorless identify
 --method ols`` (which needs cvxpy for nothing else) and 0.12 s of the LMI default; here 0.05 s and
@@ -72,10 +72,14 @@ def conic_data(pi, B, S, fix, m0, target=None):
 
 def solve_prior_projection(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
     """The minimiser ``y`` of the program above, or None unless Clarabel reports ``Solved`` (an
-    ``AlmostSolved`` is rejected, as cvxpy's ``OPTIMAL_INACCURATE`` was)."""
+    ``AlmostSolved`` is rejected, as cvxpy's ``OPTIMAL_INACCURATE`` was) or for non-finite data (which
+    cvxpy refused)."""
     import clarabel
 
-    P, q, A, b, (n_zero, nb) = conic_data(pi, B, S, fix, m0, target)
+    with np.errstate(invalid="ignore", over="ignore"):
+        P, q, A, b, (n_zero, nb) = conic_data(pi, B, S, fix, m0, target)
+    if not (np.isfinite(A.data).all() and np.isfinite(b).all()):  # Clarabel's presolve would drop such rows
+        return None
     cones = [clarabel.ZeroConeT(n_zero)] + [clarabel.PSDTriangleConeT(4)] * nb
     settings = clarabel.DefaultSettings()
     settings.verbose = False
