@@ -1,12 +1,21 @@
 """model.urdf's prior masses: the greedy over bodies run by bisection makes the same choices and the
-same final call as the plain greedy, with O(log n) calls per rejected body (issue 28: TALOS 35 → 8 SDPs)."""
+same final call as the plain greedy, with O(log n) calls per rejected body (issue 28: TALOS 35 → 8 SDPs);
+``identify --method ols`` chooses model.urdf's values without importing cvxpy (issue 28; the SDP itself
+against cvxpy: test_identification_prior_projection.py)."""
 
 from __future__ import annotations
+
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
+from sensorless.data import write_npz
+from sensorless.excitation import random_fourier
 from sensorless.identification.urdf_values import greedy_prefixes
+from sensorless.testing import perturbed_truth, synthetic_trajectory
 
 
 def _naive(order, reach):
@@ -44,3 +53,20 @@ def test_bisection_greedy_is_the_plain_greedy(seed):
     assert len(calls) <= 1 + rejected * (2 * np.log2(max(n, 2)) + 3)
     if kept:
         assert tuple(kept) in calls
+
+
+def test_ols_identify_writes_prior_masses_without_cvxpy(ur5, tmp_path):
+    truth = perturbed_truth(ur5, rng=0)
+    write_npz(synthetic_trajectory(truth, random_fourier(ur5, rng=1).sample(100, 10.0), noise_std=0.05, rng=2),
+              tmp_path / "log.npz")
+    out = tmp_path / "out"
+    code = ("import sys\nfrom sensorless.cli import app\ntry:\n    app(sys.argv[1:])\nexcept SystemExit as e:\n"
+            "    assert not e.code, e.code\nprint('cvxpy' in sys.modules)")
+    args = ["identify", "--robot", "ur5", "--data", tmp_path / "log.npz", "--method", "ols", "--no-plot", "--out", out]
+    run = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip().splitlines()[-1] == "False", run.stdout
+    values = json.loads((out / "result.json").read_text())["urdf_values"]
+    # a fixed-base arm's masses are not in its torques: the prior-mass SDPs ran
+    assert values["prior_mass_bodies"] or values.get("undetermined_mass_bodies")
+    assert (out / "model.urdf").is_file()

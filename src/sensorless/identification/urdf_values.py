@@ -15,8 +15,6 @@ recorded.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 __all__ = ["URDF_VALUES", "greedy_prefixes", "urdf_inertials", "urdf_comment"]
@@ -129,31 +127,15 @@ def greedy_prefixes(order: list[int], reach) -> tuple[list[int], np.ndarray | No
 
 def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
     """``π̂ + Δ`` with ``B Δ = 0``, the masses ``fix`` at ``m0``, every body's pseudo-inertia ⪰ 0 and
-    ``‖S⁻¹Δ‖`` minimal, or with ``target`` ``‖S⁻¹(π̂ + Δ − target)‖`` minimal (a small SDP); None
-    when infeasible or unsolved."""
-    import cvxpy as cp
-
-    from ..parameters import pseudo_inertia_basis
-
-    basis16 = pseudo_inertia_basis().reshape(10, 16).T  # vec(J) = basis16 @ π_k (the same program data as Σ π_i A_i)
-    y = cp.Variable(len(pi))
-    x = (pi / S) + y  # scaled parameters
-    cons = [(B * S[None, :]) @ y == 0, x[fix * 10] == m0 / S[fix * 10]]
-    for k in range(len(pi) // 10):
-        J = cp.reshape(basis16 @ x[10 * k:10 * k + 10], (4, 4), order="C")
-        cons.append(0.5 * (J + J.T) >> 0)
-    prob = cp.Problem(cp.Minimize(cp.sum_squares(y if target is None else x - target / S)), cons)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # an inaccurate solve is rejected below
-            prob.solve(solver=cp.CLARABEL)  # cvxpy's default for an SDP is SCS: 8× slower, less accurate
-    except (cp.error.SolverError, ValueError, ArithmeticError):
-        return None
-    if prob.status != cp.OPTIMAL or y.value is None:
-        return None
+    ``‖S⁻¹Δ‖`` minimal, or with ``target`` ``‖S⁻¹(π̂ + Δ − target)‖`` minimal (a small SDP,
+    :mod:`.prior_projection`); None when infeasible, unsolved or not physical."""
     from ..parameters import check_physical_consistency
+    from .prior_projection import solve_prior_projection
 
-    out = pi + S * np.asarray(y.value)
+    y = solve_prior_projection(pi, B, S, fix, m0, target=target)
+    if y is None:
+        return None
+    out = pi + S * y
     out[fix * 10] = m0
     return None if not all(r.consistent for r in check_physical_consistency(out)) else out
 
