@@ -48,6 +48,8 @@ def paired_axes(fig, n: int, ncols: int, *, left: float, right: float, top: floa
     cell = (h - top - bottom - (nr - 1) * gap) / nr
     outer = fig.add_gridspec(nr, ncols, left=left / w, right=1 - right / w, top=1 - top / h, bottom=bottom / h,
                              wspace=wspace, hspace=gap / cell)
+    from matplotlib.ticker import MaxNLocator
+
     pairs, first = [], None
     for k in range(n):
         inner = outer[divmod(k, ncols) if by_rows else (k % nr, k // nr)].subgridspec(2, 1, height_ratios=ratios, hspace=0.08)
@@ -56,6 +58,9 @@ def paired_axes(fig, n: int, ncols: int, *, left: float, right: float, top: floa
         b = fig.add_subplot(inner[1], sharex=a)
         a.tick_params(labelbottom=False, labelsize=7)
         b.tick_params(labelsize=7)
+        for ax in (a, b):  # few ticks on small panels: each tick is a handful of artists to build and draw
+            ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
+        a.xaxis.set_major_locator(MaxNLocator(nbins=6))
         pairs.append((a, b))
     return pairs, nr
 
