@@ -102,7 +102,7 @@ def _main() -> int:
     draw_jobs(pickle.loads(data))
     sys.stdout.write("ok")
     sys.stdout.flush()
-    return 0
+    os._exit(0)  # every PNG is written and closed: skip the interpreter's teardown (~0.1 s with matplotlib loaded)
 
 
 if __name__ == "__main__":
