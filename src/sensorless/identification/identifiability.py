@@ -21,7 +21,7 @@ def identifiability_report(ne: NormalEquations, base: BaseParameters, rcond: flo
     A, _, _ = ne.total()
     ind = base.independent
     A11 = A[np.ix_(ind, ind)]
-    d = np.sqrt(np.diag(A11))
+    d = np.sqrt(np.maximum(np.diag(A11), 0.0))  # a column that is zero can sum to -1e-13
     expr = base.expressions()
     zero = d <= 1e-12 * max(d.max(), 1e-300)
     d[zero] = 1.0

@@ -65,7 +65,7 @@ def _equilibrated_spectrum(ne: NormalEquations, base: BaseParameters, w: np.ndar
     A11, _, _ = _base_system(ne, base, w)
     if not np.all(np.isfinite(A11)):
         raise SolverError("the normal equations are not finite; check the data for extreme values")
-    d = np.sqrt(np.diag(A11))
+    d = np.sqrt(np.maximum(np.diag(A11), 0.0))  # a column that is zero can sum to -1e-13
     dead = np.flatnonzero(d <= 1e-12 * max(d.max(), 1e-300))
     if dead.size:
         return dead, None, None
@@ -109,7 +109,7 @@ def excitation_check(ne: NormalEquations, base: BaseParameters, w: np.ndarray | 
 
 
 def _solve(A11: np.ndarray, b1: np.ndarray) -> np.ndarray:
-    d = np.sqrt(np.diag(A11))
+    d = np.sqrt(np.maximum(np.diag(A11), 0.0))  # a column that is zero can sum to -1e-13
     d[d == 0] = 1.0
     S = A11 / np.outer(d, d)
     try:
@@ -167,7 +167,7 @@ def solve_truncated_svd(ne: NormalEquations, rcond: float = 1e-6, row_weights: n
     gait leaves unexcited. Returns (π, numerical rank).
     """
     A, b, _ = ne.total(row_weights)
-    d = np.sqrt(np.diag(A))
+    d = np.sqrt(np.maximum(np.diag(A), 0.0))  # a column that is zero can sum to -1e-13 (combined candidates)
     live = d > 1e-12 * max(d.max(), 1e-300)
     d[~live] = 1.0
     S = A / np.outer(d, d)
@@ -240,7 +240,7 @@ def joint_term_inflation(ne: NormalEquations, base: BaseParameters, w: np.ndarra
     """
     w = np.ones(ne.A.shape[0]) if w is None else w
     A11, _, _ = _base_system(ne, base, w)
-    d = np.sqrt(np.diag(A11))
+    d = np.sqrt(np.maximum(np.diag(A11), 0.0))  # a column that is zero can sum to -1e-13
     live = d > 1e-12 * max(d.max(), 1e-300)
     d[~live] = 1.0
     S = A11 / np.outer(d, d)

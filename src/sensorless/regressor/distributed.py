@@ -46,7 +46,7 @@ import numpy as np
 
 from ..data.trajectory import Trajectory
 from ..errors import DataError, DistributedError, SensorlessError
-from .normal_equations import NormalEquations, compress_trajectories
+from .normal_equations import NormalEquations, compress_folds, compress_trajectories
 from .terms import ModelStructure
 
 __all__ = ["FleetEquations", "LogReader", "PickledModel", "compress_files", "expand_paths", "worker_structure"]
@@ -192,19 +192,27 @@ def _named(exc: SensorlessError, path: str) -> SensorlessError:
         return DataError(msg, path)
 
 
-def _fold_parts(traj: Trajectory, n_folds: int, period: float | None, offset: int, total: int):
-    """This file's share of each cross-validation fold, as ``gamma.split_folds`` cuts them:
+def _fold_ids(traj: Trajectory, n_folds: int, period: float | None, offset: int, total: int) -> np.ndarray:
+    """The cross-validation fold of each sample of this file, as ``gamma.split_folds`` cuts them:
     phase blocks ``⌊((t − t₀) mod period) / period · n_folds⌋`` per file when a period is
     known, else contiguous blocks of the concatenated samples (``offset`` = samples before this file)."""
     if period is not None:
-        block = np.floor(((traj.t - traj.t[0]) % period) / period * n_folds).astype(int)
-        return [traj.take(block == f) if np.any(block == f) else None for f in range(n_folds)]
+        return np.floor(((traj.t - traj.t[0]) % period) / period * n_folds).astype(int)
     edges = np.linspace(0, total, n_folds + 1).round().astype(int)
-    out = []
-    for f in range(n_folds):
-        lo, hi = max(edges[f] - offset, 0), min(edges[f + 1] - offset, len(traj))
-        out.append(traj.take(slice(lo, hi)) if hi > lo else None)
-    return out
+    return np.searchsorted(edges, offset + np.arange(len(traj)), side="right") - 1
+
+
+def _file_folds(structure, traj: Trajectory, plan: tuple, chunk: int) -> list:
+    """This file's share of each fold (None where it has no sample): one pass with the whole
+    file's fit masks (:func:`~.normal_equations.compress_folds`), or, for structures that fold
+    their own equations (contacts), each fold's samples compressed apart."""
+    ids = _fold_ids(traj, *plan)
+    n_folds = plan[0]
+    if structure.row_map.per_sample:
+        return [compress_trajectories(structure, traj.take(ids == f), chunk=chunk) if np.any(ids == f) else None
+                for f in range(n_folds)]
+    folds = compress_folds(structure, traj, lambda k, t: lambda lo, hi: ids[lo:hi], n_folds, chunk=chunk)
+    return [ne if np.any(ids == f) else None for f, ne in enumerate(folds)]
 
 
 def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple | None) -> "_Part | _Failed":
@@ -218,7 +226,7 @@ def _file_task(model, reader, path: str, chunk: int, skip_bad: bool, plan: tuple
         traj = reader(path, structure.robot)
         if plan is None:
             return _Part(compress_trajectories(structure, traj, chunk=chunk), None, [path], [])
-        folds = [None if part is None else compress_trajectories(structure, part, chunk=chunk) for part in _fold_parts(traj, *plan)]
+        folds = _file_folds(structure, traj, plan, chunk)
         return _Part(functools.reduce(_add, folds), folds, [path], [])
     except SensorlessError as exc:
         if not skip_bad:
