@@ -268,14 +268,15 @@ def _gain(R: np.ndarray, beta: np.ndarray, L: np.ndarray, raw: np.ndarray) -> tu
 
 #: a 2×2 system of :func:`_gains` is solved in closed form (within ~κ·eps of the SVD's least squares)
 #: when its condition number κ is at most this, by :func:`_gain` otherwise
-CLOSED_FORM_COND = 1e6
+CLOSED_FORM_COND = 1e4
 
 
 def _gains(R, beta, raw, i, j, two: bool) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_gain` of Z L for L = [e_i, e_i − e_j] (``two``), [e_i − e_j] or [e_i] (j None), at once
     for broadcast index arrays i, j: gains and coefficients (…, columns). L's entries are 0, ±1, so
     R_M, β_M are sums of two entries, and the equilibrated D R_M D x = D β_M (D = diag R_M^−½) is
-    1×1 or 2×2: Cramer's rule where κ ≤ :data:`CLOSED_FORM_COND`, else :func:`_gain` (rare)."""
+    1×1 or 2×2: Cramer's rule where κ ≤ :data:`CLOSED_FORM_COND`, else :func:`_gain` (rare). (One
+    ``lstsq`` call per pair cost 0.17 s of ``identify`` on a 600-sample UR5 log, 4056 pairs.)"""
     rii = R[i, i]
     rm, bm, sc = [rii], [beta[i]], [raw[i]]
     if j is not None:
@@ -284,10 +285,10 @@ def _gains(R, beta, raw, i, j, two: bool) -> tuple[np.ndarray, np.ndarray]:
         if two:
             rm, bm, sc = [rii, rii - R[i, j], ti, rm[0]], [beta[i], bm[0]], [raw[i], sc[0]]
     n = len(bm)
-    X = [np.stack(x, axis=-1) for x in np.split(np.array(np.broadcast_arrays(*rm, *bm, *sc)), [n * n, n * n + n])]
-    RM, bM = X[0].reshape(X[0].shape[:-1] + (n, n)), X[1]
+    X = np.moveaxis(np.array(np.broadcast_arrays(*rm, *bm, *sc)), 0, -1)
+    RM, bM = X[..., :n * n].reshape(X.shape[:-1] + (n, n)), X[..., n * n:n * n + n]
     dRM = np.diagonal(RM, axis1=-2, axis2=-1)
-    dead = np.any(dRM <= 1e-12 * np.maximum(X[2], 1e-300), axis=-1)
+    dead = np.any(dRM <= 1e-12 * np.maximum(X[..., n * n + n:], 1e-300), axis=-1)
     with np.errstate(all="ignore"):
         d = 1.0 / np.sqrt(np.where(dead[..., None], 1.0, dRM))
         M, r = d[..., :, None] * RM * d[..., None, :], d * bM
@@ -301,8 +302,9 @@ def _gains(R, beta, raw, i, j, two: bool) -> tuple[np.ndarray, np.ndarray]:
         coef = d * x
         gain = np.sum(bM * coef, axis=-1)
     coef[dead], gain[dead] = 0.0, 0.0
-    I, J = np.broadcast_arrays(i, i if j is None else j)
-    for idx in map(tuple, np.argwhere(~well & ~dead)):
+    redo = np.argwhere(~well & ~dead)  # (two columns only)
+    I, J = np.broadcast_arrays(i, j) if len(redo) else (None, None)
+    for idx in map(tuple, redo):
         L = np.zeros((R.shape[0], n))
         L[I[idx], :], L[J[idx], -1] = 1.0, -1.0
         gain[idx], coef[idx] = _gain(R, beta, L, raw)
