@@ -297,7 +297,8 @@ def _gains(R, beta, raw, i, j, two: bool) -> tuple[np.ndarray, np.ndarray]:
         else:
             m00, m01, m10, m11 = M[..., 0, 0], M[..., 0, 1], M[..., 1, 0], M[..., 1, 1]
             det = m00 * m11 - m01 * m10
-            x = np.stack([m11 * r[..., 0] - m01 * r[..., 1], m00 * r[..., 1] - m10 * r[..., 0]], axis=-1) / det[..., None]
+            x = np.stack([m11 * r[..., 0] - m01 * r[..., 1], m00 * r[..., 1] - m10 * r[..., 0]], axis=-1)
+            x /= det[..., None]
             well = det * CLOSED_FORM_COND >= (m00 + m11) ** 2  # κ ≤ tr²/det for a PSD 2×2; False for NaN
         coef = d * x
         gain = np.sum(bM * coef, axis=-1)
@@ -411,7 +412,8 @@ def choose_stribeck(cand: StribeckCandidates, ne: NormalEquations, weights) -> t
             th = (coef[..., 0] + coef[..., 1], -coef[..., 1]) if has_fc else (coef[..., 0], -coef[..., 0])
             sse = sse_x - gain + (_left_out_score(quad, G[:, None], th[0], H, th[1]) if quad else 0.0)
             coef_st = coef[..., -1]
-            ok = (vs >= MIN_STRIBECK_OVER_WIDTH * widths[:, None]) & (coef_st > 0) & ((coef[..., 0] >= 0) | (not has_fc))
+            ok = (vs >= MIN_STRIBECK_OVER_WIDTH * widths[:, None]) & (coef_st > 0)
+            ok &= (coef[..., 0] >= 0) | (not has_fc)
             ok |= not cand.vs_searched[k]  # a fixed vs is kept whatever its sign
             crit[:, 1:] = np.where(ok, sse + pen_w[:, None] + 2 * ln_n * cand.vs_searched[k], np.inf)
             g, h = np.unravel_index(np.argmin(np.where(np.isnan(crit), np.inf, crit)), crit.shape)
