@@ -51,8 +51,6 @@ EXEMPT = {
     "identification/fleet": ("test_regressor_distributed.py", "fleet identification on the distributed fold"),
     "identification/identifiability": ("test_regressor_contact.py", "identifiable directions under contact"),
     "identification/weights": ("test_defaults.py", "issue-13 regressions (lmi with weights='auto')"),
-    "identification/least_squares": ("test_identification_identify.py", "the OLS solve of identify(): base "
-                                     "parameters recovered to 1e-6"),
     "identification/result": ("test_identification_identify.py", "the result object identify() returns"),
     "identification/runaway": ("test_identification_verdicts.py", "its 'runaway guard' section"),
     "identification/uncertainty": ("test_hardening.py", "issue-12 file: relative std and joint motion"),
