@@ -85,6 +85,34 @@ def test_forked_drawing_writes_the_same_pngs_and_surfaces_a_failed_job(tmp_path)
     assert not (tmp_path / "bad.png").exists()
 
 
+def test_figures_built_before_their_data_give_the_same_pngs(ur5, tmp_path):
+    """The layouts a run announces before its fit are those of the jobs it sends after; a figure the
+    child built empty and drew once, then filled with the job, is the PNG drawn afresh, and a job
+    whose layout differs from the prepared one is drawn afresh."""
+    from sensorless.report.plot_process import draw_job, job_layout, prepare_layouts
+    from sensorless.run import RunConfig, identify_run
+
+    f = write_npz(_log(ur5, 10.0), tmp_path / "log.npz")
+    seen: dict = {}
+    identify_run(RunConfig.from_options(robot="ur5", data=[str(f)], method="ols", out=str(tmp_path / "m")),
+                 figures=lambda jobs: seen.setdefault("jobs", jobs),
+                 figure_layouts=lambda layouts: seen.setdefault("layouts", layouts))
+    jobs = seen["jobs"]
+    assert sorted(k for k, _, _ in jobs) == ["friction", "torques"]
+    assert [(k, tuple(lay), str(p)) for k, lay, p in seen["layouts"]] == \
+        [(k, job_layout(k, kw), str(p)) for k, kw, p in jobs]
+    for kind, kw, path in jobs:
+        prepared = prepare_layouts([(kind, job_layout(kind, kw), tmp_path / f"ready_{kind}.png")])
+        draw_job(kind, kw, tmp_path / f"ready_{kind}.png", prepared=prepared)
+        draw_job(kind, kw, tmp_path / f"fresh_{kind}.png")
+        assert (tmp_path / f"ready_{kind}.png").read_bytes() == (tmp_path / f"fresh_{kind}.png").read_bytes(), kind
+    kind, kw, _ = next(j for j in jobs if j[0] == "torques")
+    n, titled = job_layout(kind, kw)
+    other = prepare_layouts([(kind, (n - 1, titled), tmp_path / "other.png")])
+    draw_job(kind, kw, tmp_path / "other.png", prepared=other)
+    assert (tmp_path / "other.png").read_bytes() == (tmp_path / "fresh_torques.png").read_bytes()
+
+
 def test_identify_draws_its_figures_itself_when_the_figure_process_fails(ur5, tmp_path, monkeypatch):
     f = write_npz(_log(ur5, 10.0), tmp_path / "log.npz")
     monkeypatch.setattr("sensorless.cli.figure_process.idle_core", lambda: True)  # whatever the load

@@ -2,8 +2,9 @@
 
 A command that ends with figures (``identify``: torques.png, friction.png) starts
 :class:`FigureProcess` first thing: the child (:mod:`sensorless.report.plot_process`) imports
-matplotlib (~0.5 s) on the other core while this process reads logs and fits. The fit done,
-the command sends the figure jobs (arrays computed here) and goes on writing result.json;
+matplotlib (~0.5 s) on the other core while this process reads logs and fits; once the model's
+rows are known the command sends the figures' layouts (the child builds them meanwhile). The fit
+done, the command sends the figure jobs (arrays computed here) and goes on writing result.json;
 the child writes each PNG atomically into the command's output folder (still the hidden
 temporary one: the folder appears complete or not at all), and :meth:`FigureProcess.wait`
 returns once every PNG is written. If the child cannot start or fails, ``wait`` returns False
@@ -65,13 +66,24 @@ class FigureProcess:
         except OSError:
             self._proc = None
 
+    def prepare(self, layouts: list) -> None:
+        """Send the figures' layouts (``(kind, (count, has_title), path)``, before the jobs): the child
+        builds the empty figures while the command fits (:func:`~sensorless.report.plot_process.prepare_layouts`)."""
+        if self._proc is None or self._sent:
+            return
+        try:
+            self._proc.stdin.write(pickle.dumps(("layouts", layouts), protocol=pickle.HIGHEST_PROTOCOL))
+            self._proc.stdin.flush()
+        except (OSError, ValueError, pickle.PicklingError):
+            self.close()
+
     def submit(self, jobs: list) -> bool:
         """Send every job (once); False if the child is not running (the caller draws them itself)."""
         if self._proc is None or self._sent:
             return False
         self._sent = True
         try:
-            self._proc.stdin.write(pickle.dumps(jobs, protocol=pickle.HIGHEST_PROTOCOL))
+            self._proc.stdin.write(pickle.dumps(("jobs", jobs), protocol=pickle.HIGHEST_PROTOCOL))
             self._proc.stdin.close()
         except (OSError, ValueError, pickle.PicklingError):
             self.close()

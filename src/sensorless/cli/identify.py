@@ -43,7 +43,8 @@ def _identify(config: Optional[Path], options: dict, plotter) -> None:
             (plotter if plotter is not None else nullcontext()):
         sent = []  # the figures go to the plot process as soon as the run has them
         run = identify_run(cfg, bars=bars, say=lambda line: console.print(line, highlight=False, soft_wrap=True),
-                           figures=lambda jobs: sent.append(plotter is not None and plotter.submit(jobs_in(tmp, jobs))))
+                           figures=lambda jobs: sent.append(plotter is not None and plotter.submit(jobs_in(tmp, jobs))),
+                           figure_layouts=None if plotter is None else lambda specs: plotter.prepare(jobs_in(tmp, specs)))
         for title, cols in run.tables:
             console.print(metrics_table(title, cols))
         print_bodies(run.result)

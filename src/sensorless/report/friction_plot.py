@@ -19,7 +19,7 @@ import numpy as np
 from .figure_kit import figure_legend, new_figure, paired_axes, save_figure
 from .rows import effort_unit, motion_units
 
-__all__ = ["draw_friction", "friction_figure", "friction_panels", "plot_friction", "plot_friction_panels"]
+__all__ = ["draw_friction", "friction_axes", "friction_figure", "friction_panels", "plot_friction", "plot_friction_panels"]
 
 
 def friction_figure(structure, params: np.ndarray, logs: Iterable, title: str = "", max_points: int = 4000):
@@ -68,16 +68,25 @@ def friction_panels(structure, params: np.ndarray, logs: Iterable, max_points: i
     return dict(V=V, R=R, grid=grid, curve=curve, resid=resid, labels=labels)
 
 
-def draw_friction(V: np.ndarray, R: np.ndarray, grid: np.ndarray, curve: np.ndarray, resid: np.ndarray,
-                  labels: list, title: str = ""):
-    """The figure of :func:`friction_panels`' arrays; ``labels`` per joint: (title, effort unit, velocity unit)."""
-    n = len(labels)
+def friction_axes(n: int, title: bool = True):
+    """The empty figure of :func:`draw_friction` for ``n`` joints: ``(fig, pairs)`` (it depends on the
+    joint count only, so a figure process can build and draw it before the data exist)."""
     cols = 3 if n > 4 else n
     top = 0.55 + (0.3 if title else 0.0)
     nr = int(np.ceil(n / cols))
     fig = new_figure(0.6 + 4.0 * cols, top + 0.55 + 2.6 * nr + 0.55 * (nr - 1))
-    axes, nr = paired_axes(fig, n, cols, left=0.75, right=0.15, top=top, bottom=0.55, wspace=0.32, gap=0.55,
-                           share_all=False, by_rows=True)
+    axes, _ = paired_axes(fig, n, cols, left=0.75, right=0.15, top=top, bottom=0.55, wspace=0.32, gap=0.55,
+                          share_all=False, by_rows=True)
+    return fig, axes
+
+
+def draw_friction(V: np.ndarray, R: np.ndarray, grid: np.ndarray, curve: np.ndarray, resid: np.ndarray,
+                  labels: list, title: str = "", axes=None):
+    """The figure of :func:`friction_panels`' arrays; ``labels`` per joint: (title, effort unit, velocity unit).
+    ``axes``: a ``(fig, pairs)`` of :func:`friction_axes` for as many joints, drawn into."""
+    n = len(labels)
+    top = 0.55 + (0.3 if title else 0.0)
+    fig, axes = axes if axes is not None else friction_axes(n, bool(title))
     for k, (label, tu, vu) in enumerate(labels):
         ax, res = axes[k]
         ax.plot(V[:, k], R[:, k], ".", ms=1.5, color="0.6", label="τ − rigid body (samples)", zorder=2)
@@ -104,8 +113,9 @@ def plot_friction(structure, params: np.ndarray, logs: Iterable, path: "str | Pa
     return fig
 
 
-def plot_friction_panels(panels: dict, path: "str | Path"):
-    """:func:`draw_friction` of ``panels`` (:func:`friction_panels`, with its ``title``) written to ``path``."""
-    fig = draw_friction(**panels)
+def plot_friction_panels(panels: dict, path: "str | Path", axes=None):
+    """:func:`draw_friction` of ``panels`` (:func:`friction_panels`, with its ``title``) written to ``path``
+    (into ``axes`` of :func:`friction_axes` if given)."""
+    fig = draw_friction(**panels, axes=axes)
     save_figure(fig, path)
     return fig

@@ -1,10 +1,12 @@
 """The child side of :class:`~sensorless.cli.figure_process.FigureProcess`: figures drawn off a
 command's critical path.
 
-``python -m sensorless.report.plot_process`` imports matplotlib and draws two tiny figures of each
+``python -m sensorless.report.plot_process`` imports matplotlib and draws a tiny figure of each
 kind into memory (:func:`warm_up`: fonts, glyph caches and the drawing code paths are loaded then,
-~0.3 s that would otherwise follow the fit), then reads a pickled list of jobs on stdin, draws
-each and writes its PNG atomically, and prints ``ok``. With several jobs it forks once (the
+~0.3 s that would otherwise follow the fit). It then reads pickled messages on stdin: the figures'
+layouts, when the parent knows them before the fit ends (:func:`prepare_layouts` builds each empty
+figure and draws it once: axes, ticks and labels cost ~40 % of a figure), then the jobs. It draws
+each job and writes its PNG atomically, and prints ``ok``. With several jobs it forks once (the
 copy shares everything already imported and warmed) and the two processes draw half the jobs
 each, on the two cores the waiting command leaves free. A job is ``("torques", kwargs, path)`` →
 :func:`~.plots.plot_torques` or ``("friction", panels, path)`` →
@@ -19,23 +21,51 @@ import pickle
 import sys
 from pathlib import Path
 
-__all__ = ["draw_job", "draw_jobs", "warm_up"]
+__all__ = ["draw_job", "draw_jobs", "job_layout", "prepare_layouts", "warm_up"]
 
 
-def draw_job(kind: str, kwargs: dict, path) -> Path:
-    """Draw one job and write its PNG (atomically) to ``path``."""
+def draw_job(kind: str, kwargs: dict, path, prepared: dict | None = None) -> Path:
+    """Draw one job and write its PNG (atomically) to ``path``; into the figure ``prepared`` holds for
+    it (:func:`prepare_layouts`) when that figure has the job's layout."""
+    axes = None
+    if prepared is not None and (kind, job_layout(kind, kwargs)) == prepared.get(str(path), (None, None))[:2]:
+        axes = prepared[str(path)][2]
     if kind == "torques":
         from .plots import plot_torques
 
         kw = dict(kwargs)
-        plot_torques(kw.pop("t"), kw.pop("measured"), kw.pop("predictions"), kw.pop("rows"), path, **kw)
+        plot_torques(kw.pop("t"), kw.pop("measured"), kw.pop("predictions"), kw.pop("rows"), path, axes=axes, **kw)
     elif kind == "friction":
         from .friction_plot import plot_friction_panels
 
-        plot_friction_panels(kwargs, path)
+        plot_friction_panels(kwargs, path, axes=axes)
     else:
         raise ValueError(f"unknown figure job '{kind}'")
     return Path(path)
+
+
+def job_layout(kind: str, kwargs: dict) -> tuple:
+    """What a job's empty figure depends on: (row or joint count, has a title)."""
+    n = len(kwargs.get("rows", ())) if kind == "torques" else len(kwargs.get("labels", ()))
+    return n, bool(kwargs.get("title"))
+
+
+def prepare_layouts(layouts: list) -> dict:
+    """The empty figures of ``layouts`` (``(kind, (count, has_title), path)``, as :func:`job_layout` and
+    the jobs to come), each drawn once: the axes, their ticks and labels are built before the data
+    arrive, and a job then only adds its artists. ``{path: (kind, layout, (fig, pairs))}``."""
+    from .friction_plot import friction_axes
+    from .plots import torque_axes
+
+    out = {}
+    for kind, layout, path in layouts:
+        make = {"torques": torque_axes, "friction": friction_axes}.get(kind)
+        if make is None:
+            continue
+        fig, pairs = make(*layout)
+        fig.canvas.draw()
+        out[str(path)] = (kind, tuple(layout), (fig, pairs))
+    return out
 
 
 def warm_up() -> None:
@@ -55,7 +85,7 @@ def warm_up() -> None:
         fig.savefig(io.BytesIO(), format="png", dpi=DPI)
 
 
-def draw_jobs(jobs: list, fork: bool | None = None) -> None:
+def draw_jobs(jobs: list, fork: bool | None = None, prepared: dict | None = None) -> None:
     """Draw every job; with ``fork`` (default: several jobs, ``os.fork`` available and this process
     single-threaded, as the figure process is) a forked copy draws every other job meanwhile. A job
     the copy fails to draw is drawn here after it."""
@@ -70,12 +100,12 @@ def draw_jobs(jobs: list, fork: bool | None = None) -> None:
         code = 1
         try:
             for job in theirs:
-                draw_job(*job)
+                draw_job(*job, prepared=prepared)
             code = 0
         finally:
             os._exit(code)
     for job in mine + (theirs if pid is None else []):
-        draw_job(*job)
+        draw_job(*job, prepared=prepared)
     if pid is not None:
         _, status = os.waitpid(pid, 0)
         if os.waitstatus_to_exitcode(status) != 0:
@@ -96,10 +126,17 @@ def _main() -> int:
 
     matplotlib.use("Agg")
     warm_up()
-    data = sys.stdin.buffer.read()
-    if not data:  # the parent needed no figures (or stopped)
-        return 0
-    draw_jobs(pickle.loads(data))
+    prepared: dict = {}
+    while True:  # ("layouts", [...]) first when the parent knows them early, then ("jobs", [...])
+        try:
+            what, items = pickle.load(sys.stdin.buffer)
+        except EOFError:  # the parent needed no figures (or stopped)
+            return 0
+        if what == "layouts":
+            prepared = prepare_layouts(items)
+        elif what == "jobs":
+            break
+    draw_jobs(items, prepared=prepared)
     sys.stdout.write("ok")
     sys.stdout.flush()
     os._exit(0)  # every PNG is written and closed: skip the interpreter's teardown (~0.1 s with matplotlib loaded)

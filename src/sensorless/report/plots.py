@@ -19,7 +19,7 @@ import numpy as np
 from .figure_kit import figure_legend, new_figure, paired_axes, save_figure, stride_indices
 from .rows import effort_unit, grouped_paths, limb_groups
 
-__all__ = ["plot_torques", "plot_torques_by_limb", "torque_figure"]
+__all__ = ["plot_torques", "plot_torques_by_limb", "torque_axes", "torque_figure"]
 
 #: (colour, line style, width, alpha) per model, in order, each drawn over the previous: the first is a wide
 #: translucent line, the later ones thinner and dashed or dotted, so two equal traces show as a line on a halo
@@ -34,11 +34,25 @@ def _style(k: int) -> dict:
     return dict(color=c, ls=ls, lw=lw, alpha=alpha, zorder=3 + k)
 
 
+def torque_axes(n: int, title: bool = True):
+    """The empty figure of :func:`torque_figure` for ``n`` rows (with room for a title): ``(fig, pairs)``,
+    a (signal, residual) pair of axes per row. It depends on the row count only, so a figure process
+    can build (and draw once) it before the data exist."""
+    ncols = 1 if n <= 4 else 2
+    nr = int(np.ceil(n / ncols))
+    top = 0.6 + (0.3 if title else 0.0)
+    fig = new_figure(1.0 + 6.6 * ncols, top + 0.6 + 1.95 * nr + 0.45 * (nr - 1))
+    pairs, _ = paired_axes(fig, n, ncols, left=0.8, right=0.2, top=top, bottom=0.6, wspace=0.22)
+    return fig, pairs
+
+
 def torque_figure(t: np.ndarray, measured: np.ndarray, predictions: dict[str, np.ndarray], rows: Sequence[str], *,
-                  robot=None, units: Sequence[str] | None = None, title: str = "", max_points: int = 4000):
+                  robot=None, units: Sequence[str] | None = None, title: str = "", max_points: int = 4000,
+                  axes=None):
     """The figure (module docstring) for ``rows`` (columns of ``measured`` and of each prediction).
     Units per row from ``units`` or ``robot`` (:func:`~.rows.effort_unit`); time in s from the
-    first sample; at most ``max_points`` samples (every k-th)."""
+    first sample; at most ``max_points`` samples (every k-th). ``axes``: a ``(fig, pairs)`` of
+    :func:`torque_axes` for these rows, drawn into instead of a new one."""
     t = np.asarray(t, float)
     idx = stride_indices(len(t), max_points)
     t = t[idx] - t[0]
@@ -47,11 +61,9 @@ def torque_figure(t: np.ndarray, measured: np.ndarray, predictions: dict[str, np
     rows = list(rows)
     n = len(rows)
     units = list(units) if units is not None else [effort_unit(robot, r) for r in rows]
-    ncols = 1 if n <= 4 else 2
-    nr = int(np.ceil(n / ncols))
+    fig, pairs = axes if axes is not None else torque_axes(n, bool(title))
+    nr = int(np.ceil(n / (1 if n <= 4 else 2)))
     top = 0.6 + (0.3 if title else 0.0)
-    fig = new_figure(1.0 + 6.6 * ncols, top + 0.6 + 1.95 * nr + 0.45 * (nr - 1))
-    pairs, nr = paired_axes(fig, n, ncols, left=0.8, right=0.2, top=top, bottom=0.6, wspace=0.22)
     handles = labels = None
     for j, (ax, res) in enumerate(pairs):
         u = units[j]
@@ -80,9 +92,11 @@ def torque_figure(t: np.ndarray, measured: np.ndarray, predictions: dict[str, np
 
 
 def plot_torques(t: np.ndarray, measured: np.ndarray, predictions: dict[str, np.ndarray], joints: list[str],
-                 path: "str | Path | None" = None, title: str = "", *, robot=None, units: Sequence[str] | None = None):
-    """:func:`torque_figure` of every row in one figure, written to ``path`` (PNG) if given; returns it."""
-    fig = torque_figure(t, measured, predictions, joints, robot=robot, units=units, title=title)
+                 path: "str | Path | None" = None, title: str = "", *, robot=None, units: Sequence[str] | None = None,
+                 axes=None):
+    """:func:`torque_figure` of every row in one figure (into ``axes`` if given), written to ``path``
+    (PNG) if given; returns it."""
+    fig = torque_figure(t, measured, predictions, joints, robot=robot, units=units, title=title, axes=axes)
     if path is not None:
         save_figure(fig, path)
     return fig

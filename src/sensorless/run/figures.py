@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-__all__ = ["PLOT_WINDOW", "PLOT_POINTS", "plot_window", "figure_jobs"]
+__all__ = ["PLOT_WINDOW", "PLOT_POINTS", "plot_window", "figure_jobs", "figure_layouts"]
 
 PLOT_WINDOW = 20_000  # samples of the log shown in torques.png (from its start)
 PLOT_POINTS = 2_000  # points per curve after decimation
@@ -62,3 +62,20 @@ def figure_jobs(shown, structure, models: dict, train, params, out_dir: Path, to
         jobs.append(("friction", {**friction_panels(structure, params, train), "title": friction_title},
                      out_dir / "friction.png"))
     return jobs
+
+
+def figure_layouts(structure, torques: bool, friction: bool, out_dir: Path) -> list:
+    """What the figures of :func:`figure_jobs` (with titles) will look like before their data exist:
+    ``(kind, (rows or joints, has a title), path)`` per figure, torques.png per limb and friction.png.
+    A figure process builds these empty figures while the model is fitted; a job whose figure
+    differs (the model's rows changed) is drawn afresh."""
+    from ..report.rows import grouped_paths, limb_groups
+
+    out: list = []
+    if torques:
+        groups = limb_groups(structure.robot, list(structure.row_names))
+        paths = grouped_paths(out_dir, "torques", groups)
+        out += [("torques", (len(members), True), paths[g]) for g, members in groups.items()]
+    if friction:
+        out.append(("friction", (len(structure.robot.term_joints), True), Path(out_dir) / "friction.png"))
+    return out

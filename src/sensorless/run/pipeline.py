@@ -102,6 +102,11 @@ class Run:
         write_html_report(directory, self.doc)
 
 
+def _friction_plot(structure, train) -> bool:
+    """friction.png is drawn: a per-joint model with a friction term, fitted on training logs in hand."""
+    return bool(is_plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")))
+
+
 def jobs_in(directory: str | Path, jobs: list) -> list:
     """The figure ``jobs`` of a run drawn into ``directory``."""
     return [(kind, arrays, Path(directory) / Path(path).name) for kind, arrays, path in jobs]
@@ -134,15 +139,17 @@ def reading_options(config: RunConfig):
 
 
 def identify_run(config: RunConfig, *, bars=None, say: Callable[[str], None] | None = None,
-                 figures: Callable[[list], None] | None = None) -> Run:
+                 figures: Callable[[list], None] | None = None,
+                 figure_layouts: Callable[[list], None] | None = None) -> Run:
     """Run the identification ``config`` describes (module docstring); nothing is written until
     :meth:`Run.save`. ``bars``: progress bars (``step(name, total)`` with ``advance``/``update``,
     ``callback(name)``, ``close()``; none drawn by default); ``say``: a callable for the lines the run
     reports (contact rows chosen, Dask cluster); warnings are :mod:`warnings`. ``figures(jobs)``: called
     with the figure jobs as soon as they are computed (a process may start drawing them while the run
-    checks and scores the model)."""
+    checks and scores the model); ``figure_layouts(layouts)``: called before the fit with what those
+    figures will look like (:func:`~.figures.figure_layouts`), so that process can build them meanwhile."""
     with reading_options(config):
-        return _identify(config, bars if bars is not None else _NoBars(), say, figures)
+        return _identify(config, bars if bars is not None else _NoBars(), say, figures, figure_layouts)
 
 
 def _robot(config: RunConfig):
@@ -154,14 +161,14 @@ def _robot(config: RunConfig):
                           trust_xacro=m.trust_xacro, package_paths=m.package_path)
 
 
-def _identify(config: RunConfig, bars, say, figures) -> Run:
+def _identify(config: RunConfig, bars, say, figures, layouts=None) -> Run:
     from ..data.trims import LogTrims
     from ..data.wrench_frames import wrench_frame_map
     from ..errors import setting
     from ..torque_models import CADModel
     from ..identification.weights import weights_option
     from ..regressor.distributed import expand_paths
-    from .figures import figure_jobs
+    from .figures import figure_jobs, figure_layouts
     from .validation import check_plausible, floating_base_report, held_out_scores, ols_baseline
 
     eps, vs = check_run_config(config)
@@ -194,6 +201,8 @@ def _identify(config: RunConfig, bars, say, figures) -> Run:
     if lmi_kw.get("gamma") == "auto":
         lmi_kw["gamma_search"] = str(sv.gamma_search)
     row_sigma = weights_option(sv.weights, structure.row_names)
+    if ex.plot and layouts is not None and (val or train):  # a streamed log's rows are known only after the pass
+        layouts(figure_layouts(structure, True, _friction_plot(structure, train), Path(".")))
     fit = backend.fit(structure, train, data, skipped, val, lmi_kw, row_sigma, reading.advance)
     result, structure, model, train, data, skipped = fit.result, fit.structure, fit.model, fit.train, fit.data, fit.skipped
     result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -218,8 +227,7 @@ def _identify(config: RunConfig, bars, say, figures) -> Run:
     shown = val[0] if val else (train[0] if train else None)
     jobs = []  # the figures, drawn by a plot process while result.json is written
     if ex.plot:
-        friction_plot = (is_plain(structure) and train
-                         and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")))
+        friction_plot = _friction_plot(structure, train)
         shown_models = {sv.method.upper(): model, **({"OLS": baseline} if baseline is not None else {}), "CAD": cad}
         jobs = figure_jobs(shown, structure, shown_models, [fit.streamed.subsample] if fit.streamed is not None else train,
                            result.parameters, Path("."),
