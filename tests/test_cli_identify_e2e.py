@@ -149,7 +149,7 @@ def test_identify_on_logs_validated_by_the_reader_is_unchanged(ur5, tmp_path):
     assert a.diagnostics["joint_position_range"] == b.diagnostics["joint_position_range"]
 
 
-@pytest.mark.slow  # ~20 s: nine identify processes; the figures themselves come from the benchmark run
+@pytest.mark.slow  # ~30 s: fifteen identify processes and the breakdown; the figures themselves come from the benchmark run
 def test_benchmark_identify_e2e_records_both_times_per_case(tmp_path):
     out = tmp_path / "e2e.json"
     r = CliRunner().invoke(app, ["benchmark", "identify-e2e", "--repeats", "1", "--long-samples", "3000",
@@ -161,3 +161,10 @@ def test_benchmark_identify_e2e_records_both_times_per_case(tmp_path):
         assert 0 < s["result_json"]["best"] <= s["exit"]["best"] and s["cpu"]["best"] > 0
     assert doc["seconds"]["python"]["exit"]["best"] < doc["seconds"]["hard"]["exit"]["best"]
     assert doc["long_samples"] == 3000
+    imports = doc["breakdown"]["imports"]  # where the wait goes: steps that add up, in the command's order
+    assert sum(v["step"] for v in imports.values()) == pytest.approx(list(imports.values())[-1]["cumulative"])
+    lmi, ols = doc["breakdown"]["compute"]["hard"], doc["breakdown"]["compute"]["hard_ols"]
+    for run in (lmi, ols):
+        assert 0 < sum(run["steps"].values()) <= run["total"]
+    assert "γ cross-validation" in lmi["steps"] and "γ cross-validation" not in ols["steps"]
+    assert "OLS solve" in ols["steps"] and "final LMI" in lmi["steps"]

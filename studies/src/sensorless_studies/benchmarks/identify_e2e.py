@@ -14,7 +14,9 @@ place at once) and until the process exits. Cases, interleaved, best of ``repeat
 * ``python``: ``python -c pass`` (the floor of any command on this machine), in the same run.
 
 The CPU seconds of each run (its own and its figure process's) are recorded too: on a loaded
-machine they move less than the wall time.
+machine they move less than the wall time. ``breakdown``: where the wait goes
+(:mod:`~sensorless_studies.benchmarks.identify_breakdown`: import steps, compute steps, and what the
+figures add after the fit: the time to result.json minus that with ``--no-plot``).
 """
 
 from __future__ import annotations
@@ -120,6 +122,17 @@ def bench_identify_e2e(*, repeats: int = 5, long_samples: int = 100_000, console
         "python": platform.python_version(),
         "env": {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "SENSORLESS_NATIVE")},
     }
+    with tempfile.TemporaryDirectory(prefix="sensorless-e2e-") as tmp:  # where the wait goes (identify_breakdown)
+        from .identify_breakdown import compute_steps, import_steps
+
+        logs = _logs(Path(tmp), long_samples)
+        res["breakdown"] = {"imports": import_steps(repeats, env),
+                            "compute": {"hard": compute_steps(logs["hard"], "lmi", env),
+                                        "hard_ols": compute_steps(logs["hard"], "ols", env),
+                                        "long": compute_steps(logs["long"], "lmi", env)}}
+    sec = res["seconds"]
+    res["breakdown"]["figures_after_fit"] = {
+        n: sec[n]["result_json"]["best"] - sec[f"{n}_no_plot"]["result_json"]["best"] for n in ("hard", "hard_ols")}
     floor = res["seconds"]["python"]["exit"]["best"]
     res["over_python"] = {n: res["seconds"][n]["exit"]["best"] / floor for n in cases}
     s = res["seconds"]
