@@ -166,5 +166,5 @@ def test_benchmark_identify_e2e_records_both_times_per_case(tmp_path):
     lmi, ols = doc["breakdown"]["compute"]["hard"], doc["breakdown"]["compute"]["hard_ols"]
     for run in (lmi, ols):
         assert 0 < sum(run["steps"].values()) <= run["total"]
-    assert "γ cross-validation" in lmi["steps"] and "γ cross-validation" not in ols["steps"]
-    assert "OLS solve" in ols["steps"] and "final LMI" in lmi["steps"]
+    assert "gamma_cv" in lmi["steps"] and "gamma_cv" not in ols["steps"]
+    assert "ols" in ols["steps"] and "final_lmi" in lmi["steps"]

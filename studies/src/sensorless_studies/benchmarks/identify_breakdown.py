@@ -16,7 +16,7 @@ import subprocess
 import sys
 import time
 
-__all__ = ["IMPORT_STEPS", "import_steps", "compute_steps"]
+__all__ = ["IMPORT_STEPS", "LABELS", "import_steps", "compute_steps"]
 
 _CLI = "from sensorless.cli import app"
 _NUMPY = _CLI + "; import numpy, pinocchio"
@@ -25,21 +25,28 @@ _CVXPY = _SCIPY + "; import cvxpy"
 _OURS = _CVXPY + ("; import sensorless.run.pipeline, sensorless.identification.identify, sensorless.identification.gamma,"
                   " sensorless.identification.lmi, sensorless.torque_models, sensorless.cli.identify, sensorless.report.html")
 #: (step, the code a fresh process runs: every import up to and including the step)
-IMPORT_STEPS = [("python", "pass"), ("typer, rich, the command modules", _CLI), ("NumPy, Pinocchio", _NUMPY),
-                ("SciPy linalg, sparse, ndimage", _SCIPY), ("cvxpy (imports scipy.stats)", _CVXPY),
-                ("sensorless' identification, data, regressor, report modules", _OURS)]
+IMPORT_STEPS = [("python", "pass"), ("cli", _CLI), ("numpy_pinocchio", _NUMPY), ("scipy", _SCIPY), ("cvxpy", _CVXPY),
+                ("sensorless", _OURS)]
+#: what each step is
+LABELS = {"python": "Python itself", "cli": "typer, rich, the command modules", "numpy_pinocchio": "NumPy, Pinocchio",
+          "scipy": "SciPy linalg, sparse, ndimage", "cvxpy": "cvxpy (it imports scipy.stats)",
+          "sensorless": "sensorless' identification, data, regressor, report modules",
+          "read": "reading, validating, preprocessing", "friction_law": "Coulomb smoothing and Stribeck grids from the log",
+          "fold_pass": "one pass over the log: the fit's and the CV folds' equations", "compress": "compression",
+          "stribeck": "Stribeck and Coulomb-smoothing choice", "gamma_cv": "γ cross-validation", "final_lmi": "final LMI",
+          "ols": "OLS solve", "plausibility": "plausibility, model.urdf's prior masses", "write": "writing the folder"}
 
 #: (module, function, step) wrapped by :func:`compute_steps`
-_TIMED = [("sensorless.identification.identify", "_fold_pass", "one pass over the log: the fit's and the CV folds' equations"),
-          ("sensorless.identification.identify", "compress", "compression (no γ search)"),
-          ("sensorless.identification.identify", "choose_stribeck", "Stribeck and Coulomb-smoothing choice"),
-          ("sensorless.identification.gamma", "cross_validate_gamma", "γ cross-validation"),
-          ("sensorless.identification.lmi", "solve_lmi", "final LMI"),
-          ("sensorless.identification.identify", "solve_least_squares", "OLS solve"),
-          ("sensorless.run.validation", "check_plausible", "plausibility, model.urdf's prior masses"),
-          ("sensorless.run.backend", "load_training", "reading, validating, preprocessing"),
-          ("sensorless.run.backend", "measure_friction", "Coulomb smoothing and Stribeck grids from the log"),
-          ("sensorless.run.pipeline", "Run.write", "writing the folder")]
+_TIMED = [("sensorless.identification.identify", "_fold_pass", "fold_pass"),
+          ("sensorless.identification.identify", "compress", "compress"),
+          ("sensorless.identification.identify", "choose_stribeck", "stribeck"),
+          ("sensorless.identification.gamma", "cross_validate_gamma", "gamma_cv"),
+          ("sensorless.identification.lmi", "solve_lmi", "final_lmi"),
+          ("sensorless.identification.identify", "solve_least_squares", "ols"),
+          ("sensorless.run.validation", "check_plausible", "plausibility"),
+          ("sensorless.run.backend", "load_training", "read"),
+          ("sensorless.run.backend", "measure_friction", "friction_law"),
+          ("sensorless.run.pipeline", "Run.write", "write")]
 
 
 def import_steps(repeats: int = 5, env: dict | None = None) -> dict:

@@ -123,10 +123,10 @@ def bench_identify_e2e(*, repeats: int = 5, long_samples: int = 100_000, console
         "env": {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "SENSORLESS_NATIVE")},
     }
     with tempfile.TemporaryDirectory(prefix="sensorless-e2e-") as tmp:  # where the wait goes (identify_breakdown)
-        from .identify_breakdown import compute_steps, import_steps
+        from .identify_breakdown import LABELS, compute_steps, import_steps
 
         logs = _logs(Path(tmp), long_samples)
-        res["breakdown"] = {"imports": import_steps(repeats, env),
+        res["breakdown"] = {"labels": LABELS, "imports": import_steps(repeats, env),
                             "compute": {"hard": compute_steps(logs["hard"], "lmi", env),
                                         "hard_ols": compute_steps(logs["hard"], "ols", env),
                                         "long": compute_steps(logs["long"], "lmi", env)}}
