@@ -16,7 +16,9 @@ Pinocchio's Python one on random states (relative 1e-12). ``SENSORLESS_NATIVE=0`
 The same library holds the momentum observer's compiled step (``observer_kernel.cpp``,
 :mod:`sensorless.estimation.native_observer`), which starts from :func:`tree_model`, and the
 batched contact null-space projector (``native_contact.cpp``, used by
-:func:`~.contact_kinematics.null_space_projector` through :func:`contact_projector`).
+:func:`~.contact_kinematics.null_space_projector` through :func:`contact_projector`) and the candidate
+friction columns of the law search (``native_friction.cpp``, used by
+:meth:`~sensorless.identification.stribeck.StribeckCandidates.joint_features` through :func:`friction_candidates`).
 """
 
 from __future__ import annotations
@@ -30,11 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NativeRegressor", "available", "build", "contact_projector", "library", "library_path", "native_regressor",
+__all__ = ["NativeRegressor", "available", "build", "contact_projector", "friction_candidates", "library", "library_path", "native_regressor",
            "threads", "tree_model", "unavailable_reason"]
 
-#: the kernel's sources, one library: the regressor, the observer step and the contact projector
-_SOURCES = tuple(Path(__file__).with_name(n) for n in ("native_kernel.cpp", "observer_kernel.cpp", "native_contact.cpp"))
+#: the kernel's sources, one library: the regressor, the observer step, the contact projector and the friction candidates
+_SOURCES = tuple(Path(__file__).with_name(n) for n in ("native_kernel.cpp", "observer_kernel.cpp", "native_contact.cpp",
+                                                      "native_friction.cpp"))
 _LIB_NAME = "libsensorless_regressor.so"
 #: Pinocchio joint model → (kernel type code, fixed unit axis or None) (native_kernel.cpp): an axis-aligned
 #: joint is passed as its unaligned form
@@ -128,6 +131,10 @@ def _lib():
         d = ctypes.c_double
         lib.slr_null_space_projector.restype = None
         lib.slr_null_space_projector.argtypes = [ctypes.c_long, i, i, p, d, d, p, p]
+    if hasattr(lib, "slr_friction_candidates"):
+        L = ctypes.c_long
+        lib.slr_friction_candidates.restype = None
+        lib.slr_friction_candidates.argtypes = [L, i, p, p, p, i, p, i, p, p, L, L]
     return lib
 
 
@@ -251,6 +258,30 @@ def contact_projector():
     or None when the kernel is not built, disabled, or built before the projector was added."""
     lib = _lib()
     return getattr(lib, "slr_null_space_projector", None) if lib is not None else None
+
+
+def friction_candidates(v: np.ndarray, t_mask: np.ndarray, d_sign: np.ndarray, widths: np.ndarray, vs: np.ndarray,
+                        out: np.ndarray) -> bool:
+    """The candidate columns of ``native_friction.cpp`` into ``out`` (n, joints, G_w + G_s), any strides
+    whose last is one element: [tanh(v/w_g)·t_mask | expm1(−(v/vs_h)²)·d_sign] for velocities, masks
+    (n, joints) and per-joint ``widths`` (joints, G_w), ``vs`` (joints, G_s). False (``out`` untouched)
+    when the kernel is not built, disabled, or built before this function was added."""
+    lib = _lib()
+    fn = getattr(lib, "slr_friction_candidates", None) if lib is not None else None
+    if fn is None:
+        return False
+    n, J = v.shape
+    Gw, Gs = widths.shape[1], vs.shape[1]
+    v, t_mask, d_sign, widths, vs = (np.ascontiguousarray(x, dtype=float) for x in (v, t_mask, d_sign, widths, vs))
+    e = out.itemsize
+    if not (out.dtype == np.float64 and out.shape == (n, J, Gw + Gs) and out.strides[2] == e
+            and t_mask.shape == d_sign.shape == (n, J) and widths.shape[0] == vs.shape[0] == J
+            and out.strides[0] % e == 0 and out.strides[1] % e == 0):
+        raise ValueError(f"native friction candidates: shape or layout mismatch (v {v.shape}, out {out.shape} "
+                         f"strides {out.strides}, widths {widths.shape}, vs {vs.shape})")
+    fn(n, J, v.ctypes.data, t_mask.ctypes.data, d_sign.ctypes.data, Gw, widths.ctypes.data, Gs, vs.ctypes.data,
+       out.ctypes.data, out.strides[0] // e, out.strides[1] // e)
+    return True
 
 
 def threads() -> int:
