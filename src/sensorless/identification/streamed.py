@@ -14,7 +14,8 @@ friction-candidate compression, the five cross-validation folds of γ, and the f
    (normal equations are additive), so the Stribeck choice, the γ cross-validation (the chosen
    columns mapped out of each fold) and the final fit all run on compressed equations:
    :func:`~.identify.identify` with ``folds``. Memory is O(rows · p² · folds), not O(N). When a core
-   is idle, chunk k is folded in a helper thread while chunk k + 1 is read and evaluated.
+   is idle, the joint features of chunk k are computed and folded in a helper thread while chunk k + 1
+   is read and its regressor evaluated (NumPy, BLAS and the C++ kernels release the GIL).
 
 The torque-channel checks (:class:`~.torque_channels.TorqueChannels`) see the log in blocks of
 :data:`CHANNEL_BLOCK` samples (a dead run is measured within a block); the plots get the first
@@ -161,8 +162,9 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     """Normal equations of the preprocessed log, one set per cross-validation fold (``n_folds`` ≥ 2) or
     one set; ``structure`` as :func:`~sensorless.regressor.compress` reads it (a model or the friction
     candidates). Each chunk's regressor is evaluated once. ``on_chunk(start, n, chunk)`` sees each chunk.
-    ``overlap``: fold chunk k in a helper thread while chunk k + 1 is read and evaluated (default: when
-    a core is idle, as :func:`~sensorless.regressor.compress`); the sums do not depend on it."""
+    ``overlap``: compute the joint features (the candidate columns) of chunk k and fold it in a helper
+    thread while chunk k + 1 is read and its regressor evaluated (default: when a core is idle, as
+    :func:`~sensorless.regressor.compress`); the sums do not depend on it."""
     track = bool(getattr(structure, "track_left_out", False))
     if structure.row_map.per_sample or set(terms_where("stateful")) & set(getattr(structure, "joint_terms", ())):
         raise DataError("the streamed pass folds per-joint rows of a fixed map (no contacts, no presliding)")
@@ -173,8 +175,16 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     if overlap is None:
         overlap = idle_core()
     bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if overlap else 1)]
+    into = isinstance(structure, StribeckCandidates)  # its joint features fill a reused buffer
+    n_terms = structure.n_terms if into else 0
+    fbufs = [np.empty((chunk, len(structure.term_rows), n_terms)) if into else None for _ in bufs]
     pending: list = [None] * len(bufs)
     prev_v = None
+
+    def fold(slot, n, V, A, Wb, y, keep, folds):  # the joint features (the candidate columns) and the fold
+        F = structure.joint_features(V, A, None, out=fbufs[slot][:n]) if into else structure.joint_features(V, A, None)
+        fold_chunk(nes, folds, structure, Wb, F, y, keep, cols, track)
+
     with one_blas_thread(), ThreadPoolExecutor(1) as pool:
         for k, (s, n, part) in enumerate(slog.chunks(chunk)):
             if on_chunk is not None:
@@ -184,18 +194,17 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
                 pending[slot].result()
             Q, V, A = structure.state(part)
             Wb = structure.block_regressor(Q[:n], V[:n], A[:n], out=bufs[slot][:n])
-            F = structure.joint_features(V[:n], A[:n], None)
             y = structure.target(part)[:n]
             keep = structure.fit_mask(V if prev_v is None else np.concatenate([prev_v, V]))
             if keep is not None:
                 keep = keep[(0 if prev_v is None else 1):][:n]
             prev_v = V[n - 1 : n]
             folds = fold_of(s, s + n) if fold_of is not None else None
-            job = (nes, folds, structure, Wb, F, y, keep, cols, track)
+            job = (slot, n, V[:n], A[:n], Wb, y, keep, folds)
             if overlap:
-                pending[slot] = pool.submit(fold_chunk, *job)
+                pending[slot] = pool.submit(fold, *job)
             else:
-                fold_chunk(*job)
+                fold(*job)
             if progress is not None:
                 progress(n)
         for f in pending:
