@@ -43,7 +43,7 @@ from ..data.chunks import ChunkedLog, open_chunked
 from ..data.streamed_log import StreamedLog, scan_log
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from ..regressor.normal_equations import NormalEquations, fold_chunk, idle_core, one_blas_thread
+from ..regressor.normal_equations import NormalEquations, RowMajorFold, idle_core, one_blas_thread
 from ..regressor.joint_terms import joint_term, terms_where
 from ..regressor.terms import ModelStructure
 from .friction import FrictionFit, coulomb_smoothing_from_noise, friction_structure, record_search, stribeck_grid, \
@@ -168,22 +168,29 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     track = bool(getattr(structure, "track_left_out", False))
     if structure.row_map.per_sample or set(terms_where("stateful")) & set(getattr(structure, "joint_terms", ())):
         raise DataError("the streamed pass folds per-joint rows of a fixed map (no contacts, no presliding)")
-    nes = [NormalEquations.zeros(structure.n_rows, structure.n_params, left_out=track) for _ in range(max(n_folds, 1))]
     fold_of = _fold_index(slog, n_folds) if n_folds > 1 else None
+    rows, nb, term_rows = structure.n_rows, structure.n_block_params, np.asarray(structure.term_rows)
+    nt = (structure.n_params - nb) // len(term_rows) if len(term_rows) else 0
     dense = not structure.row_map.selects_rows or structure.n_block_params != structure.n_body_params
-    cols = None if dense else structure.row_body_columns()
+    body = [(0, nb)] * rows if dense else structure.row_body_columns()
+    term_of = {int(r): k for k, r in enumerate(term_rows)}
+    ranges = [(c0, nb + nt) if r in term_of and nt else (c0, c1) for r, (c0, c1) in enumerate(body)]
+    acc = RowMajorFold(n_folds, ranges, [term_of.get(r) for r in range(rows)], nb, nt, structure.n_params, track)
     if overlap is None:
         overlap = idle_core()
-    bufs = [np.empty((chunk, structure.n_rows, structure.n_block_params)) for _ in range(2 if overlap else 1)]
-    into = isinstance(structure, StribeckCandidates)  # its joint features fill a reused buffer
-    n_terms = structure.n_terms if into else 0
-    fbufs = [np.empty((chunk, len(structure.term_rows), n_terms)) if into else None for _ in bufs]
+    # row-major chunks: the regressor and the joint features are written in place (views), rows of X[r] are samples
+    bufs = [np.zeros((rows, chunk, nb + nt)) for _ in range(2 if overlap else 1)]
+    in_place = np.array_equal(term_rows, np.arange(rows)) and isinstance(structure, StribeckCandidates)
     pending: list = [None] * len(bufs)
     prev_v = None
 
-    def fold(slot, n, V, A, Wb, y, keep, folds):  # the joint features (the candidate columns) and the fold
-        F = structure.joint_features(V, A, None, out=fbufs[slot][:n]) if into else structure.joint_features(V, A, None)
-        fold_chunk(nes, folds, structure, Wb, F, y, keep, cols, track)
+    def fold(X, n, V, A, y, keep, folds):  # the joint features (the candidate columns) and the fold
+        terms = X[:, :n, nb:].transpose(1, 0, 2)
+        if in_place:
+            structure.joint_features(V, A, None, out=terms)
+        elif nt:
+            terms[:, term_rows] = structure.joint_features(V, A, None)
+        acc.add(X[:, :n], y, keep, folds)
 
     with one_blas_thread(), ThreadPoolExecutor(1) as pool:
         for k, (s, n, part) in enumerate(slog.chunks(chunk)):
@@ -192,15 +199,16 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
             slot = k % len(bufs)
             if pending[slot] is not None:  # the fold still reading this buffer
                 pending[slot].result()
+            X = bufs[slot]
             Q, V, A = structure.state(part)
-            Wb = structure.block_regressor(Q[:n], V[:n], A[:n], out=bufs[slot][:n])
+            structure.block_regressor(Q[:n], V[:n], A[:n], out=X[:, :n, :nb].transpose(1, 0, 2))
             y = structure.target(part)[:n]
             keep = structure.fit_mask(V if prev_v is None else np.concatenate([prev_v, V]))
             if keep is not None:
                 keep = keep[(0 if prev_v is None else 1):][:n]
             prev_v = V[n - 1 : n]
             folds = fold_of(s, s + n) if fold_of is not None else None
-            job = (slot, n, V[:n], A[:n], Wb, y, keep, folds)
+            job = (X, n, V[:n], A[:n], y, keep, folds)
             if overlap:
                 pending[slot] = pool.submit(fold, *job)
             else:
@@ -210,9 +218,7 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
         for f in pending:
             if f is not None:
                 f.result()
-    for ne in nes:
-        ne.mirror_upper()
-    return nes
+    return acc.equations()
 
 
 def _plot_samples(slog: StreamedLog, n: int):

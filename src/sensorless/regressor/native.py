@@ -127,6 +127,9 @@ def _lib():
     lib.slr_model_free.argtypes = [p]
     lib.slr_regressor.restype = i
     lib.slr_regressor.argtypes = [p, i, p, p, p, i, p, p, i]
+    if hasattr(lib, "slr_regressor_strided"):  # absent from a library built before it existed
+        lib.slr_regressor_strided.restype = i
+        lib.slr_regressor_strided.argtypes = [p, i, p, p, p, i, p, p, ctypes.c_long, ctypes.c_long, i]
     if hasattr(lib, "slr_null_space_projector"):  # absent from a library built before it existed
         d = ctypes.c_double
         lib.slr_null_space_projector.restype = None
@@ -153,6 +156,11 @@ class NativeRegressor:
     """The kernel's copy of a Pinocchio model (its kinematic tree): :meth:`__call__` fills
     ``out[i] = Y(Q[i], V[i], A[i])[rows]``. Build it with :func:`native_regressor`."""
 
+    @property
+    def strided(self) -> bool:
+        """True when ``out`` may be any view whose last axis is contiguous (else it must be C-contiguous)."""
+        return hasattr(self._lib, "slr_regressor_strided")
+
     def __init__(self, lib, handle: int, nq: int, nv: int, n_body_params: int):
         self._lib, self._handle = lib, handle
         self.nq, self.nv, self.n_body_params = nq, nv, n_body_params
@@ -167,14 +175,21 @@ class NativeRegressor:
         Q, V, A = (np.ascontiguousarray(x, dtype=float) for x in (Q, V, A))
         rows = np.ascontiguousarray(rows, dtype=np.int32)
         n = Q.shape[0]
+        e = out.itemsize
+        layout = out.flags.c_contiguous or (self.strided and out.ndim == 3 and out.strides[2] == e
+                                            and out.strides[0] % e == 0 and out.strides[1] % e == 0)
         if not (Q.shape == (n, self.nq) and V.shape == A.shape == (n, self.nv)
-                and out.shape == (n, rows.size, self.n_body_params) and out.flags.c_contiguous
-                and out.dtype == np.float64):
+                and out.shape == (n, rows.size, self.n_body_params) and layout and out.dtype == np.float64):
             raise ValueError(f"native regressor: shape or layout mismatch (Q {Q.shape}, V {V.shape}, A {A.shape}, "
-                             f"rows {rows.size}, out {out.shape} {out.dtype} C-contiguous {out.flags.c_contiguous}; "
+                             f"rows {rows.size}, out {out.shape} {out.dtype} strides {out.strides}; "
                              f"model nq {self.nq}, nv {self.nv}, {self.n_body_params} body parameters)")
-        self._lib.slr_regressor(self._handle, n, Q.ctypes.data, V.ctypes.data, A.ctypes.data, rows.size,
-                                rows.ctypes.data, out.ctypes.data, int(threads))
+        if out.flags.c_contiguous:
+            self._lib.slr_regressor(self._handle, n, Q.ctypes.data, V.ctypes.data, A.ctypes.data, rows.size,
+                                    rows.ctypes.data, out.ctypes.data, int(threads))
+        else:
+            self._lib.slr_regressor_strided(self._handle, n, Q.ctypes.data, V.ctypes.data, A.ctypes.data, rows.size,
+                                            rows.ctypes.data, out.ctypes.data, out.strides[0] // e,
+                                            out.strides[1] // e, int(threads))
         return out
 
 
