@@ -184,7 +184,7 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0, perio
     speed, moving, qmin, qmax = np.zeros(n), np.zeros(n, bool), np.zeros(n), np.zeros(n)
     quiet = np.zeros((N, n), dtype=bool) if rest_on else None
     creep, frac_rest, frac_creep = [], np.zeros(n), np.zeros(n)
-    ac_sum, ac_k, lags = None, 0, _lag_range(N, dt) if period else None
+    power, ac_k, lags = None, 0, _lag_range(N, dt) if period else None
     for j, name in enumerate(names):
         cols = {}
         for fld in ("tau", "q", "v"):  # τ is done with before q and v are read (memory)
@@ -215,12 +215,12 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0, perio
             del one, out
         speed[j] = np.percentile(np.abs(v), 95)
         if lags is not None:
-            ac = _autocorrelation(q, lags)
-            if ac is not None:
-                ac_sum = ac if ac_sum is None else ac_sum + ac
+            p = _power(q)
+            if p is not None:
+                power = p if power is None else np.add(power, p, out=power)
                 ac_k += 1
         del q, v
-    period = _period(ac_sum, ac_k, lags, dt)
+    period = _period(power, ac_k, N, lags, dt)
     prov = {"t": "logged", "q": "logged", "v": "logged", "tau": "logged",
             "a": f"derived: d/dt of logged v, Savitzky-Golay (window {w}, order {POLYORDER})",
             "timing": info.to_dict()}
@@ -241,8 +241,9 @@ def _lag_range(n: int, dt: float, min_period: float = 1.0) -> "tuple[int, int] |
     return None if hi <= lo + 1 else (lo, hi)
 
 
-def _autocorrelation(q: np.ndarray, lags: tuple[int, int]) -> "np.ndarray | None":
-    """One joint's normalised autocorrelation at lags [lo − 1, hi] (:func:`~.periodicity.excitation_period`)."""
+def _power(q: np.ndarray) -> "np.ndarray | None":
+    """One joint's power spectrum |X|² / var of q − q̄ zero-padded to 2n (:func:`~.periodicity.excitation_period`):
+    the joints' normalised autocorrelations are summed as spectra, one inverse FFT for all (linear)."""
     n = len(q)
     x = q - q.mean()
     var = (x**2).mean()
@@ -251,17 +252,18 @@ def _autocorrelation(q: np.ndarray, lags: tuple[int, int]) -> "np.ndarray | None
     p = np.abs(np.fft.rfft(x, 2 * n))  # the same operations as excitation_period, in place (memory)
     del x
     p **= 2
-    ac = np.fft.irfft(p)[:n]
-    del p
-    ac /= n - np.arange(n)
-    ac /= var
-    return ac[lags[0] - 1 : lags[1] + 1].copy()
+    p /= var
+    return p
 
 
-def _period(ac_sum, k: int, lags, dt: float, threshold: float = 0.95) -> "float | None":
-    if ac_sum is None or lags is None:
+def _period(power, k: int, n: int, lags, dt: float, threshold: float = 0.95) -> "float | None":
+    """The mean over the ``k`` joints of their normalised autocorrelations, irfft(Σ |X_j|²/var_j)[τ] / (n − τ) / k,
+    at lags [lo − 1, hi]: its first peak above ``threshold`` (:func:`~.periodicity.excitation_period`)."""
+    if power is None or lags is None:
         return None
-    r = ac_sum / k
+    ac = np.fft.irfft(power)[lags[0] - 1 : lags[1] + 1]
+    ac /= n - np.arange(lags[0] - 1, lags[1] + 1)
+    r = ac / k
     peak = (r[1:-1] >= r[:-2]) & (r[1:-1] >= r[2:]) & (r[1:-1] >= threshold)
     idx = np.flatnonzero(peak)
     return float((lags[0] + idx[0]) * dt) if idx.size else None
