@@ -187,12 +187,16 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
     pending: list = [None] * len(bufs)
     prev_v = None
 
-    def fold(X, n, V, A, y, keep, folds):  # the joint features (the candidate columns) and the fold
+    def fold(X, n, part, V, A, prev_v, folds):  # targets, masks, joint features (candidate columns), the fold
+        y = structure.target(part)[:n]
+        keep = structure.fit_mask(V if prev_v is None else np.concatenate([prev_v, V]))
+        if keep is not None:  # seen with the neighbour samples (a reversal), as on the whole log
+            keep = keep[(0 if prev_v is None else 1):][:n]
         terms = X[:, :n, nb:].transpose(1, 0, 2)
         if in_place:
-            structure.joint_features(V, A, None, out=terms)
+            structure.joint_features(V[:n], A[:n], None, out=terms)
         elif nt:
-            terms[:, term_rows] = structure.joint_features(V, A, None)
+            terms[:, term_rows] = structure.joint_features(V[:n], A[:n], None)
         acc.add(X[:, :n], y, keep, folds)
 
     with one_blas_thread(), ThreadPoolExecutor(1) as pool:
@@ -205,13 +209,9 @@ def fold_stream(structure, slog: StreamedLog, *, n_folds: int = 1, chunk: int = 
             X = bufs[slot]
             Q, V, A = structure.state(part)
             structure.block_regressor(Q[:n], V[:n], A[:n], out=X[:, :n, :nb].transpose(1, 0, 2))
-            y = structure.target(part)[:n]
-            keep = structure.fit_mask(V if prev_v is None else np.concatenate([prev_v, V]))
-            if keep is not None:
-                keep = keep[(0 if prev_v is None else 1):][:n]
-            prev_v = V[n - 1 : n]
             folds = fold_of(s, s + n) if fold_of is not None else None
-            job = (X, n, V[:n], A[:n], y, keep, folds)
+            job = (X, n, part, V, A, prev_v, folds)
+            prev_v = V[n - 1 : n]
             if overlap:
                 pending[slot] = pool.submit(fold, *job)
             else:
