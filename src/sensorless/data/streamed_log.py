@@ -257,8 +257,9 @@ def _power(q: np.ndarray) -> "np.ndarray | None":
 
 
 def _period(power, k: int, n: int, lags, dt: float, threshold: float = 0.95) -> "float | None":
-    """The mean over the ``k`` joints of their normalised autocorrelations, irfft(Σ |X_j|²/var_j)[τ] / (n − τ) / k,
-    at lags [lo − 1, hi]: its first peak above ``threshold`` (:func:`~.periodicity.excitation_period`)."""
+    """The mean over the ``k`` joints of their normalised autocorrelations,
+    irfft(Σ |X_j|²/var_j)[τ] / (n − τ) / k at lags [lo − 1, hi]: its first peak above ``threshold``
+    (:func:`~.periodicity.excitation_period`)."""
     if power is None or lags is None:
         return None
     ac = np.fft.irfft(power)[lags[0] - 1 : lags[1] + 1]

@@ -35,7 +35,7 @@ import numpy as np
 __all__ = ["NativeRegressor", "available", "build", "contact_projector", "friction_candidates", "library", "library_path", "native_regressor",
            "threads", "tree_model", "unavailable_reason"]
 
-#: the kernel's sources, one library: the regressor, the observer step, the contact projector and the friction candidates
+#: the kernel's sources, one library: regressor, observer step, contact projector, friction candidates
 _SOURCES = tuple(Path(__file__).with_name(n) for n in ("native_kernel.cpp", "observer_kernel.cpp", "native_contact.cpp",
                                                       "native_friction.cpp"))
 _LIB_NAME = "libsensorless_regressor.so"
