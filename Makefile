@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 
 venv: $(STAMP)
 
-$(STAMP): pyproject.toml studies/pyproject.toml Makefile src/sensorless/regressor/native_kernel.cpp src/sensorless/regressor/observer_kernel.cpp src/sensorless/regressor/native_contact.cpp
+$(STAMP): pyproject.toml studies/pyproject.toml Makefile src/sensorless/regressor/native_kernel.cpp src/sensorless/regressor/observer_kernel.cpp src/sensorless/regressor/native_contact.cpp src/sensorless/regressor/native_friction.cpp
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	# The local CPU build of torch must come first; an unpinned torch pulls CUDA wheels.

@@ -135,6 +135,33 @@ def test_chunked_compression_equals_the_whole_log(logs, ur5, candidates):
             _same_rows(tot.left_out.A, ref.left_out.A)
 
 
+def test_streamed_equations_with_and_without_the_kernel_agree(logs, ur5, monkeypatch):
+    """The C++ kernels (regressor into the row-major chunk, candidate columns) against the NumPy/Pinocchio
+    route (SENSORLESS_NATIVE=0): the same equations, fold by fold and left out, at odd chunk boundaries."""
+    from sensorless.regressor import native
+
+    d, _ = logs
+    slog = scan_log(open_chunked(d / "log.npz", ur5.joint_names))
+    s0 = ModelStructure(ur5, joint_terms=("fv", "fc", "stribeck", "offset", "armature"))
+    _, law = streamed_friction(s0, slog)
+    s, _ = friction_structure(s0, [], coulomb_smoothing=law.coulomb_smoothing, stribeck_velocity=law.stribeck_grid,
+                              width_grid=law.width_grid)
+    st = StribeckCandidates(s, law.stribeck_grid, law.width_grid)
+    got = fold_stream(st, slog, n_folds=5, chunk=333, overlap=True)
+    monkeypatch.setenv("SENSORLESS_NATIVE", "0")
+    native._lib.cache_clear()
+    try:
+        assert not native.available()
+        ref = fold_stream(st, slog, n_folds=5, chunk=1000, overlap=False)
+    finally:
+        monkeypatch.delenv("SENSORLESS_NATIVE")
+        native._lib.cache_clear()
+    for a, b in zip(got, ref):
+        assert a.n_samples == b.n_samples and a.left_out.n_samples == b.left_out.n_samples > 0
+        for x, y in ((a.A, b.A), (a.b, b.b), (a.c, b.c), (a.left_out.A, b.left_out.A), (a.left_out.b, b.left_out.b)):
+            _same_rows(x, y)
+
+
 @pytest.mark.parametrize("candidates", [False, True])
 def test_cross_validation_folds_are_the_streamed_folds(logs, ur5, candidates):
     """The whole-log folds of ``--gamma auto`` (one pass, phase blocks) equal the streamed pass's fold by

@@ -41,7 +41,6 @@ EXEMPT = {
     "data/outliers": ("test_hardening.py", "issue-12 regressions (gross outliers: error / drop)"),
     "data/periodicity": ("test_identification_lmi.py", "period detection of the averaged-period validation"),
     "data/chunks": ("test_identification_streamed.py", "chunked reading behind the streamed identification"),
-    "data/streamed_log": ("test_identification_streamed.py", "the log view of the streamed identification"),
     "data/arrays": ("test_data.py", "the NPZ/HDF5 reader behind read_trajectory (its NPZ and HDF5 tests)"),
     "data/bench_log": ("test_cli_friction.py", "the friction command's bench-log reader"),
     "data/containers": ("test_data_limits.py", "declared NPZ/HDF5 sizes checked before reading"),

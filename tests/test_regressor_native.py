@@ -60,6 +60,27 @@ def test_compress_and_regressor_with_and_without_the_kernel_are_identical(monkey
     assert np.array_equal(W_kernel, W)
 
 
+def test_kernel_writes_a_row_major_view_as_the_contiguous_buffer():
+    """The streamed pass lays chunks out row-major (rows, samples, columns); the kernel writes the
+    (samples, rows, body columns) view of such a buffer in place, equal to the contiguous output."""
+    robot = load_robot("ur5")
+    m = robot.model
+    kernel = native.native_regressor(m)
+    assert kernel is not None and kernel.strided
+    rng = np.random.default_rng(2)
+    Q, V, A = rng.standard_normal((33, m.nq)), rng.standard_normal((33, m.nv)), rng.standard_normal((33, m.nv))
+    rows = np.array([4, 0, 2])
+    ref = kernel(Q, V, A, rows, np.empty((33, 3, 60)))
+    for threads in (1, 2):
+        wide = np.full((3, 40, 60 + 7), np.nan)
+        view = wide[:, 5:38, :60].transpose(1, 0, 2)
+        kernel(Q, V, A, rows, view, threads=threads)
+        assert np.array_equal(view, ref)
+        assert np.isnan(wide[:, :5]).all() and np.isnan(wide[:, 38:]).all() and np.isnan(wide[:, :, 60:]).all()
+    with pytest.raises(ValueError, match="shape or layout"):
+        kernel(Q, V, A, rows, np.empty((33, 3, 120))[:, :, ::2])  # the columns must be contiguous
+
+
 def test_unknown_joint_type_falls_back_to_python():
     m = pin.Model()
     j = m.addJoint(0, pin.JointModelSphericalZYX(), pin.SE3.Identity(), "ball")

@@ -47,6 +47,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import DataError
+from ..regressor.native import friction_candidates as native_friction_candidates
 from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 from .base import base_parameters
@@ -58,6 +59,9 @@ SWEEPS = 2
 #: a Stribeck decay must be slower than the rise (vs ≥ this × the width): else friction would
 #: fall before it rose, and a narrow decay would only fit the sign chatter of noisy velocities
 MIN_STRIBECK_OVER_WIDTH = 3.0
+#: samples per block of the candidate columns (:meth:`StribeckCandidates.joint_features`): the scratch
+#: (block × joints × candidates floats) stays in the core's cache between the element-wise passes
+FEATURE_BLOCK = 256
 
 
 def _lists(grid, what: str) -> dict[str, np.ndarray]:
@@ -157,23 +161,56 @@ class StribeckCandidates:
     def friction_states(self, traj):
         return self.structure.friction_states(traj)
 
-    def joint_features(self, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None) -> np.ndarray:
+    def joint_features(self, V: np.ndarray, A: np.ndarray, Z: "np.ndarray | None" = None,
+                       out: "np.ndarray | None" = None) -> np.ndarray:
+        """[model terms | T_g | D_h] per term joint, shape (N, n_term_joints, :attr:`n_terms`), into ``out``
+        when given (a strided view will do); the candidate columns by :meth:`candidate_columns`."""
         s = self.structure
+        base = s.joint_features(V, A, Z)
+        n, J, nm = base.shape
+        F = np.empty((n, J, self.n_terms)) if out is None else out
+        F[:, :, :nm] = base
         v = V[:, s.robot.term_v_indices]
-        sgn = s.sliding_sign(v)
-        on = self.searched[None, :, None]
+        self.candidate_columns(v, s.sliding_sign(v), F[:, :, nm:])
+        return F
+
+    def candidate_columns(self, v: np.ndarray, sgn: np.ndarray, out: np.ndarray, native: bool = True) -> np.ndarray:
+        """The G_w + G_s candidate columns [tanh(v/w_g) | (1 − e^{−(v/vs_h)²}) sgn v] of term-joint velocities
+        ``v`` (N, joints; ``sgn`` their sliding sign, 0 at rest) into ``out`` (N, joints, G_w + G_s): 0 at
+        rest and on joints not searched; sgn v for a width w = 0. The C++ kernel
+        (:func:`~sensorless.regressor.native.friction_candidates`, skips the saturated tanh/expm1 calls)
+        when built and ``native``; else NumPy in blocks of :data:`FEATURE_BLOCK` samples with two reused
+        scratch arrays (the work stays in cache). The two agree to rounding (a libm call vs NumPy's)."""
+        on = self.searched[None, :]
+        t_mask = (sgn != 0) * on  # 0 at rest (|v| ≤ δ)
+        d_sign = -(sgn * on)  # the sign change of −expm1 folded in (exact)
+        if native and native_friction_candidates(v, t_mask, d_sign, self.widths, self.grid, out):
+            return out
+        n, J = v.shape
+        Gw, Gs = self.widths.shape[1], self.grid.shape[1]
+        t_mask, d_sign = t_mask[:, :, None], d_sign[:, :, None]
         w = self.widths
-        T = v[:, :, None] / np.where(w > 0, w, 1.0)[None]  # contiguous work arrays: faster ufunc loops
-        np.tanh(T, out=T)  # tanh(v/w), sgn v where w = 0
-        if not np.all(w > 0):
-            T = np.where(w[None] > 0, T, np.sign(v)[:, :, None])
-        T *= (sgn != 0)[:, :, None] * on  # 0 at rest (|v| ≤ δ)
-        D = v[:, :, None] / self.grid[None]  # stribeck_decay: −expm1(−(v/vs)²) sgn
-        np.square(D, out=D)
-        np.negative(D, out=D)
-        np.expm1(D, out=D)
-        D *= -(sgn[:, :, None] * on)  # the sign change of −expm1 folded in (exact)
-        return np.concatenate([s.joint_features(V, A, Z), T, D], axis=2)
+        w_pos = bool(np.all(w > 0))
+        w_div = np.where(w > 0, w, 1.0)[None]
+        grid = self.grid[None]
+        B = max(min(FEATURE_BLOCK, n), 1)
+        T_buf, D_buf = np.empty((B, J, Gw)), np.empty((B, J, Gs))
+        for a in range(0, n, B):
+            b = min(a + B, n)
+            vb = v[a:b, :, None]
+            T = np.divide(vb, w_div, out=T_buf[: b - a])
+            np.tanh(T, out=T)  # tanh(v/w), sgn v where w = 0
+            if not w_pos:
+                T = np.where(w[None] > 0, T, np.sign(vb))
+            T *= t_mask[a:b]
+            out[a:b, :, :Gw] = T
+            D = np.divide(vb, grid, out=D_buf[: b - a])  # stribeck_decay: −expm1(−(v/vs)²) sgn
+            np.square(D, out=D)
+            np.negative(D, out=D)
+            np.expm1(D, out=D)
+            D *= d_sign[a:b]
+            out[a:b, :, Gw:] = D
+        return out
 
     # ---- from candidate equations to the model's -------------------------------------------------
     def _choice(self, choice) -> np.ndarray:

@@ -16,7 +16,9 @@ Pinocchio's Python one on random states (relative 1e-12). ``SENSORLESS_NATIVE=0`
 The same library holds the momentum observer's compiled step (``observer_kernel.cpp``,
 :mod:`sensorless.estimation.native_observer`), which starts from :func:`tree_model`, and the
 batched contact null-space projector (``native_contact.cpp``, used by
-:func:`~.contact_kinematics.null_space_projector` through :func:`contact_projector`).
+:func:`~.contact_kinematics.null_space_projector` through :func:`contact_projector`) and the candidate
+friction columns of the law search (``native_friction.cpp``, used by
+:meth:`~sensorless.identification.stribeck.StribeckCandidates.joint_features` through :func:`friction_candidates`).
 """
 
 from __future__ import annotations
@@ -30,11 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NativeRegressor", "available", "build", "contact_projector", "library", "library_path", "native_regressor",
+__all__ = ["NativeRegressor", "available", "build", "contact_projector", "friction_candidates", "library", "library_path", "native_regressor",
            "threads", "tree_model", "unavailable_reason"]
 
-#: the kernel's sources, one library: the regressor, the observer step and the contact projector
-_SOURCES = tuple(Path(__file__).with_name(n) for n in ("native_kernel.cpp", "observer_kernel.cpp", "native_contact.cpp"))
+#: the kernel's sources, one library: regressor, observer step, contact projector, friction candidates
+_SOURCES = tuple(Path(__file__).with_name(n) for n in ("native_kernel.cpp", "observer_kernel.cpp", "native_contact.cpp",
+                                                      "native_friction.cpp"))
 _LIB_NAME = "libsensorless_regressor.so"
 #: Pinocchio joint model → (kernel type code, fixed unit axis or None) (native_kernel.cpp): an axis-aligned
 #: joint is passed as its unaligned form
@@ -124,10 +127,17 @@ def _lib():
     lib.slr_model_free.argtypes = [p]
     lib.slr_regressor.restype = i
     lib.slr_regressor.argtypes = [p, i, p, p, p, i, p, p, i]
+    if hasattr(lib, "slr_regressor_strided"):  # absent from a library built before it existed
+        lib.slr_regressor_strided.restype = i
+        lib.slr_regressor_strided.argtypes = [p, i, p, p, p, i, p, p, ctypes.c_long, ctypes.c_long, i]
     if hasattr(lib, "slr_null_space_projector"):  # absent from a library built before it existed
         d = ctypes.c_double
         lib.slr_null_space_projector.restype = None
         lib.slr_null_space_projector.argtypes = [ctypes.c_long, i, i, p, d, d, p, p]
+    if hasattr(lib, "slr_friction_candidates"):
+        L = ctypes.c_long
+        lib.slr_friction_candidates.restype = None
+        lib.slr_friction_candidates.argtypes = [L, i, p, p, p, i, p, i, p, p, L, L]
     return lib
 
 
@@ -146,6 +156,11 @@ class NativeRegressor:
     """The kernel's copy of a Pinocchio model (its kinematic tree): :meth:`__call__` fills
     ``out[i] = Y(Q[i], V[i], A[i])[rows]``. Build it with :func:`native_regressor`."""
 
+    @property
+    def strided(self) -> bool:
+        """True when ``out`` may be any view whose last axis is contiguous (else it must be C-contiguous)."""
+        return hasattr(self._lib, "slr_regressor_strided")
+
     def __init__(self, lib, handle: int, nq: int, nv: int, n_body_params: int):
         self._lib, self._handle = lib, handle
         self.nq, self.nv, self.n_body_params = nq, nv, n_body_params
@@ -160,14 +175,21 @@ class NativeRegressor:
         Q, V, A = (np.ascontiguousarray(x, dtype=float) for x in (Q, V, A))
         rows = np.ascontiguousarray(rows, dtype=np.int32)
         n = Q.shape[0]
+        e = out.itemsize
+        layout = out.flags.c_contiguous or (self.strided and out.ndim == 3 and out.strides[2] == e
+                                            and out.strides[0] % e == 0 and out.strides[1] % e == 0)
         if not (Q.shape == (n, self.nq) and V.shape == A.shape == (n, self.nv)
-                and out.shape == (n, rows.size, self.n_body_params) and out.flags.c_contiguous
-                and out.dtype == np.float64):
+                and out.shape == (n, rows.size, self.n_body_params) and layout and out.dtype == np.float64):
             raise ValueError(f"native regressor: shape or layout mismatch (Q {Q.shape}, V {V.shape}, A {A.shape}, "
-                             f"rows {rows.size}, out {out.shape} {out.dtype} C-contiguous {out.flags.c_contiguous}; "
+                             f"rows {rows.size}, out {out.shape} {out.dtype} strides {out.strides}; "
                              f"model nq {self.nq}, nv {self.nv}, {self.n_body_params} body parameters)")
-        self._lib.slr_regressor(self._handle, n, Q.ctypes.data, V.ctypes.data, A.ctypes.data, rows.size,
-                                rows.ctypes.data, out.ctypes.data, int(threads))
+        if out.flags.c_contiguous:
+            self._lib.slr_regressor(self._handle, n, Q.ctypes.data, V.ctypes.data, A.ctypes.data, rows.size,
+                                    rows.ctypes.data, out.ctypes.data, int(threads))
+        else:
+            self._lib.slr_regressor_strided(self._handle, n, Q.ctypes.data, V.ctypes.data, A.ctypes.data, rows.size,
+                                            rows.ctypes.data, out.ctypes.data, out.strides[0] // e,
+                                            out.strides[1] // e, int(threads))
         return out
 
 
@@ -251,6 +273,30 @@ def contact_projector():
     or None when the kernel is not built, disabled, or built before the projector was added."""
     lib = _lib()
     return getattr(lib, "slr_null_space_projector", None) if lib is not None else None
+
+
+def friction_candidates(v: np.ndarray, t_mask: np.ndarray, d_sign: np.ndarray, widths: np.ndarray, vs: np.ndarray,
+                        out: np.ndarray) -> bool:
+    """The candidate columns of ``native_friction.cpp`` into ``out`` (n, joints, G_w + G_s), any strides
+    whose last is one element: [tanh(v/w_g)·t_mask | expm1(−(v/vs_h)²)·d_sign] for velocities, masks
+    (n, joints) and per-joint ``widths`` (joints, G_w), ``vs`` (joints, G_s). False (``out`` untouched)
+    when the kernel is not built, disabled, or built before this function was added."""
+    lib = _lib()
+    fn = getattr(lib, "slr_friction_candidates", None) if lib is not None else None
+    if fn is None:
+        return False
+    n, J = v.shape
+    Gw, Gs = widths.shape[1], vs.shape[1]
+    v, t_mask, d_sign, widths, vs = (np.ascontiguousarray(x, dtype=float) for x in (v, t_mask, d_sign, widths, vs))
+    e = out.itemsize
+    if not (out.dtype == np.float64 and out.shape == (n, J, Gw + Gs) and out.strides[2] == e
+            and t_mask.shape == d_sign.shape == (n, J) and widths.shape[0] == vs.shape[0] == J
+            and out.strides[0] % e == 0 and out.strides[1] % e == 0):
+        raise ValueError(f"native friction candidates: shape or layout mismatch (v {v.shape}, out {out.shape} "
+                         f"strides {out.strides}, widths {widths.shape}, vs {vs.shape})")
+    fn(n, J, v.ctypes.data, t_mask.ctypes.data, d_sign.ctypes.data, Gw, widths.ctypes.data, Gs, vs.ctypes.data,
+       out.ctypes.data, out.strides[0] // e, out.strides[1] // e)
+    return True
 
 
 def threads() -> int:

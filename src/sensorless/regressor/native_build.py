@@ -13,10 +13,10 @@ def main(argv: list[str]) -> int:
     try:
         path = build(verbose="-v" in argv)
     except (RuntimeError, FileNotFoundError) as exc:
-        print(f"sensorless: native C++ kernel (regressor, observer step, contact projector) not built ({exc}); the pure-Python path is used",
+        print(f"sensorless: native C++ kernel (regressor, observer step, contact projector, friction candidates) not built ({exc}); the pure-Python path is used",
               file=sys.stderr)
         return 1
-    print(f"sensorless: native C++ kernel (regressor, observer step, contact projector) built: {path}")
+    print(f"sensorless: native C++ kernel (regressor, observer step, contact projector, friction candidates) built: {path}")
     return 0
 
 

@@ -64,10 +64,10 @@ void slr_model_free(void* model) { delete static_cast<Model*>(model); }
 int slr_model_nq(void* model) { return static_cast<Model*>(model)->nq; }
 int slr_model_nv(void* model) { return static_cast<Model*>(model)->nv; }
 
-// out[i] (n_rows x 10 n_bodies, row-major) = rows `rows` of Y(Q[i], V[i], A[i]) for i < n; Q (n, nq),
-// V and A (n, nv), all C-contiguous. `threads` > 1 splits the samples into contiguous blocks.
-int slr_regressor(void* model, int n, const double* Q, const double* V, const double* A, int n_rows,
-                  const int* rows, double* out, int threads) {
+// out + i*si + r*sr (10 n_bodies contiguous doubles) = row rows[r] of Y(Q[i], V[i], A[i]) for i < n, r < n_rows;
+// Q (n, nq), V and A (n, nv), all C-contiguous. `threads` > 1 splits the samples into contiguous blocks.
+int slr_regressor_strided(void* model, int n, const double* Q, const double* V, const double* A, int n_rows,
+                          const int* rows, double* out, long si, long sr, int threads) {
   const Model& m = *static_cast<Model*>(model);
   const int nq = m.nq, nv = m.nv, p = 10 * (m.njoints - 1);
   auto work = [&](int lo, int hi) {
@@ -76,8 +76,8 @@ int slr_regressor(void* model, int n, const double* Q, const double* V, const do
       const Eigen::Map<const Eigen::VectorXd> q(Q + size_t(i) * nq, nq), v(V + size_t(i) * nv, nv),
           a(A + size_t(i) * nv, nv);
       computeJointTorqueRegressor(m, d, q, v, a);
-      Eigen::Map<RowMajor> o(out + size_t(i) * n_rows * p, n_rows, p);
-      for (int r = 0; r < n_rows; ++r) o.row(r) = d.jointTorqueRegressor.row(rows[r]);
+      for (int r = 0; r < n_rows; ++r)
+        Eigen::Map<Eigen::RowVectorXd>(out + i * si + r * sr, p) = d.jointTorqueRegressor.row(rows[r]);
     }
   };
   if (threads <= 1 || n < 2 * threads) {
@@ -89,5 +89,12 @@ int slr_regressor(void* model, int n, const double* Q, const double* V, const do
     pool.emplace_back(work, int(long(n) * t / threads), int(long(n) * (t + 1) / threads));
   for (auto& th : pool) th.join();
   return 0;
+}
+
+// out[i] (n_rows x 10 n_bodies, row-major) = rows `rows` of Y(Q[i], V[i], A[i]) for i < n (C-contiguous out).
+int slr_regressor(void* model, int n, const double* Q, const double* V, const double* A, int n_rows,
+                  const int* rows, double* out, int threads) {
+  const int p = 10 * (static_cast<Model*>(model)->njoints - 1);
+  return slr_regressor_strided(model, n, Q, V, A, n_rows, rows, out, long(n_rows) * p, p, threads);
 }
 }

