@@ -72,7 +72,9 @@ class FigureProcess:
         if self._proc is None or self._sent:
             return
         try:
-            self._proc.stdin.write(pickle.dumps(("layouts", layouts), protocol=pickle.HIGHEST_PROTOCOL))
+            from ..report.plot_process import frame
+
+            self._proc.stdin.write(frame("layouts", layouts))
             self._proc.stdin.flush()
         except (OSError, ValueError, pickle.PicklingError):
             self.close()
@@ -83,7 +85,9 @@ class FigureProcess:
             return False
         self._sent = True
         try:
-            self._proc.stdin.write(pickle.dumps(("jobs", jobs), protocol=pickle.HIGHEST_PROTOCOL))
+            from ..report.plot_process import frame
+
+            self._proc.stdin.write(frame("jobs", jobs))
             self._proc.stdin.close()
         except (OSError, ValueError, pickle.PicklingError):
             self.close()

@@ -3,9 +3,10 @@ command's critical path.
 
 ``python -m sensorless.report.plot_process`` imports matplotlib and draws a tiny figure of each
 kind into memory (:func:`warm_up`: fonts, glyph caches and the drawing code paths are loaded then,
-~0.3 s that would otherwise follow the fit). It then reads pickled messages on stdin: the figures'
-layouts, when the parent knows them before the fit ends (:func:`prepare_layouts` builds each empty
-figure and draws it once: axes, ticks and labels cost ~40 % of a figure), then the jobs. It draws
+~0.3 s that would otherwise follow the fit). It then reads messages on stdin (:func:`frame`): the
+figures' layouts, when the parent knows them before the fit ends (:func:`prepare_layouts` builds each
+empty figure and draws it once: axes, ticks and labels cost ~40 % of a figure; it stops when the
+jobs arrive first), then the jobs. It draws
 each job and writes its PNG atomically, and prints ``ok``. With several jobs it forks once (the
 copy shares everything already imported and warmed) and the two processes draw half the jobs
 each, on the two cores the waiting command leaves free. A job is ``("torques", kwargs, path)`` →
@@ -21,7 +22,7 @@ import pickle
 import sys
 from pathlib import Path
 
-__all__ = ["draw_job", "draw_jobs", "job_layout", "prepare_layouts", "warm_up"]
+__all__ = ["draw_job", "draw_jobs", "frame", "job_layout", "prepare_layouts", "warm_up"]
 
 
 def draw_job(kind: str, kwargs: dict, path, prepared: dict | None = None) -> Path:
@@ -50,10 +51,12 @@ def job_layout(kind: str, kwargs: dict) -> tuple:
     return n, bool(kwargs.get("title"))
 
 
-def prepare_layouts(layouts: list) -> dict:
+def prepare_layouts(layouts: list, stop=lambda: False) -> dict:
     """The empty figures of ``layouts`` (``(kind, (count, has_title), path)``, as :func:`job_layout` and
     the jobs to come), each drawn once: the axes, their ticks and labels are built before the data
-    arrive, and a job then only adds its artists. ``{path: (kind, layout, (fig, pairs))}``."""
+    arrive, and a job then only adds its artists. ``{path: (kind, layout, (fig, pairs))}``. Before
+    each figure ``stop()`` may end the preparation (the jobs have arrived: drawing them afresh, in two
+    processes, is then sooner than preparing the rest here)."""
     from .friction_plot import friction_axes
     from .plots import torque_axes
 
@@ -62,10 +65,48 @@ def prepare_layouts(layouts: list) -> dict:
         make = {"torques": torque_axes, "friction": friction_axes}.get(kind)
         if make is None:
             continue
+        if stop():
+            break
         fig, pairs = make(*layout)
         fig.canvas.draw()
         out[str(path)] = (kind, tuple(layout), (fig, pairs))
     return out
+
+
+def frame(what: str, items: list) -> bytes:
+    """A message to the figure process: its length (8 bytes, little-endian) and the pickled
+    ``(what, items)``; ``what`` is ``"layouts"`` or ``"jobs"``."""
+    data = pickle.dumps((what, items), protocol=pickle.HIGHEST_PROTOCOL)
+    return len(data).to_bytes(8, "little") + data
+
+
+def _read_exactly(fd: int, n: int) -> bytes | None:
+    parts, got = [], 0
+    while got < n:
+        b = os.read(fd, n - got)
+        if not b:
+            return None
+        parts.append(b)
+        got += len(b)
+    return b"".join(parts)
+
+
+def _read_frame(fd: int):
+    """The next :func:`frame` on ``fd`` (read unbuffered, so that :func:`_pending` sees what is left), or
+    None at the end of the stream."""
+    head = _read_exactly(fd, 8)
+    body = None if head is None else _read_exactly(fd, int.from_bytes(head, "little"))
+    return None if body is None else pickle.loads(body)
+
+
+def _pending(fd: int) -> bool:
+    """Something (the jobs, or the end of the stream) is waiting on ``fd``."""
+    import select
+
+    try:
+        return bool(select.select([fd], [], [], 0)[0])
+    except (OSError, ValueError):  # no select on this platform for pipes: never stop early
+        return False
 
 
 def warm_up() -> None:
@@ -126,14 +167,15 @@ def _main() -> int:
 
     matplotlib.use("Agg")
     warm_up()
+    fd = sys.stdin.fileno()
     prepared: dict = {}
     while True:  # ("layouts", [...]) first when the parent knows them early, then ("jobs", [...])
-        try:
-            what, items = pickle.load(sys.stdin.buffer)
-        except EOFError:  # the parent needed no figures (or stopped)
+        msg = _read_frame(fd)
+        if msg is None:  # the parent needed no figures (or stopped)
             return 0
+        what, items = msg
         if what == "layouts":
-            prepared = prepare_layouts(items)
+            prepared = prepare_layouts(items, stop=lambda: _pending(fd))
         elif what == "jobs":
             break
     draw_jobs(items, prepared=prepared)

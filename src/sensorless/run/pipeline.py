@@ -102,9 +102,11 @@ class Run:
         write_html_report(directory, self.doc)
 
 
-def _friction_plot(structure, train) -> bool:
-    """friction.png is drawn: a per-joint model with a friction term, fitted on training logs in hand."""
-    return bool(is_plain(structure) and train and any(t in structure.joint_terms for t in ("fv", "fc", "stribeck")))
+def _friction_plot(structure, training_logs: bool) -> bool:
+    """friction.png is drawn: a per-joint model with a friction term, with its training logs in hand
+    (not on a cluster)."""
+    return bool(is_plain(structure) and training_logs and any(t in structure.joint_terms
+                                                              for t in ("fv", "fc", "stribeck")))
 
 
 def jobs_in(directory: str | Path, jobs: list) -> list:
@@ -201,8 +203,8 @@ def _identify(config: RunConfig, bars, say, figures, layouts=None) -> Run:
     if lmi_kw.get("gamma") == "auto":
         lmi_kw["gamma_search"] = str(sv.gamma_search)
     row_sigma = weights_option(sv.weights, structure.row_names)
-    if ex.plot and layouts is not None and (val or train):  # a streamed log's rows are known only after the pass
-        layouts(figure_layouts(structure, True, _friction_plot(structure, train), Path(".")))
+    if ex.plot and layouts is not None and (local or val):  # (on a cluster without --validate: no figure)
+        layouts(figure_layouts(structure, True, _friction_plot(structure, local), Path(".")))
     fit = backend.fit(structure, train, data, skipped, val, lmi_kw, row_sigma, reading.advance)
     result, structure, model, train, data, skipped = fit.result, fit.structure, fit.model, fit.train, fit.data, fit.skipped
     result.settings.update({"data": [str(p) for p in data], "validate": [str(p) for p in validate],
@@ -227,7 +229,7 @@ def _identify(config: RunConfig, bars, say, figures, layouts=None) -> Run:
     shown = val[0] if val else (train[0] if train else None)
     jobs = []  # the figures, drawn by a plot process while result.json is written
     if ex.plot:
-        friction_plot = _friction_plot(structure, train)
+        friction_plot = _friction_plot(structure, bool(train))
         shown_models = {sv.method.upper(): model, **({"OLS": baseline} if baseline is not None else {}), "CAD": cad}
         jobs = figure_jobs(shown, structure, shown_models, [fit.streamed.subsample] if fit.streamed is not None else train,
                            result.parameters, Path("."),
