@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import os
 import platform
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+
+from .process_timing import run_timed
 
 __all__ = ["bench_identify_e2e", "GOALS"]
 
@@ -40,25 +40,12 @@ CLI = "from sensorless.cli import app; app()"
 def _timed(argv: list[str], env: dict, result: Path | None) -> dict:
     """Seconds from the start of ``argv`` to ``result`` existing (if given) and to its exit, and the CPU
     seconds (user + system) of the process and the children it waited for (less sensitive to load)."""
-    t0 = time.perf_counter()
-    p = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    seen = None
-    while True:
-        pid, status, usage = os.wait4(p.pid, os.WNOHANG)
-        if pid:
-            break
-        if seen is None and result is not None and result.exists():
-            seen = time.perf_counter() - t0
-        time.sleep(0.001)
-    t_exit = time.perf_counter() - t0
-    p.returncode = os.waitstatus_to_exitcode(status)
-    if p.returncode != 0:
-        raise RuntimeError(f"{' '.join(argv[3:])} exited {p.returncode}; run it by hand to see why")
-    if result is not None and seen is None:
-        if not result.exists():
-            raise RuntimeError(f"{' '.join(argv[3:])} wrote no {result}")
-        seen = t_exit  # written in the last millisecond before the exit
-    return {"result_json": seen, "exit": t_exit, "cpu": usage.ru_utime + usage.ru_stime}
+    r = run_timed(argv, env, result)
+    if r["returncode"] != 0:
+        raise RuntimeError(f"{' '.join(argv[3:])} exited {r['returncode']}; run it by hand to see why")
+    if result is not None and r["result_json"] is None:
+        raise RuntimeError(f"{' '.join(argv[3:])} wrote no {result}")
+    return {"result_json": r["result_json"], "exit": r["exit"], "cpu": r["cpu"]}
 
 
 def _logs(folder: Path, long_samples: int) -> dict[str, Path]:

@@ -17,8 +17,10 @@ order, Pinocchio's convention (m, m·c, Ixx Ixy Iyy Ixz Iyz Izz about the joint 
 held-out log (:func:`held_out_nrmse`) and per-body physical consistency of π
 (:func:`~sensorless.parameters.check_physical_consistency`).
 
-Wall time ``seconds``: from just before the process is started to the result file's modification
-time (``result.json`` / OUT); ``exit_seconds``: to the process's exit. A peer whose venv or driver is
+Wall time ``seconds``: from the process start until the result file exists (``OUT/result.json``,
+which appears when identify's output folder is renamed into place with its figures; the peer's OUT),
+polled every millisecond (:mod:`.process_timing`; the result file's modification time would be that
+of result.json inside the still-hidden folder, before the figures); ``exit_seconds``: to the exit. A peer whose venv or driver is
 absent is ``skipped`` (with the reason); a process that fails is an ``error`` (its stderr's tail).
 """
 
@@ -26,9 +28,7 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +37,8 @@ from sensorless.data.readers import write_npz
 from sensorless.parameters import check_physical_consistency
 from sensorless.regressor.terms import ModelStructure
 from sensorless.robot import Robot
+
+from .process_timing import run_timed
 
 __all__ = ["KNOWN_PEERS", "default_drivers", "default_venv", "held_out_nrmse", "peer_python", "peer_skip_reason",
            "run_identify", "run_peer", "score_parameters", "write_case"]
@@ -105,20 +107,16 @@ def write_case(folder: Path, case, robot: Robot) -> tuple[Path, Path]:
 
 
 def _timed(argv: list[str], result: Path, env: dict, timeout: float) -> dict:
-    """Run ``argv``; wall time to ``result``'s modification and to the exit; error from the stderr tail."""
-    start = time.time_ns()
-    try:
-        r = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
+    """Run ``argv``; wall time until ``result`` exists (for ``sensorless identify``: its output folder
+    renamed into place, figures included) and to the exit; the error from the stderr tail."""
+    r = run_timed(argv, env, result, timeout)
+    if r["timed_out"]:
         return {"error": f"timed out after {timeout:g} s"}
-    except OSError as exc:
-        return {"error": f"cannot start {argv[0]}: {exc}"}
-    end = time.time_ns()
-    if r.returncode != 0 or not result.is_file():
-        tail = (r.stderr or r.stdout or "").strip().splitlines()[-6:]
-        return {"error": f"exit code {r.returncode}" + (": " + " | ".join(tail) if tail else "")
+    if r["returncode"] != 0 or not result.is_file():
+        tail = r["stderr_tail"]
+        return {"error": f"exit code {r['returncode']}" + (": " + " | ".join(tail) if tail else "")
                 + ("" if result.is_file() else f"; no {result.name} written")}
-    return {"seconds": (result.stat().st_mtime_ns - start) / 1e9, "exit_seconds": (end - start) / 1e9}
+    return {"seconds": r["result_json"], "exit_seconds": r["exit"]}
 
 
 def held_out_nrmse(pred: np.ndarray, case) -> np.ndarray:
