@@ -126,13 +126,18 @@ def test_chunked_compression_equals_the_whole_log(logs, ur5, candidates):
     for chunk, folds in ((333, 1), (2048, 5)):
         nes = fold_stream(st, slog, n_folds=folds, chunk=chunk, overlap=chunk == 333)
         assert len(nes) == folds and sum(ne.n_samples for ne in nes) == N
-        tot = nes[0]
-        for ne in nes[1:]:
-            tot = tot.merge(ne)
-        for x, y in ((tot.A, ref.A), (tot.b, ref.b), (tot.c, ref.c), (tot.y_min, ref.y_min), (tot.y_max, ref.y_max)):
-            _same_rows(x, y)
-        if candidates:
-            _same_rows(tot.left_out.A, ref.left_out.A)
+        _sum_is(nes, ref, candidates)
+
+
+def _sum_is(folds, ref, left_out: bool) -> None:
+    """The folds' equations add up to ``ref`` (and their left-out equations too)."""
+    tot = folds[0]
+    for ne in folds[1:]:
+        tot = tot.merge(ne)
+    for x, y in ((tot.A, ref.A), (tot.b, ref.b), (tot.c, ref.c), (tot.y_min, ref.y_min), (tot.y_max, ref.y_max)):
+        _same_rows(x, y)
+    if left_out:
+        _same_rows(tot.left_out.A, ref.left_out.A)
 
 
 def test_streamed_equations_with_and_without_the_kernel_agree(logs, ur5, monkeypatch):
@@ -185,14 +190,7 @@ def test_cross_validation_folds_are_the_streamed_folds(logs, ur5, candidates):
         assert a.n_samples == b.n_samples
         for x, y in ((a.A, b.A), (a.b, b.b), (a.c, b.c)):
             _same_rows(x, y)
-    ref = compress(st, whole, chunk=2048)
-    tot = folds[0]
-    for ne in folds[1:]:
-        tot = tot.merge(ne)
-    for x, y in ((tot.A, ref.A), (tot.b, ref.b), (tot.c, ref.c), (tot.y_min, ref.y_min), (tot.y_max, ref.y_max)):
-        _same_rows(x, y)
-    if candidates:
-        _same_rows(tot.left_out.A, ref.left_out.A)
+    _sum_is(folds, compress(st, whole, chunk=2048), candidates)
 
 
 def _identify(args, out):
