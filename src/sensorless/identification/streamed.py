@@ -49,6 +49,7 @@ from ..regressor.joint_terms import joint_term, terms_where
 from ..regressor.terms import ModelStructure
 from .friction import FrictionFit, coulomb_smoothing_from_noise, friction_structure, record_search, stribeck_grid, \
     transition_grid
+from .gamma import CV_FOLDS
 from .stribeck import StribeckCandidates
 from .torque_channels import TorqueChannels
 from .uncertainty import JointMotion
@@ -60,7 +61,6 @@ __all__ = ["STREAM_MIN_SAMPLES", "PLOT_SAMPLES", "StreamedFit", "fold_stream", "
 STREAM_MIN_SAMPLES = 50_000
 #: samples kept for the plots: the first ones (torques.png) and an evenly strided subsample (friction.png)
 PLOT_SAMPLES = 20_000
-N_FOLDS = 5
 #: the torque-channel checks (:class:`~.torque_channels.TorqueChannels`: dead runs, the prior's scale on a
 #: subsample) see the log in blocks of this many samples
 CHANNEL_BLOCK = 1 << 16
@@ -291,12 +291,12 @@ def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", f
             block.append(body)
             check()
 
-    folds = fold_stream(cand, slog, n_folds=N_FOLDS if cv else 1, chunk=chunk, progress=progress, on_chunk=watch)
+    folds = fold_stream(cand, slog, n_folds=CV_FOLDS if cv else 1, chunk=chunk, progress=progress, on_chunk=watch)
     if channels is not None:
         check(final=True)
     empty = [f for f, ne in enumerate(folds) if ne.n_samples == 0]
     if cv and empty:
-        raise DataError(f"no sample falls in phase block {empty[0]} of {N_FOLDS}; is the period of {slog.period} s right?",
+        raise DataError(f"no sample falls in phase block {empty[0]} of {CV_FOLDS}; is the period of {slog.period} s right?",
                         slog.source)
     total = functools.reduce(NormalEquations.merge, folds)
     result = identify(s, total, method=method, chunk=chunk, stribeck_grid=grid, width_grid=widths,
@@ -304,7 +304,7 @@ def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", f
                       check_torques=check_torques, **identify_kwargs)
     if fit is not None and (grid or widths):
         fit = record_search(fit, result)
-    result.settings["streamed"] = {"chunk": chunk, "n_samples": slog.n_samples, "folds": N_FOLDS if cv else 1,
+    result.settings["streamed"] = {"chunk": chunk, "n_samples": slog.n_samples, "folds": CV_FOLDS if cv else 1,
                                    "fold_period_s": slog.period if cv else None}
     head, sub = plots()
     return StreamedFit(result, result.structure, fit, law, slog, head, sub, (s, total, grid, widths))

@@ -68,11 +68,16 @@ def friction_panels(structure, params: np.ndarray, logs: Iterable, max_points: i
     return dict(V=V, R=R, grid=grid, curve=curve, resid=resid, labels=labels)
 
 
+def _top(title: bool) -> float:
+    """The top margin [in] of the figure: the legend, and the title when there is one."""
+    return 0.55 + (0.3 if title else 0.0)
+
+
 def friction_axes(n: int, title: bool = True):
     """The empty figure of :func:`draw_friction` for ``n`` joints: ``(fig, pairs)`` (it depends on the
     joint count only, so a figure process can build and draw it before the data exist)."""
     cols = 3 if n > 4 else n
-    top = 0.55 + (0.3 if title else 0.0)
+    top = _top(title)
     nr = int(np.ceil(n / cols))
     fig = new_figure(0.6 + 4.0 * cols, top + 0.55 + 2.6 * nr + 0.55 * (nr - 1))
     axes, _ = paired_axes(fig, n, cols, left=0.75, right=0.15, top=top, bottom=0.55, wspace=0.32, gap=0.55,
@@ -85,7 +90,7 @@ def draw_friction(V: np.ndarray, R: np.ndarray, grid: np.ndarray, curve: np.ndar
     """The figure of :func:`friction_panels`' arrays; ``labels`` per joint: (title, effort unit, velocity unit).
     ``axes``: a ``(fig, pairs)`` of :func:`friction_axes` for as many joints, drawn into."""
     n = len(labels)
-    top = 0.55 + (0.3 if title else 0.0)
+    top = _top(bool(title))
     fig, axes = axes if axes is not None else friction_axes(n, bool(title))
     for k, (label, tu, vu) in enumerate(labels):
         ax, res = axes[k]

@@ -34,13 +34,17 @@ def _style(k: int) -> dict:
     return dict(color=c, ls=ls, lw=lw, alpha=alpha, zorder=3 + k)
 
 
+def _grid(n: int, title: bool) -> tuple[int, int, float]:
+    """(columns, rows of panels per column, top margin [in]) of the figure for ``n`` rows."""
+    ncols = 1 if n <= 4 else 2
+    return ncols, int(np.ceil(n / ncols)), 0.6 + (0.3 if title else 0.0)
+
+
 def torque_axes(n: int, title: bool = True):
     """The empty figure of :func:`torque_figure` for ``n`` rows (with room for a title): ``(fig, pairs)``,
     a (signal, residual) pair of axes per row. It depends on the row count only, so a figure process
     can build (and draw once) it before the data exist."""
-    ncols = 1 if n <= 4 else 2
-    nr = int(np.ceil(n / ncols))
-    top = 0.6 + (0.3 if title else 0.0)
+    ncols, nr, top = _grid(n, title)
     fig = new_figure(1.0 + 6.6 * ncols, top + 0.6 + 1.95 * nr + 0.45 * (nr - 1))
     pairs, _ = paired_axes(fig, n, ncols, left=0.8, right=0.2, top=top, bottom=0.6, wspace=0.22)
     return fig, pairs
@@ -62,12 +66,11 @@ def torque_figure(t: np.ndarray, measured: np.ndarray, predictions: dict[str, np
     n = len(rows)
     units = list(units) if units is not None else [effort_unit(robot, r) for r in rows]
     fig, pairs = axes if axes is not None else torque_axes(n, bool(title))
-    nr = int(np.ceil(n / (1 if n <= 4 else 2)))
-    top = 0.6 + (0.3 if title else 0.0)
+    _, nr, top = _grid(n, bool(title))
     handles = labels = None
     for j, (ax, res) in enumerate(pairs):
         u = units[j]
-        h0 = ax.plot(t, measured[:, j], label="measured", **MEASURED_STYLE)
+        ax.plot(t, measured[:, j], label="measured", **MEASURED_STYLE)
         res.axhline(0.0, color="0.5", lw=0.8, zorder=1)
         rms = []
         for k, (name, p) in enumerate(preds.items()):
