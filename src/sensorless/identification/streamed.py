@@ -49,7 +49,6 @@ from ..regressor.joint_terms import joint_term, terms_where
 from ..regressor.terms import ModelStructure
 from .friction import FrictionFit, coulomb_smoothing_from_noise, friction_structure, record_search, stribeck_grid, \
     transition_grid
-from .gamma import CV_FOLDS
 from .stribeck import StribeckCandidates
 from .torque_channels import TorqueChannels
 from .uncertainty import JointMotion
@@ -290,6 +289,8 @@ def streamed_identify(structure: ModelStructure, path, *, method: str = "lmi", f
         if channels is not None:
             block.append(body)
             check()
+
+    from .gamma import CV_FOLDS  # here: gamma imports cvxpy, which --method ols never needs
 
     folds = fold_stream(cand, slog, n_folds=CV_FOLDS if cv else 1, chunk=chunk, progress=progress, on_chunk=watch)
     if channels is not None:
