@@ -2,7 +2,10 @@
 
 Every builder is a small callable ``builder(x, ctx) -> list[cvxpy.Constraint]`` on the
 *scaled* decision variable ``x`` of an :class:`LmiContext`, with a ``name`` and a
-``hint`` (what to relax when the problem is infeasible).
+``hint`` (what to relax when the problem is infeasible). The builders here also give the same
+constraints as conic rows, ``builder.conic(ctx) -> list[ConicRows]`` (``A x + s = b``, ``s`` in a
+cone), which :mod:`.lmi` hands to Clarabel without cvxpy; a builder without ``conic`` sends the
+program through cvxpy.
 
 Scaling. The solver works on ``x`` with ``π = scale ⊙ x``. Body ``k`` is scaled by a
 mass ``m_k`` and a length ``ℓ_k`` (prior mass and radius of gyration about the joint
@@ -27,9 +30,8 @@ Constraints (``Ĵ`` scaled, ``J`` physical):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterator, Mapping, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Iterator, Mapping, Protocol, Sequence
 
-import cvxpy as cp
 import numpy as np
 
 from ..errors import RobotModelError, setting
@@ -37,10 +39,15 @@ from ..parameters import as_bodies, pseudo_inertia, pseudo_inertia_basis
 from ..regressor.joint_terms import terms_where
 from ..regressor.terms import ModelStructure
 from .ellipsoids import BoundingEllipsoid
+from .prior_projection import svec
+
+if TYPE_CHECKING:
+    import cvxpy as cp
 
 __all__ = [
     "BodyMassBounds",
     "ComInEllipsoid",
+    "ConicRows",
     "ConstraintBuilder",
     "DensityRealizable",
     "LmiContext",
@@ -53,6 +60,31 @@ __all__ = [
 ]
 
 _BASIS16 = pseudo_inertia_basis().reshape(10, 16).T  # vec(J) = _BASIS16 @ pi
+_SVEC_BASIS = svec(pseudo_inertia_basis()).T  # svec(Ĵ_k) = _SVEC_BASIS @ x_k (Clarabel's packing)
+CONE_KINDS = ("zero", "nonneg", "soc", "psd")
+
+
+@dataclass(frozen=True)
+class ConicRows:
+    """Constraints as rows of ``A x + s = b`` with ``s`` in one cone of ``kind``: "zero"
+    (equalities), "nonneg", "soc" (``s = (t, u)``, ``‖u‖ ≤ t``; ``dim`` rows) or "psd" (``s`` the
+    svec of a ``dim × dim`` symmetric matrix, packed as Clarabel's ``PSDTriangleConeT``)."""
+
+    kind: str
+    A: np.ndarray  # (rows, p)
+    b: np.ndarray  # (rows,)
+    dim: int = 0
+
+    def __post_init__(self) -> None:
+        if self.kind not in CONE_KINDS:
+            raise ValueError(f"unknown cone {self.kind!r}; choose from {CONE_KINDS}")
+
+
+def _select_rows(idx: np.ndarray, p: int, sign: float = -1.0) -> np.ndarray:
+    """Rows ``sign · e_i`` for ``i`` in ``idx``."""
+    A = np.zeros((len(idx), p))
+    A[np.arange(len(idx)), idx] = sign
+    return A
 
 
 @dataclass
@@ -141,6 +173,8 @@ class LmiContext:
 
     def scaled_pseudo_inertia(self, x: cp.Expression, k: int) -> cp.Expression:
         """``Ĵ_k`` as a 4×4 affine cvxpy expression of ``x``."""
+        import cvxpy as cp
+
         return cp.reshape(_BASIS16 @ x[self.body_slice(k)], (4, 4), order="C")
 
     def scaled_prior_pseudo_inertia(self, k: int) -> np.ndarray:
@@ -187,6 +221,16 @@ class PseudoInertiaPSD:
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
         return [ctx.scaled_pseudo_inertia(x, k) >> self.eps * np.eye(4) for k in range(ctx.n_bodies)]
 
+    def conic(self, ctx: LmiContext) -> list[ConicRows]:
+        """``s = svec(Ĵ_k − ε I) ⪰ 0``: ``A = −svec-basis`` on body k's columns."""
+        p, out = ctx.structure.n_params, []
+        b = -self.eps * svec(np.eye(4))
+        for k in range(ctx.n_bodies):
+            A = np.zeros((10, p))
+            A[:, ctx.body_slice(k)] = -_SVEC_BASIS
+            out.append(ConicRows("psd", A, b.copy(), 4))
+        return out
+
 
 @dataclass
 class DensityRealizable:
@@ -199,6 +243,13 @@ class DensityRealizable:
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
         # tr(Ĵ Q̂) = qᵀ x_k with q = B₁₆ᵀ vec(Q̂)
         return [(_BASIS16.T @ ctx.scaled_Q(k).ravel()) @ x[ctx.body_slice(k)] >= 0 for k, _ in ctx.bounded_bodies()]
+
+    def conic(self, ctx: LmiContext) -> list[ConicRows]:
+        ks = [k for k, _ in ctx.bounded_bodies()]
+        A = np.zeros((len(ks), ctx.structure.n_params))
+        for r, k in enumerate(ks):
+            A[r, ctx.body_slice(k)] = -(_BASIS16.T @ ctx.scaled_Q(k).ravel())
+        return [ConicRows("nonneg", A, np.zeros(len(ks)))] if ks else []
 
 
 @dataclass
@@ -214,8 +265,24 @@ class ComInEllipsoid:
     @staticmethod
     def _cone(xk: cp.Expression, ell: float, E: BoundingEllipsoid) -> cp.Constraint:
         """One body's cone; π: m = m_s m̂, h = m_s ℓ ĥ  →  ‖Σ^{-1/2}(ℓ ĥ − m̂ c)‖ ≤ m̂."""
+        import cvxpy as cp
+
         Wh = (E.rotation / E.semi_axes).T  # Σ^{-1/2} up to rotation
         return cp.norm(Wh @ (ell * xk[1:4] - E.center * xk[0])) <= xk[0]
+
+    def conic(self, ctx: LmiContext) -> list[ConicRows]:
+        """``s = (m̂, Wh (ℓ ĥ − m̂ c)) ∈ SOC(4)``."""
+        out = []
+        for k, E in ctx.bounded_bodies():
+            Wh = (E.rotation / E.semi_axes).T
+            blk = np.zeros((4, 4))  # rows of s in terms of (m̂, ĥ)
+            blk[0, 0] = 1.0
+            blk[1:, 0] = -Wh @ E.center
+            blk[1:, 1:] = ctx.body_length[k] * Wh
+            A = np.zeros((4, ctx.structure.n_params))
+            A[:, 10 * k: 10 * k + 4] = -blk
+            out.append(ConicRows("soc", A, np.zeros(4), 4))
+        return out
 
 
 @dataclass
@@ -231,6 +298,10 @@ class NonNegativeFriction:
         idx = np.concatenate([ctx.term_indices(t) for t in self.terms])
         return [x[idx] >= 0] if idx.size else []
 
+    def conic(self, ctx: LmiContext) -> list[ConicRows]:
+        idx = np.concatenate([ctx.term_indices(t) for t in self.terms] or [np.zeros(0, dtype=int)])
+        return [ConicRows("nonneg", _select_rows(idx, ctx.structure.n_params), np.zeros(idx.size))] if idx.size else []
+
 
 @dataclass
 class NonNegativeArmature:
@@ -243,6 +314,8 @@ class NonNegativeArmature:
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> list[cp.Constraint]:
         idx = np.concatenate([ctx.term_indices(t) for t in self.terms] or [np.zeros(0, dtype=int)])
         return [x[idx] >= 0] if idx.size else []
+
+    conic = NonNegativeFriction.conic
 
 
 def _per_body(v: float | Mapping[str, float] | None, names: Sequence[str], default: float) -> np.ndarray:
@@ -278,6 +351,16 @@ class BodyMassBounds:
             out.append(m_hat[i] <= hi[i] / ctx.body_mass[i])
         return out
 
+    def conic(self, ctx: LmiContext) -> list[ConicRows]:
+        lo = _per_body(self.lower, ctx.body_names, -np.inf)
+        hi = _per_body(self.upper, ctx.body_names, np.inf)
+        p, out = ctx.structure.n_params, []
+        for bound, sign in ((lo, -1.0), (hi, 1.0)):  # m̂ − lo/m ≥ 0, hi/m − m̂ ≥ 0
+            i = np.flatnonzero(np.isfinite(bound))
+            if i.size:
+                out.append(ConicRows("nonneg", _select_rows(10 * i, p, sign), sign * bound[i] / ctx.body_mass[i]))
+        return out
+
 
 @dataclass
 class TotalMass:
@@ -301,6 +384,19 @@ class TotalMass:
             out.append(total <= self.upper / ref)
         return out
 
+    def conic(self, ctx: LmiContext) -> list[ConicRows]:
+        ref = float(ctx.body_mass.sum())
+        w = np.zeros((1, ctx.structure.n_params))
+        w[0, 0 : ctx.structure.n_body_params : 10] = ctx.body_mass / ref
+        out = []
+        if self.value is not None:
+            out.append(ConicRows("zero", w, np.array([self.value / ref])))
+        if self.lower is not None:
+            out.append(ConicRows("nonneg", -w, np.array([-self.lower / ref])))
+        if self.upper is not None:
+            out.append(ConicRows("nonneg", w, np.array([self.upper / ref])))
+        return out
+
 
 def default_constraints(eps: float = 0.0, density: bool = True) -> list[Any]:
     """``J_k ⪰ ε``, density inside the ellipsoids (if any), friction ≥ 0, armature ≥ 0."""
@@ -313,6 +409,8 @@ def default_constraints(eps: float = 0.0, density: bool = True) -> list[Any]:
 def constraint_violation(builder: ConstraintBuilder, params: np.ndarray, ctx: LmiContext) -> float:
     """Largest violation of ``builder``'s constraints at standard parameters ``params``
     (in scaled units; 0 if satisfied)."""
+    import cvxpy as cp
+
     x = cp.Variable(ctx.structure.n_params)
     x.value = np.asarray(params, dtype=float) / ctx.scale
     viol = [np.max(np.atleast_1d(c.violation())) for c in builder(x, ctx)]

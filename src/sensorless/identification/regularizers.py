@@ -30,14 +30,16 @@ have no geometry; every regulariser adds ``joint_weight · ‖x_j − x0_j‖²`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
-import cvxpy as cp
 import numpy as np
-import scipy.sparse as sp
 
 from ..parameters import as_bodies, pseudo_inertia, pseudo_inertia_basis
 from .constraints import LmiContext
+
+if TYPE_CHECKING:
+    import cvxpy as cp
+    import scipy.sparse as sp
 
 __all__ = [
     "REGULARIZERS",
@@ -55,6 +57,10 @@ _BASIS = pseudo_inertia_basis()  # (10, 4, 4)
 
 
 class Regularizer(Protocol):
+    """``reg(x, ctx)``: the regulariser as a cvxpy expression of the scaled variable. A quadratic
+    one also has ``metric(ctx)``: ``G`` (p × p) with value ``(x − x0)ᵀ G (x − x0)``, which lets
+    :mod:`.lmi` skip cvxpy and :mod:`.unconstrained` solve in closed form."""
+
     name: str
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> cp.Expression: ...
@@ -100,10 +106,23 @@ def entropic_divergence(pi: np.ndarray, pi0: np.ndarray) -> float:
 
 
 def _joint_term(x: cp.Variable, ctx: LmiContext, weight: float) -> cp.Expression | float:
+    import cvxpy as cp
+
     js = ctx.joint_slice()
     if weight <= 0 or js.stop == js.start:
         return 0.0
     return weight * cp.sum_squares(x[js] - ctx.x0[js])
+
+
+def _metric(ctx: LmiContext, body_block: np.ndarray, joint_weight: float) -> np.ndarray:
+    """``G`` (p × p): ``body_block`` on the body parameters, ``joint_weight · I`` on the joint terms."""
+    p, nb = len(ctx.scale), ctx.structure.n_body_params
+    G = np.zeros((p, p))
+    G[:nb, :nb] = body_block
+    js = ctx.joint_slice()
+    if joint_weight > 0 and js.stop > js.start:
+        G[js, js] += joint_weight * np.eye(js.stop - js.start)
+    return G
 
 
 @dataclass
@@ -114,8 +133,13 @@ class Euclidean:
     name: str = "euclidean"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> cp.Expression:
+        import cvxpy as cp
+
         nb = ctx.structure.n_body_params
         return cp.sum_squares(x[:nb] - ctx.x0[:nb]) + _joint_term(x, ctx, self.joint_weight)
+
+    def metric(self, ctx: LmiContext) -> np.ndarray:
+        return _metric(ctx, np.eye(ctx.structure.n_body_params), self.joint_weight)
 
 
 @dataclass
@@ -126,12 +150,26 @@ class ConstantPullback:
     joint_weight: float = 1.0
     name: str = "pullback"
 
+    def _blocks(self, ctx: LmiContext) -> list[np.ndarray]:
+        return [_pullback_factor(eigenvalue_floor(ctx.scaled_prior_pseudo_inertia(k), self.delta))
+                for k in range(ctx.n_bodies)]
+
     def factor(self, ctx: LmiContext) -> sp.csr_matrix:
         """Block-diagonal ``F`` (10 n × 10 n) with ``‖F (x − x0)‖²`` = the body part."""
-        blocks = [_pullback_factor(eigenvalue_floor(ctx.scaled_prior_pseudo_inertia(k), self.delta)) for k in range(ctx.n_bodies)]
-        return sp.block_diag(blocks, format="csr")
+        import scipy.sparse as sp
+
+        return sp.block_diag(self._blocks(ctx), format="csr")
+
+    def metric(self, ctx: LmiContext) -> np.ndarray:
+        nb = ctx.structure.n_body_params
+        M = np.zeros((nb, nb))
+        for k, F in enumerate(self._blocks(ctx)):
+            M[ctx.body_slice(k), ctx.body_slice(k)] = F.T @ F
+        return _metric(ctx, M, self.joint_weight)
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> cp.Expression:
+        import cvxpy as cp
+
         nb = ctx.structure.n_body_params
         return cp.sum_squares(self.factor(ctx) @ (x[:nb] - ctx.x0[:nb])) + _joint_term(x, ctx, self.joint_weight)
 
@@ -145,6 +183,8 @@ class Entropic:
     name: str = "entropic"
 
     def __call__(self, x: cp.Variable, ctx: LmiContext) -> cp.Expression:
+        import cvxpy as cp
+
         terms = []
         const = 0.0
         lin = np.zeros(ctx.structure.n_body_params)

@@ -35,20 +35,8 @@ _BASIS16 = pseudo_inertia_basis().reshape(10, 16).T
 
 def regularizer_metric(problem) -> np.ndarray | None:
     """``GᵀG`` (p × p) of the problem's regulariser in scaled coordinates, None if not quadratic."""
-    reg, ctx = problem.regularizer, problem.ctx
-    if type(reg) not in (ConstantPullback, Euclidean):
-        return None
-    p, nb = len(ctx.scale), ctx.structure.n_body_params
-    M = np.zeros((p, p))
-    if isinstance(reg, ConstantPullback):
-        F = reg.factor(ctx).toarray()
-        M[:nb, :nb] = F.T @ F
-    else:
-        M[:nb, :nb] = np.eye(nb)
-    js = ctx.joint_slice()
-    if reg.joint_weight > 0 and js.stop > js.start:
-        M[js, js] += reg.joint_weight * np.eye(js.stop - js.start)
-    return M
+    reg = problem.regularizer
+    return reg.metric(problem.ctx) if type(reg) in (ConstantPullback, Euclidean) else None
 
 
 def satisfies_constraints(problem, x: np.ndarray) -> bool:

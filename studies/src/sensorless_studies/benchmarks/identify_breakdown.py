@@ -1,7 +1,8 @@
 """Where the wait of `sensorless identify` goes, for `sensorless benchmark identify-e2e`.
 
 * **Imports**, in the order the command makes them: fresh processes importing the CLI, then NumPy
-  and Pinocchio, then SciPy's linalg/sparse/ndimage, then cvxpy, then the identification modules,
+  and Pinocchio, then SciPy's linalg/sparse/ndimage, then Clarabel (the LMI's solver; cvxpy is not
+  imported on identify's default path), then the identification modules,
   each set including the previous one; best of ``repeats``; a step's cost is the difference.
 * **Compute**: :func:`sensorless.run.identify_run` and ``Run.save`` on the log in one process after
   a first run (its imports and caches done), BLAS on one thread as the CLI has it, the steps timed
@@ -21,15 +22,15 @@ __all__ = ["IMPORT_STEPS", "LABELS", "import_steps", "compute_steps"]
 _CLI = "from sensorless.cli import app"
 _NUMPY = _CLI + "; import numpy, pinocchio"
 _SCIPY = _NUMPY + "; import scipy.linalg, scipy.sparse, scipy.ndimage"
-_CVXPY = _SCIPY + "; import cvxpy"
-_OURS = _CVXPY + ("; import sensorless.run.pipeline, sensorless.identification.identify, sensorless.identification.gamma,"
+_CLARABEL = _SCIPY + "; import clarabel"
+_OURS = _CLARABEL + ("; import sensorless.run.pipeline, sensorless.identification.identify, sensorless.identification.gamma,"
                   " sensorless.identification.lmi, sensorless.torque_models, sensorless.cli.identify, sensorless.report.html")
 #: (step, the code a fresh process runs: every import up to and including the step)
-IMPORT_STEPS = [("python", "pass"), ("cli", _CLI), ("numpy_pinocchio", _NUMPY), ("scipy", _SCIPY), ("cvxpy", _CVXPY),
+IMPORT_STEPS = [("python", "pass"), ("cli", _CLI), ("numpy_pinocchio", _NUMPY), ("scipy", _SCIPY), ("clarabel", _CLARABEL),
                 ("sensorless", _OURS)]
 #: what each step is
 LABELS = {"python": "Python itself", "cli": "typer, rich, the command modules", "numpy_pinocchio": "NumPy, Pinocchio",
-          "scipy": "SciPy linalg, sparse, ndimage", "cvxpy": "cvxpy (it imports scipy.stats)",
+          "scipy": "SciPy linalg, sparse, ndimage", "clarabel": "Clarabel, the conic solver",
           "sensorless": "sensorless' identification, data, regressor, report modules",
           "read": "reading, validating, preprocessing", "friction_law": "Coulomb smoothing and Stribeck grids from the log",
           "fold_pass": "one pass over the log: the fit's and the CV folds' equations", "compress": "compression",
