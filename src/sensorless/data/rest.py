@@ -74,13 +74,13 @@ def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndar
 
 
 def _quiet(v, sigma, window, sigmas, q, sigma_q) -> np.ndarray:
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d  # imported on use (CLI start-up)
+    from .window_filters import running_max, running_min
 
     w = max(int(window), 1)
-    peak = maximum_filter1d(np.abs(v), size=w, axis=0, mode="nearest")
+    peak = running_max(np.abs(v), w)
     mask = peak <= sigmas * np.asarray(sigma, dtype=float)[None, :]
     if q is not None and sigma_q is not None:
-        span = maximum_filter1d(q, size=w, axis=0, mode="nearest") - minimum_filter1d(q, size=w, axis=0, mode="nearest")
+        span = running_max(q, w) - running_min(q, w)
         mask &= span <= RANGE_SIGMAS * np.asarray(sigma_q, dtype=float)[None, :]
     return mask
 

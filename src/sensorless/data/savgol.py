@@ -4,9 +4,10 @@ Why not ``scipy.signal.savgol_*``: importing :mod:`scipy.signal` costs 0.6–0.8
 (cumulative in ``python -X importtime`` of ``identify --method ols``: it parses ~650 docstrings and
 pulls in scipy.stats), a third of that command's wall time on a 600-sample log, whose preprocessing
 needs only these two functions. The same arithmetic here needs only :func:`numpy.linalg.lstsq` and
-:func:`scipy.ndimage.convolve1d` (cheap). Same LAPACK driver (gelsd), cut-offs and operation order
-as SciPy (which calls scipy.linalg.lstsq), so the results equal SciPy's (bitwise on this build;
-tests/test_data_savgol.py checks them against SciPy, the oracle, to 1e-12).
+:func:`.window_filters.convolve_same` (SciPy's ``ndimage.convolve1d`` for an even window). The
+coefficients use the same LAPACK driver (gelsd), cut-offs and operation order as SciPy (which calls
+scipy.linalg.lstsq), so they equal SciPy's; the filter adds its taps in another order (equal to
+rounding). tests/test_data_savgol.py checks both against SciPy, the oracle.
 
 Coefficients: fit a polynomial of degree p to the window samples at offsets
 t_k = k − pos (k = 0..w−1): c = A⁺ e_d · d!/δᵈ with A_jk = t_kʲ (j = 0..p), the minimum-norm
@@ -115,9 +116,14 @@ def savgol_filter(x, window: int, polyorder: int, deriv: int = 0, delta: float =
     coeffs = savgol_coeffs(window, polyorder, deriv=deriv, delta=delta)
     if window > x.shape[axis]:
         raise ValueError("If mode is 'interp', window_length must be less than or equal to the size of x.")
-    from scipy.ndimage import convolve1d  # imported on use (CLI start-up)
+    if window % 2:
+        from .window_filters import convolve_same
 
-    y = convolve1d(x, coeffs, axis=axis, mode="constant")
+        y = convolve_same(x, coeffs, axis=axis).astype(x.dtype, copy=False)
+    else:  # SciPy's centring of an even window
+        from scipy.ndimage import convolve1d
+
+        y = convolve1d(x, coeffs, axis=axis, mode="constant")
     half, n = window // 2, x.shape[axis]
     _fit_edge(x, 0, window, 0, half, axis, polyorder, deriv, delta, y)
     _fit_edge(x, n - window, n, n - half, n, axis, polyorder, deriv, delta, y)

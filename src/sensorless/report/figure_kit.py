@@ -29,11 +29,12 @@ def new_figure(width: float, height: float):
 
 
 def save_figure(fig, path: "str | Path") -> Path:
-    """Write ``fig`` as PNG to ``path`` atomically (a reader sees the old file or the new one)."""
+    """Write ``fig`` as PNG to ``path`` atomically (a reader sees the old file or the new one). zlib
+    level 3 instead of PIL's 6: ~20 ms less per figure for ~1 % more bytes."""
     from ..io import atomic_open
 
     with atomic_open(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=DPI)
+        fig.savefig(fh, format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
     return Path(path)
 
 

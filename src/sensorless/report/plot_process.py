@@ -123,7 +123,7 @@ def warm_up() -> None:
     y = np.sin(np.linspace(0.0, 1.0, 50))[:, None]
     for fig in (torque_figure(y[:, 0], y, {"A": y, "B": y}, ["j"], units=["N·m"], title="τ"),
                 draw_friction(y, y, y, y, y, [("j: fv", "N·m", "rad/s")], title="τ")):
-        fig.savefig(io.BytesIO(), format="png", dpi=DPI)
+        fig.savefig(io.BytesIO(), format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
 
 
 def draw_jobs(jobs: list, fork: bool | None = None, prepared: dict | None = None) -> None:
