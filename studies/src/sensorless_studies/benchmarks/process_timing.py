@@ -33,9 +33,10 @@ def run_timed(argv: list[str], env: dict, result: Path | None = None, timeout: f
                 timed_out = True
             time.sleep(0.001)
         t_exit = time.perf_counter() - t0
+        p.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen would warn it still runs
         if seen is None and result is not None and result.exists():
             seen = t_exit  # written in the last millisecond before the exit
         err.seek(0)
         tail = err.read().decode(errors="replace").strip().splitlines()[-6:]
     return {"result_json": seen, "exit": t_exit, "cpu": usage.ru_utime + usage.ru_stime,
-            "returncode": os.waitstatus_to_exitcode(status), "stderr_tail": tail, "timed_out": timed_out}
+            "returncode": p.returncode, "stderr_tail": tail, "timed_out": timed_out}
