@@ -14,6 +14,7 @@ No timing assertions: the times are in ``sensorless benchmark identify-e2e``.
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 import numpy as np
@@ -170,3 +171,29 @@ def test_benchmark_identify_e2e_records_both_times_per_case(tmp_path):
         assert 0 < sum(run["steps"].values()) <= run["total"]
     assert "gamma_cv" in lmi["steps"] and "gamma_cv" not in ols["steps"]
     assert "ols" in ols["steps"] and "final_lmi" in lmi["steps"]
+
+
+def test_a_task_runnable_for_an_instant_does_not_take_the_figure_process_away(monkeypatch):
+    """idle_core reads the runnable count a few times: one busy read (a poller, a shell) among idle
+    ones leaves the figures to the child; a machine busy at every read does not."""
+    import io
+
+    from sensorless.cli import figure_process
+
+    cores = len(os.sched_getaffinity(0))
+    if cores < 2 or not os.path.exists("/proc/loadavg"):
+        pytest.skip("needs two cores and /proc/loadavg")
+    reads = []
+
+    def fake_open(counts):
+        def opener(path, *a, **k):
+            n = counts[min(len(reads), len(counts) - 1)]
+            reads.append(n)
+            return io.StringIO(f"0.5 0.5 0.5 {n}/80 1234\n")
+        return opener
+
+    monkeypatch.setattr(figure_process, "open", fake_open([cores, 1]), raising=False)
+    assert figure_process.idle_core(spacing=0.0) and reads == [cores, 1]
+    reads.clear()
+    monkeypatch.setattr(figure_process, "open", fake_open([cores + 1]), raising=False)
+    assert not figure_process.idle_core(spacing=0.0) and len(reads) == 5

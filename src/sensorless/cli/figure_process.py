@@ -24,12 +24,15 @@ from pathlib import Path
 __all__ = ["FigureProcess", "idle_core"]
 
 
-def idle_core() -> bool:
-    """A core is free for the figure process: fewer runnable tasks than cores right now (this one
-    included; ``/proc/loadavg``), else the 1-min load average below cores − 1 where there is no
-    such count. On a busy machine the child only competes with the fit (and costs a Python
-    start-up), so the command draws the figures itself. (The 1-min average would also count this
-    command's own previous runs: a user running identify twice on an idle machine.)"""
+def idle_core(samples: int = 5, spacing: float = 5e-4) -> bool:
+    """A core is free for the figure process: fewer runnable tasks than cores (this one included;
+    ``/proc/loadavg``) in any of ``samples`` reads ``spacing`` s apart, so that a task runnable for an
+    instant (a shell, a poller) does not decide it; else the 1-min load average below cores − 1
+    where there is no such count. On a busy machine the child only competes with the fit (and
+    costs a Python start-up), so the command draws the figures itself. (The 1-min average would
+    also count this command's own previous runs: a user running identify twice on an idle machine.)"""
+    import time
+
     try:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
@@ -37,9 +40,13 @@ def idle_core() -> bool:
     if cores < 2:
         return False
     try:
-        with open("/proc/loadavg", encoding="ascii") as fh:
-            running = int(fh.read().split()[3].split("/")[0])
-        return running < cores
+        for k in range(samples):
+            with open("/proc/loadavg", encoding="ascii") as fh:
+                if int(fh.read().split()[3].split("/")[0]) < cores:
+                    return True
+            if k + 1 < samples:
+                time.sleep(spacing)
+        return False
     except (OSError, ValueError, IndexError):
         pass
     try:
