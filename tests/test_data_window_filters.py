@@ -1,5 +1,6 @@
 """sensorless.data.window_filters against scipy.ndimage (the oracle): the same centring, edges and
-values, for odd and even windows, windows longer than the log, and any axis."""
+values, for odd and even windows, windows longer than the log, and any axis; a log past
+NUMPY_MAX_ELEMENTS goes to SciPy itself."""
 
 from __future__ import annotations
 
@@ -32,3 +33,20 @@ def test_convolution_equals_scipy(n, taps, rng):
         np.testing.assert_allclose(convolve_same(a, c, axis=axis), ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
     with pytest.raises(ValueError, match="odd"):
         convolve_same(x, np.ones(4))
+
+
+def test_a_long_log_goes_to_scipy(rng, monkeypatch):
+    from sensorless.data import window_filters as wf
+
+    x = rng.normal(size=(400, 3))
+    c = rng.normal(size=5)
+    small = wf.convolve_same(x, c), wf.running_max(x, 7), wf.running_min(x, 7)
+    monkeypatch.setattr(wf, "NUMPY_MAX_ELEMENTS", 100)  # x is now "long"
+    calls = []
+    real = nd.convolve1d
+    monkeypatch.setattr(nd, "convolve1d", lambda *a, **k: calls.append("convolve1d") or real(*a, **k))
+    big = wf.convolve_same(x, c), wf.running_max(x, 7), wf.running_min(x, 7)
+    assert calls == ["convolve1d"]
+    np.testing.assert_allclose(big[0], small[0], rtol=1e-13, atol=1e-13)
+    np.testing.assert_array_equal(big[1], small[1])
+    np.testing.assert_array_equal(big[2], small[2])

@@ -2,8 +2,11 @@
 :mod:`scipy.ndimage` (``convolve1d`` with ``mode="constant"``, ``maximum_filter1d`` and
 ``minimum_filter1d`` with ``mode="nearest"``), with the same centring and edges.
 
-Why not ``scipy.ndimage``: it is ~0.07 s of imports at every ``sensorless identify`` start, for three
-one-line filters (tests/test_data_window_filters.py checks them against SciPy, the oracle).
+Why not always ``scipy.ndimage``: it is ~0.07 s of imports at every ``sensorless identify`` start, for
+three one-line filters; on a short log (up to :data:`NUMPY_MAX_ELEMENTS` values) that import is most of
+their cost and NumPy does them here. A longer log goes to SciPy, whose C loops are 2–4× faster than
+these NumPy passes at 10⁶ samples, and whose import is then small beside the pass
+(tests/test_data_window_filters.py checks both routes against SciPy, the oracle).
 
 * Convolution: ``y[i] = Σ_k c[k] x[i + h − k]`` (``h = ⌊w/2⌋``, ``x`` zero outside the log), one
   multiply-add pass over the samples per tap: no (n × w) window matrix is formed.
@@ -16,7 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["convolve_same", "running_max", "running_min"]
+__all__ = ["NUMPY_MAX_ELEMENTS", "convolve_same", "running_max", "running_min"]
+
+NUMPY_MAX_ELEMENTS = 200_000  # larger inputs go to scipy.ndimage (module docstring)
 
 
 def convolve_same(x: np.ndarray, coeffs: np.ndarray, axis: int = 0) -> np.ndarray:
@@ -25,6 +30,10 @@ def convolve_same(x: np.ndarray, coeffs: np.ndarray, axis: int = 0) -> np.ndarra
     w = len(c)
     if w % 2 != 1:
         raise ValueError(f"convolve_same needs an odd number of coefficients, got {w}")
+    if np.size(x) > NUMPY_MAX_ELEMENTS:
+        from scipy.ndimage import convolve1d
+
+        return convolve1d(x, c, axis=axis, mode="constant")
     x = np.moveaxis(np.asarray(x), axis, 0)
     n, h = x.shape[0], w // 2
     xp = np.zeros((n + 2 * h, *x.shape[1:]), dtype=np.result_type(x.dtype, c.dtype))
@@ -36,10 +45,15 @@ def convolve_same(x: np.ndarray, coeffs: np.ndarray, axis: int = 0) -> np.ndarra
 
 
 def _running(x: np.ndarray, size: int, axis: int, op) -> np.ndarray:
-    x = np.moveaxis(np.asarray(x), axis, 0)
     w = int(size)
     if w < 1:
         raise ValueError(f"window size must be >= 1, got {size}")
+    if np.size(x) > NUMPY_MAX_ELEMENTS:
+        import scipy.ndimage as nd
+
+        f = nd.maximum_filter1d if op is np.maximum else nd.minimum_filter1d
+        return f(x, w, axis=axis, mode="nearest")
+    x = np.moveaxis(np.asarray(x), axis, 0)
     n = x.shape[0]
     if w == 1 or n == 0:
         return np.moveaxis(x.copy(), 0, axis)
