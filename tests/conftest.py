@@ -14,6 +14,32 @@ KUKA = REALDATA / "kuka_lwr4_flobaroid"
 PANDA_LOCK = ["panda_finger_joint1", "panda_finger_joint2"]
 
 
+def identify_imports(robot, tmp_path: Path, args: list[str], modules: list[str]) -> tuple[Path, dict[str, bool]]:
+    """``sensorless identify --robot ur5 --data LOG *args --no-plot`` on a small simulated UR5 log, in a
+    fresh Python: the output folder and, at the exit, whether each of ``modules`` was imported."""
+    import json
+    import subprocess
+    import sys
+
+    from sensorless.data import write_npz
+    from sensorless.excitation import random_fourier
+    from sensorless.testing import perturbed_truth, synthetic_trajectory
+
+    log = synthetic_trajectory(perturbed_truth(robot, rng=0), random_fourier(robot, rng=1).sample(300, 6.0),
+                               noise_std=0.1, rng=2)
+    f = write_npz(log, tmp_path / "log.npz")
+    out = tmp_path / "out"
+    argv = ["sensorless", "identify", "--robot", "ur5", "--data", str(f), *args, "--no-plot", "--out", str(out)]
+    code = ("import atexit, json, sys; from sensorless.cli import app; "
+            f"atexit.register(lambda: print('IMPORTED', json.dumps({{m: m in sys.modules for m in {modules!r}}}))); "
+            f"sys.argv = {argv!r}; app()")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:] + r.stdout[-3000:]
+    line = [ln for ln in r.stdout.splitlines() if ln.startswith("IMPORTED ")]
+    assert line, r.stdout[-2000:]
+    return out, json.loads(line[-1][len("IMPORTED "):])
+
+
 def realdata(path: Path) -> Path:
     """Return ``path`` or skip the test cleanly when the shared real data is absent."""
     if not path.exists():

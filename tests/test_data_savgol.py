@@ -7,13 +7,13 @@ and ``sensorless identify --method ols`` no longer imports scipy.signal (the rea
 
 from __future__ import annotations
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 import scipy.ndimage as nd
 import scipy.signal as ss
+
+from conftest import identify_imports
 
 from sensorless.data.savgol import savgol_coeffs, savgol_filter
 
@@ -107,20 +107,6 @@ def test_identify_ols_does_not_import_scipy_signal(ur5, tmp_path):
     """`sensorless identify --method ols` on a small UR5 log runs without importing scipy.signal
     (0.6–0.8 s of imports on SciPy 1.17) and still derives nothing with it: the log's noise and rest
     detection go through sensorless.data.savgol."""
-    from sensorless.data import write_npz
-    from sensorless.excitation import random_fourier
-    from sensorless.testing import perturbed_truth, synthetic_trajectory
-
-    log = synthetic_trajectory(perturbed_truth(ur5, rng=0), random_fourier(ur5, rng=1).sample(300, 6.0),
-                               noise_std=0.1, rng=2)
-    f = write_npz(log, tmp_path / "log.npz")
-    out = tmp_path / "out"
-    code = ("import atexit, sys; from sensorless.cli import app; "
-            "atexit.register(lambda: print('SCIPY_SIGNAL', 'scipy.signal' in sys.modules, "
-            "'sensorless.data.savgol' in sys.modules)); "
-            f"sys.argv = ['sensorless', 'identify', '--robot', 'ur5', '--data', {str(f)!r}, '--method', 'ols', "
-            f"'--no-plot', '--out', {str(out)!r}]; app()")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-3000:] + r.stdout[-3000:]
+    out, imported = identify_imports(ur5, tmp_path, ["--method", "ols"], ["scipy.signal", "sensorless.data.savgol"])
     assert (out / "result.json").exists()
-    assert "SCIPY_SIGNAL False True" in r.stdout, r.stdout[-2000:]
+    assert imported == {"scipy.signal": False, "sensorless.data.savgol": True}

@@ -4,12 +4,10 @@ same solutions, the same γ chosen on real logs, and no cvxpy import on the defa
 
 from __future__ import annotations
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from conftest import KUKA, REALDATA, realdata
+from conftest import KUKA, REALDATA, identify_imports, realdata
 
 from sensorless.identification.constraints import (
     BodyMassBounds,
@@ -166,20 +164,8 @@ def test_default_identify_does_not_import_cvxpy(ur5, tmp_path):
     (~0.55 s of imports) and records the route in result.json."""
     import json
 
-    from sensorless.data import write_npz
-    from sensorless.excitation import random_fourier
-
-    log = synthetic_trajectory(perturbed_truth(ur5, rng=0), random_fourier(ur5, rng=1).sample(300, 6.0),
-                               noise_std=0.1, rng=2)
-    f = write_npz(log, tmp_path / "log.npz")
-    out = tmp_path / "out"
-    code = ("import atexit, sys; from sensorless.cli import app; "
-            "atexit.register(lambda: print('CVXPY', 'cvxpy' in sys.modules)); "
-            f"sys.argv = ['sensorless', 'identify', '--robot', 'ur5', '--data', {str(f)!r}, '--no-plot', "
-            f"'--out', {str(out)!r}]; app()")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-3000:] + r.stdout[-3000:]
-    assert "CVXPY False" in r.stdout, r.stdout[-2000:]
+    out, imported = identify_imports(ur5, tmp_path, [], ["cvxpy"])
+    assert imported == {"cvxpy": False}
     d = json.loads((out / "result.json").read_text())["diagnostics"]
     assert d["lmi"]["settings"]["route"] == "clarabel" and d["gamma_selection"]["gamma"] == d["gamma"]
 
