@@ -197,3 +197,29 @@ def test_a_task_runnable_for_an_instant_does_not_take_the_figure_process_away(mo
     reads.clear()
     monkeypatch.setattr(figure_process, "open", fake_open([cores + 1]), raising=False)
     assert not figure_process.idle_core(spacing=0.0) and len(reads) == 5
+
+
+def test_figures_built_by_two_processes_before_the_jobs_are_the_pngs_drawn_here(tmp_path):
+    """Layouts first (as identify sends them): the figure process forks and each process builds one
+    empty figure; the jobs then give the PNGs drawing them here gives. A job the copy fails is drawn
+    again by the child, whose failure the command sees (wait() is False: it draws them itself)."""
+    from sensorless.cli.figure_process import FigureProcess
+    from sensorless.report.plot_process import draw_job, job_layout
+
+    t = np.linspace(0.0, 2.0, 300)
+    meas = np.stack([np.sin(t), np.cos(t), t], axis=1)
+    jobs = [("torques", dict(t=t, measured=meas[:, :n] * k, predictions={"LMI": 0.9 * meas[:, :n]},
+                             rows=list("abc")[:n], units=["N·m"] * n, title=f"job {k}"), tmp_path / f"child{k}.png")
+            for k, n in ((1, 2), (2, 3))]
+    layouts = [(kind, job_layout(kind, kw), path) for kind, kw, path in jobs]
+    with FigureProcess() as fp:
+        fp.prepare(layouts)
+        assert fp.submit(jobs) and fp.wait()
+    for kind, kw, path in jobs:
+        draw_job(kind, kw, tmp_path / path.name.replace("child", "here"))
+        assert path.read_bytes() == (tmp_path / path.name.replace("child", "here")).read_bytes()
+    bad = [jobs[0][:2] + (tmp_path / "good.png",), ("no-such-figure", {}, tmp_path / "bad.png")]
+    with FigureProcess() as fp:
+        fp.prepare([layouts[0][:2] + (tmp_path / "good.png",), ("torques", (3, True), tmp_path / "bad.png")])
+        assert fp.submit(bad) and not fp.wait()
+    assert not (tmp_path / "bad.png").exists()
