@@ -199,10 +199,10 @@ def test_a_task_runnable_for_an_instant_does_not_take_the_figure_process_away(mo
     assert not figure_process.idle_core(spacing=0.0) and len(reads) == 5
 
 
-def test_figures_built_by_two_processes_before_the_jobs_are_the_pngs_drawn_here(tmp_path):
-    """Layouts first (as identify sends them): the figure process forks and each process builds one
-    empty figure; the jobs then give the PNGs drawing them here gives. A job the copy fails is drawn
-    again by the child, whose failure the command sees (wait() is False: it draws them itself)."""
+def test_figures_built_before_the_jobs_in_the_figure_process_are_the_pngs_drawn_here(tmp_path):
+    """Layouts first (as identify sends them): the figure process builds the empty figures; the jobs
+    then give the PNGs drawing them here gives. A job the forked copy fails is drawn again by the
+    child, whose failure the command sees (wait() is False: it draws them itself)."""
     from sensorless.cli.figure_process import FigureProcess
     from sensorless.report.plot_process import draw_job, job_layout
 

@@ -2,25 +2,14 @@
 command's critical path.
 
 ``python -m sensorless.report.plot_process`` imports matplotlib and draws a tiny figure of each
-kind into memory (:func:`warm_up`: fonts, glyph caches, the artists' property tables and the
-drawing code paths, ~0.4 s that a cold first figure would otherwise add after the fit). It then
-reads messages on stdin (:func:`frame`):
-
-* **the figures' layouts**, when the parent knows them before the fit ends (``identify`` does): the
-  child forks once (:func:`_split`; the copy shares everything imported and warmed) and each of the
-  two processes builds half the empty figures and draws them once (:func:`prepare_layouts`: axes,
-  ticks and labels, ~40 % of a figure), side by side while the command fits; a process stops
-  building when its jobs are already waiting. The jobs then go to the process that built their
-  figure, which adds the data, draws and writes the PNG (0.3 s for a 12-axes figure instead of
-  0.45 s afresh);
-* **the jobs** without layouts before them: with several jobs it forks once and the two processes
-  draw half the jobs each (:func:`draw_jobs`).
-
-Building both figures during the fit, one per process after the warm-up, took 0.12 s off
-``identify``'s median on the 2-core benchmark machine (alternating runs); building them without the
-warm-up, or forking before it, was slower (a cold figure costs ~0.45 s more, and three busy
-processes on two cores delay the fit). Each PNG is written atomically; ``ok`` is printed once all
-are. A job is ``("torques", kwargs, path)`` →
+kind into memory (:func:`warm_up`: fonts, glyph caches and the drawing code paths are loaded then,
+~0.3 s that would otherwise follow the fit). It then reads messages on stdin (:func:`frame`): the
+figures' layouts, when the parent knows them before the fit ends (:func:`prepare_layouts` builds each
+empty figure and draws it once: axes, ticks and labels cost ~40 % of a figure; it stops when the
+jobs arrive first), then the jobs. It draws
+each job and writes its PNG atomically, and prints ``ok``. With several jobs it forks once (the
+copy shares everything already imported and warmed) and the two processes draw half the jobs
+each, on the two cores the waiting command leaves free. A job is ``("torques", kwargs, path)`` →
 :func:`~.plots.plot_torques` or ``("friction", panels, path)`` →
 :func:`~.friction_plot.plot_friction_panels`: plain arrays and strings computed by the parent (no
 robot model, so the child never imports Pinocchio or the identification stack).
@@ -173,37 +162,6 @@ def _fork() -> int | None:
         return None
 
 
-def _split(layouts: list):
-    """Fork into two processes that each prepare every other layout (module docstring). The copy
-    prepares its half, waits for its jobs on a private pipe, draws them and exits (status 0 when all
-    were written); this process gets ``(its layouts, copy's pid, the pipe's write end, the copy's
-    paths)``, or ``(layouts, None, None, set())`` where there is no fork or only one layout."""
-    import threading
-
-    if len(layouts) < 2 or not hasattr(os, "fork") or threading.active_count() != 1:
-        return layouts, None, None, set()
-    mine, theirs = layouts[0::2], layouts[1::2]
-    r, w = os.pipe()
-    pid = _fork()
-    if pid is None:
-        os.close(r)
-        os.close(w)
-        return layouts, None, None, set()
-    if pid == 0:  # the copy: its figures, then its jobs; gone without the parent's exit handlers
-        code = 1
-        try:
-            os.close(w)
-            prepared = prepare_layouts(theirs, stop=lambda: _pending(r))
-            msg = _read_frame(r)
-            for job in (msg[1] if msg else []):
-                draw_job(*job, prepared=prepared)
-            code = 0
-        finally:
-            os._exit(code)
-    os.close(r)
-    return mine, pid, w, {str(p) for _, _, p in theirs}
-
-
 def _main() -> int:
     import matplotlib
 
@@ -211,36 +169,16 @@ def _main() -> int:
     warm_up()
     fd = sys.stdin.fileno()
     prepared: dict = {}
-    copy, pipe, theirs = None, None, set()
     while True:  # ("layouts", [...]) first when the parent knows them early, then ("jobs", [...])
         msg = _read_frame(fd)
         if msg is None:  # the parent needed no figures (or stopped)
-            if pipe is not None:
-                os.close(pipe)
-                os.waitpid(copy, 0)
             return 0
         what, items = msg
-        if what == "layouts" and copy is None:
-            mine, copy, pipe, theirs = _split(items)
-            prepared = prepare_layouts(mine, stop=lambda: _pending(fd))
+        if what == "layouts":
+            prepared = prepare_layouts(items, stop=lambda: _pending(fd))
         elif what == "jobs":
             break
-    if copy is None:
-        draw_jobs(items, prepared=prepared)
-    else:
-        sent = [j for j in items if str(j[2]) in theirs]
-        try:
-            with os.fdopen(pipe, "wb") as fh:
-                fh.write(frame("jobs", sent))
-        except OSError:  # the copy is gone: its jobs are drawn here below
-            pass
-        for job in items:
-            if str(job[2]) not in theirs:
-                draw_job(*job, prepared=prepared)
-        _, status = os.waitpid(copy, 0)
-        if os.waitstatus_to_exitcode(status) != 0:
-            for job in sent:  # each PNG is written atomically: a failed copy left none half-written
-                draw_job(*job)
+    draw_jobs(items, prepared=prepared)
     sys.stdout.write("ok")
     sys.stdout.flush()
     os._exit(0)  # every PNG is written and closed: skip the interpreter's teardown (~0.1 s with matplotlib loaded)
