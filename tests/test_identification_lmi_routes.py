@@ -199,3 +199,13 @@ def test_dvrk_wpi_gamma_is_the_same_on_both_routes(monkeypatch, tmp_path):
                               validate=[str(w / "two_results.csv")], columns="q=0:7;v=7:14;tau=14:21", rate=200,
                               lowpass=5.4, coulomb_smoothing=0.2)
     assert a == b
+
+
+def test_non_finite_program_data_is_a_solver_error_not_a_panic(case):
+    from sensorless.errors import SolverError
+
+    s, ne, _ = case
+    prob = build_lmi(ne, s)
+    prob._conic["Rtz"] = np.full_like(prob._conic["Rtz"], np.nan)
+    with pytest.raises(SolverError, match="CLARABEL: error: non-finite data"):
+        prob.solve(1e-3, solver="CLARABEL")

@@ -304,25 +304,26 @@ class LmiProblem:
         return 2.0 * (d["RtR"] + lam * d["G"]), -2.0 * (d["Rtz"] + lam * d["Gx0"])
 
     def _solve_clarabel(self, gamma: float, verbose: bool) -> tuple[str, np.ndarray | None]:
-        """One direct Clarabel solve (module docstring); ``(status, x)`` with cvxpy's status words."""
+        """One direct Clarabel solve (module docstring); ``(status, x)`` with cvxpy's status words.
+        Reads the problem's data only, so the folds' problems can be solved in threads."""
         import clarabel
         import scipy.sparse as sp
 
         d = self._conic
         P, q = self.quadratic_objective(gamma)
-        P = sp.csc_matrix(np.triu(P))
-        if "A_csc" not in d:
-            d["A_csc"] = A = sp.csc_matrix(d["A"])
-            A.eliminate_zeros()
-            cones = {"zero": clarabel.ZeroConeT, "nonneg": clarabel.NonnegativeConeT,
-                     "soc": clarabel.SecondOrderConeT, "psd": clarabel.PSDTriangleConeT}
-            d["cones"] = [cones[r.kind](r.dim if r.kind in ("soc", "psd") else len(r.b)) for r in d["rows"]]
+        if not (np.isfinite(P).all() and np.isfinite(q).all()):  # Clarabel would panic, not raise
+            return "error: non-finite data", None
+        A = sp.csc_matrix(d["A"])
+        A.eliminate_zeros()  # Clarabel keeps stored zeros in its KKT pattern
+        kinds = {"zero": clarabel.ZeroConeT, "nonneg": clarabel.NonnegativeConeT,
+                 "soc": clarabel.SecondOrderConeT, "psd": clarabel.PSDTriangleConeT}
+        cones = [kinds[r.kind](r.dim if r.kind in ("soc", "psd") else len(r.b)) for r in d["rows"]]
         settings = clarabel.DefaultSettings()
         settings.verbose = verbose
         for key, value in _SOLVER_OPTIONS["CLARABEL"].items():  # the options the cvxpy route passes
             setattr(settings, key, value)
         try:
-            sol = clarabel.DefaultSolver(P, q, d["A_csc"], d["b"], d["cones"], settings).solve()
+            sol = clarabel.DefaultSolver(sp.csc_matrix(np.triu(P)), q, A, d["b"], cones, settings).solve()
         except (ValueError, ArithmeticError, RuntimeError) as exc:
             return f"error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", None
         status = _CLARABEL_STATUS.get(str(sol.status), "solver_error")
