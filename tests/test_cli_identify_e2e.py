@@ -66,6 +66,33 @@ def test_figure_process_writes_the_png_the_command_would(tmp_path):
     assert (tmp_path / "child.png").read_bytes() == (tmp_path / "here.png").read_bytes()
 
 
+def test_submitting_jobs_larger_than_the_pipe_does_not_wait_for_the_child(tmp_path, monkeypatch):
+    """The jobs outgrow a pipe's buffer and the child reads them only once warmed up: ``submit`` returns
+    at once (a thread writes), and ``close`` ends a child that never reads without a deadlock."""
+    import threading
+
+    from sensorless.cli.figure_process import FigureProcess
+
+    never_reads = tmp_path / "python"
+    never_reads.write_text("#!/bin/sh\nexec sleep 60\n")
+    never_reads.chmod(0o755)
+    monkeypatch.setattr(sys, "executable", str(never_reads))
+    big = np.random.default_rng(0).normal(size=(200_000, 2))  # 3.2 MB pickled, beyond any pipe buffer
+    done = {}
+
+    def run():
+        fp = FigureProcess()
+        done["submitted"] = fp.submit([("torques", dict(t=big[:, 0], measured=big), tmp_path / "x.png")])
+        fp.close()
+        done["closed"] = True
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    th.join(30.0)
+    assert done == {"submitted": True, "closed": True}
+    assert not (tmp_path / "x.png").exists()
+
+
 def test_forked_drawing_writes_the_same_pngs_and_surfaces_a_failed_job(tmp_path):
     """The figure process draws half its jobs in a forked copy: the same bytes as drawing them in
     order here; a job the copy cannot draw is drawn again here, so its error is raised, not lost."""

@@ -145,6 +145,36 @@ def test_geometry_ellipsoid_contains_collision_box(panda):
     assert np.all(ell[panda.body_names[2]].contains(corners))
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_enclosing_ellipsoid_without_a_hull_is_the_clouds_mvee(seed):
+    """The MVEE from the cloud's support points (no convex hull) holds every point and has the volume
+    of the MVEE of Qhull's hull vertices, to the algorithms' tolerance (the oracle: SciPy's Qhull). The
+    clouds are those of auto_ellipsoids (points inflated in 14 directions), slivers included."""
+    from scipy.spatial import ConvexHull
+
+    from sensorless.identification.ellipsoids import _DIRS, _enclosing_ellipsoid, _mvee
+
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(rng.integers(2, 40), 3)) * rng.uniform(0.01, 0.5, size=3)
+    if seed % 2:  # a flat body: a plate of points, inflated by a small margin
+        pts[:, 2] = 0.0
+    cloud = (pts[:, None, :] + rng.uniform(0.005, 0.06) * _DIRS[None]).reshape(-1, 3)
+    c, S = _enclosing_ellipsoid(cloud)
+    dev = cloud - c
+    assert np.einsum("ni,ni->n", dev, np.linalg.solve(S, dev.T).T).max() <= 1.0 + 1e-9
+    c0, S0 = _mvee(cloud[ConvexHull(cloud).vertices], 1e-7)
+    assert np.sqrt(np.linalg.det(S) / np.linalg.det(S0)) == pytest.approx(1.0, abs=5e-3)  # eps = 1e-3 of _mvee
+
+
+def test_identify_does_not_import_qhull(ur5, tmp_path):
+    """The bounding ellipsoids need no convex hull: identify's default path leaves ``scipy.spatial``
+    (~0.08 s of imports: it loads ``scipy.special`` and ``scipy.sparse``) alone."""
+    from conftest import identify_imports
+
+    _, imported = identify_imports(ur5, tmp_path, [], ["scipy.spatial"])
+    assert imported == {"scipy.spatial": False}
+
+
 # ---- constraints --------------------------------------------------------------------------
 def test_pseudo_inertia_constraint(panda):
     s = ModelStructure(panda)

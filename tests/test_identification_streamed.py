@@ -207,7 +207,9 @@ def test_cli_streamed_equals_in_memory(logs, tmp_path, method):
     b = _identify([*data, "--no-stream"], tmp_path / "m")
     assert a["settings"]["streamed"]["n_samples"] == N_CLEAN and "streamed" not in b["settings"]
     pa, pb = (np.array(list(x["parameters"].values())) for x in (a, b))
-    assert np.abs(pa - pb).max() <= 1e-9 * np.abs(pb).max()
+    # the two passes' sums agree to ~1e-14; the LMI's solutions then to the solver's tolerance (1e-8):
+    # the directions the data leave open (a shoulder's mass) are set by γ and the constraints only
+    assert np.abs(pa - pb).max() <= (1e-9 if method[1] == "ols" else 1e-8) * np.abs(pb).max()
     assert a["settings"]["friction"]["stribeck_velocity"] == b["settings"]["friction"]["stribeck_velocity"]
     assert a["diagnostics"]["n_samples"] == b["diagnostics"]["n_samples"] == N_CLEAN
 

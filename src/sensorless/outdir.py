@@ -197,7 +197,9 @@ def _unlink(p: Path) -> None:
 def _renameat2_function():
     if not sys.platform.startswith("linux"):
         return None
-    libc = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
+    libc = ctypes.CDLL(None, use_errno=True)  # the process's symbols, libc's among them
+    if not (hasattr(libc, "renameat2") or hasattr(libc, "syscall")):  # find_library runs ldconfig: a subprocess
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
     fn = getattr(libc, "renameat2", None)
     if fn is not None:
         fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]

@@ -4,8 +4,9 @@ A command that ends with figures (``identify``: torques.png, friction.png) start
 :class:`FigureProcess` first thing: the child (:mod:`sensorless.report.plot_process`) imports
 matplotlib (~0.5 s) on the other core while this process reads logs and fits; once the model's
 rows are known the command sends the figures' layouts (the child builds them meanwhile). The fit
-done, the command sends the figure jobs (arrays computed here) and goes on writing result.json;
-the child writes each PNG atomically into the command's output folder (still the hidden
+done, the command sends the figure jobs (arrays computed here, written to the pipe by a thread: the
+jobs outgrow the pipe's buffer, and the child reads them only once it has warmed up) and goes on
+writing result.json; the child writes each PNG atomically into the command's output folder (still the hidden
 temporary one: the folder appears complete or not at all), and :meth:`FigureProcess.wait`
 returns once every PNG is written. If the child cannot start or fails, ``wait`` returns False
 and the command draws the same figures itself (:func:`~sensorless.report.plot_process.draw_job`),
@@ -19,6 +20,7 @@ import pickle
 import subprocess
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 __all__ = ["FigureProcess", "idle_core"]
@@ -61,6 +63,8 @@ class FigureProcess:
     def __init__(self) -> None:
         self._proc: subprocess.Popen | None = None
         self._sent = False
+        self._writer: threading.Thread | None = None
+        self._write_error: BaseException | None = None
         self._err = None
         pkg_root = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ)
@@ -87,25 +91,41 @@ class FigureProcess:
             self.close()
 
     def submit(self, jobs: list) -> bool:
-        """Send every job (once); False if the child is not running (the caller draws them itself)."""
+        """Send every job (once) without waiting for the child to read them (a thread writes them);
+        False if the child is not running (the caller draws them itself)."""
         if self._proc is None or self._sent:
             return False
         self._sent = True
         try:
             from ..report.plot_process import frame
 
-            self._proc.stdin.write(frame("jobs", jobs))
-            self._proc.stdin.close()
-        except (OSError, ValueError, pickle.PicklingError):
+            data = frame("jobs", jobs)
+        except (pickle.PicklingError, TypeError, AttributeError):
             self.close()
             return False
+        self._writer = threading.Thread(target=self._write, args=(self._proc.stdin, data), name="figure-jobs",
+                                        daemon=True)
+        self._writer.start()
         return True
+
+    def _write(self, stdin, data: bytes) -> None:
+        """The writer thread: the jobs, then the end of the stream (the child's cue that no more come)."""
+        try:
+            stdin.write(data)
+            stdin.close()
+        except (OSError, ValueError) as exc:  # the child died, or close() ended it
+            self._write_error = exc
 
     def wait(self, timeout: float | None = 600.0) -> bool:
         """True once the child has written every job's PNG; False if it failed (nothing half-written:
         each PNG is written atomically)."""
         if self._proc is None or not self._sent:
             return False
+        if self._writer is not None:
+            self._writer.join(timeout)
+            if self._writer.is_alive() or self._write_error is not None:
+                self.close()
+                return False
         try:
             out = self._proc.stdout.read()  # "ok" once every PNG is written, at the child's exit
             self._proc.wait(timeout=timeout)
@@ -117,18 +137,22 @@ class FigureProcess:
         return ok
 
     def close(self) -> None:
-        """Stop the child if it is still running (an error in the parent, or figures not wanted)."""
+        """Stop the child if it is still running (an error in the parent, or figures not wanted). The
+        child goes first: a write blocked on its full pipe then fails, and the writer thread ends."""
         p, self._proc = self._proc, None
         if p is None:
             return
+        if p.poll() is None:
+            p.kill()
+        p.wait()
+        w, self._writer = self._writer, None
+        if w is not None:
+            w.join()
         for f in (p.stdin, p.stdout, self._err):
             try:
                 f.close()
             except (OSError, ValueError):
                 pass
-        if p.poll() is None:
-            p.kill()
-        p.wait()
 
     def __enter__(self) -> "FigureProcess":
         return self

@@ -114,9 +114,35 @@ def _pending(fd: int) -> bool:
         return False
 
 
-def warm_up() -> None:
+class _Inbox:
+    """The parent's messages on ``fd``, read as whole frames as they arrive."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd, self.queue, self.complete = fd, [], False
+
+    def _take(self):
+        msg = _read_frame(self.fd)
+        self.complete = msg is None or msg[0] == "jobs"  # nothing comes after the jobs
+        return msg
+
+    def jobs_in(self) -> bool:
+        """Read what is waiting; True once the jobs (or the end of the stream) are in."""
+        while not self.complete and _pending(self.fd):
+            self.queue.append(self._take())
+        return self.complete
+
+    def next(self):
+        """The next message (waiting for it), or None at the end of the stream."""
+        if self.queue:
+            return self.queue.pop(0)
+        return None if self.complete else self._take()
+
+
+def warm_up(stop=lambda: False) -> None:
     """Draw one small figure of each kind into memory: what the first real figure would pay once
-    (font files, glyph layout, the Agg and PNG code paths) is paid before the jobs arrive."""
+    (font files, glyph layout, the Agg and PNG code paths) is paid before the jobs arrive. The first
+    (~0.3 s: most of it is shared by every kind) is always drawn; ``stop()`` true after it (the jobs
+    are in) skips the others (~0.07 s each), which the forked copy drawing that kind then pays meanwhile."""
     import io
 
     import numpy as np
@@ -126,9 +152,12 @@ def warm_up() -> None:
     from .plots import torque_figure
 
     y = np.sin(np.linspace(0.0, 1.0, 50))[:, None]
-    for fig in (torque_figure(y[:, 0], y, {"A": y, "B": y}, ["j"], units=["N·m"], title="τ"),
-                draw_friction(y, y, y, y, y, [("j: fv", "N·m", "rad/s")], title="τ")):
-        fig.savefig(io.BytesIO(), format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
+    kinds = (lambda: torque_figure(y[:, 0], y, {"A": y, "B": y}, ["j"], units=["N·m"], title="τ"),
+             lambda: draw_friction(y, y, y, y, y, [("j: fv", "N·m", "rad/s")], title="τ"))
+    for k, make in enumerate(kinds):
+        if k and stop():
+            break
+        make().savefig(io.BytesIO(), format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
 
 
 def draw_jobs(jobs: list, fork: bool | None = None, prepared: dict | None = None) -> None:
@@ -174,20 +203,30 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
+def _skip_set_docstrings() -> None:
+    """As its modules load, matplotlib writes the docstring of each Artist class's ``set`` (a table of
+    the class's properties, from every setter's docstring): ~0.09 s of this process's start, before the
+    figure modules are imported, for help text no one reads here. Only this process does without."""
+    import matplotlib.artist
+
+    matplotlib.artist.kwdoc = lambda artist: ""
+
+
 def _main() -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    warm_up()
-    fd = sys.stdin.fileno()
+    _skip_set_docstrings()
+    inbox = _Inbox(sys.stdin.fileno())
+    warm_up(stop=inbox.jobs_in)
     prepared: dict = {}
     while True:  # ("layouts", [...]) first when the parent knows them early, then ("jobs", [...])
-        msg = _read_frame(fd)
+        msg = inbox.next()
         if msg is None:  # the parent needed no figures (or stopped)
             return 0
         what, items = msg
         if what == "layouts" and _cores() >= PREPARE_MIN_CORES:
-            prepared = prepare_layouts(items, stop=lambda: _pending(fd))
+            prepared = prepare_layouts(items, stop=inbox.jobs_in)
         elif what == "jobs":
             break
     draw_jobs(items, prepared=prepared)

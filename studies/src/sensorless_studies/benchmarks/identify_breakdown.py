@@ -1,7 +1,7 @@
 """Where the wait of `sensorless identify` goes, for `sensorless benchmark identify-e2e`.
 
 * **Imports**, in the order the command makes them: fresh processes importing the CLI, then NumPy
-  and Pinocchio, then SciPy's linalg/sparse/spatial, then Clarabel (the LMI's solver; cvxpy is not
+  and Pinocchio, then SciPy's linalg/sparse, then Clarabel (the LMI's solver; cvxpy is not
   imported on identify's default path), then the identification modules,
   each set including the previous one; best of ``repeats``; a step's cost is the difference.
 * **Compute**: :func:`sensorless.run.identify_run` and ``Run.save`` on the log in one process after
@@ -21,7 +21,7 @@ __all__ = ["IMPORT_STEPS", "LABELS", "import_steps", "compute_steps"]
 
 _CLI = "from sensorless.cli import app"
 _NUMPY = _CLI + "; import numpy, pinocchio"
-_SCIPY = _NUMPY + "; import scipy.linalg, scipy.sparse, scipy.spatial"
+_SCIPY = _NUMPY + "; import scipy.linalg, scipy.sparse"
 _CLARABEL = _SCIPY + "; import clarabel"
 _OURS = _CLARABEL + ("; import sensorless.run.pipeline, sensorless.identification.identify, sensorless.identification.gamma,"
                   " sensorless.identification.lmi, sensorless.torque_models, sensorless.cli.identify, sensorless.report.html")
@@ -30,7 +30,7 @@ IMPORT_STEPS = [("python", "pass"), ("cli", _CLI), ("numpy_pinocchio", _NUMPY), 
                 ("sensorless", _OURS)]
 #: what each step is
 LABELS = {"python": "Python itself", "cli": "typer, rich, the command modules", "numpy_pinocchio": "NumPy, Pinocchio",
-          "scipy": "SciPy linalg, sparse, spatial", "clarabel": "Clarabel, the conic solver",
+          "scipy": "SciPy linalg, sparse", "clarabel": "Clarabel, the conic solver",
           "sensorless": "sensorless' identification, data, regressor, report modules",
           "read": "reading, validating, preprocessing", "friction_law": "Coulomb smoothing and Stribeck grids from the log",
           "fold_pass": "one pass over the log: the fit's and the CV folds' equations", "compress": "compression",
