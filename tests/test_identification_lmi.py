@@ -152,17 +152,17 @@ def test_enclosing_ellipsoid_without_a_hull_is_the_clouds_mvee(seed):
     clouds are those of auto_ellipsoids (points inflated in 14 directions), slivers included."""
     from scipy.spatial import ConvexHull
 
-    from sensorless.identification.ellipsoids import _DIRS, _enclosing_ellipsoid, _mvee
+    from sensorless.identification.ellipsoids import INFLATION_DIRECTIONS, enclosing_ellipsoid, mvee
 
     rng = np.random.default_rng(seed)
     pts = rng.normal(size=(rng.integers(2, 40), 3)) * rng.uniform(0.01, 0.5, size=3)
     if seed % 2:  # a flat body: a plate of points, inflated by a small margin
         pts[:, 2] = 0.0
-    cloud = (pts[:, None, :] + rng.uniform(0.005, 0.06) * _DIRS[None]).reshape(-1, 3)
-    c, S = _enclosing_ellipsoid(cloud)
+    cloud = (pts[:, None, :] + rng.uniform(0.005, 0.06) * INFLATION_DIRECTIONS[None]).reshape(-1, 3)
+    c, S = enclosing_ellipsoid(cloud)
     dev = cloud - c
     assert np.einsum("ni,ni->n", dev, np.linalg.solve(S, dev.T).T).max() <= 1.0 + 1e-9
-    c0, S0 = _mvee(cloud[ConvexHull(cloud).vertices], 1e-7)
+    c0, S0 = mvee(cloud[ConvexHull(cloud).vertices], 1e-7)
     assert np.sqrt(np.linalg.det(S) / np.linalg.det(S0)) == pytest.approx(1.0, abs=5e-3)  # eps = 1e-3 of _mvee
 
 

@@ -64,12 +64,15 @@ __all__ = [
     "KINEMATIC_MARGIN",
     "PRIOR_COM_MARGIN",
     "PRIOR_SLACK",
+    "INFLATION_DIRECTIONS",
     "BoundingEllipsoid",
     "auto_ellipsoids",
     "body_points",
     "ellipsoid_source",
+    "enclosing_ellipsoid",
     "load_geometry",
     "missing_meshes",
+    "mvee",
     "resolve_ellipsoids",
 ]
 
@@ -78,7 +81,9 @@ GEOMETRY_MARGIN = 0.01  # m, slack around collision shapes
 PRIOR_SLACK = 4.0  # the prior must fit with its second moments × PRIOR_SLACK ...
 PRIOR_COM_MARGIN = 0.075  # m, ... and its CoM moved anywhere within this distance
 
-_DIRS = np.vstack([np.eye(3), -np.eye(3), np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T / np.sqrt(3)])
+#: the 14 directions (axes and cube diagonals, unit) in which each point of a body's cloud is
+#: inflated by the margin, and in which the prior's CoM ball is sampled
+INFLATION_DIRECTIONS = np.vstack([np.eye(3), -np.eye(3), np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T / np.sqrt(3)])
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,7 +166,7 @@ class BoundingEllipsoid:
 
 
 # ---- point clouds -------------------------------------------------------------
-def _mvee(P: np.ndarray, eps: float = 1e-3, max_iter: int = 20000) -> tuple[np.ndarray, np.ndarray]:
+def mvee(P: np.ndarray, eps: float = 1e-3, max_iter: int = 20000) -> tuple[np.ndarray, np.ndarray]:
     """Minimum-volume enclosing ellipsoid (Khachiyan with Todd–Yildirim away steps):
     centre and Σ_E, within a factor (1 + eps) of optimal, scaled to contain every point."""
     n, d = P.shape
@@ -203,15 +208,15 @@ def _fibonacci_sphere(n: int) -> np.ndarray:
 _SUPPORT_DIRS = _fibonacci_sphere(256)
 
 
-def _enclosing_ellipsoid(P: np.ndarray, eps: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_mvee` of the cloud ``P`` computed on few of its points: those farthest along each of
+def enclosing_ellipsoid(P: np.ndarray, eps: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`mvee` of the cloud ``P`` computed on few of its points: those farthest along each of
     256 directions (vertices of its convex hull, where an enclosing ellipsoid touches), then any point
     still outside added until none is. An ellipsoid enclosing a subset and every other point encloses
     the cloud, so this is the cloud's MVEE, within the same factor; no convex hull is needed (SciPy's
     Qhull costs ~0.08 s of import on every identification)."""
     idx = np.unique(np.argmax(P @ _SUPPORT_DIRS.T, axis=0))
     while True:
-        c, S = _mvee(P[idx], eps)
+        c, S = mvee(P[idx], eps)
         dev = P - c
         dist = np.einsum("ni,ni->n", dev, np.linalg.solve(S, dev.T).T)
         outside = np.setdiff1d(np.flatnonzero(dist > 1.0 + 1e-12), idx)
@@ -428,13 +433,13 @@ def _auto_ellipsoids(robot, geometry, margin, prior, contain_prior, prior_slack,
     for k, (name, pts) in enumerate(body_points(robot, geometry).items()):
         if P0[k, 0] > 0:
             com = P0[k, 1:4] / P0[k, 0]
-            pts = np.vstack([pts, com] + ([com + com_margin * _DIRS] if contain_prior and com_margin > 0 else []))
+            pts = np.vstack([pts, com] + ([com + com_margin * INFLATION_DIRECTIONS] if contain_prior and com_margin > 0 else []))
         # the kinematic margin where the body's shape is unknown: no geometry at all, or its meshes missing;
         # a body the description gives no shape (authored in code, e.g. the PSM's links) keeps the geometry margin
         unknown = geometry is None or (name in lost and name not in shaped)
         m = margin if margin is not None else KINEMATIC_MARGIN if unknown else GEOMETRY_MARGIN
-        cloud = (pts[:, None, :] + m * _DIRS[None]).reshape(-1, 3)
-        E = BoundingEllipsoid.from_shape_matrix(*_enclosing_ellipsoid(cloud), source=ellipsoid_source(
+        cloud = (pts[:, None, :] + m * INFLATION_DIRECTIONS[None]).reshape(-1, 3)
+        E = BoundingEllipsoid.from_shape_matrix(*enclosing_ellipsoid(cloud), source=ellipsoid_source(
             name in shaped, name in lost, geometry is not None))
         if contain_prior:
             E = E.scaled(_prior_scale(E, P0[k], prior_slack, com_margin))
