@@ -200,3 +200,34 @@ def test_long_logs_are_decimated_keeping_short_peaks():
     idx = envelope_indices(y, 4000)
     assert len(idx) <= 4002 and 1_234_567 in idx and idx[0] == 0 and idx[-1] == len(y) - 1
     assert np.all(np.diff(idx) > 0)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_in_view_locator_draws_the_ticks_of_maxnlocator_and_builds_no_other(seed):
+    """The panels' locator gives MaxNLocator's locations inside the view, and only those: the ticks
+    drawn, their labels and the PNG are the same, with no tick artists built for locations off the axis."""
+    import io
+
+    from matplotlib.ticker import MaxNLocator
+
+    from sensorless.report.figure_kit import in_view_locator, new_figure
+
+    rng = np.random.default_rng(seed)
+    pngs, built = [], []
+    for make in (MaxNLocator, in_view_locator):
+        fig = new_figure(3.0, 2.0)
+        ax = fig.add_subplot()
+        lo = rng.normal() * 10.0 ** rng.integers(-3, 4)
+        ax.plot([lo, lo + abs(rng.normal()) * 10.0 ** rng.integers(-3, 4)], [0.0, 1.0])
+        ax.xaxis.set_major_locator(make(nbins=6))
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png")
+        pngs.append(buf.getvalue())
+        view = sorted(ax.get_xlim())
+        locs = ax.xaxis.get_majorticklocs()
+        built.append((len(ax.xaxis.majorTicks), [x for x in locs if view[0] <= x <= view[1]], len(locs)))
+        rng = np.random.default_rng(seed)  # the same line for both locators
+    (n_all, drawn_all, _), (n_view, drawn_view, locs_view) = built
+    assert drawn_view == drawn_all and locs_view == len(drawn_view)
+    assert n_view == len(drawn_view) < n_all
+    assert pngs[0] == pngs[1]
