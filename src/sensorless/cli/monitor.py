@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import List, Optional
+from typing import TYPE_CHECKING, List, Optional
 
 import typer
 
@@ -16,6 +16,9 @@ from .common import (app, atomic_outdir, floating_base_option, force_option, gua
 from .console import console
 from .applied_model import MODEL_HELP, applied_model_options, passive_option, robot_and_model
 from .options import ForceReference
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["monitor"]
 
@@ -134,7 +137,7 @@ def monitor(
     if warmup is not None and not (np.isfinite(warmup) and warmup >= 0):
         raise SensorlessError(f"--warmup must be ≥ 0 seconds, got {warmup}")
     try:
-        window = TrimWindow.parse(quiet)
+        TrimWindow.parse(quiet)  # checked here, used by the monitor
     except DataError:
         raise SensorlessError(f"--quiet must be START:END in seconds after the first sample (e.g. 0:2, ':2', "
                               f"'abs:T0:T1' for the log's stamps), got '{quiet}'") from None

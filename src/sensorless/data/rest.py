@@ -46,7 +46,7 @@ import numpy as np
 from ..errors import DataError
 from .savgol import savgol_coeffs, savgol_filter
 
-__all__ = ["CREEP_SECONDS", "CREEP_SIGMAS", "RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "creep_drift", "rest_mask",
+__all__ = ["CREEP_SECONDS", "CREEP_SIGMAS", "RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "creep_drift", "rest_info", "rest_mask", "rest_state",
            "signal_noise", "zero_at_rest"]
 
 REST_SIGMAS = 5.0
@@ -144,25 +144,42 @@ def rest_mask(v: np.ndarray, sigma: np.ndarray, window: int, sigmas: float = RES
     return mask & ~creeping
 
 
-def zero_at_rest(traj, sigma: np.ndarray, window: int, sigma_q: "np.ndarray | None" = None):
-    """``traj`` with v = v̇ = 0 where a joint is at rest, and v = its drift, v̇ = 0 where it creeps
-    (module docstring); provenance["rest"] records σ, δ and the fractions of samples at rest and
-    creeping per joint."""
-    v = np.asarray(traj.v, dtype=float)
-    q = None if sigma_q is None else np.asarray(traj.q, dtype=float)
+def rest_state(v: np.ndarray, dt: float, sigma: np.ndarray, window: int, q: "np.ndarray | None" = None,
+               sigma_q: "np.ndarray | None" = None) -> "tuple[np.ndarray, np.ndarray, np.ndarray]":
+    """``(quiet, creeping, v_new)`` of :func:`zero_at_rest` for velocities ``v (N, n)`` sampled every
+    ``dt`` s: the quiet mask (v̇ = 0 there), the creeping mask (quiet, with the drift as velocity) and the
+    velocity with 0 at rest and the drift where creeping. The streamed scan calls it one joint at a time,
+    without a Trajectory around the arrays (memory)."""
     quiet = _quiet(v, sigma, window, REST_SIGMAS, q, sigma_q)
-    creeping, drift = np.zeros_like(quiet), np.zeros(v.shape)
-    dt = float(np.median(np.diff(traj.t))) if len(traj.t) > 1 else 0.0
+    creeping, drift = np.zeros_like(quiet), None
     if q is not None and dt > 0:
         cw = max(int(window), int(round(CREEP_SECONDS / dt)))
         creeping, drift = creep_drift(v, q, sigma, sigma_q, quiet, dt, cw)
-    rest = quiet & ~creeping
-    v = np.where(rest, 0.0, np.where(creeping, drift, v))
+    v_new = np.where(quiet & ~creeping, 0.0, v)
+    if drift is not None:
+        np.copyto(v_new, drift, where=creeping)
+    return quiet, creeping, v_new
+
+
+def zero_at_rest(traj, sigma: np.ndarray, window: int, sigma_q: "np.ndarray | None" = None):
+    """``traj`` with v = v̇ = 0 where a joint is at rest, and v = its drift, v̇ = 0 where it creeps
+    (module docstring, :func:`rest_state`); provenance["rest"] records σ, δ and the fractions of samples
+    at rest and creeping per joint."""
+    v = np.asarray(traj.v, dtype=float)
+    q = None if sigma_q is None else np.asarray(traj.q, dtype=float)
+    dt = float(np.median(np.diff(traj.t))) if len(traj.t) > 1 else 0.0
+    quiet, creeping, v = rest_state(v, dt, sigma, window, q, sigma_q)
     a = None if traj.a is None else np.where(quiet, 0.0, traj.a)
-    info = {"velocity_noise": dict(zip(traj.joint_names, map(float, sigma))),
-            "rest_velocity": dict(zip(traj.joint_names, map(float, REST_SIGMAS * np.asarray(sigma)))),
+    return traj.with_(v=v, a=a, provenance={**traj.provenance, "rest": rest_info(traj.joint_names, sigma, window,
+                                                                                 sigma_q, quiet, creeping)})
+
+
+def rest_info(names, sigma: np.ndarray, window: int, sigma_q: "np.ndarray | None", quiet: np.ndarray,
+              creeping: np.ndarray) -> dict:
+    """The ``provenance["rest"]`` record of :func:`zero_at_rest`."""
+    return {"velocity_noise": dict(zip(names, map(float, sigma))),
+            "rest_velocity": dict(zip(names, map(float, REST_SIGMAS * np.asarray(sigma)))),
             "window_samples": int(window),
-            "position_noise": None if sigma_q is None else dict(zip(traj.joint_names, map(float, sigma_q))),
-            "fraction_at_rest": dict(zip(traj.joint_names, map(float, rest.mean(axis=0)))),
-            "fraction_creeping": dict(zip(traj.joint_names, map(float, creeping.mean(axis=0))))}
-    return traj.with_(v=v, a=a, provenance={**traj.provenance, "rest": info})
+            "position_noise": None if sigma_q is None else dict(zip(names, map(float, sigma_q))),
+            "fraction_at_rest": dict(zip(names, map(float, (quiet & ~creeping).mean(axis=0)))),
+            "fraction_creeping": dict(zip(names, map(float, creeping.mean(axis=0))))}

@@ -10,7 +10,7 @@ things depend on the whole log, and are measured first by :func:`scan_log`, one 
   σ_τ of :func:`~.rest.signal_noise`, the P95 |v| speed scale of the friction grids) and the
   excitation period (autocorrelation of q by FFT, :func:`~.periodicity.excitation_period`,
   accumulated over joints in the same order);
-* rest: the quiet mask and the creeping drift of each joint (:func:`~.rest.zero_at_rest` on that
+* rest: the quiet mask and the creeping drift of each joint (:func:`~.rest.rest_state`, as :func:`~.rest.zero_at_rest` has it, on that
   joint's column), kept as a bool mask and the few creeping samples.
 
 :meth:`StreamedLog.chunks` then yields the preprocessed log in chunks: each chunk's v̇ is the
@@ -35,7 +35,7 @@ from ..errors import NonFiniteError, TimestampError
 from .chunks import ChunkedLog
 from .filtering import DEFAULT_SAVGOL_WINDOW, SavitzkyGolay, default_savgol_window
 from .outliers import OUTLIER_THRESHOLD, robust_scale
-from .rest import signal_noise, zero_at_rest
+from .rest import rest_state, signal_noise
 from .trajectory import Trajectory
 
 __all__ = ["POLYORDER", "StreamedLog", "scan_log"]
@@ -203,16 +203,14 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0, perio
         moving[j] = np.ptp(q) >= 1e-3
         if rest_on:
             sq[j] = signal_noise(q[:, None])[0]
-            one = Trajectory(t=t, q=q[:, None], v=v[:, None], a=np.ones((N, 1)), joint_names=[name], source=src)
-            out = zero_at_rest(one, sv[j : j + 1], w, sq[j : j + 1])
-            quiet[:, j] = out.a[:, 0] == 0.0
-            vj = out.v[:, 0]
+            qj, cj, vj = rest_state(v[:, None], dt, sv[j : j + 1], w, q[:, None], sq[j : j + 1])
+            quiet[:, j] = qj[:, 0]
+            vj = vj[:, 0]
             idx = np.flatnonzero(quiet[:, j] & (vj != 0.0))
             creep.append((idx, vj[idx].copy()))
-            frac_rest[j] = out.provenance["rest"]["fraction_at_rest"][name]
-            frac_creep[j] = out.provenance["rest"]["fraction_creeping"][name]
+            frac_rest[j], frac_creep[j] = (qj & ~cj).mean(), cj.mean()
             v = vj
-            del one, out
+            del qj, cj
         speed[j] = np.percentile(np.abs(v), 95)
         if lags is not None:
             p = _power(q)

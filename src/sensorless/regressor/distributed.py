@@ -40,7 +40,7 @@ import time
 import uuid
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -48,6 +48,9 @@ from ..data.trajectory import Trajectory
 from ..errors import DataError, DistributedError, SensorlessError
 from .normal_equations import NormalEquations, compress_folds, compress_trajectories
 from .terms import ModelStructure
+
+if TYPE_CHECKING:
+    from ..data.trims import LogTrims
 
 __all__ = ["FleetEquations", "LogReader", "PickledModel", "compress_files", "expand_paths", "worker_structure"]
 
