@@ -170,16 +170,16 @@ def zero_at_rest(traj, sigma: np.ndarray, window: int, sigma_q: "np.ndarray | No
     dt = float(np.median(np.diff(traj.t))) if len(traj.t) > 1 else 0.0
     quiet, creeping, v = rest_state(v, dt, sigma, window, q, sigma_q)
     a = None if traj.a is None else np.where(quiet, 0.0, traj.a)
-    return traj.with_(v=v, a=a, provenance={**traj.provenance, "rest": rest_info(traj.joint_names, sigma, window,
-                                                                                 sigma_q, quiet, creeping)})
+    info = rest_info(traj.joint_names, sigma, window, sigma_q, (quiet & ~creeping).mean(axis=0), creeping.mean(axis=0))
+    return traj.with_(v=v, a=a, provenance={**traj.provenance, "rest": info})
 
 
-def rest_info(names, sigma: np.ndarray, window: int, sigma_q: "np.ndarray | None", quiet: np.ndarray,
-              creeping: np.ndarray) -> dict:
-    """The ``provenance["rest"]`` record of :func:`zero_at_rest`."""
+def rest_info(names, sigma: np.ndarray, window: int, sigma_q: "np.ndarray | None", fraction_at_rest: np.ndarray,
+              fraction_creeping: np.ndarray) -> dict:
+    """The ``provenance["rest"]`` record of :func:`zero_at_rest` (and of the streamed scan)."""
     return {"velocity_noise": dict(zip(names, map(float, sigma))),
             "rest_velocity": dict(zip(names, map(float, REST_SIGMAS * np.asarray(sigma)))),
             "window_samples": int(window),
             "position_noise": None if sigma_q is None else dict(zip(names, map(float, sigma_q))),
-            "fraction_at_rest": dict(zip(names, map(float, (quiet & ~creeping).mean(axis=0)))),
-            "fraction_creeping": dict(zip(names, map(float, creeping.mean(axis=0))))}
+            "fraction_at_rest": dict(zip(names, map(float, fraction_at_rest))),
+            "fraction_creeping": dict(zip(names, map(float, fraction_creeping)))}

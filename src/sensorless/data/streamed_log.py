@@ -35,7 +35,7 @@ from ..errors import NonFiniteError, TimestampError
 from .chunks import ChunkedLog
 from .filtering import DEFAULT_SAVGOL_WINDOW, SavitzkyGolay, default_savgol_window
 from .outliers import OUTLIER_THRESHOLD, robust_scale
-from .rest import rest_state, signal_noise
+from .rest import rest_info, rest_state, signal_noise
 from .trajectory import Trajectory
 
 __all__ = ["POLYORDER", "StreamedLog", "scan_log"]
@@ -223,11 +223,7 @@ def scan_log(log: ChunkedLog, *, rest: str = "auto", min_samples: int = 0, perio
             "a": f"derived: d/dt of logged v, Savitzky-Golay (window {w}, order {POLYORDER})",
             "timing": info.to_dict()}
     if rest_on:
-        prov["rest"] = {"velocity_noise": dict(zip(names, map(float, sv))),
-                        "rest_velocity": dict(zip(names, map(float, 5.0 * sv))), "window_samples": int(w),
-                        "position_noise": dict(zip(names, map(float, sq))),
-                        "fraction_at_rest": dict(zip(names, map(float, frac_rest))),
-                        "fraction_creeping": dict(zip(names, map(float, frac_creep)))}
+        prov["rest"] = rest_info(names, sv, w, sq, frac_rest, frac_creep)
     return StreamedLog(log, t, w, dt, sv, sq if rest_on else None, st, speed, moving, qmin,
                        qmax, period, quiet, creep, prov)
 
