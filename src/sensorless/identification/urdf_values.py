@@ -70,12 +70,16 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     def reach(ks: list[int]) -> np.ndarray | None:
         return _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(ks, dtype=int), P0[ks, 0])
 
-    kept, cand = greedy_prefixes(order, reach)
+    if _physical(pi) or reach([]) is not None:
+        kept, cand = greedy_prefixes(order, reach)
+        # then every other direction the data do not see goes to the prior too (CoMs and inertias of
+        # bodies the log cannot resolve, e.g. links seen only through the floating-base rows)
+        polished = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept, dtype=int), P0[kept, 0],
+                                       target=P0.ravel())
+    else:  # no physical bodies give the identified dynamics (an unconstrained fit): fixing masses, or
+        # moving toward the prior, only adds to or keeps those constraints, so no program is feasible
+        kept, cand, polished = [], None, None
     cand = pi if cand is None else cand
-    # then every other direction the data do not see goes to the prior too (CoMs and inertias of
-    # bodies the log cannot resolve, e.g. links seen only through the floating-base rows)
-    polished = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept, dtype=int), P0[kept, 0],
-                                   target=P0.ravel())
     if polished is not None:
         cand = polished
     info["prior_mass_bodies"] = [names[k] for k in fix if k in kept]
@@ -125,11 +129,16 @@ def greedy_prefixes(order: list[int], reach) -> tuple[list[int], np.ndarray | No
     return kept, cand
 
 
+def _physical(pi) -> bool:
+    from ..parameters import check_physical_consistency
+
+    return all(r.consistent for r in check_physical_consistency(pi))
+
+
 def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
     """``π̂ + Δ`` with ``B Δ = 0``, the masses ``fix`` at ``m0``, every body's pseudo-inertia ⪰ 0 and
     ``‖S⁻¹Δ‖`` minimal, or with ``target`` ``‖S⁻¹(π̂ + Δ − target)‖`` minimal (a small SDP,
     :mod:`.prior_projection`); None when infeasible, unsolved or not physical."""
-    from ..parameters import check_physical_consistency
     from .prior_projection import solve_prior_projection
 
     y = solve_prior_projection(pi, B, S, fix, m0, target=target)
@@ -137,7 +146,7 @@ def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
         return None
     out = pi + S * y
     out[fix * 10] = m0
-    return None if not all(r.consistent for r in check_physical_consistency(out)) else out
+    return out if _physical(out) else None
 
 
 def urdf_comment(info: dict) -> str | None:
