@@ -62,6 +62,7 @@ EXEMPT = {
     "report/tables": ("test_cli_identify.py", "the console tables identify prints"),
     "cli/applied_model": ("test_realtime_monitor.py", "the robot and model that predict/monitor/stream apply"),
     "cli/blas": ("test_speed.py", "BLAS threads per command"),
+    "cli/startup": ("test_speed.py", "NumPy modules deferred before SciPy's import, for every command"),
 }
 # CLI modules that only wrap studies (benchmark/experiment commands): they move with the studies
 # CLI helpers shared by every command: exercised by every CLI test, the error-language table first

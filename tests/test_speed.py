@@ -139,6 +139,20 @@ def test_cli_import_loads_no_heavy_package():
     assert out.strip() == "[]", out
 
 
+def test_a_command_defers_the_numpy_modules_scipy_would_load_unused():
+    """Issue 28: SciPy's import copies every public NumPy name, loading numpy.f2py and numpy.testing
+    (~0.05 s); a command registers them as lazy modules first. Their code runs only on first use, and
+    then gives the same objects to NumPy, SciPy's copy and an import."""
+    code = ("import sys\nfrom sensorless.cli.startup import before_scipy\nbefore_scipy()\nimport scipy.linalg\n"
+            "ran = sorted(m for m in sys.modules if m.startswith(('numpy.testing.', 'numpy.f2py.', 'unittest')))\n"
+            "import numpy, numpy.testing as t, scipy._lib.array_api_compat.numpy as xp\n"
+            "t.assert_allclose(scipy.linalg.solve(numpy.eye(2), [1.0, 2.0]), [1.0, 2.0])\n"
+            "print(ran, xp.testing is numpy.testing is t, xp.f2py is numpy.f2py, 'numpy.testing._private.utils' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["[]", "True", "True", "True"], out.stdout
+
+
 def test_lazy_exports_resolve_and_list():
     code = ("import sys, sensorless, sensorless.identification as ident, sensorless.data as data, sensorless.robots as rb; "
             "assert 'cvxpy' not in sys.modules; f = ident.solve_lmi; assert 'cvxpy' not in sys.modules; "

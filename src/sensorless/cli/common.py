@@ -19,6 +19,7 @@ from .console import err_console
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
 from .blas import blas_threads_for_command
+from .startup import before_scipy
 from .flags import cli_words
 from .logs import log_trims, trim_option
 from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, current_context
@@ -112,6 +113,7 @@ def guarded(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        before_scipy()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _show_warning

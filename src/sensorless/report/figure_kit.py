@@ -14,9 +14,13 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["envelope_indices", "figure_legend", "in_view_locator", "new_figure", "paired_axes", "runs_of", "save_figure", "shade_intervals", "stride_indices"]
+__all__ = ["TEXT_RC", "envelope_indices", "figure_legend", "in_view_locator", "new_figure", "paired_axes", "runs_of",
+           "render_png", "save_figure", "shade_intervals", "stride_indices", "text_style"]
 
 DPI = 110
+#: Text rendered without FreeType's hinting: ~10 % less per figure of ~80 labels, no visible change at
+#: 110 dpi. Set around each drawing (:func:`text_style`), so matplotlib's settings elsewhere stay the user's.
+TEXT_RC = {"text.hinting": "no_hinting"}
 
 
 def new_figure(width: float, height: float):
@@ -29,13 +33,27 @@ def new_figure(width: float, height: float):
     return fig
 
 
+def text_style():
+    """A context in which figures are drawn with :data:`TEXT_RC` (every drawing of these figures: the
+    text metrics matplotlib caches depend on it)."""
+    import matplotlib
+
+    return matplotlib.rc_context(TEXT_RC)
+
+
+def render_png(fig, fh) -> None:
+    """Draw ``fig`` as PNG into the binary file ``fh``. zlib level 3 instead of PIL's 6: ~20 ms less per
+    figure for ~1 % more bytes."""
+    with text_style():
+        fig.savefig(fh, format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
+
+
 def save_figure(fig, path: "str | Path") -> Path:
-    """Write ``fig`` as PNG to ``path`` atomically (a reader sees the old file or the new one). zlib
-    level 3 instead of PIL's 6: ~20 ms less per figure for ~1 % more bytes."""
+    """Write ``fig`` as PNG (:func:`render_png`) to ``path`` atomically (a reader sees the old file or the new one)."""
     from ..io import atomic_open
 
     with atomic_open(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
+        render_png(fig, fh)
     return Path(path)
 
 
@@ -56,7 +74,9 @@ def paired_axes(fig, n: int, ncols: int, *, left: float, right: float, top: floa
         a = fig.add_subplot(inner[0], sharex=first if share_all else None)
         first = first or a
         b = fig.add_subplot(inner[1], sharex=a)
-        a.tick_params(labelbottom=False, labelsize=7)
+        # the lower panel carries the shared x axis: the upper one draws none (no ticks built: ~10 % of a figure)
+        a.xaxis.set_visible(False)
+        a.tick_params(labelsize=7)
         b.tick_params(labelsize=7)
         for ax in (a, b):  # few ticks on small panels: each tick is a handful of artists to build and draw
             ax.yaxis.set_major_locator(in_view_locator(nbins=4))

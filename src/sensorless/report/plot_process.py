@@ -62,6 +62,7 @@ def prepare_layouts(layouts: list, stop=lambda: False) -> dict:
     arrive, and a job then only adds its artists. ``{path: (kind, layout, (fig, pairs))}``. Before
     each figure ``stop()`` may end the preparation (the jobs have arrived: drawing them afresh, in two
     processes, is then sooner than preparing the rest here)."""
+    from .figure_kit import text_style
     from .friction_plot import friction_axes
     from .plots import torque_axes
 
@@ -73,7 +74,8 @@ def prepare_layouts(layouts: list, stop=lambda: False) -> dict:
         if stop():
             break
         fig, pairs = make(*layout)
-        fig.canvas.draw()
+        with text_style():
+            fig.canvas.draw()
         out[str(path)] = (kind, tuple(layout), (fig, pairs))
     return out
 
@@ -147,7 +149,7 @@ def warm_up(stop=lambda: False) -> None:
 
     import numpy as np
 
-    from .figure_kit import DPI
+    from .figure_kit import render_png
     from .friction_plot import draw_friction
     from .plots import torque_figure
 
@@ -157,7 +159,7 @@ def warm_up(stop=lambda: False) -> None:
     for k, make in enumerate(kinds):
         if k and stop():
             break
-        make().savefig(io.BytesIO(), format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
+        render_png(make(), io.BytesIO())
 
 
 def draw_jobs(jobs: list, fork: bool | None = None, prepared: dict | None = None) -> None:
