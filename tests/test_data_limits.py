@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import time
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -198,3 +199,18 @@ def test_ten_million_rows_are_refused_within_seconds(tmp_path, suffix, monkeypat
     monkeypatch.setenv("SENSORLESS_MAX_LOG_MEMORY", "4GiB")
     msg = _fast(lambda: read_trajectory(path), limit=60.0)
     assert "log too large for memory" in msg and "4.0 GiB" in msg
+
+
+@pytest.mark.skipif(not Path("/proc/meminfo").exists(), reason="reads /proc/meminfo (Linux)")
+def test_available_memory_is_psutils_figure_without_importing_it():
+    """The budget of a log read comes from /proc/meminfo, the figure psutil reports on Linux (issue 28:
+    psutil's import was ~10 ms of every identify)."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom sensorless.data.limits import available_memory\na = available_memory()\n"
+            "print('psutil' in sys.modules)\nimport psutil\nprint(abs(a - psutil.virtual_memory().available) / a)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    loaded, diff = out.stdout.split()
+    assert loaded == "False" and float(diff) < 0.05  # the same counter, read a few ms apart
