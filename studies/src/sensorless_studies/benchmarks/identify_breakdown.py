@@ -1,7 +1,7 @@
 """Where the wait of `sensorless identify` goes, for `sensorless benchmark identify-e2e`.
 
 * **Imports**, in the order the command makes them: fresh processes importing the CLI, then NumPy
-  and Pinocchio, then SciPy's linalg/sparse, then Clarabel (the LMI's solver; cvxpy is not
+  and Pinocchio (NumPy's f2py and testing deferred, as a command does), then SciPy's linalg/sparse, then Clarabel (the LMI's solver; cvxpy is not
   imported on identify's default path), then the identification modules,
   each set including the previous one; best of ``repeats``; a step's cost is the difference.
 * **Compute**: :func:`sensorless.run.identify_run` and ``Run.save`` on the log in one process after
@@ -20,7 +20,8 @@ import time
 __all__ = ["IMPORT_STEPS", "LABELS", "import_steps", "compute_steps"]
 
 _CLI = "from sensorless.cli import app"
-_NUMPY = _CLI + "; import numpy, pinocchio"
+# a command defers NumPy's f2py/testing before SciPy's import (sensorless.cli.startup) as it starts
+_NUMPY = _CLI + "; from sensorless.cli.startup import before_scipy; before_scipy(); import numpy, pinocchio"
 _SCIPY = _NUMPY + "; import scipy.linalg, scipy.sparse"
 _CLARABEL = _SCIPY + "; import clarabel"
 _OURS = _CLARABEL + ("; import sensorless.run.pipeline, sensorless.identification.identify, sensorless.identification.gamma,"
