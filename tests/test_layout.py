@@ -31,6 +31,7 @@ SRC = TESTS.parent / "src" / "sensorless"
 
 # module (path under src/sensorless, no suffix) -> (test file that exercises it, why it has no file of its own)
 EXEMPT = {
+    "__main__": ("test_speed.py", "the executable's entry point (its GC thresholds)"),
     "lazy": ("test_speed.py", "private PEP 562 helper of every package's __init__; its effect (nothing heavy "
                                "loaded by `import sensorless.cli`) is the start-up test"),
     "outdir": ("test_io.py", "private back end of sensorless.io.atomic_output_dir (manifest, lock, swap)"),

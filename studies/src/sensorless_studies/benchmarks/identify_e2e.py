@@ -1,6 +1,6 @@
 """`sensorless benchmark identify-e2e`: the wall time a user waits for `sensorless identify`.
 
-Each run is a fresh process (``python -c "from sensorless.cli import app; app()" identify ...``,
+Each run is a fresh process (``python -c "from sensorless.__main__ import main; main()" identify ...``,
 this Python, the same ``sys.path``) writing to a new folder; the parent polls for
 ``OUT/result.json`` every millisecond and records two times from the process start: until
 ``result.json`` exists (the output folder appears whole, with its figures: it is renamed into
@@ -34,7 +34,7 @@ from .process_timing import run_timed
 __all__ = ["bench_identify_e2e", "GOALS"]
 
 GOALS = {"hard_seconds": "<= 1.5", "hard_ols_seconds": "<= 1.0", "long_seconds": "<= 2.5 (10^5 samples)"}
-CLI = "from sensorless.cli import app; app()"
+CLI = "from sensorless.__main__ import main; main()"
 
 
 def _timed(argv: list[str], env: dict, result: Path | None) -> dict:

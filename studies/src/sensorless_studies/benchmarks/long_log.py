@@ -73,7 +73,7 @@ def _run(args: list[str], env: dict) -> tuple[float, float]:
     """(wall seconds, peak RSS MiB) of ``sensorless ARGS`` in a fresh process. The peak is GNU time's
     ``%M`` when /usr/bin/time exists (its child is forked from a small process), else ``os.wait4``'s
     (which on Linux also counts this process's memory at the fork)."""
-    cmd = [sys.executable, "-c", "from sensorless.cli import app; app()", *args]
+    cmd = [sys.executable, "-c", "from sensorless.__main__ import main; main()", *args]
     timer = Path("/usr/bin/time")
     t = time.perf_counter()
     if timer.exists():

@@ -143,7 +143,7 @@ def run_identify(log: Path, out: Path, robot: Robot, robot_spec: str, case, flag
     from sensorless.identification.artifact import load_model_folder
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    argv = [sys.executable, "-c", "from sensorless.cli import app; app()", "identify", "--robot", robot_spec,
+    argv = [sys.executable, "-c", "from sensorless.__main__ import main; main()", "identify", "--robot", robot_spec,
             "--data", str(log), "--out", str(out), "--force", *flags]
     res = {"command": " ".join(["sensorless", *argv[3:]]), **_timed(argv, out / "result.json", env, timeout)}
     if "error" in res:

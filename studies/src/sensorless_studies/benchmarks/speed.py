@@ -208,7 +208,7 @@ def bench_contact_speed(n: int, n_compress: int, repeats: int) -> dict:
 
 def _cli(args: list[str], env: dict) -> float:
     t = time.perf_counter()
-    r = subprocess.run([sys.executable, "-c", "from sensorless.cli import app; app()", *args], env=env,
+    r = subprocess.run([sys.executable, "-c", "from sensorless.__main__ import main; main()", *args], env=env,
                        capture_output=True, text=True)
     dt = time.perf_counter() - t
     if r.returncode != 0:
@@ -224,14 +224,14 @@ def bench_startup(runs: int, env: dict) -> dict:
     """``sensorless --help`` and ``python -c pass`` as subprocesses, interleaved ``runs`` times (after one
     warm-up of each): best and median wall time of each and their ratios, so a loaded machine shows as a
     slower ``python -c pass`` rather than a slower CLI. The console script next to this Python is used when
-    present (what a user types), else ``python -c "from sensorless.cli import app; app()"``."""
+    present (what a user types), else ``python -c "from sensorless.__main__ import main; main()"``."""
     import importlib.util
 
     import sensorless.cli
 
     script = Path(sys.executable).with_name("sensorless")
-    help_cmd = [str(script), "--help"] if script.exists() else [sys.executable, "-c", "from sensorless.cli import app; app()",
-                                                                 "--help"]
+    help_cmd = ([str(script), "--help"] if script.exists()
+                else [sys.executable, "-c", "from sensorless.__main__ import main; main()", "--help"])
     cmds = {"help": help_cmd, "python_pass": [sys.executable, "-c", "pass"]}
     times: dict[str, list[float]] = {k: [] for k in cmds}
     for k in range(runs + 1):
@@ -246,7 +246,7 @@ def bench_startup(runs: int, env: dict) -> dict:
     h, p = _stats(times["help"]), _stats(times["python_pass"])
     cached = importlib.util.cache_from_source(sensorless.cli.__file__)
     return {
-        "command": "sensorless --help" if script.exists() else "python -c 'from sensorless.cli import app; app()' --help",
+        "command": "sensorless --help" if script.exists() else "python -c 'from sensorless.__main__ import main; main()' --help",
         "help_seconds": h, "python_pass_seconds": p,
         "help_over_python_pass": {"best": h["best"] / p["best"], "median": h["median"] / p["median"]},
         "runs": runs, "bytecode_cached": os.path.exists(cached),

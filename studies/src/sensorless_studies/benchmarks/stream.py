@@ -35,7 +35,7 @@ __all__ = ["bench_stream"]
 
 
 def _cli(args: list[str], env: dict) -> None:
-    r = subprocess.run([sys.executable, "-c", "from sensorless.cli import app; app()", *args], env=env,
+    r = subprocess.run([sys.executable, "-c", "from sensorless.__main__ import main; main()", *args], env=env,
                        capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"sensorless {' '.join(args)} failed: {r.stderr.strip()[-800:]}")
@@ -134,7 +134,7 @@ def _run(records: list[bytes], layout, rate: float, fmt: str, frame, work: Path,
     rx.bind(("127.0.0.1", 0))
     rx.settimeout(0.2)
     port_in = _free_port()
-    cmd = [sys.executable, "-c", "from sensorless.cli import app; app()", "stream", "--robot", "ur5", "--model",
+    cmd = [sys.executable, "-c", "from sensorless.__main__ import main; main()", "stream", "--robot", "ur5", "--model",
            str(work / "id"), "--thresholds", str(work / "mon"), "--input", f"udp://127.0.0.1:{port_in}", "--output",
            f"udp://127.0.0.1:{rx.getsockname()[1]}", "--format", fmt, "--summary", str(work / "stream.json")]
     if frame:
