@@ -35,6 +35,7 @@ __all__ = [
     "OUTLIER_THRESHOLD",
     "OUTLIER_MODES",
     "Outlier",
+    "SCALE_SAMPLES",
     "robust_scale",
     "find_outliers",
     "check_outliers",
@@ -43,6 +44,8 @@ __all__ = [
 ]
 
 OUTLIER_THRESHOLD = 1000.0
+#: at most about this many rows enter :func:`robust_scale`'s medians and percentiles
+SCALE_SAMPLES = 200_000
 OUTLIER_MODES = ("error", "drop", "keep")
 _MAD_TO_SIGMA = 1.4826
 _FIELDS = ("q", "v", "a", "tau", "base_q", "base_v", "base_a")
@@ -69,8 +72,11 @@ class Outlier:
 
 
 def robust_scale(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column median ``m`` and robust scale ``s`` of ``x`` (N, k) (module docstring)."""
+    """Per-column median ``m`` and robust scale ``s`` of ``x`` (N, k) (module docstring), from every k-th
+    row beyond :data:`SCALE_SAMPLES` (the threshold is 1000 scales: a ~0.3 % error in them moves no
+    decision, and a 10⁶-sample column costs ~5 ms instead of ~23 ms)."""
     x = np.asarray(x, dtype=float)
+    x = x[:: -(-len(x) // SCALE_SAMPLES)] if len(x) else x
     m = np.median(x, axis=0)
     mad = _MAD_TO_SIGMA * np.median(np.abs(x - m), axis=0)
     p1, p99 = np.percentile(x, [1.0, 99.0], axis=0)

@@ -46,7 +46,7 @@ import numpy as np
 from ..errors import DataError
 from .savgol import savgol_coeffs, savgol_filter
 
-__all__ = ["CREEP_SECONDS", "CREEP_SIGMAS", "RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "creep_drift", "rest_info", "rest_mask", "rest_state",
+__all__ = ["CREEP_SECONDS", "CREEP_SIGMAS", "NOISE_SAMPLES", "RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "creep_drift", "rest_info", "rest_mask", "rest_state",
            "signal_noise", "zero_at_rest"]
 
 REST_SIGMAS = 5.0
@@ -57,10 +57,17 @@ CREEP_SECONDS = 1.0
 REST_MODES = ("auto", "off")
 
 
+#: at most about this many residuals enter :func:`signal_noise`'s MAD (every k-th of a longer log): its
+#: relative standard error is then ~0.3 %, and a 10⁶-sample log's scan spends ~5 ms per column on the
+#: two medians instead of ~27 ms
+NOISE_SAMPLES = 200_000
+
+
 def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndarray:
     """Per-column white-noise std of ``x`` (N, n) from its Savitzky–Golay residual r = x − S x:
     var r = σ² (1 − c₀), c₀ the smoother's centre coefficient, so σ̂ = 1.4826 MAD(r) / √(1 − c₀)
-    (robust to the motion's own residual at reversals)."""
+    (robust to the motion's own residual at reversals); the MAD of every k-th residual beyond
+    :data:`NOISE_SAMPLES`."""
     x = np.asarray(x, dtype=float)
     if x.ndim == 1:
         x = x[:, None]
@@ -69,6 +76,7 @@ def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndar
     r = x - savgol_filter(x, window, polyorder, axis=0, mode="interp")
     c0 = savgol_coeffs(window, polyorder)[window // 2]
     r = r[window:-window] if x.shape[0] > 3 * window else r
+    r = r[:: -(-len(r) // NOISE_SAMPLES)]
     mad = np.median(np.abs(r - np.median(r, axis=0)), axis=0)
     return 1.4826 * mad / np.sqrt(1.0 - c0)
 
