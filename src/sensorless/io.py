@@ -33,6 +33,7 @@ import platform
 import secrets
 import shutil
 import signal
+import sys
 import threading
 from pathlib import Path
 from typing import IO, Iterable, Iterator
@@ -51,6 +52,7 @@ __all__ = [
     "check_output_file",
     "jsonable",
     "read_json",
+    "VERSIONED",
     "versions",
     "write_json_atomic",
     "write_npz_atomic",
@@ -58,22 +60,36 @@ __all__ = [
 
 
 # ---- version info -----------------------------------------------------------------------
+#: (the record's key, the distribution, its import name) of the packages whose versions a result names
+VERSIONED = (("sensorless", "sensorless", "sensorless"), ("pin", "pin", "pinocchio"), ("numpy", "numpy", "numpy"),
+             ("scipy", "scipy", "scipy"), ("cvxpy", "cvxpy", "cvxpy"), ("clarabel", "clarabel", "clarabel"))
+
+
 def versions() -> dict:
-    """Python and key package versions (for result files and manifests)."""
-    return dict(_versions())
-
-
-@functools.lru_cache(maxsize=1)
-def _versions() -> dict:
-    import importlib.metadata as md  # reads every installed package's metadata: ~40 ms, once per process
-
+    """Python's version and those of the key packages (:data:`VERSIONED`) this process has loaded: a
+    package not loaded had no part in the result (cvxpy when the LMI went to Clarabel directly). Each
+    module's ``__version__``, else its distribution's metadata (``importlib.metadata`` reads every
+    installed package's: ~30 ms, paid only then)."""
     out = {"python": platform.python_version()}
-    for pkg in ("sensorless", "pin", "numpy", "scipy", "cvxpy", "clarabel"):
-        try:
-            out[pkg] = md.version(pkg)
-        except md.PackageNotFoundError:
-            pass
+    for key, dist, module in VERSIONED:
+        m = sys.modules.get(module)
+        if m is None:
+            continue
+        v = getattr(m, "__version__", None)
+        v = v if isinstance(v, str) else _dist_version(dist)
+        if v is not None:
+            out[key] = v
     return out
+
+
+@functools.lru_cache(maxsize=None)
+def _dist_version(dist: str) -> str | None:
+    import importlib.metadata as md
+
+    try:
+        return md.version(dist)
+    except md.PackageNotFoundError:
+        return None
 
 
 # ---- files -----------------------------------------------------------------------------
