@@ -39,7 +39,6 @@ EXEMPT = {
     "model_checks": ("test_hardening.py", "issue-12 file: bad URDF values are one-line RobotModelErrors"),
     "data/gains": ("test_friction_gains.py", "issue-17 file (gains maps, drive gains from a pair)"),
     "data/integral_filter": ("test_regressor_integral.py", "the filter of the acceleration-free regressor"),
-    "data/outliers": ("test_hardening.py", "issue-12 regressions (gross outliers: error / drop)"),
     "data/periodicity": ("test_identification_lmi.py", "period detection of the averaged-period validation"),
     "data/chunks": ("test_identification_streamed.py", "chunked reading behind the streamed identification"),
     "data/arrays": ("test_data.py", "the NPZ/HDF5 reader behind read_trajectory (its NPZ and HDF5 tests)"),
