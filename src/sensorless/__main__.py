@@ -25,7 +25,8 @@ def main() -> None:
     import gc
     import sys
 
-    if sys.argv[1:2] not in ([c] for c in REAL_TIME_COMMANDS):
+    command = sys.argv[1] if len(sys.argv) > 1 else None
+    if command not in REAL_TIME_COMMANDS:
         gc.set_threshold(*GC_THRESHOLDS)
     from .cli import app
 
