@@ -11,7 +11,7 @@ so identification tests compare against physics, not against the regressor itsel
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -19,8 +19,8 @@ import pinocchio as pin
 from .data.trajectory import Trajectory
 from .robot import Robot
 
-__all__ = ["NoiseSpec", "TruthModel", "add_white_noise", "map_body_inertias", "perturbed_truth", "streamed_fourier_log",
-           "synthetic_trajectory"]
+__all__ = ["NoiseSpec", "RealArtefacts", "TruthModel", "add_white_noise", "map_body_inertias", "one_joint_at_a_time",
+           "perturbed_truth", "rest_segments", "streamed_fourier_log", "synthetic_trajectory", "with_real_artefacts"]
 
 
 @dataclass
@@ -153,3 +153,101 @@ def streamed_fourier_log(
         q, v, a = fourier.evaluate(t)
         motion = Trajectory(t=t, q=q, v=v, a=a, joint_names=fourier.joint_names, source="<stream>")
         yield synthetic_trajectory(truth, motion, noise_std=noise_std, rng=rng)
+
+
+@dataclass(frozen=True)
+class RealArtefacts:
+    """What a real recording adds to a clean simulated log (issues #39/#40: the honesty layer must hold on these).
+
+    - ``q_step``: encoder quantum (rad, or m on a prismatic joint; a scalar or per joint): q ← step·round(q/step);
+    - ``decimals``: q and v written with this many decimals (a UR logs 4): x ← round(x, decimals);
+    - ``gain_error``: the logged torque is (1 + e)·τ per joint (a current times a torque constant off by e);
+    - ``holding``: on a joint at rest (|v| < ``rest_speed``) the drive holds an extra torque drawn once per
+      rest segment from U(−holding, holding) (stiction and holding current: the position loop's integrator);
+    - ``stiffness``: unmodelled joint flexibility; the encoder sits on the motor side, so the logged
+      q = q_link + τ/k (N·m/rad);
+    - ``jitter``: the time stamps carry white noise of this std (s); the samples are where they were.
+    """
+
+    q_step: float | np.ndarray = 0.0
+    decimals: int | None = None
+    gain_error: float | np.ndarray = 0.0
+    holding: float | np.ndarray = 0.0
+    rest_speed: float = 1e-3
+    stiffness: float | np.ndarray = np.inf
+    jitter: float = 0.0
+
+    def settings(self) -> dict:
+        """The artefacts as plain values (benchmark records carry them)."""
+        def plain(x):
+            a = np.asarray(x, float)
+            return a.tolist() if a.ndim else (None if not np.isfinite(a) else float(a))
+        return {"q_step": plain(self.q_step), "decimals": self.decimals, "gain_error": plain(self.gain_error),
+                "holding": plain(self.holding), "rest_speed": self.rest_speed, "stiffness": plain(self.stiffness),
+                "jitter": self.jitter}
+
+
+def rest_segments(still: np.ndarray) -> list[slice]:
+    """The runs of True in a boolean vector, as slices."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+    return [slice(a, b) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def with_real_artefacts(traj: Trajectory, artefacts: RealArtefacts, rng: np.random.Generator | int = 0,
+                        joints: Sequence[str] | None = None) -> Trajectory:
+    """``traj`` as a lab would have logged it (:class:`RealArtefacts`), on ``joints`` (default: every column).
+
+    The true torque is used for the holding torque and the deflection; the returned log keeps v̇ only
+    when the input had none (a real log has no measured acceleration: ``a`` is dropped). Its provenance
+    records the artefacts."""
+    rng = np.random.default_rng(rng)
+    cols = [traj.joint_names.index(j) for j in joints] if joints is not None else list(range(traj.q.shape[1]))
+    q, v = traj.q.copy(), None if traj.v is None else traj.v.copy()
+    tau = None if traj.tau is None else traj.tau.copy()
+    qs, vs = q[:, cols], None if v is None else v[:, cols]
+    if tau is not None:
+        ts = tau[:, cols]
+        if np.any(np.asarray(artefacts.holding) > 0) and vs is not None:
+            hold = np.broadcast_to(np.asarray(artefacts.holding, float), (len(cols),))
+            for k in range(len(cols)):
+                for seg in rest_segments(np.abs(vs[:, k]) < artefacts.rest_speed):
+                    ts[seg, k] += rng.uniform(-hold[k], hold[k])
+        k_joint = np.broadcast_to(np.asarray(artefacts.stiffness, float), (len(cols),))
+        qs = qs + np.where(np.isfinite(k_joint), ts / np.where(np.isfinite(k_joint), k_joint, 1.0), 0.0)
+        ts = ts * (1.0 + np.broadcast_to(np.asarray(artefacts.gain_error, float), (len(cols),)))
+        tau[:, cols] = ts
+    step = np.broadcast_to(np.asarray(artefacts.q_step, float), (len(cols),))
+    qs = np.where(step > 0, np.round(qs / np.where(step > 0, step, 1.0)) * step, qs)
+    if artefacts.decimals is not None:
+        qs = np.round(qs, artefacts.decimals)
+        if vs is not None:
+            vs = np.round(vs, artefacts.decimals)
+    q[:, cols] = qs
+    if v is not None:
+        v[:, cols] = vs
+    t = traj.t + (rng.normal(0.0, artefacts.jitter, traj.t.shape) if artefacts.jitter > 0 else 0.0)
+    if artefacts.jitter > 0:
+        t = np.maximum.accumulate(t)  # stamps stay ordered: a logger never writes them backwards
+    prov = dict(traj.provenance, artefacts=artefacts.settings())
+    return traj.with_(t=t, q=q, v=v, a=None, tau=tau, provenance=prov)
+
+
+def one_joint_at_a_time(t: np.ndarray, q0: np.ndarray, amplitude: float | np.ndarray = 0.6,
+                        period: float = 4.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A single-joint protocol (q, v, v̇): joint k sweeps q0_k + A_k·(1 − cos 2πt/T)/2 over its share of
+    ``t`` (whole periods near T) while every other joint is held at ``q0`` (the logs that move one joint at a time)."""
+    n = len(q0)
+    amp = np.broadcast_to(np.asarray(amplitude, float), (n,))
+    q = np.tile(np.asarray(q0, float), (len(t), 1))
+    v, a = np.zeros_like(q), np.zeros_like(q)
+    share = np.array_split(np.arange(len(t)), n)
+    for k, idx in enumerate(share):
+        if len(idx) < 2:
+            continue
+        tk = t[idx] - t[idx[0]]
+        span = t[min(idx[-1] + 1, len(t) - 1)] - t[idx[0]]
+        w = 2 * np.pi * max(1, round(span / period)) / span  # whole periods: the joint ends where it began, at rest
+        q[idx, k] += amp[k] * (1 - np.cos(w * tk)) / 2
+        v[idx, k] = amp[k] * w * np.sin(w * tk) / 2
+        a[idx, k] = amp[k] * w * w * np.cos(w * tk) / 2
+    return q, v, a
