@@ -109,8 +109,10 @@ def test_records_roundtrip_and_bad_records():
         lay.parse_csv(b"1,0.1,1,2,3,x,5,6\n", 4, buf)
     with pytest.raises(DataError, match=r"record 2: 7 comma-separated fields, expected 8"):
         lay.parse_csv(b"1,0.1,1,2,3,5,6\n", 2, buf)
-    with pytest.raises(DataError, match=r"record 3, field tau\[a\]: nan is not finite"):
-        lay.parse_binary(lay.encode_input(1, 0.1, [1, 2], [3, 4], [float("nan"), 6], "binary"), 3, buf)
+    with pytest.raises(DataError, match=r"record 3, field t: nan is not finite"):
+        lay.parse_binary(lay.encode_input(1, float("nan"), [1, 2], [3, 4], [5, 6], "binary"), 3, buf)
+    lay.parse_binary(lay.encode_input(1, 0.1, [1, 2], [3, 4], [float("nan"), 6], "binary"), 3, buf)  # the guard's
+    assert np.isnan(buf[6])
     with pytest.raises(DataError, match="record 5: 10 bytes, expected 64"):
         lay.parse_binary(b"0123456789", 5, buf)
     rec = np.array([3, 0.25, 1.5, -2.0, 0.1, 0.2, 0.3, 1.0])

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Optional
@@ -12,7 +11,7 @@ import typer
 
 from ..errors import OptionError
 from .applied_model import MODEL_HELP, robot_and_model
-from .common import app, guarded, model_options, robot_source_options
+from .common import app, guarded, model_options, output_file, path_inputs, robot_source_options
 from .frames import frame_options
 from .options import ForceReference
 
@@ -43,7 +42,9 @@ def stream(
                                                  "[s] (default: the monitor's --min-duration)"),
     skip_bad: bool = typer.Option(False, "--skip-bad", help="count and skip bad records instead of stopping at the first"),
     allow_remote: bool = typer.Option(False, "--allow-remote", help="allow a UDP address that is not the loopback"),
-    summary: Optional[Path] = typer.Option(None, help="also write the summary (counts, latency, settings) as JSON here"),
+    summary: Optional[Path] = typer.Option(None, help="also write the summary (counts, latency, settings) as JSON here "
+                                           "(atomically; never inside the model or thresholds folder)"),
+    force: bool = typer.Option(False, help="replace --summary if it exists"),
 ) -> None:
     """Monitor a live robot: read samples (seq, t, q, v, τ) from stdin, a UDP socket on the loopback or a
     ROS 2 topic; write per sample the external torque, the force at --frame and the contact flag.
@@ -64,6 +65,8 @@ def stream(
         raise OptionError(f"--output {output}: ROS 2 topics are published by a ros2: --input only")
     if src.kind == "ros2" and dst.kind == "udp":
         raise OptionError("--input ros2:… publishes on ROS 2 topics: leave --output out or give ros2:PREFIX")
+    if summary is not None:  # refused before the first sample, not after the stream
+        output_file(summary, path_inputs(robot, model, thresholds), force)
     th = StreamThresholds.read(thresholds)
     if min_duration is not None:
         if not min_duration >= 0:
@@ -82,15 +85,14 @@ def stream(
     sys.stderr.write(stats.line() + "\n")
     sys.stderr.flush()
     if summary is not None:
-        from ..io import jsonable
+        from ..io import write_json_atomic
 
         doc = {**stats.to_dict(), "model": str(art.path), "model_label": art.label, "robot": robot,
                "input": str(src), "output": str(dst), "format": fmts, "frame": frame,
                "reference": str(reference) if frame else None, "records": mon.layout.describe(),
-               "thresholds": th.settings(),
+               "thresholds": th.settings(), "sample_bounds": mon.guard.settings(),
                "observer_step": "compiled" if mon.observer.compiled else f"python ({mon.observer.compiled_reason})"}
-        summary.parent.mkdir(parents=True, exist_ok=True)
-        summary.write_text(json.dumps(jsonable(doc), indent=2, allow_nan=False))
+        write_json_atomic(doc, output_file(summary, path_inputs(robot, model, thresholds), force))
 
 
 def _same_model(th, model_path, given) -> None:

@@ -27,7 +27,6 @@ interpolated: the observer takes the next sample as the following one.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +34,7 @@ import numpy as np
 
 from ..errors import DataError, OptionError, setting
 
-__all__ = ["StreamMonitor", "StreamThresholds"]
+__all__ = ["RANGES", "StreamMonitor", "StreamThresholds"]
 
 
 @dataclass(frozen=True)
@@ -76,24 +75,40 @@ class StreamThresholds:
                       doc.get("model"))
         except (KeyError, TypeError, ValueError) as e:
             raise DataError(f"{source} is not a monitor.json from `sensorless monitor` ({type(e).__name__}: {e})") from None
-        sizes = {len(a) for a in (out.sigma_rest, out.sigma_move, out.bias_move, out.centre, out.band)}
-        if sizes != {len(names)} or not (out.dt > 0 and out.k > 0):
-            raise DataError(f"{source}: inconsistent thresholds ({len(names)} rows, sizes {sorted(sizes)}, dt {out.dt}, "
-                            f"k {out.k})")
+        sizes = {len(a) for a in (out.sigma_rest, out.sigma_move, out.bias_move, out.centre, out.band, out.rest_speed)}
+        if sizes != {len(names)}:
+            raise DataError(f"{source}: inconsistent thresholds ({len(names)} rows, sizes {sorted(sizes)})")
+        out.validate()
         return out
+
+    def validate(self) -> None:
+        """DataError naming the file and the value when a threshold is outside its range (:data:`RANGES`): a
+        tampered ``k = 1e308`` or ``warmup_s = 1e300`` would silently switch detection off."""
+        for key, (lo, hi, nan_ok) in RANGES.items():
+            vals = np.atleast_1d(np.asarray(getattr(self, key), float))
+            for j, x in enumerate(vals):
+                if (nan_ok and np.isnan(x)) or (np.isfinite(x) and lo <= x <= hi):
+                    continue
+                row = f" (row {self.names[j]})" if vals.size > 1 and j < len(self.names) else ""
+                raise DataError(f"{self.source}: {key} = {x:.6g}{row} is outside [{lo:g}, {hi:g}]; not a threshold "
+                                "file `sensorless monitor` writes: run it again")
+        if self.gain * self.dt > 1.0:
+            raise DataError(f"{self.source}: observer gain {self.gain:g} 1/s with dt {self.dt:g} s (K·dt > 1) is not "
+                            "a stable observer `sensorless monitor` writes: run it again")
 
     @classmethod
     def read(cls, path: str | Path) -> "StreamThresholds":
         """From ``monitor.json`` or the folder ``sensorless monitor --out`` wrote."""
+        from ..io import read_json
+
         p = Path(path)
         p = p / "monitor.json" if p.is_dir() else p
-        if not p.is_file():
+        if not (p.exists() or p.is_symlink()):
             raise OptionError(f"{setting('thresholds', str(path))}: no monitor.json there; run `sensorless monitor` on a contact-free "
                               f"log first (its {setting('out')} folder holds the thresholds)")
-        try:
-            doc = json.loads(p.read_text())
-        except (OSError, ValueError) as e:
-            raise DataError(f"{p}: cannot read it as JSON ({e})") from None
+        doc = read_json(p, "threshold file", error=DataError)
+        if not isinstance(doc, dict):
+            raise DataError(f"{p} is not a monitor.json from `sensorless monitor` (not a JSON object)")
         return cls.from_doc(doc, str(p))
 
     @classmethod
@@ -115,6 +130,14 @@ class StreamThresholds:
                 "static_band": f(self.band), "rest_speed": f(self.rest_speed), "gain": self.gain, "order": self.order,
                 "dt": self.dt, "warmup_s": self.warmup_s, "settle_s": self.settle_s,
                 "min_duration": self.min_duration}
+
+
+#: field → (lowest, highest, NaN allowed) of a threshold file's values (:meth:`StreamThresholds.validate`)
+RANGES = {"k": (1e-3, 100.0, False), "sigma_rest": (0.0, 1e6, False), "sigma_move": (0.0, 1e6, False),
+          "bias_move": (-1e6, 1e6, False), "centre": (-1e6, 1e6, False), "band": (0.0, 1e6, False),
+          "rest_speed": (0.0, 1e3, True), "gain": (1e-6, 1e6, False), "order": (1, 2, False),
+          "damping": (1e-3, 1e3, False), "dt": (1e-6, 1.0, False), "warmup_s": (0.0, 60.0, False),
+          "settle_s": (0.0, 60.0, False), "min_duration": (0.0, 10.0, False)}
 
 
 def streamable(dyn) -> None:
@@ -142,6 +165,7 @@ class StreamMonitor:
                  reference: str = "local_world_aligned") -> None:
         from ..estimation.momentum import MomentumObserver
         from ..estimation.monitored import monitored_rows
+        from .guard import SampleGuard
         from .records import RecordLayout
 
         streamable(dyn)
@@ -166,6 +190,9 @@ class StreamMonitor:
                 raise OptionError(f"{setting('reference', str(reference))}: choose from {sorted(REFERENCES)}")
             self._force_setup()
         self._thr_rest, self._thr_move = th.k * th.sigma_rest, th.k * th.sigma_move
+        # motor coordinates (a transmission) have no limits in the description: the absolute bound only
+        self.guard = SampleGuard.for_robot(None if dyn.transmission else dyn.structure.robot, self.layout.joints,
+                                           self.layout.actuated)
         self.out = np.zeros(self.layout.n_out)
         self.reset()
 
@@ -178,8 +205,9 @@ class StreamMonitor:
                   np.zeros(len(lay.actuated)))  # past the warm-up: the force path too
         self.reset()
 
-    def reset(self) -> None:
-        """Start again: observer state, rest counters and holding levels."""
+    def reset(self, counts: bool = True) -> None:
+        """Start again: observer state, rest counters and holding levels (and the sample, contact and
+        refusal counts unless ``counts`` is False: a sender's restart keeps them)."""
         n = len(self.th.names)
         self.observer.reset()
         self.t0 = None
@@ -191,11 +219,19 @@ class StreamMonitor:
         self._leave_until = np.full(n, -np.inf)
         self.raw = np.zeros(n)  # x = −r on the monitored rows, last sample
         self._over_n = 0  # consecutive samples with a crossing
-        self.samples = self.contact_samples = 0
+        if counts:
+            self.samples = self.contact_samples = 0
+            self.rejected, self.last_rejected = 0, None  # samples the guard kept from the observer, and why
 
     def step(self, seq: float, t: float, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """One sample → the output record ``out`` (module docstring)."""
+        """One sample → the output record ``out`` (module docstring). A sample the guard refuses
+        (:mod:`.guard`: non-finite or out of range) never reaches the observer: its record has NaN
+        estimates and contact 1, and :attr:`rejected` counts it; at start-up, one that fits as degrees
+        or ×1000 torques is a UnitsError."""
         th = self.th
+        why = self.guard.check(q, v, tau)
+        if why is not None:
+            return self._reject(seq, t, q, v, tau, why)
         if self.t0 is None:
             self.t0 = t
         still = np.abs(v[self._vcols]) <= self._speed
@@ -237,6 +273,18 @@ class StreamMonitor:
         flag = self._over_n and (self._over_n - 1) * th.dt >= th.min_duration - 1e-9 * th.dt
         out[-1] = 1.0 if flag else 0.0
         self.contact_samples += flag
+        return out
+
+    def _reject(self, seq: float, t: float, q, v, tau, why: str) -> np.ndarray:
+        """The record of a refused sample (:meth:`step`)."""
+        if self.t0 is None or t - self.t0 < max(self.th.warmup_s, 1.0):
+            self.guard.units(q, v, tau)
+        self.rejected += 1
+        self.last_rejected = f"seq {int(seq)}: {why}"
+        out = self.out
+        out[0], out[1] = seq, t
+        out[2:-1] = np.nan
+        out[-1] = 1.0
         return out
 
     def _holding(self, x: np.ndarray, t: float, start: np.ndarray, settled: np.ndarray) -> None:

@@ -12,7 +12,10 @@ joints [N·m or N]. Output record::
 
 tau_ext the external torque of the ``m`` monitored joints (the signs and rows of
 ``sensorless monitor``; NaN in the observer warm-up), F the force at the frame [N] (NaN where
-unobservable or in the warm-up), contact 1.0 or 0.0.
+unobservable or in the warm-up), contact 1.0 or 0.0. A sample the monitor refuses (non-finite or
+out of range, :mod:`.guard`) is answered with NaN estimates and contact 1.0.
+
+A CSV line is at most :func:`max_line` bytes (longer lines are bad records, never buffered whole).
 
 Two encodings of the same fields:
 
@@ -35,9 +38,14 @@ import numpy as np
 
 from ..errors import DataError
 
-__all__ = ["FORMATS", "RecordLayout"]
+__all__ = ["FORMATS", "RecordLayout", "max_line"]
 
 FORMATS = ("csv", "binary")
+
+
+def max_line(n_fields: int) -> int:
+    """Longest CSV input line read for a record of ``n_fields`` fields [bytes]: 64 per field + 4 KiB."""
+    return 4096 + 64 * n_fields
 
 
 @dataclass(frozen=True)
@@ -80,7 +88,8 @@ class RecordLayout:
     # ---- input --------------------------------------------------------------------------
     def parse_csv(self, line: bytes, index: int, out: np.ndarray) -> bool:
         """Fill ``out`` (n_in,) from one CSV line; False for a comment/blank line; DataError naming
-        the record ``index`` and the field when a value is missing, extra or not a finite number."""
+        the record ``index`` and the field when a value is missing, extra or not a number, or seq or t
+        is not finite (a non-finite q, v or τ is the monitor's to refuse: :mod:`.guard`)."""
         text = line.strip()
         if not text or text.startswith(b"#"):
             return False
@@ -94,21 +103,21 @@ class RecordLayout:
             except ValueError:
                 raise DataError(f"record {index}, field {self.input_fields()[k]}: "
                                 f"{p.decode(errors='replace').strip()!r} is not a number") from None
-            if not math.isfinite(x):
+            if k < 2 and not math.isfinite(x):
                 raise DataError(f"record {index}, field {self.input_fields()[k]}: {x} is not finite")
             out[k] = x
         return True
 
     def parse_binary(self, data: bytes, index: int, out: np.ndarray) -> None:
         """Fill ``out`` from one binary record; DataError naming the record for a wrong size or a
-        non-finite field."""
+        non-finite seq or t."""
         if len(data) != self.in_bytes:
             raise DataError(f"record {index}: {len(data)} bytes, expected {self.in_bytes} "
                             f"({self.n_in} little-endian float64: seq, t, q×{len(self.joints)}, "
                             f"v×{len(self.joints)}, tau×{len(self.actuated)})")
         out[:] = np.frombuffer(data, dtype="<f8")
-        if not np.isfinite(out).all():
-            k = int(np.flatnonzero(~np.isfinite(out))[0])
+        if not np.isfinite(out[:2]).all():
+            k = int(np.flatnonzero(~np.isfinite(out[:2]))[0])
             raise DataError(f"record {index}, field {self.input_fields()[k]}: {out[k]} is not finite")
 
     # ---- output -------------------------------------------------------------------------

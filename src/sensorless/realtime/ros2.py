@@ -119,4 +119,5 @@ def run_ros2(monitor, topic: str, prefix: str, skip_bad: bool = False):  # pragm
         if rclpy.ok():
             rclpy.shutdown()
     stats.contact_samples = monitor.contact_samples
+    stats.out_of_range = monitor.rejected
     return stats
