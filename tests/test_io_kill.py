@@ -27,7 +27,7 @@ import pytest
 
 from sensorless import outdir
 from sensorless.io import atomic_output_dir, atomic_write_text
-from sensorless.outdir import recover_output
+from sensorless.outdir import RUN_MARKER, recover_output
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 FILES = ("a.txt", "sub/b.txt", "sub/c.txt", "d/e/f.txt")
@@ -179,7 +179,7 @@ def test_kill_at_every_point_of_a_force_replacement_keeps_one_complete_output(tm
 def test_stale_lock_of_a_killed_run_is_reused_with_a_warning(tmp_path):
     out = tmp_path / "run"
     _write(out, "old")
-    r = _run(_driver(tmp_path), out, 5, signal.SIGKILL, "exchange", "main")  # killed holding the lock
+    r = _run(_driver(tmp_path), out, 6, signal.SIGKILL, "exchange", "main")  # killed holding the lock
     assert r.returncode == -signal.SIGKILL
     lock = tmp_path / ".run.lock"
     assert lock.exists() and lock.read_text().strip().isdigit()
@@ -192,13 +192,14 @@ def test_missing_out_with_a_complete_previous_tree_is_restored(tmp_path):
     """The state the old two-rename swap left after a kill: OUT gone, .OUT.old-* and .OUT.tmp-* beside it."""
     out = tmp_path / "run"
     _write(out, "old")
-    old = tmp_path / ".run.old-123-abc"
+    old = tmp_path / ".run.old-123-abcdef012345"
     os.rename(out, old)
-    half = tmp_path / ".run.tmp-999999-def"
+    half = tmp_path / ".run.tmp-999999-0123456789ab"
     half.mkdir()
     (half / "a.txt").write_text("half")
+    (half / RUN_MARKER).write_text("999999-0123456789ab\n")  # as a run writes it: the tree is ours
     (tmp_path / ".run.lock").write_text("999999\n")
-    with pytest.warns(UserWarning, match=r"restored the output from \.run\.old-123-abc"):
+    with pytest.warns(UserWarning, match=r"restored the output from \.run\.old-123-abcdef012345"):
         assert recover_output(out) == old.name
     assert _version(out) == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["run"]
     # an incomplete previous tree (a file missing) is never restored
@@ -212,8 +213,8 @@ def test_missing_out_with_a_complete_previous_tree_is_restored(tmp_path):
 
 def test_dead_atomic_write_temporaries_are_removed(tmp_path):
     f = tmp_path / "pred.npz"
-    dead = tmp_path / ".pred.npz.999999-abcdef.tmp"
-    live = tmp_path / f".pred.npz.{os.getpid()}-abcdef.tmp"
+    dead = tmp_path / ".pred.npz.999999-abcdef012345.tmp"
+    live = tmp_path / f".pred.npz.{os.getpid()}-abcdef012345.tmp"
     dead.write_text("x")
     live.write_text("x")
     atomic_write_text(f, "y")

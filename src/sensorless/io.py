@@ -30,7 +30,6 @@ import json
 import math
 import os
 import platform
-import secrets
 import shutil
 import signal
 import sys
@@ -116,7 +115,7 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", encoding: str | None =
     except OSError as exc:
         raise _oserror(path.parent, exc, "cannot create directory") from None
     outdir.remove_dead_temps(path)
-    tmp = path.parent / f".{path.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp"
+    tmp = path.parent / f".{path.name}.{outdir.run_id()}.tmp"
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # kernel applies the umask
     except OSError as exc:
@@ -232,7 +231,7 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
         rp = _real(p)
         if rp == real:
             raise OutputError(f"{path}: is the input file {p}; refusing to overwrite it")
-        folder = rp if rp.is_dir() else rp.parent if (rp.parent / MANIFEST).is_file() else None
+        folder = _input_folder(p)
         if folder is not None and _inside(real, folder) and ((folder / MANIFEST).is_file() or path.exists()):
             raise OutputError(f"{path}: lies inside the input folder {folder}; refusing to write into it "
                               "(choose an output outside it)")
@@ -312,6 +311,15 @@ def read_json(path: str | os.PathLike, what: str = "JSON file", max_bytes: int =
 
 
 # ---- output directories ---------------------------------------------------------------
+def _input_folder(p) -> Path | None:
+    """The folder no output may go into because of the input ``p``: ``p`` itself when it is a directory,
+    the sensorless output folder a file input lies in (``--model run/result.json`` protects ``run/``)."""
+    if p is None:
+        return None
+    rp = _real(p)
+    return rp if rp.is_dir() else rp.parent if (rp.parent / MANIFEST).is_file() else None
+
+
 def _refusal(out: Path, inputs: Iterable[str | os.PathLike]) -> str | None:
     """Why ``out`` must never be created or replaced, or None."""
     raw = os.fspath(out)
@@ -330,6 +338,9 @@ def _refusal(out: Path, inputs: Iterable[str | os.PathLike]) -> str | None:
     for p in inputs:
         if p is not None and _inside(_real(p), real):
             return f"it contains the input {p}"
+        folder = _input_folder(p)
+        if folder is not None and _inside(real, folder):
+            return f"it lies inside the input folder {folder} (choose an output outside it)"
     if out.is_symlink():
         return "it is a symbolic link"
     if out.exists() and not out.is_dir():
@@ -399,10 +410,11 @@ def _terminate_as_exit() -> Iterator[list]:
             signal.signal(sig, old if old is not None else signal.SIG_DFL)
 
 
-def _write_manifest(tmp: Path, command: dict | None) -> None:
+def _write_manifest(tmp: Path, command: dict | None, run: str | None = None) -> None:
     files, dirs = outdir.tree(tmp)
     doc = {
         "tool": TOOL,
+        "run": run,
         "version": versions().get("sensorless"),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "command": command or {},
@@ -459,18 +471,20 @@ def atomic_output_dir(
     with outdir.lock(out), _terminate_as_exit() as terminated:
         outdir.recover_locked(out)
         _check_replaceable(out, force, inputs)  # again, now that no other run can change it
-        token = f"{os.getpid()}-{secrets.token_hex(6)}"
+        token = outdir.run_id()
         tmp = out.parent / f".{out.name}.tmp-{token}"
         try:
             os.mkdir(tmp, 0o777)  # the kernel applies the umask (mkdtemp would give 0700)
+            (tmp / outdir.RUN_MARKER).write_text(token + "\n")  # names it ours, should this run die
         except OSError as exc:
+            shutil.rmtree(tmp, ignore_errors=True)
             raise _oserror(out.parent, exc, "cannot create the output directory in") from None
         try:
             yield tmp
             if terminated:  # the exception was swallowed on the way (see _terminate_as_exit)
                 raise SystemExit(128 + terminated[0])
         except BaseException as exc:
-            shutil.rmtree(tmp, ignore_errors=True)
+            outdir.remove_tree(tmp)
             err = _environment_error(out, tmp, exc)
             if err is None:
                 raise
@@ -479,11 +493,12 @@ def atomic_output_dir(
         # thread a signal reaches; blocking SIGTERM here only keeps the journal fallback tidy
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM, signal.SIGHUP})
         try:
-            _write_manifest(tmp, command)
+            _write_manifest(tmp, command, token)
+            os.unlink(tmp / outdir.RUN_MARKER)  # after the manifest: the tree is always marked as ours
             _check_replaceable(out, force, inputs)
             previous = outdir.swap_in(tmp, out, token)
         except BaseException as exc:
-            shutil.rmtree(tmp, ignore_errors=True)
+            outdir.remove_tree(tmp)
             if isinstance(exc, OSError):
                 raise (_environment_error(out, tmp, exc) or _oserror(out, exc)) from None
             if isinstance(exc, OutputError):
@@ -492,4 +507,4 @@ def atomic_output_dir(
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         if previous is not None:
-            shutil.rmtree(previous, ignore_errors=True)  # a validated previous sensorless output
+            outdir.remove_tree(previous)  # a validated previous sensorless output

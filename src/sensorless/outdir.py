@@ -13,8 +13,16 @@ The swap of a new tree into ``OUT`` (used by :func:`sensorless.io.atomic_output_
   does anything) restores the previous output when a kill fell between them.
 
 "Complete" means: a valid manifest, and every file it lists present with the recorded
-SHA-256. Only complete trees are ever restored. Leftover ``.OUT.tmp-*``/``.OUT.old-*``
-trees and atomic-write ``.tmp`` files of dead processes are removed under the lock.
+SHA-256. Only complete trees are ever restored.
+
+Only names this tool made are ever removed or renamed. Each run has a run id ``PID-HEX``
+(:func:`run_id`); its trees are ``.OUT.tmp-ID``/``.OUT.old-ID`` (:func:`run_tree_id`), and a
+leftover one of a dead process is removed under the lock only when it is a real directory that
+carries the id (:data:`RUN_MARKER` inside a tree being written, ``"run"`` in its manifest) or
+holds a sensorless manifest, or the journal names it. Atomic-write temporaries are
+``.NAME.ID.tmp`` regular files. The lock, the journal and the marker are opened relative to
+their directory with ``O_NOFOLLOW`` (a symlink planted under their name is refused, never
+followed), the lock created with ``O_EXCL``.
 """
 
 from __future__ import annotations
@@ -28,7 +36,9 @@ import hashlib
 import json
 import os
 import platform
+import re
 import secrets
+import stat
 import shutil
 import sys
 import time
@@ -40,6 +50,11 @@ from .errors import OutputError, SensorlessWarning
 
 MANIFEST = ".sensorless-output.json"
 TOOL = "sensorless"
+#: the file holding the run id inside a tree being written (removed before its manifest is written)
+RUN_MARKER = ".sensorless-run"
+_RUN_ID = re.compile(r"(\d+)-([0-9a-f]{12})")
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2
 _AT_FDCWD = -100
 _SYSCALL = {"x86_64": 316, "aarch64": 276, "riscv64": 276, "i686": 353, "i386": 353, "armv7l": 382, "ppc64le": 357,
@@ -62,11 +77,11 @@ def read_manifest(directory: str | os.PathLike) -> dict | None:
 
 def tree(directory: Path) -> tuple[list[str], list[str]]:
     """(every non-directory entry, every real sub-directory) below ``directory``, relative, sorted
-    (symlinks are entries, never followed)."""
+    (symlinks are entries, never followed; a tree's own :data:`RUN_MARKER` is not listed)."""
     files, dirs = [], []
     for root, subdirs, names in os.walk(directory):
         rel = Path(root).relative_to(directory)
-        files += [(rel / f).as_posix() for f in names]
+        files += [(rel / f).as_posix() for f in names if not (root == str(directory) and f == RUN_MARKER)]
         for d in subdirs:
             (files if (Path(root) / d).is_symlink() else dirs).append((rel / d).as_posix())
     return sorted(files), sorted(dirs)
@@ -112,6 +127,59 @@ def is_complete(directory: Path) -> bool:
         changed_file(directory, doc, missing_ok=False) is None
 
 
+# ---- run ids and files opened without following links -----------------------------------
+def run_id() -> str:
+    """A new run id ``PID-HEX`` (12 hex digits): the names of this run's hidden trees and temporaries."""
+    return f"{os.getpid()}-{secrets.token_hex(6)}"
+
+
+def run_tree_id(out: Path, name: str, kinds: tuple[str, ...] = ("tmp", "old")) -> str | None:
+    """The run id of ``name`` when it is ``.OUT.KIND-ID`` of ``out`` (KIND in ``kinds``); else None."""
+    for kind in kinds:
+        prefix = f".{out.name}.{kind}-"
+        if name.startswith(prefix) and _RUN_ID.fullmatch(name[len(prefix):]):
+            return name[len(prefix):]
+    return None
+
+
+def _pid_of(rid: str) -> int:
+    return int(rid.partition("-")[0])
+
+
+def open_nofollow(path: Path, flags: int = os.O_RDONLY, mode: int = 0o666, what: str = "file") -> int:
+    """``openat(dir, name, flags | O_NOFOLLOW)``: a file descriptor of the regular file ``path``
+    (symlinks in its directory part are the user's; its own name is never followed). OSError
+    (ELOOP for a symlink), or OutputError for a FIFO, device, socket or directory there."""
+    dfd = os.open(path.parent if str(path.parent) else ".", os.O_RDONLY | os.O_DIRECTORY | _CLOEXEC)
+    try:
+        fd = os.open(path.name, flags | _NOFOLLOW | _CLOEXEC | getattr(os, "O_NONBLOCK", 0), mode, dir_fd=dfd)
+    finally:
+        os.close(dfd)
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise OutputError(f"{path}: the {what} is not a regular file; refusing to use it (remove it yourself)")
+    return fd
+
+
+def read_nofollow(path: Path, limit: int = 1 << 16) -> str | None:
+    """The text of the regular file ``path`` (at most ``limit`` bytes; never through a symlink), or None."""
+    try:
+        fd = open_nofollow(path)
+    except (OSError, OutputError):
+        return None
+    try:
+        return os.read(fd, limit).decode("utf-8", "replace")
+    finally:
+        os.close(fd)
+
+
+def _symlink_refusal(out: Path, path: Path, what: str, exc: OSError) -> OutputError:
+    if exc.errno == errno.ELOOP or path.is_symlink():
+        return OutputError(f"{out}: {path.name} (the {what}) is a symbolic link; refusing to follow it (remove it "
+                           "yourself)")
+    return OutputError(f"{out.parent}: cannot create the {what} in: {exc.strerror or exc}")
+
+
 # ---- lock --------------------------------------------------------------------------------
 def pid_alive(pid: int) -> bool:
     if pid <= 0:
@@ -144,10 +212,15 @@ def lock(out: Path) -> Iterator[None]:
     """
     path = out.parent / f".{out.name}.lock"
     while True:
-        try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:  # created with O_EXCL; an existing one (a dead run's) opened without following a link
+            try:
+                fd = open_nofollow(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, what="lock file")
+            except FileExistsError:
+                fd = open_nofollow(path, os.O_RDWR, what="lock file")
+        except FileNotFoundError:
+            continue  # removed between the two opens: create it again
         except OSError as exc:
-            raise OutputError(f"{out.parent}: cannot create a lock file in: {exc.strerror or exc}") from None
+            raise _symlink_refusal(out, path, "lock file", exc) from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -183,7 +256,7 @@ def lock(out: Path) -> Iterator[None]:
 
 def _same(fd: int, path: Path) -> bool:
     try:
-        return os.fstat(fd).st_ino == os.stat(path).st_ino
+        return os.fstat(fd).st_ino == os.lstat(path).st_ino
     except FileNotFoundError:
         return False
 
@@ -228,11 +301,13 @@ def _journal(out: Path) -> Path:
 
 
 def _write_journal(journal: Path, text: str) -> None:
-    """Write the journal atomically: a ``.NAME.PID-HEX.tmp`` sibling (removed by
-    :func:`remove_dead_temps` if this process dies) renamed into place."""
-    tmp = journal.parent / f".{journal.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp"
+    """Write the journal atomically: a ``.NAME.ID.tmp`` sibling (created with O_EXCL, never through a
+    link; removed by :func:`remove_dead_temps` if this process dies) renamed into place."""
+    tmp = journal.parent / f".{journal.name}.{run_id()}.tmp"
     try:
-        tmp.write_text(text, encoding="utf-8")
+        fd = open_nofollow(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, what="journal")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
         os.replace(tmp, journal)
     except OSError as exc:
         _unlink(tmp)
@@ -287,18 +362,23 @@ def recover_locked(out: Path) -> str | None:
     planned: dict = {}
     if journal.name in names:
         try:
-            planned = json.loads(journal.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+            planned = json.loads(read_nofollow(journal) or "{}")
+        except ValueError:
             planned = {}
+        if not isinstance(planned, dict):
+            planned = {}
+    # the journal names only trees of this OUT (a plain name with a run id), never a path elsewhere
+    journaled = {str(planned.get(k)) for k in ("old", "new") if isinstance(planned.get(k), str)
+                 and run_tree_id(out, str(planned.get(k))) is not None}
     restored = None
     if not out.exists() and not out.is_symlink():
-        olds = sorted((out.parent / n for n in names if n.startswith(prefix + "old-")),
+        olds = sorted((out.parent / n for n in names if run_tree_id(out, n, ("old",))),
                       key=lambda p: p.stat().st_mtime if p.exists() else 0, reverse=True)
-        candidates = [out.parent / str(planned["old"])] if isinstance(planned.get("old"), str) else []
+        candidates = [out.parent / str(planned["old"])] if str(planned.get("old")) in journaled else []
         candidates += olds
-        candidates += [out.parent / str(planned["new"])] if isinstance(planned.get("new"), str) else []
+        candidates += [out.parent / str(planned["new"])] if str(planned.get("new")) in journaled else []
         for c in candidates:
-            if c.name.startswith(prefix) and "/" not in c.name and is_complete(c):
+            if is_complete(c):
                 os.rename(c, out)
                 restored = c.name
                 warnings.warn(f"{out}: restored the output from {c.name} (a run replacing it was interrupted)",
@@ -306,29 +386,73 @@ def recover_locked(out: Path) -> str | None:
                 break
     for n in names:
         p = out.parent / n
-        if n.startswith((prefix + "tmp-", prefix + "old-")) and n != restored:
-            if p.is_dir() and not p.is_symlink():
-                shutil.rmtree(p, ignore_errors=True)
+        rid = run_tree_id(out, n)
+        if rid is not None and n != restored:
+            if pid_alive(_pid_of(rid)):
+                continue
+            if _ours(p, rid, n in journaled):
+                remove_tree(p)
+            else:  # an empty one (a kill at the end of remove_tree) holds nothing to lose
+                with contextlib.suppress(OSError):
+                    os.rmdir(p)
         elif n.endswith(".tmp") and _dead_temp(n[len(prefix):-4]):
-            _unlink(p)
+            _unlink_regular(p)
     _unlink(journal)
     remove_dead_temps(journal)
     return restored
 
 
+def remove_tree(path: Path) -> None:
+    """Remove a tree of this tool, its marks (:data:`RUN_MARKER`, :data:`MANIFEST`) last: a kill
+    part way leaves a tree that is still recognisably ours."""
+    with contextlib.suppress(OSError):
+        for e in os.scandir(path):
+            if e.name in (RUN_MARKER, MANIFEST):
+                continue
+            if e.is_dir(follow_symlinks=False):
+                shutil.rmtree(e.path, ignore_errors=True)
+            else:
+                _unlink(Path(e.path))
+    for name in (MANIFEST, RUN_MARKER):
+        _unlink(path / name)
+    shutil.rmtree(path, ignore_errors=True)
+
+
+def _ours(tree_path: Path, rid: str, journaled: bool) -> bool:
+    """A real directory this tool wrote: the journal names it, its marker holds ``rid``, or it holds a
+    sensorless manifest (a previous output moved aside, a finished tree not yet swapped in)."""
+    try:
+        if not stat.S_ISDIR(os.lstat(tree_path).st_mode):
+            return False
+    except OSError:
+        return False
+    if journaled:
+        return True
+    marker = read_nofollow(tree_path / RUN_MARKER, 64)
+    if marker is not None and marker.strip() == rid:
+        return True
+    return read_manifest(tree_path) is not None
+
+
 def _dead_temp(middle: str) -> bool:
-    """``PID-HEX`` of an atomic-write temporary file whose process is gone."""
-    pid, _, rest = middle.partition("-")
-    return pid.isdigit() and bool(rest) and not pid_alive(int(pid))
+    """A run id (:func:`run_id`) of an atomic-write temporary file whose process is gone."""
+    return _RUN_ID.fullmatch(middle) is not None and not pid_alive(_pid_of(middle))
+
+
+def _unlink_regular(p: Path) -> None:
+    """Remove ``p`` when it is a regular file (never a directory, link target or special file)."""
+    with contextlib.suppress(OSError):
+        if stat.S_ISREG(os.lstat(p).st_mode):
+            os.unlink(p)
 
 
 def remove_dead_temps(path: Path) -> None:
-    """Remove ``.NAME.PID-HEX.tmp`` files next to ``path`` left by dead processes."""
+    """Remove ``.NAME.ID.tmp`` regular files next to ``path`` left by dead processes."""
     prefix = f".{path.name}."
     with contextlib.suppress(OSError):
         for e in os.scandir(path.parent):
             if e.name.startswith(prefix) and e.name.endswith(".tmp") and _dead_temp(e.name[len(prefix):-4]):
-                _unlink(path.parent / e.name)
+                _unlink_regular(path.parent / e.name)
 
 
 def recover_output(out: str | os.PathLike) -> str | None:
