@@ -14,7 +14,7 @@ import typer
 from typer.core import TyperCommand
 from rich.text import Text
 
-from .console import err_console
+from .console import err_console, strip_control
 
 from ..errors import SensorlessError
 from .channel_options import base_velocity_option, pose_max_gap_option
@@ -22,7 +22,7 @@ from .blas import blas_threads_for_command
 from .startup import before_scipy
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, current_context
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, config_error, current_context
 from ..run.logs import load_logs
 from .plugins import PluginGroup
 
@@ -63,7 +63,9 @@ class MultiValueCommand(TyperCommand):
             if type(exc).__name__ not in ("BadParameter", "MissingParameter", "NoSuchOption", "BadOptionUsage",
                                           "UsageError") or not hasattr(exc, "format_message"):
                 raise
-            _print_line("error:", "bold red", one_line(exc.format_message()).replace("Value error, ", ""))
+            cause = config_error(ctx)  # a broken --config explains the missing option: name the cause
+            _print_line("error:", "bold red", one_line(cli_words(cause)) if cause else
+                        one_line(exc.format_message()).replace("Value error, ", ""))
             raise typer.Exit(2) from None
 
 
@@ -98,13 +100,41 @@ def one_line(text: object, limit: int = 2000) -> str:
 
 def _print_line(label: str, style: str, message: str) -> None:
     # Text, not markup: messages may hold "[...]" (C++ diagnostics, lists) that rich would eat
-    err_console.print(Text.assemble((label, style), " ", message), highlight=False, soft_wrap=True)
+    err_console.print(Text.assemble((label, style), " ", strip_control(message)), highlight=False, soft_wrap=True)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     name = getattr(category, "__name__", "Warning")
     prefix = "" if name in ("UserWarning", "IdentifiabilityWarning", "DataWarning") else f"{name}: "
     _print_line("warning:", "yellow", prefix + one_line(cli_words(message)))
+
+
+def config_named_files() -> list[tuple[str, str]]:
+    """(option, path) of the existing files the running command was given by ``--config`` only (a value
+    from the file's table, not typed on the command line)."""
+    ctx = current_context()
+    if ctx is None or not hasattr(ctx, "get_parameter_source"):
+        return []
+    typed = set()
+    out = []
+    for name, value in ctx.params.items():
+        src = getattr(ctx.get_parameter_source(name), "name", "")
+        for v in (value if isinstance(value, (list, tuple)) else [value]):
+            if not isinstance(v, (str, Path)) or not str(v) or not os.path.isfile(str(v)):
+                continue
+            (out.append((name, str(v))) if src == "DEFAULT_MAP" else typed.add(os.path.realpath(str(v))))
+    return [(n, v) for n, v in out if os.path.realpath(v) not in typed]
+
+
+def withheld(message: str, kind: str) -> str:
+    """``message``, or a line that does not quote it when it names a file only ``--config`` gave: a TOML
+    file someone else wrote must not make the tool print another local file's content."""
+    for name, path in config_named_files():
+        if path in message:
+            flag = "--" + name.replace("_", "-")
+            return (f"{path}: unusable as {flag} ({kind}); named by --config, not on the command line, so the "
+                    f"details (which may quote the file) are not shown: give it as {flag} {path} to see them")
+    return message
 
 
 def guarded(fn):
@@ -123,13 +153,14 @@ def guarded(fn):
             except typer.Exit:
                 raise
             except SensorlessError as exc:
-                _print_line("error:", "bold red", one_line(cli_words(exc)))
+                _print_line("error:", "bold red", withheld(one_line(cli_words(exc)), type(exc).__name__))
                 raise typer.Exit(2) from None
             except Exception as exc:  # noqa: BLE001 - last line of defence for the user
                 if os.environ.get("SENSORLESS_DEBUG"):
                     raise
-                _print_line("internal error:", "bold red",
-                            f"{type(exc).__name__}: {one_line(exc, 500)} (set SENSORLESS_DEBUG=1 for a traceback)")
+                _print_line("internal error:", "bold red", withheld(
+                    f"{type(exc).__name__}: {one_line(exc, 500)} (set SENSORLESS_DEBUG=1 for a traceback)",
+                    type(exc).__name__))
                 raise typer.Exit(3) from None
 
     return wrapper

@@ -19,7 +19,7 @@ from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "GammaSearch", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
            "WrenchOffset", "Rest", "Criterion", "ForceReference", "PayloadMode", "Align", "ALIGN_HELP",
-           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "FrictionState", "config_option", "check_config"]
+           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "FrictionState", "config_option", "check_config", "config_error"]
 
 
 def _choices(name: str, values: tuple[str, ...]) -> type[StrEnum]:
@@ -105,6 +105,12 @@ def current_context():
     except ImportError:  # pragma: no cover - older typer on plain click
         from click import get_current_context
     return get_current_context(silent=True)
+
+
+def config_error(ctx) -> str | None:
+    """The problem :func:`_load_config` found in ``--config`` of the command ``ctx``, or None (a usage
+    error such as a missing ``--data`` is then only its consequence)."""
+    return (getattr(ctx, "meta", None) or {}).get(_CONFIG_ERROR)
 
 
 def check_config() -> None:

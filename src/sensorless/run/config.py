@@ -26,7 +26,8 @@ def _f(default: Any = None, help: str | None = None, *, flags: tuple[str, ...] =
        required: bool = False, cli_only: bool = False):
     """A config field: ``help`` (None: the command's shared option of that name gives it), command-line
     ``flags`` (default ``--name``), ``choices``, ``required`` (no default: the run needs it),
-    ``cli_only`` (consent given on the command line only, never in a file: ``trust_xacro``)."""
+    ``cli_only`` (consent or an override given on the command line only, never in a file: ``trust_xacro``,
+    ``allow_hdf5_external``, ``force``, the ``accept_*`` overrides)."""
     meta = {"help": help, "flags": flags, "choices": choices, "required": required, "cli_only": cli_only}
     if isinstance(default, (list, tuple)):
         return field(default=tuple(default), metadata=meta)
@@ -69,8 +70,8 @@ class LogsConfig:
     skip_bad_rows: bool = _f(False)
     angle_unit: str | None = _f(None, choices=("rad", "deg"))
     max_log_memory: str | None = _f(None)
-    allow_hdf5_external: bool = _f(False)
-    accept_implausible_gains: bool = _f(False)
+    allow_hdf5_external: bool = _f(False, cli_only=True)
+    accept_implausible_gains: bool = _f(False, cli_only=True)
 
 
 @dataclass(frozen=True)
@@ -136,7 +137,7 @@ class SolverConfig:
                                   "sign-flipped or > 100× off the prior model's scale, or the identified model is "
                                   "implausible (a non-finite value, a body heavier than the whole prior robot, a CoM "
                                   "outside its body, a determined total mass > 50 % off the prior's); refused by "
-                                  "default, naming the joint or quantity")
+                                  "default, naming the joint or quantity", cli_only=True)
     urdf_values: str = _f("prior", "model.urdf: prior (a body whose mass the data do not determine gets the prior's "
                           "mass, the identified dynamics unchanged) | regularised (the regularised values of "
                           "result.json)")
@@ -158,7 +159,7 @@ class ExecutionConfig:
                     "training log, with residuals; torques_<limb>.png per limb for a robot with several) and "
                     "friction.png", flags=("--plot/--no-plot",))
     out: Path | None = _f(None, "output directory (written atomically)", required=True)
-    force: bool = _f(False)
+    force: bool = _f(False, cli_only=True)
 
 
 #: group name -> its dataclass, in the order of RunConfig's fields

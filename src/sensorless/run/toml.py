@@ -1,7 +1,7 @@
 """A TOML file onto :class:`~.config.RunConfig`: each key is a field (``-`` or ``_``), top-level
 (``method = "lmi"``) or under its group's table (``[solver]`` ``gamma = 1e-3``); an unknown key is an
-error naming the key and the file. ``trust_xacro`` (consent to run a file's code) is never taken from
-a file."""
+error naming the key and the file. Consent and overrides (``trust_xacro``, ``allow_hdf5_external``,
+``force``, ``accept_*``: the fields marked ``cli_only``) are never taken from a file."""
 
 from __future__ import annotations
 
@@ -15,9 +15,15 @@ __all__ = ["read_run_toml", "run_config_from_toml", "consent_refused"]
 
 
 def consent_refused(path, keys) -> OptionError:
-    """The error for consent fields (``trust_xacro``) found in the file ``path``."""
-    return OptionError(f"{path}: {', '.join(setting('model.' + k) for k in keys)} (consent to run the robot file's "
-                       "code) is taken from the command line only, or a RunConfig made in Python; never from a file")
+    """The error for consent and override fields (``trust_xacro``, ``allow_hdf5_external``, ``force``,
+    ``accept_*``) found in the file ``path``: a file someone else wrote must not give them."""
+    from .config import config_fields
+
+    fields = config_fields()
+    names = ", ".join(setting(f"{fields[k][0]}.{k}" if k in fields else k) for k in keys)
+    return OptionError(f"{path}: {names} (consent to run a file's code, to read external data, to replace an "
+                       "output or to accept implausible data) is taken from the command line only, or a RunConfig "
+                       "made in Python; never from a file")
 
 
 def read_run_toml(path: str | Path, *, keep_consent: bool = False) -> dict:
@@ -31,6 +37,8 @@ def read_run_toml(path: str | Path, *, keep_consent: bool = False) -> dict:
         doc = tomllib.loads(read_small_text(Path(path), "config file", encoding="utf-8"))  # FIFOs refused
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise OptionError(f"{src}: not a readable TOML file ({exc})") from None
+    except (RecursionError, MemoryError):
+        raise OptionError(f"{src}: not a usable TOML file (nested too deeply)") from None
     fields = config_fields()
     flat: dict = {}
     unknown = []
