@@ -40,7 +40,6 @@ EXEMPT = {
     "data/gains": ("test_friction_gains.py", "issue-17 file (gains maps, drive gains from a pair)"),
     "data/integral_filter": ("test_regressor_integral.py", "the filter of the acceleration-free regressor"),
     "data/periodicity": ("test_identification_lmi.py", "period detection of the averaged-period validation"),
-    "data/chunks": ("test_identification_streamed.py", "chunked reading behind the streamed identification"),
     "data/arrays": ("test_data.py", "the NPZ/HDF5 reader behind read_trajectory (its NPZ and HDF5 tests)"),
     "data/bench_log": ("test_cli_friction.py", "the friction command's bench-log reader"),
     "data/containers": ("test_data_limits.py", "declared NPZ/HDF5 sizes checked before reading"),

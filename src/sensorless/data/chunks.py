@@ -24,6 +24,7 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
+from ..errors import DataError, SensorlessError
 from .names import field_of
 
 __all__ = ["CHUNK_FIELDS", "ChunkedLog", "open_chunked"]
@@ -158,8 +159,11 @@ def _h5(path: Path, joint_names) -> "ChunkedLog | None":
         import h5py
     except ImportError:
         return None
+    from .containers import check_hdf5
+
     with h5py.File(path, "r") as h:
         found, shapes, names = {}, {}, None
+        check_hdf5(h, [k for k, obj in h.items() if isinstance(obj, h5py.Dataset)], str(path))  # external data
         for key, obj in h.items():
             if not isinstance(obj, h5py.Dataset):
                 return None
@@ -184,8 +188,14 @@ class _Parquet(ChunkedLog):
         import pyarrow.parquet as pq
 
         names = [c for f in fields for c in self._columns[f]]
+        pf = pq.ParquetFile(self.path, page_checksum_verification=True)
+        try:
+            yield from self._batches(pf, names, fields, size, start, stop)
+        except OSError as exc:  # a page failing its CRC, a truncated file: named, never half a fit
+            raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(self.path)) from None
+
+    def _batches(self, pf, names, fields, size, start, stop):
         s = 0
-        pf = pq.ParquetFile(self.path)
         for batch in pf.iter_batches(batch_size=size, columns=names):
             n = batch.num_rows
             if s + n <= start:
@@ -207,7 +217,7 @@ def _parquet(path: Path, joint_names) -> "ChunkedLog | None":
         return None
     from .tabular import detect_patterns
 
-    pf = pq.ParquetFile(path)
+    pf = pq.ParquetFile(path, page_checksum_verification=True)
     avail = list(pf.schema_arrow.names)
     times = [c for c in avail if field_of(c) == "t"]
     pats = detect_patterns(avail) or {}
@@ -230,8 +240,15 @@ def _parquet(path: Path, joint_names) -> "ChunkedLog | None":
 def open_chunked(path, joint_names: Sequence[str]) -> "ChunkedLog | None":
     """A chunked reader of ``path`` when its format and layout are known (module docstring): exactly
     the fields t, q, v, tau (recognised names), joint columns in ``joint_names`` order (robot
-    order: an npz/h5 ``joint_names`` array must match it); else None."""
+    order: an npz/h5 ``joint_names`` array must match it); else None. A FIFO, device or socket is an
+    InputError before anything opens it, an HDF5 dataset with external or virtual storage one without
+    ``allow_external`` (:func:`~.containers.check_hdf5`), as for the whole-log readers."""
+    from ..io import check_input_file
+
     p = Path(path)
+    if p.is_dir():  # a folder of per-signal files: read whole
+        return None
+    check_input_file(p, "log file")  # a FIFO or device would block or never end
     suffix = p.suffix.lower()
     try:
         if suffix == ".npz":
@@ -240,6 +257,8 @@ def open_chunked(path, joint_names: Sequence[str]) -> "ChunkedLog | None":
             return _h5(p, joint_names)
         if suffix in (".parquet", ".pq"):
             return _parquet(p, joint_names)
+    except SensorlessError:
+        raise
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error):
         return None  # the whole-log readers raise their typed error for the same file
     return None

@@ -16,6 +16,8 @@ with the fix (save ``cellstr(names)`` or ``char(names)``).
 
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -166,13 +168,22 @@ def _decode73(f, ds, key: str, src: str, text: bool) -> Any:
         return [] if text else np.zeros(tuple(int(d) for d in ds[()][::-1]))
     if text:
         if cls == "char":
+            _text_size(ds, key, src, 0)
             return _chars(ds[()])
         if cls == "cell":
-            out = []
+            import h5py
+
+            from .containers import check_hdf5
+
+            out, total = [], _text_size(ds, key, src, 0, what="cell array")
             for ref in np.asarray(ds[()]).T.reshape(-1, order="F"):
                 item = f[ref]
+                if not isinstance(item, h5py.Dataset):
+                    raise DataError(f"'{key}' is a cell array whose items are not text (a group)", src)
+                check_hdf5(f, [item.name], src)  # an item is a dataset too: external storage refused
                 if _matlab_class(item) != "char" and not int(np.asarray(item.attrs.get("MATLAB_empty", 0)).ravel()[0]):
                     raise DataError(f"'{key}' is a cell array whose items are not text ({_matlab_class(item)})", src)
+                total = _text_size(item, key, src, total)
                 out += [""] if int(np.asarray(item.attrs.get("MATLAB_empty", 0)).ravel()[0]) else _chars(item[()])
             return out
         raise DataError(f"'{key}' holds {cls or ds.dtype} values, not text (a char matrix or a cell array of char)",
@@ -180,6 +191,19 @@ def _decode73(f, ds, key: str, src: str, text: bool) -> Any:
     if cls in ("char", "cell", "struct") or ds.dtype.kind in "OV":
         raise DataError(f"'{key}' is a MATLAB {cls or ds.dtype} variable, not a numeric array", src)
     return np.asarray(ds[()]).T
+
+
+#: most characters (or cell items) the joint names of a v7.3 file may declare in all
+MAX_TEXT = 1 << 16
+
+
+def _text_size(ds, key: str, src: str, total: int, what: str = "text") -> int:
+    """``total`` + the declared size of ``ds``; DataError past :data:`MAX_TEXT` (before reading it)."""
+    total += math.prod(ds.shape or ())
+    if total > MAX_TEXT:
+        raise DataError(f"'{key}' declares {total:.3g} characters or items of {what}, more than joint names need "
+                        f"(limit {MAX_TEXT})", src)
+    return total
 
 
 def _chars(codes: np.ndarray) -> list[str]:

@@ -55,6 +55,7 @@ from .filtering import lowpass as _lowpass
 from .filtering import lowpass_channels
 from .filtering import trim as _trim
 from .limits import current_options, read_options
+from .integrity import check_integrity
 from .plausibility import check_gain_plausibility
 from .imu import IMU_KEY
 from .rest import REST_MODES, signal_noise, zero_at_rest
@@ -398,6 +399,7 @@ def _load_log(path, robot, columns, rate, lowpass, savgol_window, decimate, gain
         gains = None
     traj = read_trajectory(path, columns=cols, rate=rate, robot=robot, gains=gains, time_unit=time_unit,
                            allow_duplicate_times=mode != "off", outliers=outliers, trim=trim)
+    check_integrity(traj)  # shuffled torque rows, periodic zero samples: before any filter hides them
     dropped = "outlier" in traj.units.get("processing", "")
     out = prepare(traj, resample="auto" if dropped and mode == "off" else mode, lowpass=lowpass,
                   savgol_window=savgol_window, velocity=velocity or "logged", decimate=decimate or 1,

@@ -80,15 +80,15 @@ def read_parquet_table(path: Path) -> "pd.DataFrame":
     try:
         import pyarrow.parquet as pq
 
-        meta = pq.ParquetFile(path).metadata
+        meta = pq.ParquetFile(path, page_checksum_verification=True).metadata
     except Exception as exc:  # noqa: BLE001  pyarrow raises ArrowInvalid/OSError/... for a bad file
         raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(path)) from None
     from .limits import check_log_size
 
     n = meta.num_rows * meta.num_columns
     check_log_size(str(path), n, f"{meta.num_rows} rows × {meta.num_columns} columns")
-    try:
-        df = pd.read_parquet(path)
+    try:  # pages written with a CRC (pyarrow's write_page_checksum) are verified: a corrupt page is refused
+        df = pd.read_parquet(path, page_checksum_verification=True)
     except Exception as exc:  # pyarrow raises ArrowInvalid/OSError/... for a bad file
         raise DataError(f"not a readable Parquet file ({type(exc).__name__}: {exc})", str(path)) from None
     df.columns = [str(c) for c in df.columns]

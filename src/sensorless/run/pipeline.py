@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from ..errors import DataWarning, setting
 from .backend import Job, backend_for
 from .checks import check_run_config
 from .config import RunConfig
@@ -169,6 +170,7 @@ def _identify(config: RunConfig, bars, say, figures, layouts=None) -> Run:
     from ..errors import setting
     from ..torque_models import CADModel
     from ..identification.weights import weights_option
+    from ..data.integrity import duplicate_logs, unique_logs
     from ..regressor.distributed import expand_paths
     from .figures import figure_jobs, figure_layouts
     from .validation import check_plausible, floating_base_report, held_out_scores, ols_baseline
@@ -178,8 +180,12 @@ def _identify(config: RunConfig, bars, say, figures, layouts=None) -> Run:
     r = _robot(config)
     contact_frames = [f.strip() for f in (m.contact_frames or "").split(",") if f.strip()]
     wrench_frames = wrench_frame_map(list(lg.wrench_frame) or None, contact_frames, r)
-    data = [Path(p) for p in expand_paths([Path(p) for p in lg.data])]
-    validate = [Path(p) for p in lg.validate]
+    data = unique_logs([Path(p) for p in expand_paths([Path(p) for p in lg.data])], setting("logs.data"))
+    validate = unique_logs([Path(p) for p in lg.validate], setting("logs.validate"))
+    for i, j, how in duplicate_logs([*data, *validate]):
+        if i >= len(data) > j:  # a held-out log that is a training log scores the fit on its own samples
+            warnings.warn(f"{setting('logs.validate')} {validate[i - len(data)]} is {how} {data[j]} of "
+                          f"{setting('logs.data')}: its held-out scores are not held out", DataWarning, stacklevel=2)
     trims = LogTrims.parse(list(lg.trim) or None, setting("logs.trim"))
     trims.check([*data, *validate], setting("logs.trim"))
     prep = dict(columns=lg.columns, rate=lg.rate, lowpass=lg.lowpass, savgol_window=lg.savgol_window,
