@@ -143,3 +143,46 @@ def test_trust_xacro_is_not_taken_from_a_config_file(proofs, tmp_path):
     res = runner.invoke(app, ["identify", "--config", str(cfg), "--data", str(tmp_path / "x.csv"),
                               "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "command line only" in res.output and not marker.exists()
+
+
+def _alive_with(arg: str) -> list[int]:
+    import os
+
+    out = []
+    for e in os.listdir("/proc"):
+        if e.isdigit():
+            try:
+                with open(f"/proc/{e}/cmdline", "rb") as fh:
+                    if arg.encode() in fh.read():
+                        out.append(int(e))
+            except OSError:
+                pass
+    return out
+
+
+@pytest.mark.parametrize("block", [False, True])
+def test_trusted_xacro_children_that_setsid_are_killed(tmp_path, monkeypatch, block):
+    """Issue #41 reproducer: a process a trusted xacro file started with `setsid` (its own session and
+    process group) outlived the expansion's limits. The worker is a subreaper that kills every descendant,
+    when the expansion ends and when the time limit stops it."""
+    pytest.importorskip("xacro")
+    import sys
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setenv("SENSORLESS_XACRO_TIMEOUT", "3")
+    tag = f"{371 + int(block)}.{time.time_ns() % 10**6}"
+    code = (f"import subprocess;subprocess.Popen(['setsid','{sys.executable}','-c','import time;time.sleep({tag})'])"
+            + (";import time;time.sleep(60)" if block else "")).replace(")", RP)
+    path = tmp_path / "spawn.urdf.xacro"
+    path.write_text(HEAD.format(name="spawn") + f"""
+  <material name="x$(eval exec(&quot;{code}&quot;,{{}}{RP} or '')"/>
+""" + ARM)
+    if block:
+        with pytest.raises(RobotModelError, match="time limit"):
+            load_robot(path, trust_xacro=True)
+    else:
+        load_robot(path, trust_xacro=True)
+    deadline = time.time() + 5
+    while _alive_with(f"time.sleep({tag})") and time.time() < deadline:
+        time.sleep(0.05)
+    assert not _alive_with(f"time.sleep({tag})")

@@ -17,6 +17,7 @@ Conventions
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -317,6 +318,10 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
 
         if not path.is_file():
             raise RobotModelError(f"{spec}: not a regular file")
+        size = path.stat().st_size
+        if size > MAX_DESCRIPTION_BYTES:
+            raise RobotModelError(f"{spec}: a robot description of {size} bytes is larger than the limit of "
+                                  f"{MAX_DESCRIPTION_BYTES} bytes")
         if suffix == ".urdf":
             check_urdf_file(path)  # one-line errors for malformed XML and impossible values
         else:
@@ -324,16 +329,18 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
 
             check_mjcf_paths(path, packages)  # includes and assets stay in the allowed folders
             check_mjcf_file(path)  # negative masses/inertias, which Pinocchio clamps to 0
+        def parse():
+            if suffix != ".urdf":
+                return pin.buildModelFromMJCF(str(path))
+            if floating_base:
+                return pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+            return pin.buildModelFromUrdf(str(path))
+
+        parse_in_child(parse, spec)  # a parser crash (a segfault on a deep chain) is a typed error here
         captured: list[str] = []
         try:
             with quiet_stderr() as captured:  # urdfdom/MuJoCo print multi-line C++ messages on fd 2
-                if suffix == ".urdf":
-                    if floating_base:
-                        model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
-                    else:
-                        model = pin.buildModelFromUrdf(str(path))
-                else:
-                    model = pin.buildModelFromMJCF(str(path))
+                model = parse()
         except Exception as exc:  # Pinocchio raises bare RuntimeError/ValueError
             detail = " ".join(" ".join(str(exc).split()).split(" | ")) or type(exc).__name__
             extra = f" [{' / '.join(captured[:3])[:300]}]" if captured else ""
@@ -350,6 +357,48 @@ def _build(spec: str, floating_base: bool | None, trust_xacro: bool = False,
             f"(known names: {', '.join(known)})"
         )
     return entry.load(spec, floating_base)
+
+
+#: largest robot description file read [bytes] (a URDF with inline meshes stays far below)
+MAX_DESCRIPTION_BYTES = 32 * 1024 * 1024
+#: seconds a description may take to parse in the child before it is a RobotModelError
+PARSE_TIMEOUT = 120.0
+
+
+def parse_in_child(parse, spec: str, timeout: float = PARSE_TIMEOUT) -> None:
+    """Run ``parse()`` in a forked child first: a crash of the C++ parser (a segfault, an abort) or a
+    parse running past ``timeout`` is a RobotModelError naming ``spec`` instead of killing this
+    process. Where fork is unavailable nothing is checked (the parse runs in-process only)."""
+    import signal
+    import time
+
+    if not hasattr(os, "fork"):
+        return
+    pid = os.fork()
+    if pid == 0:  # the child: parse, report by the exit status only
+        code = 0
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, 2)
+            parse()
+        except BaseException:  # a Python exception is the in-process parse's to report
+            code = 0
+        os._exit(code)
+    deadline = time.monotonic() + timeout
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            raise RobotModelError(f"{spec}: parsing the robot description took more than {timeout:g} s; refused")
+        time.sleep(0.005)
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        name = signal.Signals(sig).name if sig in signal.Signals._value2member_map_ else str(sig)
+        raise RobotModelError(f"{spec}: the robot description parser crashed ({name}) on this file (a very deep "
+                              "or malformed kinematic tree?); refused")
 
 
 def load_robot(

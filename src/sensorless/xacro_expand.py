@@ -92,13 +92,19 @@ def _run_worker(path: Path, timeout: float, memory_mb: int) -> str:
 
 
 def _kill(proc: subprocess.Popen) -> None:
-    """End the worker's whole session (anything a trusted file started) and reap it."""
+    """End the worker: SIGTERM first (it kills every descendant, those that left its process group with
+    ``setsid`` too: :mod:`._xacro_worker`), then SIGKILL to its whole process group, and reap it."""
     if proc.poll() is None:
         try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except OSError:
+            proc.terminate()
+            proc.wait(timeout=2.0)
+        except (OSError, subprocess.TimeoutExpired):
             pass
-        proc.wait()
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)  # whatever is left in its group
+    except OSError:
+        pass
+    proc.wait()
 
 
 def expand_xacro(path: Path, *, trusted: bool = False) -> Path:
