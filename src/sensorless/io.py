@@ -222,6 +222,9 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
     an existing file without ``force``.
     """
     path = Path(path)
+    too_long = _name_too_long(path)
+    if too_long:
+        raise OutputError(f"{path}: cannot be an output file: {too_long}")
     _refuse_non_file(path, f"the output needs a file name (e.g. {path / 'out.npz'})",
                      ", not a regular file; refusing to write over it")
     real = _real(path)
@@ -311,6 +314,27 @@ def read_json(path: str | os.PathLike, what: str = "JSON file", max_bytes: int =
 
 
 # ---- output directories ---------------------------------------------------------------
+#: bytes a hidden temporary name adds to an output's name (``.NAME.tmp-PID-HEX12``, ``.NAME.PID-HEX12.tmp``)
+_HIDDEN_EXTRA = 40
+
+
+def _name_too_long(path: Path) -> str | None:
+    """Why ``path``'s name cannot be an output (not UTF-8, or too long once hidden for the atomic write), or None."""
+    try:
+        os.fspath(path).encode("utf-8")
+    except UnicodeEncodeError:
+        return ("its name is not valid UTF-8 (results record their output's name as text); choose a name of "
+                "printable characters")
+    n = len(os.fsencode(path.name))
+    limit = 255
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        limit = os.pathconf(path.parent if str(path.parent) and path.parent.exists() else ".", "PC_NAME_MAX")
+    if n + _HIDDEN_EXTRA > limit:
+        return (f"its name is {n} bytes long; at most {limit - _HIDDEN_EXTRA} (the file system allows {limit}, "
+                "and the atomic write adds a hidden prefix and suffix)")
+    return None
+
+
 def _input_folder(p) -> Path | None:
     """The folder no output may go into because of the input ``p``: ``p`` itself when it is a directory,
     the sensorless output folder a file input lies in (``--model run/result.json`` protects ``run/``)."""
@@ -325,6 +349,9 @@ def _refusal(out: Path, inputs: Iterable[str | os.PathLike]) -> str | None:
     raw = os.fspath(out)
     if os.path.basename(raw.rstrip("/") or "/") in (".", ".."):
         return "'.' and '..' are never used as output directories"
+    too_long = _name_too_long(out)
+    if too_long:
+        return too_long
     real = _real(out)
     if real == Path(real.anchor):
         return "it is the filesystem root"

@@ -24,7 +24,7 @@ from .common import (
     robot_option,
 )
 from ..run.logs import load_logs, log_settings
-from .console import console, err_console
+from .console import console, err_console, safe
 from .logs import log_trims, print_pairing, trim_option
 from .options import ALIGN_HELP, RATE_HELP, Align, TimeUnit
 from .progress import progress_bars
@@ -149,9 +149,9 @@ def _print(res, missing: list, nominal: bool) -> None:
         t.add_column(col, justify="right")
     for k, j in enumerate(res.joints):
         lo, hi = res.interval[k]
-        t.add_row(j, f"{res.gains[k]:.4g}", f"{res.std[k]:.2g}", f"[{lo:.4g}, {hi:.4g}]", f"{res.offset[k]:.3g}",
+        t.add_row(safe(j), f"{res.gains[k]:.4g}", f"{res.std[k]:.2g}", f"[{lo:.4g}, {hi:.4g}]", f"{res.offset[k]:.3g}",
                   "ok" if res.identified[k] else "[red]misfit[/]" if res.misfit[k] else
                   ("[yellow]nominal[/]" if nominal else "[yellow]weak[/]"))
     console.print(t)
     if missing:
-        err_console.print(f"[yellow]warning:[/] not identified (relative σ > 20 % or K ≤ 0): {', '.join(missing)}")
+        err_console.print(f"[yellow]warning:[/] not identified (relative σ > 20 % or K ≤ 0): {safe(', '.join(missing))}")

@@ -28,7 +28,7 @@ from .common import (
     force_option,
     time_unit_option,
 )
-from .console import console
+from .console import console, safe
 from .logs import trim_option
 from .options import FrictionState, TimeUnit, Velocity
 from .progress import progress_bars
@@ -184,7 +184,7 @@ def _print(model, errors: dict, held_out: bool) -> None:
 
     for j in model.joint_names_:
         fit, law = model.fits_[j], model.laws_[j]
-        t = Table(title=f"{j}: {law.kind} law — {fit.reason}")
+        t = Table(title=f"{safe(j)}: {law.kind} law — {safe(fit.reason)}")
         for col in ("term", "value", "95 % interval"):
             t.add_column(col, justify="right")
         for term, val in law.coef.items():
@@ -205,7 +205,7 @@ def _print(model, errors: dict, held_out: bool) -> None:
     for log, per in errors.items():
         for j, e in per.items():
             m, s = e["model"], e["static"]
-            t.add_row(Path(log).name, j, e["chosen"], f"{_fmt(m['rmse'])} / {_fmt(m['rmse_reversals'])}",
+            t.add_row(safe(Path(log).name), safe(j), e["chosen"], f"{_fmt(m['rmse'])} / {_fmt(m['rmse_reversals'])}",
                       f"{_fmt(s['rmse'])} / {_fmt(s['rmse_reversals'])}")
     console.print(t)
 

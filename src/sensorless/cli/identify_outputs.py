@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .console import console, err_console
+from .console import console, err_console, safe
 
 
 def print_bodies(result) -> None:
@@ -22,12 +22,12 @@ def print_bodies(result) -> None:
     for k, b in enumerate(result.robot.body_names):
         v = verdicts.get(b)
         if v is None:  # no verdicts (an older result): the value, unlabelled
-            t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}", "", f"{pi0[k, 0]:.3f}", "", "")
+            t.add_row(safe(b), safe(links.get(b, b)), f"{pi[k, 0]:.3f}", "", f"{pi0[k, 0]:.3f}", "", "")
             continue
         mv = v["mass"]["verdict"]
         std = v["mass"]["std_data"]
         rest = [v[q]["verdict"] for q in v if q != "mass"]
-        t.add_row(b, links.get(b, b), f"{pi[k, 0]:.3f}" if mv == "data" else "—",
+        t.add_row(safe(b), safe(links.get(b, b)), f"{pi[k, 0]:.3f}" if mv == "data" else "—",
                   f"{std:.2g}" if mv == "data" and std is not None else "", f"{pi0[k, 0]:.3f}", mv,
                   ", ".join(f"{n} {rest.count(n)}" for n in ("data", "prior", "undetermined") if rest.count(n)))
     tot = (result.diagnostics.get("verdicts") or {}).get("robot", {}).get("total_mass")

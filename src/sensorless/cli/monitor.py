@@ -13,7 +13,7 @@ import typer
 from ..errors import SensorlessError
 from .common import (app, atomic_outdir, floating_base_option, force_option, guarded, lock_option, model_logs,
                      path_inputs)
-from .console import console
+from .console import console, safe
 from .applied_model import MODEL_HELP, applied_model_options, passive_option, robot_and_model
 from .options import ForceReference
 
@@ -209,20 +209,20 @@ def monitor(
     console.print(f"observer order {order}, K = {gain:g} 1/s, warm-up {warm:.3f} s; k = {th.k:.2f} σ from "
                   f"{int(mask.sum())} quiet samples (--quiet {quiet.strip()})")
     for n, fsj, src in zip(names, th.band, th.band_source):
-        console.print(f"  {n}: static band ±{fsj:.3g} N·m ({src}); σ rest {th.sigma_rest[names.index(n)]:.3g} N·m")
+        console.print(f"  {safe(n)}: static band ±{fsj:.3g} N·m ({src}); σ rest {th.sigma_rest[names.index(n)]:.3g} N·m")
     for iv, d in zip(intervals, doc["contacts"]):
         f = (f", |F| peak {d['peak_force_norm']:.1f} N at {d['peak_force_time'] - t[0]:.2f} s"
              if frame and d.get("peak_force_norm") is not None else ", |F| unobservable at this frame" if frame else "")
         rest_j = [f"{j} at rest, ≥ {iv.band_excess[j]:.3g} N·m beyond the static band" for j in iv.joints
                   if iv.state.get(j) == "rest"]
         jp = int(np.argmax(np.abs(iv.peak)))
-        console.print(f"contact {iv.start - t[0]:8.3f} – {iv.end - t[0]:8.3f} s  joints {','.join(iv.joints)}, "
+        console.print(f"contact {iv.start - t[0]:8.3f} – {iv.end - t[0]:8.3f} s  joints {safe(','.join(iv.joints))}, "
                       f"peak τ_ext {iv.peak[jp]:.3g} N·m ({names[jp]}){f}"
                       + (f" ({'; '.join(rest_j)})" if rest_j else ""))
     if band_ivs:
         console.print(f"{len(band_ivs)} interval(s) at rest where the external torque is indistinguishable from static "
                       "friction (not contacts; 'static_band' in monitor.json)")
-    console.print(f"{len(intervals)} contact interval(s); times in s after the first sample; wrote {out}/")
+    console.print(f"{len(intervals)} contact interval(s); times in s after the first sample; wrote {safe(out)}/")
 
 
 def _interval_doc(iv, names: list[str], t0: float, dead_zone: str) -> dict:

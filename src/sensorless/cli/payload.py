@@ -24,7 +24,7 @@ from .common import (
     path_inputs,
 )
 from ..run.logs import log_settings
-from .console import console
+from .console import console, safe
 from .logs import print_pairing
 from .options import ALIGN_HELP, Align, PayloadMode
 from .progress import progress_bars
@@ -212,7 +212,7 @@ def _print(est) -> None:
     fitted = set(est.settings.get("offsets") or ())
     for k, j in enumerate(est.per_joint):
         flag = "[red]CONTRADICTS[/]" if j.flagged else ("ok" if j.informative else "no info")
-        table.add_row(j.joint, f"{j.mass:.4f}", f"{j.std:.4f}", f"{j.others_mass:.4f}", f"{j.others_std:.4f}",
+        table.add_row(safe(j.joint), f"{j.mass:.4f}", f"{j.std:.4f}", f"{j.others_mass:.4f}", f"{j.others_std:.4f}",
                       f"{j.z:+.1f}", f"{100 * j.share:.0f} %",
                       f"{est.offsets[k]:.3g}" if est.offsets is not None and j.joint in fitted else "—", flag)
     console.print(table)

@@ -21,9 +21,13 @@ from .trajectory import Trajectory
 from .validation import validate_trajectory
 from ..errors import TooFewSamplesError
 
+#: most samples a resampled log may have, per sample of the log
+MAX_UPSAMPLE = 100
+
 __all__ = [
     "DEFAULT_DERIVATIVE_SECONDS",
     "DEFAULT_SAVGOL_WINDOW",
+    "MAX_UPSAMPLE",
     "default_savgol_window",
     "butter_lowpass",
     "lowpass",
@@ -376,6 +380,10 @@ def resample_uniform(traj: Trajectory, rate_hz: float | None = None) -> Trajecto
         raise DataError(f"resample_uniform: rate must be a positive number of Hz, got {rate_hz!r}", traj.source)
     t0 = float(traj.t[0])
     rel = traj.t - t0
+    n_given = len(traj.t)
+    if rel[-1] * rate + 1 > MAX_UPSAMPLE * max(n_given, 1):  # 1e12 Hz would allocate TiB
+        raise DataError(f"resampling at {rate:g} Hz would make {rel[-1] * rate + 1:.3g} samples of the log's "
+                        f"{n_given} (more than {MAX_UPSAMPLE}×); choose a rate near the log's own", traj.source)
     n = int(np.floor(rel[-1] * rate + 1e-9)) + 1
     t_new = np.arange(n) / rate
     arrays = {}

@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import DataError, TimestampError, setting
-from .filtering import MAX_JITTER, with_arrays, sign_continuous
+from .filtering import MAX_JITTER, MAX_UPSAMPLE, with_arrays, sign_continuous
 from .trajectory import Trajectory
 from ..errors import TooFewSamplesError
 
@@ -150,6 +150,10 @@ def resample(
     from scipy.interpolate import interp1d, make_interp_spline  # imported on use (start-up time)
 
     rel = tu - tu[0]
+    n_given = len(traj.t)
+    if rel[-1] * rate + 1 > MAX_UPSAMPLE * max(n_given, 1):  # 1e12 Hz would allocate TiB
+        raise DataError(f"resampling at {rate:g} Hz would make {rel[-1] * rate + 1:.3g} samples of the log's "
+                        f"{n_given} (more than {MAX_UPSAMPLE}×); choose a rate near the log's own", src)
     n = int(np.floor(rel[-1] * rate + 1e-9)) + 1
     grid = np.arange(n) / rate
     out: dict[str, np.ndarray] = {}

@@ -7,6 +7,7 @@ import numpy as np
 from rich.table import Table
 
 from typing import TYPE_CHECKING
+from rich.markup import escape
 
 if TYPE_CHECKING:  # the figures' child process imports this package: no identification stack
     from ..identification.metrics import TorqueMetrics
@@ -17,14 +18,14 @@ __all__ = ["metrics_table"]
 def metrics_table(title: str, columns: dict[str, TorqueMetrics], field: str = "nrmse") -> Table:
     """One row per joint, one column per model; ``field`` is rmse, nrmse (shown in %) or rel_rms."""
     pct = field in ("nrmse", "rel_rms")
-    table = Table(title=f"{title} — {field}{' [%]' if pct else ''}")
+    table = Table(title=f"{escape(title)} — {field}{' [%]' if pct else ''}")
     table.add_column("joint")
     for name in columns:
-        table.add_column(name, justify="right")
+        table.add_column(escape(name), justify="right")
     first = next(iter(columns.values()))
     static = np.zeros(len(first.joints), bool) if first.static is None or field != "nrmse" else first.static
     for j, joint in enumerate(first.joints):
-        row = [joint + (" (at rest)" if static[j] else "")]
+        row = [escape(joint) + (" (at rest)" if static[j] else "")]  # a name may hold "[/]"
         for m in columns.values():
             v = getattr(m, field)[j]
             if static[j]:  # the range is noise: RMSE and bias in N·m instead (metrics module docstring)
