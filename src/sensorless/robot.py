@@ -378,6 +378,9 @@ def parse_in_child(parse, spec: str, timeout: float = PARSE_TIMEOUT) -> None:
     if pid == 0:  # the child: parse, report by the exit status only
         code = 0
         try:
+            import faulthandler
+
+            faulthandler.disable()  # the crash is the parent's to report, in one line
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, 2)
             parse()

@@ -180,10 +180,10 @@ def _decode73(f, ds, key: str, src: str, text: bool) -> Any:
                 item = f[ref]
                 if not isinstance(item, h5py.Dataset):
                     raise DataError(f"'{key}' is a cell array whose items are not text (a group)", src)
+                total = _text_size(item, key, src, total)
                 check_hdf5(f, [item.name], src)  # an item is a dataset too: external storage refused
                 if _matlab_class(item) != "char" and not int(np.asarray(item.attrs.get("MATLAB_empty", 0)).ravel()[0]):
                     raise DataError(f"'{key}' is a cell array whose items are not text ({_matlab_class(item)})", src)
-                total = _text_size(item, key, src, total)
                 out += [""] if int(np.asarray(item.attrs.get("MATLAB_empty", 0)).ravel()[0]) else _chars(item[()])
             return out
         raise DataError(f"'{key}' holds {cls or ds.dtype} values, not text (a char matrix or a cell array of char)",
