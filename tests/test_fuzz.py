@@ -256,7 +256,7 @@ def run_fuzz(tmp_path, classes: str, scale: float) -> dict:
 
 @pytest.mark.parametrize("kind,scale", [("outputs", 0.02), ("descriptions", 0.02), ("oversize", 0.025),
                                         ("model_folder", 0.025), ("containers", 0.025), ("numerics", 0.05),
-                                        ("formats", 0.05)])
+                                        ("formats", 0.05), ("service", 0.05)])
 def test_fuzz_class_has_no_bad_outcome(tmp_path, kind, scale):
     doc = run_fuzz(tmp_path, kind, scale)
     counts = doc["per_kind"][kind]

@@ -70,12 +70,21 @@ def test_planted_journal_cannot_move_an_output_elsewhere(tmp_path):
         warnings.simplefilter("error")
         assert recover_output(here / "run") is None
     assert (theirs / "a.txt").read_text() == "theirs" and (theirs / MANIFEST).is_file()
-    assert not (here / "run").exists()
+    assert not (here / "run").exists() and (here / ".run.journal").is_file()  # not ours: left alone
+    (here / ".run.journal").unlink()
     target = tmp_path / "target.json"  # a journal that is a symlink is not read through
     target.write_text(json.dumps({**journal, "old": ".run.old-999999-0123456789ab"}))
     (here / ".run.journal").symlink_to(target)
     recover_output(here / "run")
-    assert target.exists() and not (here / "run").exists()
+    assert target.exists() and not (here / "run").exists() and (here / ".run.journal").is_symlink()
+
+
+def test_a_user_file_named_like_the_lock_is_not_overwritten(tmp_path):
+    """A regular file at `.OUT.lock` that holds something else than a process id is the user's."""
+    (tmp_path / ".run.lock").write_text("my notes\n")
+    with pytest.raises(OutputError, match="not a sensorless lock file"):
+        _write(tmp_path / "run")
+    assert (tmp_path / ".run.lock").read_text() == "my notes\n"
 
 
 def test_no_output_inside_an_input(tmp_path):

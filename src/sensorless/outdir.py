@@ -217,6 +217,11 @@ def lock(out: Path) -> Iterator[None]:
                 fd = open_nofollow(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, what="lock file")
             except FileExistsError:
                 fd = open_nofollow(path, os.O_RDWR, what="lock file")
+                text = os.pread(fd, 64, 0)
+                if text.strip() and not text.strip().isdigit():  # not a PID: a file of the user's
+                    os.close(fd)
+                    raise OutputError(f"{out}: {path.name} exists and is not a sensorless lock file (it holds "
+                                      "something other than a process id); refusing to use it (remove it yourself)")
         except FileNotFoundError:
             continue  # removed between the two opens: create it again
         except OSError as exc:
@@ -397,7 +402,8 @@ def recover_locked(out: Path) -> str | None:
                     os.rmdir(p)
         elif n.endswith(".tmp") and _dead_temp(n[len(prefix):-4]):
             _unlink_regular(p)
-    _unlink(journal)
+    if journaled and planned.get("out") == out.name:  # ours (a user's file, link or folder of that name stays)
+        _unlink_regular(journal)
     remove_dead_temps(journal)
     return restored
 

@@ -5,7 +5,7 @@
 Classes (default counts at --scale 1): ``npz`` 4000, ``csv`` 2500, ``hdf5`` 1500 (logs with random
 keys, shapes, dtypes, NaN/inf/huge values, truncated or corrupted bytes), ``identify`` 1800 (small
 random trajectories of a 2-link arm, all methods), ``cli`` 250 (random ``identify`` option values),
-and (issue 26, ``fuzz_classes/``) ``outputs`` 1500, ``descriptions`` 1000, ``oversize`` 400,
+and (issue 26, ``fuzz_classes/``) ``outputs`` 1500, ``descriptions`` 1000, ``oversize`` 400, (issue 41) ``service`` 400,
 ``model_folder`` 400, ``containers`` 600, ``numerics`` 600 (issue 23: constant, zero, dead,
 ≥ 100× scaled, permuted and sign-flipped torque channels), ``formats`` 800 (issue 27: MATLAB v7.3/v5
 files, per-signal text folders and ``.dat`` logs with tick columns, ``--skip-bad-rows`` and ``--trim``). Each input is classified:

@@ -155,6 +155,13 @@ def guarded(fn):
             except SensorlessError as exc:
                 _print_line("error:", "bold red", withheld(one_line(cli_words(exc)), type(exc).__name__))
                 raise typer.Exit(2) from None
+            except MemoryError as exc:  # a low memory limit (ulimit -v, a container): say so, in one line
+                if os.environ.get("SENSORLESS_DEBUG"):
+                    raise
+                _print_line("error:", "bold red", withheld(
+                    f"out of memory ({one_line(exc, 200) or 'MemoryError'}): raise the process's memory limit, or "
+                    f"split or decimate the logs", "MemoryError"))
+                raise typer.Exit(2) from None
             except Exception as exc:  # noqa: BLE001 - last line of defence for the user
                 if os.environ.get("SENSORLESS_DEBUG"):
                     raise

@@ -11,7 +11,7 @@ import importlib
 
 #: class → (default number of inputs at --scale 1, inputs per worker process)
 NEW = {"outputs": (1500, 250), "descriptions": (1000, 250), "oversize": (400, 100), "model_folder": (400, 100),
-       "containers": (600, 150), "numerics": (600, 150), "formats": (800, 200)}
+       "containers": (600, 150), "numerics": (600, 150), "formats": (800, 200), "service": (400, 100)}
 
 
 def module(kind: str):
