@@ -167,3 +167,17 @@ def test_bench_friction_png_has_units_residuals_and_the_state_law_closer_at_the_
     rev = pairs[2][1]  # slide: residuals at its first reversal, chosen (state) law then the static law
     state, static = (ln.get_ydata() for ln in rev.get_lines()[1:3])
     assert np.sqrt(np.mean(state**2)) < 0.5 * np.sqrt(np.mean(static**2))
+
+
+@pytest.mark.parametrize("corrupt", ["zero", "constant", "sign"])
+def test_zero_constant_or_sign_flipped_torque_refused(bench, tmp_path, corrupt):
+    """Issue #41 reproducer: `friction` fitted zero, constant and sign-flipped torques (exit 0, a law of 0 or a
+    negative one). A moving joint's torque must vary and dissipate (mean τ·v > 0)."""
+    d, _, _ = bench
+    df = pd.read_csv(d / "train.csv")
+    df["tau_plain"] = {"zero": 0.0 * df.tau_plain, "constant": 0 * df.tau_plain + 1.5, "sign": -df.tau_plain}[corrupt]
+    df.to_csv(tmp_path / "bad.csv", index=False, float_format="%.9g")
+    r = runner.invoke(app, ["friction", "--data", str(tmp_path / "bad.csv"), "--out", str(tmp_path / "m")])
+    line = " ".join(r.output.split())
+    assert r.exit_code == 2 and "tau[plain]" in line and ("constant" in line or "sign is flipped" in line), line
+    assert not (tmp_path / "m").exists()

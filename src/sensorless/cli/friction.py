@@ -16,7 +16,7 @@ from typing import List, Optional
 
 import typer
 
-from ..errors import OptionError
+from ..errors import DataError, OptionError
 from .common import (
     MultiValueCommand,
     app,
@@ -120,6 +120,12 @@ def friction(
         one = names if names and len(names) == 1 else None  # names the joint of a bare-column log
         train = read_bench_logs(data, prep, joints=one, need_acceleration=need_a)
         held = read_bench_logs(test, prep, joints=one, need_acceleration=need_a)
+        from ..data.integrity import bench_torque_problem
+
+        for p, tr in zip([*data, *test], [*train, *held]):
+            why = bench_torque_problem(tr)
+            if why:
+                raise DataError(f"{p}: {why}")
         with progress_bars() as bars:
             model = FrictionModel(term_list, str(state), smoothing, joints=names).fit(
                 train, progress=bars.callback("friction laws (joints)"))

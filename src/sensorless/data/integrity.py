@@ -16,6 +16,11 @@
 
 :func:`check_integrity` runs both checks on one log (DataError naming the file, the channel and the
 joint). Parquet page checksums are verified by the Parquet readers (:mod:`.tabular`, :mod:`.chunks`).
+
+* A friction bench log (:func:`bench_torque_problem`): the torque of a joint that moves (|v| above 5 % of
+  its peak on a fifth of the samples) must vary, and friction dissipates: the mean power τ·v over the
+  moving samples is positive. A constant or zero channel, or one whose power is negative (the sign
+  flipped), carries no friction law.
 """
 
 from __future__ import annotations
@@ -29,8 +34,8 @@ import numpy as np
 
 from ..errors import DataError, DataWarning
 
-__all__ = ["SHUFFLED_R1", "SMOOTH_R1", "ZERO_FRACTION", "check_integrity", "duplicate_logs", "periodic_zeros",
-           "shuffled_rows", "unique_logs"]
+__all__ = ["SHUFFLED_R1", "SMOOTH_R1", "ZERO_FRACTION", "bench_torque_problem", "check_integrity", "duplicate_logs",
+           "periodic_zeros", "shuffled_rows", "unique_logs"]
 
 SHUFFLED_R1 = 0.2
 SMOOTH_R1 = 0.99
@@ -169,3 +174,23 @@ def check_integrity(traj, src: str | None = None) -> None:
         if why:
             raise DataError(why, src)
 
+
+def bench_torque_problem(traj) -> str | None:
+    """What makes a friction bench log's torque unusable (module docstring), naming the joint; else None."""
+    if traj.v is None or traj.tau is None or np.shape(traj.tau) != np.shape(traj.v):
+        return None
+    v, tau = np.asarray(traj.v, float), np.asarray(traj.tau, float)
+    for j, name in enumerate(traj.joint_names):
+        peak = np.nanmax(np.abs(v[:, j])) if len(v) else 0.0
+        moving = np.abs(v[:, j]) > 0.05 * peak
+        if not (peak > 0 and moving.mean() >= 0.2):
+            continue
+        x = tau[moving, j]
+        if np.ptp(x) <= 1e-9 * max(1.0, float(np.max(np.abs(x)))):
+            return (f"tau[{name}] is constant ({x[0]:.4g}) while the joint moves: it carries no friction "
+                    "(a dead or disconnected channel?)")
+        power = float(np.mean(x * v[moving, j]))
+        if power < 0:
+            return (f"tau[{name}] feeds energy into the motion (mean τ·v = {power:.3g} < 0 while moving): friction "
+                    "dissipates, so its sign is flipped (or the velocity's); fix the sign of one")
+    return None
