@@ -113,3 +113,25 @@ def test_atomic_write_never_follows_or_removes_foreign_names(tmp_path):
     odd.write_text("user")
     atomic_write_text(f, "again")
     assert odd.read_text() == "user"
+
+
+def test_a_file_edited_after_the_run_is_named(tmp_path):
+    """Reproducer: tampered values inside the readers' caps (a 150 kg wrist link, friction 1e6, a residual
+    scaler of 1e300) were applied silently. A file of a sensorless output whose SHA-256 differs from the
+    manifest is named in a warning when it is read, also in a sub-folder."""
+    from sensorless.outdir import warn_if_edited
+
+    out = tmp_path / "model"
+    with atomic_output_dir(out) as tmp:
+        (tmp / "result.json").write_text('{"m": 1.0}')
+        (tmp / "residual").mkdir()
+        (tmp / "residual" / "model.json").write_text('{"scale": 1.0}')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not warn_if_edited(out / "result.json") and not warn_if_edited(out / "residual" / "model.json")
+    (out / "result.json").write_text('{"m": 150.0}')
+    (out / "residual" / "model.json").write_text('{"scale": 1e300}')
+    with pytest.warns(UserWarning, match=r"result\.json: this model file was changed since sensorless wrote it"):
+        assert warn_if_edited(out / "result.json", "model file")
+    with pytest.warns(UserWarning, match=r"residual/model\.json: this file was changed"):
+        assert warn_if_edited(out / "residual" / "model.json")

@@ -120,6 +120,32 @@ def changed_file(directory: Path, doc: dict, missing_ok: bool) -> str | None:
     return None
 
 
+def warn_if_edited(path: str | os.PathLike, what: str = "file") -> bool:
+    """Warn (SensorlessWarning) when ``path`` lies in a sensorless output folder whose manifest records
+    another SHA-256 for it: its values are not those the tool wrote (a tampered 150 kg link, friction
+    1e6 or a scaler of 1e300 inside every range check). True when it warned."""
+    path = Path(path)
+    for folder in list(path.parents)[:3]:  # the output folder may hold it in a sub-folder (residual/model.json)
+        doc = read_manifest(folder)
+        rel = path.relative_to(folder).as_posix()
+        if doc is not None and rel in doc.get("files", []):
+            break
+    else:
+        return False
+    want = (doc.get("hashes") or {}).get(rel) if isinstance(doc.get("hashes"), dict) else None
+    if not isinstance(want, dict):
+        return False
+    try:
+        same = digest(path) == {"size": want.get("size"), "sha256": want.get("sha256")}
+    except OSError:
+        return False
+    if not same:
+        warnings.warn(f"{path}: this {what} was changed since sensorless wrote it (its SHA-256 differs from "
+                      f"{folder.name}/{MANIFEST}): its values are not the ones identified", SensorlessWarning,
+                      stacklevel=3)
+    return not same
+
+
 def is_complete(directory: Path) -> bool:
     """A valid manifest, and every file it lists present with its recorded hash."""
     doc = read_manifest(directory)

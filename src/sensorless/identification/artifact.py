@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import ParameterError, SensorlessError, setting
 from ..io import check_input_file, read_json
+from ..outdir import warn_if_edited
 from ..regressor.joint_terms import joint_term, terms_where
 from .artifact_schema import (Checker, check_preprocessing_settings, check_robot_settings, check_structure_settings,
                               check_verdicts, summary)
@@ -171,6 +172,7 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
     path = result_path(model)
     check_input_file(path, "model file (result.json)")
     doc = read_result(path)
+    warn_if_edited(path, "model file")
     if doc.get("kind") == FRICTION_KIND:
         raise ParameterError(f"{path}: a friction-only model (from `sensorless friction`) has no body model; "
                              f"use it with `sensorless predict` without {setting('robot')}")

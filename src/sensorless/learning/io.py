@@ -20,6 +20,7 @@ from torch import nn
 
 from ..errors import DataError, SensorlessError
 from ..io import atomic_open, check_input_file, read_json, write_json_atomic
+from ..outdir import warn_if_edited
 from .mlp import build_network
 
 __all__ = ["META", "WEIGHTS", "MAX_NETWORK_PARAMETERS", "check_architecture", "load_network", "save_network"]
@@ -88,6 +89,8 @@ def load_network(directory: str | Path) -> tuple[nn.Module, dict]:
     if not meta_path.exists() or not w_path.exists():
         raise DataError(f"not a saved sensorless network (need {META} and {WEIGHTS})", str(d))
     meta = read_json(meta_path, "model description (model.json)", _MAX_META_BYTES, error=DataError)
+    warn_if_edited(meta_path, "model description")
+    warn_if_edited(w_path, "weights file")
     if not isinstance(meta, dict) or "architecture" not in meta:
         raise DataError("unreadable model description: no 'architecture' object", str(meta_path))
     arch = meta["architecture"]

@@ -100,6 +100,7 @@ class StreamThresholds:
     def read(cls, path: str | Path) -> "StreamThresholds":
         """From ``monitor.json`` or the folder ``sensorless monitor --out`` wrote."""
         from ..io import read_json
+        from ..outdir import warn_if_edited
 
         p = Path(path)
         p = p / "monitor.json" if p.is_dir() else p
@@ -107,6 +108,7 @@ class StreamThresholds:
             raise OptionError(f"{setting('thresholds', str(path))}: no monitor.json there; run `sensorless monitor` on a contact-free "
                               f"log first (its {setting('out')} folder holds the thresholds)")
         doc = read_json(p, "threshold file", error=DataError)
+        warn_if_edited(p, "threshold file")
         if not isinstance(doc, dict):
             raise DataError(f"{p} is not a monitor.json from `sensorless monitor` (not a JSON object)")
         return cls.from_doc(doc, str(p))
