@@ -122,3 +122,23 @@ def test_parquet_page_checksum_failure_refused(logs, tmp_path):
     with pytest.raises(DataError, match="CRC checksum verification failed"):
         for _ in chunked.chunks(["t", "q", "v", "tau"], 500):
             pass
+
+
+def test_real_logs_pass():
+    """The KUKA and dVRK PSM logs (real robots, their noise and quantisation) raise no integrity error."""
+    from conftest import REALDATA
+
+    from sensorless.data import read_trajectory
+    from sensorless.data.prepare import parse_columns
+
+    kuka = sorted((REALDATA / "kuka_lwr4_flobaroid" / "data" / "KUKA" / "HW").glob("measurements_*.npz"))
+    psm = sorted((REALDATA / "dvrk_psm_wpi" / "data" / "psm" / "measured_trajectory").glob("*_results.csv"))
+    if not kuka and not psm:
+        pytest.skip("../shared/realdata is absent")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        logs = [read_trajectory(p) for p in kuka] + [
+            read_trajectory(p, columns=parse_columns("q=0:7;v=7:14;tau=14:21"), rate=200,
+                            joint_names=[f"j{i}" for i in range(7)]) for p in psm]
+    for traj in logs:
+        check_integrity(traj)
