@@ -191,3 +191,33 @@ def test_extreme_resample_is_a_typed_error(work, tmp_path):
     res = runner.invoke(app, ["identify", "--robot", "ur5", "--data", str(d / "good.npz"), "--resample", "1e12",
                               "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "more than 100×" in _one_line(res)
+
+
+def test_chunked_reader_refuses_hdf5_external_storage(work, tmp_path):
+    """Reproducer: the chunked reader (logs of 50,000+ samples, or --stream) read HDF5 external storage
+    without the flag."""
+    from sensorless.data.chunks import open_chunked
+
+    d, traj = work
+    raw = tmp_path / "raw.bin"
+    raw.write_bytes(np.ascontiguousarray(traj.tau, "<f8").tobytes())
+    path = tmp_path / "ext.h5"
+    with h5py.File(path, "w") as f:
+        f["t"], f["q"], f["v"] = traj.t, traj.q, traj.v
+        f.create_dataset("tau", shape=traj.tau.shape, dtype="<f8", external=[(str(raw), 0, raw.stat().st_size)])
+    with pytest.raises(InputError, match="external raw storage"):
+        open_chunked(path, traj.joint_names)
+
+
+def test_monitor_out_inside_the_model_folder_refused(work, tmp_path):
+    """Reproducer: `monitor --out model/mon` wrote inside the model folder it reads."""
+    d, _ = work
+    model = tmp_path / "model"
+    r = runner.invoke(app, ["identify", "--robot", "ur5", "--data", str(d / "good.npz"), "--method", "ols",
+                            "--no-plot", "--out", str(model)])
+    assert r.exit_code == 0, r.output
+    before = sorted(p.name for p in model.iterdir())
+    r = runner.invoke(app, ["monitor", "--robot", "ur5", "--model", str(model), "--data", str(d / "good.npz"),
+                            "--quiet", "0:2", "--no-plot", "--out", str(model / "mon")])
+    assert r.exit_code == 2 and "inside the input folder" in _one_line(r)
+    assert sorted(p.name for p in model.iterdir()) == before
