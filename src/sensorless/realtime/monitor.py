@@ -199,11 +199,12 @@ class StreamMonitor:
         self.reset()
 
     def prime(self) -> None:
-        """One throw-away step at q = v = τ = 0, then :meth:`reset`: the first real sample does not pay
-        for first-call costs (lazy imports, allocations) on top of its latency."""
+        """One throw-away step at q = 0 (clipped into the joint limits), v = τ = 0, then :meth:`reset`: the
+        first real sample does not pay for first-call costs (lazy imports, allocations) on top of its latency."""
         lay = self.layout
-        self.step(0, 0.0, np.zeros(len(lay.joints)), np.zeros(len(lay.joints)), np.zeros(len(lay.actuated)))
-        self.step(1, self.th.warmup_s + self.th.dt, np.zeros(len(lay.joints)), np.zeros(len(lay.joints)),
+        q0 = np.clip(np.zeros(len(lay.joints)), self.guard.q_lo, self.guard.q_hi)  # inside the guard's bounds
+        self.step(0, 0.0, q0, np.zeros(len(lay.joints)), np.zeros(len(lay.actuated)))
+        self.step(1, self.th.warmup_s + self.th.dt, q0, np.zeros(len(lay.joints)),
                   np.zeros(len(lay.actuated)))  # past the warm-up: the force path too
         self.reset()
 
