@@ -246,7 +246,7 @@ def open_chunked(path, joint_names: Sequence[str]) -> "ChunkedLog | None":
     from ..io import check_input_file
 
     p = Path(path)
-    if p.is_dir():  # a folder of per-signal files: read whole
+    if p.is_dir() or not (p.exists() or p.is_symlink()):  # a folder of per-signal files, or missing: read whole
         return None
     check_input_file(p, "log file")  # a FIFO or device would block or never end
     suffix = p.suffix.lower()
