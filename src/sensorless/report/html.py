@@ -19,7 +19,7 @@ from ..io import atomic_write_text
 from .html_bodies import bodies_table, joint_terms_table
 from .html_format import esc, is_number, num, pct
 
-__all__ = ["write_html_report", "render_html_report"]
+__all__ = ["write_html_report", "render_html_report", "metrics_html", "page"]
 
 _CSS = """body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1180px;color:#222;padding:0 1em}
 h1{font-size:1.5em;margin-bottom:.2em}h2{font-size:1.15em;border-bottom:1px solid #ccc;margin-top:1.6em}
@@ -46,7 +46,7 @@ def _kv(rows: list[tuple[str, str]], cls: str = "kv") -> str:
     return f"<table class={cls}>" + "".join(f"<tr><th class=l>{esc(k)}</th><td class=l>{v}</td></tr>" for k, v in rows) + "</table>"
 
 
-def _metrics_table(columns: dict[str, dict]) -> str:
+def metrics_html(columns: dict[str, dict]) -> str:
     """Rows = joints; per model (a ``TorqueMetrics.to_dict()`` document) RMSE [N·m] and NRMSE [%]."""
     cols = {name: doc for name, doc in columns.items() if doc and "per_joint" in doc}
     if not cols:
@@ -60,7 +60,8 @@ def _metrics_table(columns: dict[str, dict]) -> str:
         for doc in cols.values():
             e = doc["per_joint"].get(j, {})
             cells.append(f"<td>{num(e.get('rmse'))}</td>"
-                         + (f"<td title='{esc(e.get('note', ''))}'>at rest</td>" if e.get("static") else f"<td>{pct(e.get('nrmse'))}</td>"))
+                         + (f"<td title='{esc(e.get('note', ''))}'>at rest" + (f", bias {num(e['bias'])}" if e.get("bias") is not None else "")
+                            + "</td>" if e.get("static") else f"<td>{pct(e.get('nrmse'))}</td>"))
         rows.append(f"<tr><td class=l>{esc(j)}</td>{''.join(cells)}</tr>")
     means = "".join(f"<td>{num(d.get('mean_rmse'))}</td><td>{pct(d.get('mean_nrmse'))}</td>" for d in cols.values())
     return (f"<table><tr><th class=l rowspan=2>joint</th>{head1}</tr><tr>{head2}</tr>{''.join(rows)}"
@@ -96,6 +97,10 @@ def _summary(doc: dict) -> str:
     tm = doc.get("train_metrics") or {}
     if tm.get("mean_nrmse") is not None:
         rows.append(("training mean NRMSE", f"{pct(tm['mean_nrmse'])} %"))
+    blocked = doc.get("blocked_held_out")
+    if isinstance(blocked, dict) and blocked.get("mean_nrmse") is not None:
+        rows.append((f"blocked held-out mean NRMSE ({blocked.get('blocks')} time blocks of the training logs)",
+                     f"{pct(blocked['mean_nrmse'])} %"))
     for log, cols in (doc.get("validation") or {}).items():
         ms = _held_out_columns(cols, method)
         rows.append((f"held-out mean NRMSE, {Path(log).name}",
@@ -236,9 +241,13 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
         parts.append("<h2>Warnings</h2>" + "".join(f"<div class=warn>{esc(w)}</div>" for w in warns))
     parts += [bodies_table(doc), joint_terms_table(doc)]
     parts.append("<h2 id=metrics>Per-joint metrics (training)</h2>"
-                 + _metrics_table({method.upper(): doc.get("train_metrics")}))
+                 + metrics_html({method.upper(): doc.get("train_metrics")}))
     for log, cols in (doc.get("validation") or {}).items():
-        parts.append(f"<h2>Held-out: {esc(Path(log).name)}</h2>" + _metrics_table(_held_out_columns(cols, method)))
+        parts.append(f"<h2>Held-out: {esc(Path(log).name)}</h2>" + metrics_html(_held_out_columns(cols, method)))
+    blocked = doc.get("blocked_held_out")
+    if isinstance(blocked, dict):
+        parts.append(f"<h2>Blocked held-out (training logs)</h2><p class=legend>{esc(blocked.get('label', ''))}</p>"
+                     + metrics_html({method.upper(): blocked}))
     parts.append(_floating_base(doc))
     if figures:
         parts.append("<h2 id=figures>Figures</h2>")
@@ -252,8 +261,13 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
                      + (f"; inertials: {esc(uv.get('values'))} values" if uv.get("values") else "")
                      + (f"; {esc(uv['fallback'])}" if uv.get("fallback") else "") + "</p>")
     parts.append(_settings(doc))
+    return page(f"{rname} identification", parts)
+
+
+def page(title: str, parts: list[str]) -> str:
+    """A self-contained page: ``parts`` (HTML) with the report's style and figure zoom."""
     body = "\n".join(p for p in parts if p)
-    return (f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{esc(rname)} identification</title>"
+    return (f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{esc(title)}</title>"
             f"<style>{_CSS}</style></head><body>\n{body}\n{_ZOOM}</body></html>\n")
 
 
