@@ -7,7 +7,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from typing import Optional
 
-from .common import MultiValueCommand, app, atomic_outdir, guarded
+from .common import MultiValueCommand, app, atomic_outdir, guarded, printed_warnings
 from .console import console
 from .identify_options import identify_options, run_config
 from .options import check_config, config_option
@@ -49,6 +49,7 @@ def _identify(config: Optional[Path], options: dict, plotter) -> None:
             console.print(metrics_table(title, cols))
         print_bodies(run.result)
         print_floating_base(run.doc)
+        run.doc["terminal_warnings"] = printed_warnings()  # report.html shows what the terminal said
         run.write(tmp, plotter=plotter, submitted=any(sent))
     console.print(summary_line(run.result, cfg.solver.method, run.skipped, out))
 

@@ -122,35 +122,44 @@ def _pretty_expr(expr: str) -> str:
 
 def _identifiability(doc: dict) -> str:
     """Rank, condition number and one row per base parameter: what it combines, its value, its
-    relative standard deviation (%) and whether it is poorly identified."""
+    relative standard deviation (%) and whether the data determine it, counted by the verdicts' rule
+    (relative std from the data alone at most :data:`~sensorless.identification.verdicts.DATA_REL_STD`),
+    and among those not determined, the poorly identified ones (their uncertainty also moves the torques)."""
+    from ..identification.verdicts import DATA_REL_STD
+
     d = doc.get("diagnostics") or {}
     bp = doc.get("base_parameters") or {}
     poor = d.get("poorly_identified") or []
     poor_names = {p.get("base_parameter") if isinstance(p, dict) else str(p) for p in poor}
+    names, exprs = bp.get("independent") or [], bp.get("expressions") or []
+    vals, rel = bp.get("values") or [], d.get("base_relative_std") or []
+    undetermined = [i for i in range(len(rel)) if rel[i] is None or not is_number(rel[i]) or rel[i] > DATA_REL_STD]
     out = [f"<h2 id=identifiability>Identifiability</h2><p>rank <b>{num(d.get('rank'))}</b> of {num(d.get('n_standard'))} "
            f"standard parameters (the other directions are invisible in joint torques, or unexcited by this log); "
-           f"condition number <b>{num(d.get('condition_number'))}</b>; <b>{len(poor)}</b> poorly identified base "
-           "parameter(s) (relative standard deviation above the limit and a torque effect above the noise).</p>"]
-    names, exprs = bp.get("independent") or [], bp.get("expressions") or []
+           f"condition number <b>{num(d.get('condition_number'))}</b>; <b>{len(undetermined)}</b> of {len(rel)} base "
+           f"parameter(s) not determined by the data (relative standard deviation from the data alone above "
+           f"{100 * DATA_REL_STD:.0f} % or none: the rule of the verdicts), <b>{len(poor)}</b> of them poorly "
+           "identified (above 100 % and a torque effect above the noise).</p>"]
     if not exprs:
         for p in poor[:40]:
             out.append(f"<div class=warn>{esc(p.get('base_parameter') if isinstance(p, dict) else p)}</div>")
         return "".join(out)
-    vals, rel = bp.get("values") or [], d.get("base_relative_std") or []
     rows = []
     for i, expr in enumerate(exprs):
         name = names[i] if i < len(names) else ""
         alone = expr.strip() == name
         r = rel[i] if i < len(rel) else None
         cls = " class=poor" if expr in poor_names else ""
+        shown = ("—" if r is None or not is_number(r) else "&gt; 1000" if r > 10 else pct(r))
+        state = ("<span class=bad>poor</span>" if cls else "not by the data" if i in undetermined else "data")
         rows.append(f"<tr{cls}><td>{i + 1}</td><td class=l>{esc(name)}</td>"
                     f"<td class='l expr'>{'<i>itself</i>' if alone else _pretty_expr(expr)}</td>"
-                    f"<td>{num(vals[i] if i < len(vals) else None)}</td><td>{'∞' if r is None and i < len(rel) else pct(r)}</td>"
-                    f"<td class=l>{'<span class=bad>poor</span>' if cls else ''}</td></tr>")
+                    f"<td>{num(vals[i] if i < len(vals) else None)}</td><td>{shown}</td>"
+                    f"<td class=l>{state}</td></tr>")
     out.append("<p class=legend>Each base parameter is the identifiable combination of standard parameters shown "
                "(<i>itself</i>: identifiable alone); rel. std = its standard deviation from the data / |value|.</p>"
                "<table><tr><th>#</th><th class=l>base parameter</th><th class=l>combines</th><th>value</th>"
-               "<th>rel. std [%]</th><th class=l></th></tr>" + "".join(rows) + "</table>")
+               "<th>rel. std [%]</th><th class=l>determined</th></tr>" + "".join(rows) + "</table>")
     return "".join(out)
 
 
@@ -237,6 +246,10 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
     warns = list(d.get("warnings") or [])
     if doc.get("urdf_error"):
         warns.append(f"no URDF: {doc['urdf_error']}")
+    said = " ".join(" ".join(str(w).split()) for w in warns)
+    for w in doc.get("terminal_warnings") or []:  # everything the terminal said, once
+        if " ".join(str(w).split())[:80] not in said:
+            warns.append(w)
     if warns:
         parts.append("<h2>Warnings</h2>" + "".join(f"<div class=warn>{esc(w)}</div>" for w in warns))
     parts += [bodies_table(doc), joint_terms_table(doc)]
