@@ -43,3 +43,22 @@ def test_the_report_holds_the_terminals_warnings_and_no_infinity(tmp_path, monke
     assert m and int(m.group(1)) == undetermined and int(m.group(2)) == len(rel), page[:2000]
     assert undetermined > 0  # 5 s of a UR5: some directions rest on the prior
     assert len(doc["diagnostics"]["poorly_identified"]) <= undetermined
+
+
+def test_library_setting_names_never_reach_the_command_line_user(tmp_path, monkeypatch):
+    """Hints name the command's flags, not Python fields: the `say` lines of identify go through the
+    same translation as its warnings (issue 42: `execution.scheduler`, `joint_terms` in hints)."""
+    from sensorless.cli.flags import cli_words
+    from sensorless.errors import setting
+
+    line = f"{setting('execution.scheduler')}: Coulomb smoothing from x; drop them ({setting('joint_terms')})"
+
+    import typer
+
+    from sensorless.cli import app
+
+    cmd = typer.main.get_command(app).get_command(typer.Context(typer.main.get_command(app)), "identify")
+    ctx = typer.Context(cmd)
+    with ctx:
+        words = cli_words(line)
+    assert "--scheduler" in words and "--joint-terms" in words and "`" not in words, words

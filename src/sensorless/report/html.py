@@ -232,6 +232,13 @@ def _settings(doc: dict) -> str:
             "numeric lists are summarised here and kept whole in the file.</p>" + _kv(rows, "settings"))
 
 
+def _gist(text: object) -> str:
+    """A warning without the settings it names (`field` in the library's words, --flag in the command's)."""
+    import re
+
+    return " ".join(re.sub(r"`[^`]*`|--[\w-]+(=\S+)?", "", str(text)).split())
+
+
 def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title: str | None = None) -> str:
     """The page for a result document (``result.json`` as written by ``identify``)."""
     d = doc.get("diagnostics") or {}
@@ -246,10 +253,9 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
     warns = list(d.get("warnings") or [])
     if doc.get("urdf_error"):
         warns.append(f"no URDF: {doc['urdf_error']}")
-    said = " ".join(" ".join(str(w).split()) for w in warns)
-    for w in doc.get("terminal_warnings") or []:  # everything the terminal said, once
-        if " ".join(str(w).split())[:80] not in said:
-            warns.append(w)
+    if doc.get("terminal_warnings") is not None:  # everything the terminal said (in its words), once
+        said = " ".join(_gist(w) for w in doc["terminal_warnings"])
+        warns = list(doc["terminal_warnings"]) + [w for w in warns if _gist(w)[:60] not in said]
     if warns:
         parts.append("<h2>Warnings</h2>" + "".join(f"<div class=warn>{esc(w)}</div>" for w in warns))
     parts += [bodies_table(doc), joint_terms_table(doc)]
