@@ -39,7 +39,7 @@ from .artifact_schema import (Checker, check_kinematics, check_preprocessing_set
                               check_structure_settings, check_verdicts, summary)
 
 __all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "FrictionArtifact", "ModelArtifact", "is_friction_model",
-           "check_same_robot", "is_robot_description", "load_friction_model", "load_model_folder", "load_model_robot", "prior_model",
+           "check_same_robot", "export_mjcf", "is_robot_description", "load_friction_model", "load_model_folder", "load_model_robot", "prior_model",
            "read_result", "read_preprocessing", "read_robot_settings", "result_path", "robot_settings",
            "save_friction_model", "save_model_folder", "stamp", "write_result"]
 
@@ -419,6 +419,31 @@ def save_model_folder(directory: str | Path, result, doc: dict | None = None, *,
         warnings.warn(f"no URDF written: {exc}", RobotModelWarning, stacklevel=2)
     write_result(doc, directory / RESULT)
     return doc
+
+
+def export_mjcf(model: "str | Path | ModelArtifact", robot, path: str | Path) -> Path:
+    """The model folder ``model`` (loaded on ``robot``, :func:`load_model_folder`; or an artifact already
+    loaded on it) as MJCF at ``path``
+    (:func:`sensorless.export_mjcf.write_mjcf`: inertials, armature, damping, frictionloss, verdicts in
+    comments, the friction terms MuJoCo cannot hold named in the header). A model of coupled joints
+    (drive terms on motor coordinates) has no MJCF counterpart and is refused."""
+    from ..export_mjcf import write_mjcf
+
+    art = model if isinstance(model, ModelArtifact) else load_model_folder(model, robot)
+    s, p = art.structure, art.parameters
+    if getattr(robot, "coupled", False) or s.n_body_params != 10 * robot.n_bodies:
+        raise ParameterError(f"{art.path}: a model of coupled joints (drive terms on motor coordinates) has no MJCF "
+                             "counterpart; export a per-joint model")
+    terms = {j: {t: float(p[s.joint_term_index(j, t)]) for t in s.terms_of(j)} for j in s.robot.term_joints}
+    for j, t in terms.items():  # the friction law's shape, which MuJoCo's ideal dry friction lacks
+        if t.get("fc") and s.smoothing_of(j) > 0:
+            t["coulomb_smoothing"] = s.smoothing_of(j)
+        vs = (getattr(s, "stribeck_velocity", None) or {}).get(j)
+        if t.get("stribeck") and vs:
+            t["stribeck_velocity"] = float(vs)
+    verdicts = (art.doc.get("diagnostics") or {}).get("verdicts")
+    return write_mjcf(robot, p[: s.n_body_params], path, terms, verdicts=verdicts,
+                      title=f"{art.label}; robot '{robot.name}'")
 
 
 def _comment_urdf(path: Path, comment: str | None) -> None:
