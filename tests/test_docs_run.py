@@ -1,11 +1,14 @@
 """Every fenced bash/python block of README.md, docs/*.md and examples/*.md runs as printed
-(tests/doc_blocks.py: directives, layout). One test per file, its blocks in order; the blocks
-run are listed at the end of the session (conftest) and in /tmp/sensorless-bench/doc_blocks.json."""
+(tests/doc_blocks.py: directives, layout), all pages in README order in one shared folder as a user
+following the guides does (the journey); every output name belongs to one page and no page reads
+another's, so each page also runs alone (run them so with ``-m slow``). The blocks run are listed at
+the end of the session (conftest) and in /tmp/sensorless-bench/doc_blocks.json."""
 
 from __future__ import annotations
 
 import json
 import os
+import re
 
 import pytest
 
@@ -43,9 +46,11 @@ def _run_page(path, work, env, shared: bool, run: str) -> list[str]:
     return []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", FILES, ids=[str(p.relative_to(ROOT)) for p in FILES])
 def test_doc_runs_as_printed(path, tmp_path):
-    """Each page alone, in a fresh folder."""
+    """Each page alone, in a fresh folder (slow: the journey below runs every block once; that no page
+    needs another's files is checked by `test_no_page_reads_another_pages_output`)."""
     work = workspace(tmp_path)
     failures = _run_page(path, work, environment(), (tmp_path / "shared").exists(), "alone")
     assert not failures, "\n\n".join(failures)
@@ -61,6 +66,33 @@ def test_guides_run_one_after_another_in_one_folder(tmp_path):
         if path in FILES:
             failures += _run_page(path, work, env, shared, "journey")
     assert not failures, "\n\n".join(failures)
+
+
+def uses(code: str, name: str) -> bool:
+    """Whether ``code`` refers to the file or folder ``name`` as a path: ``name/...``, an option's value
+    (``--model name``) or a quoted string."""
+    e = re.escape(name)
+    return re.search(rf"(?<![\w./-]){e}/|--[\w-]+[ =]['\"]?{e}(?![\w./-])|['\"]{e}['\"]", code) is not None
+
+
+def test_no_page_reads_another_pages_output():
+    """Each page alone: with every output name owned by one page, a page runs alone as in the journey
+    unless it refers to another page's output; none does (a page starts with its own data step)."""
+    owner: dict[str, str] = {}
+    for path in doc_files():
+        for block in blocks(path):
+            for name in outputs(block):
+                owner.setdefault(name, str(path.relative_to(ROOT)))
+    reads = []
+    for path in doc_files():
+        page = str(path.relative_to(ROOT))
+        for block in blocks(path):
+            if "skip" in block.options:
+                continue
+            code = block.runnable_code()
+            reads += [f"{block.where}: uses {name!r} of {other}" for name, other in owner.items()
+                      if other != page and uses(code, name)]
+    assert not reads, "\n".join(reads)
 
 
 def test_output_names_are_unique_across_pages():
