@@ -4,9 +4,10 @@ A log whose ``v`` column is not dq/dt (q and v swapped, v in other units, v dela
 transport, or v of another joint) gives a model that explains nothing, with exit 0. :func:`check_velocity`
 measures, per moving joint, how the logged v compares with dq/dt differentiated from the logged q: the
 correlation at zero lag and at the best lag (within ±:data:`MAX_LAG` s), that lag, and the scale
-(least-squares slope of v on dq/dt). Both signals pass through the same smoothing (a Savitzky–Golay
-window of ≈ :data:`SMOOTHING` s), so the comparison has no lag or gain of its own, and quantized or
-rounded positions do not pass for a mismatch. A joint that barely moves (range of q under
+(least-squares slope of v on dq/dt). Both signals pass through the same zero-phase low-pass, at a
+few times the band of the logged motion (:data:`BAND_FACTOR`, :data:`BAND_ENERGY`), so the comparison
+has no lag or gain of its own, and the derivative of a noisy, quantized or rounded q does not pass for
+a mismatch. A joint that barely moves (range of q under
 :data:`MIN_RANGE`) is not judged.
 
 The verdicts (:class:`VelocityCheck`): ``refuse`` when v cannot be dq/dt (correlation under
@@ -23,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["JointVelocity", "VelocityCheck", "check_velocity", "MIN_CORRELATION", "MAX_SCALE", "MAX_LAG",
-           "MAX_LAG_WARN", "LAG_GAIN", "SCALE_WARN", "MIN_RANGE", "SMOOTHING", "MAX_SAMPLES"]
+           "MAX_LAG_WARN", "LAG_GAIN", "SCALE_WARN", "MIN_RANGE", "BAND_ENERGY", "BAND_FACTOR", "MIN_CUTOFF", "MAX_SAMPLES"]
 
 #: below this correlation at every lag the logged v is not dq/dt (refused)
 MIN_CORRELATION = 0.5
@@ -40,8 +41,12 @@ LAG_GAIN = 0.5
 SCALE_WARN = 0.1
 #: a joint whose q range is below this [rad or m] is not judged (its dq/dt is noise)
 MIN_RANGE = 0.02
-#: the smoothing window applied to both v and dq/dt [s]
-SMOOTHING = 0.05
+#: both signals are low-passed (zero phase, the same filter) at BAND_FACTOR × the frequency holding
+#: BAND_ENERGY of the logged velocity's energy, at least MIN_CUTOFF [Hz]: the motion's band, where
+#: the derivative of a noisy or quantized q is not noise
+BAND_ENERGY = 0.95
+BAND_FACTOR = 3.0
+MIN_CUTOFF = 1.0
 #: at most this many samples (the first ones) are compared: enough for a verdict on any log
 MAX_SAMPLES = 200_000
 #: another joint's dq/dt matches v "far better" when its correlation is above this and ≥ 0.2 above its own
@@ -107,10 +112,25 @@ class VelocityCheck:
                 "velocity shifts the friction and inertia estimates")
 
 
-def _smooth(x: np.ndarray, window: int) -> np.ndarray:
-    from scipy.signal import savgol_filter
+def _band(v: np.ndarray, dt: float) -> float:
+    """The low-pass cut-off [Hz] both signals are compared under: :data:`BAND_FACTOR` × the frequency
+    below which :data:`BAND_ENERGY` of the logged velocity's energy lies (its motion, not its noise),
+    within [:data:`MIN_CUTOFF`, 0.4 × Nyquist]."""
+    x = v - v.mean(axis=0)
+    power = (np.abs(np.fft.rfft(x, axis=0)) ** 2).sum(axis=1)
+    freqs = np.fft.rfftfreq(len(x), dt)
+    cum = np.cumsum(power)
+    if not cum[-1] > 0:
+        return 0.2 / dt
+    f = float(freqs[min(int(np.searchsorted(cum, BAND_ENERGY * cum[-1])), len(freqs) - 1)])
+    return float(np.clip(BAND_FACTOR * f, MIN_CUTOFF, 0.2 / dt))
 
-    return savgol_filter(x, window, 2, axis=0, mode="interp")
+
+def _lowpass(x: np.ndarray, cutoff: float, dt: float) -> np.ndarray:
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(2, cutoff, fs=1.0 / dt, output="sos")
+    return sosfiltfilt(sos, x, axis=0)
 
 
 def _xcorr(a: np.ndarray, b: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
@@ -147,13 +167,13 @@ def check_velocity(t: np.ndarray, q: np.ndarray, v: np.ndarray, joint_names) -> 
     dt = float(np.median(np.diff(t)))
     if not np.isfinite(dt) or dt <= 0 or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
         return VelocityCheck()
-    longest = n // 3 - (1 - (n // 3) % 2)  # odd, a third of the samples at most
-    window = min(max(5, int(round(SMOOTHING / dt)) | 1), longest)
-    if window < 5:
-        return VelocityCheck()
-    dq = _smooth(np.gradient(q, t, axis=0), window)
-    vs = _smooth(v, window)
-    moving = [k for k in range(q.shape[1]) if np.ptp(q[:, k]) >= MIN_RANGE and np.std(dq[:, k]) > 0]
+    moving = [k for k in range(q.shape[1]) if np.ptp(q[:, k]) >= MIN_RANGE and np.std(v[:, k]) > 0]
+    if not moving:
+        return VelocityCheck(still=tuple(names))
+    cutoff = _band(v[:, moving], dt)
+    dq = _lowpass(np.gradient(q, t, axis=0), cutoff, dt)
+    vs = _lowpass(v, cutoff, dt)
+    moving = [k for k in moving if np.std(dq[:, k]) > 0]
     still = tuple(names[k] for k in range(q.shape[1]) if k not in moving)
     if not moving:
         return VelocityCheck(still=still)
