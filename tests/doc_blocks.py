@@ -11,7 +11,9 @@ HTML comment (invisible on GitHub)::
 - ``timeout``: seconds (default 300);
 - ``skip``: the reason the block cannot run here (counted and listed, never silent).
 
-Blocks of one file run in order in one directory, as a user following the page would: bash with
+Blocks of one file run in order in one directory, as a user following the page would, and all pages
+run in README order in one shared directory, as a user following the guides one after another would
+(``journey_files``; every page's output names are its own, ``outputs``): bash with
 ``set -euo pipefail`` and the environment's ``bin`` first on PATH (an activated venv), Python by
 that environment's interpreter. The directory holds copies of ``examples/``, ``studies/benchmarks/`` and
 ``docs/`` and a link ``../shared`` as beside a clone, so repository-relative paths work and
@@ -24,6 +26,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -60,6 +63,41 @@ class Block:
 def doc_files() -> list[Path]:
     """README.md, docs/*.md and examples/*.md."""
     return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "examples").glob("*.md"))]
+
+
+def journey_files() -> list[Path]:
+    """The pages in the order a user meets them: README.md, then the docs in the order README.md first
+    links them, then the other pages (``doc_files`` order)."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    rest = doc_files()[1:]
+    first = {p: readme.find(str(p.relative_to(ROOT))) for p in rest}
+    linked = sorted((p for p in rest if first[p] >= 0), key=first.get)
+    return [ROOT / "README.md", *linked, *(p for p in rest if first[p] < 0)]
+
+
+_OUT = (re.compile(r"--out[ =]['\"]?([^\s'\";]+)"),                        # any command's output option
+        re.compile(r"(?<![<0-9&])[12]?>\s*([A-Za-z0-9_.][^\s;|&)]*)"),      # a shell redirection to a file
+        re.compile(r"\.(?:save|savez|savez_compressed|to_feather|to_parquet|savetxt)\(\s*f?['\"]([^'\"{]+)"),
+        re.compile(r"write_npz\([^\n]*,\s*['\"]([^'\"]+)['\"]\)"))
+
+
+def outputs(block: Block) -> set[str]:
+    """The top-level names (file or folder, relative to the page's directory) ``block`` writes to:
+    ``--out``, shell redirections, ``save``/``savez``/``write_npz`` calls."""
+    code = block.runnable_code()
+    patterns = _OUT
+    if block.lang == "bash":
+        code = re.sub(r"<<-?'?(\w+)'?\n.*?\n\1\n", "\n", code, flags=re.S)  # here-documents are input
+        code = re.sub(r"(^|\s)# .*", "", code)                                  # comments
+    else:
+        patterns = [p for p in _OUT if p is not _OUT[1]]  # no shell redirection in Python
+    names = set()
+    for pattern in patterns:
+        for m in pattern.finditer(code):
+            path = m.group(1).rstrip("/")
+            if path and not path.startswith(("/", "$", "-")) and path not in (".", "&1", "&2", "/dev/null"):
+                names.add(path.split("/")[0])
+    return names
 
 
 def blocks(path: Path) -> list[Block]:
@@ -151,10 +189,21 @@ def run_block(block: Block, cwd: Path, env: dict) -> tuple[int, str, float]:
         cmd = [sys.executable, "-"]
         stdin = code
     start = time.perf_counter()
+    timeout = float(block.options.get("timeout", 300))
+    # its own process group: at the timeout the block and everything it started (a background
+    # listener, a pipe's other end) is killed, so nothing holds the output pipes open
+    p = subprocess.Popen(cmd, cwd=cwd, env=env, stdin=subprocess.PIPE if stdin else subprocess.DEVNULL,
+                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
-        p = subprocess.run(cmd, cwd=cwd, env=env, input=stdin, capture_output=True, text=True,
-                           timeout=float(block.options.get("timeout", 300)))
-        rc, output = p.returncode, p.stdout + p.stderr
-    except subprocess.TimeoutExpired as e:
-        rc, output = -9, f"timed out after {e.timeout} s\n" + str(e.stdout or "") + str(e.stderr or "")
+        output, _ = p.communicate(stdin, timeout=timeout)
+        rc = p.returncode
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        output, _ = p.communicate()
+        rc, output = -9, f"timed out after {timeout:g} s\n" + (output or "")
+    finally:
+        try:  # a background job left running by a block that exited
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
     return rc, output[-4000:], time.perf_counter() - start

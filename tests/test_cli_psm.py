@@ -137,6 +137,19 @@ def test_psm_identify_takes_train_and_test_files_and_saves_a_model(psm_files, tm
     assert code == 2 and "--test" in out and not (tmp_path / "x").exists()
 
 
+def test_psm_identify_lmi_saves_the_lmi_model_and_warns_once_per_cause(psm_files, tmp_path):
+    """`--lmi` keeps the physically consistent model in result.json (it saved the OLS one), and a
+    warning repeated by the fits is printed once (issue 42)."""
+    d, s, _ = psm_files
+    code, out = _run(["experiment", "psm-identify", "--train", d / "train.csv", "--test", d / "test.csv",
+                      "--smoothing", "0.05", "--lmi", "--out", tmp_path / "psm"])
+    assert code == 0, out
+    assert json.loads((tmp_path / "psm" / "result.json").read_text())["method"] == "lmi"
+    assert "result.json: the LMI model" in " ".join(out.split())
+    lines = [" ".join(w.split()) for w in out.split("warning:")[1:]]
+    assert len(lines) == len(set(lines)), lines
+
+
 def test_psm_model_and_urdf_model_are_not_mixed(psm_files, tmp_path):
     d, _, _ = psm_files
     code, out = _run(["predict", "--robot", "panda", "--model", d / "model", "--data", d / "test.csv", *COLS,

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from sensorless.cli import app
 from sensorless.run.logs import load_logs
 from sensorless.data import Trajectory, TrimWindow, prepare, read_trajectory, resample, timing, trim_window
-from sensorless.errors import DataError, JointNameError, ShapeMismatchError, TimestampError
+from sensorless.errors import DataError, DataWarning, JointNameError, ShapeMismatchError, TimestampError
 from sensorless.excitation import random_fourier
 from sensorless.testing import perturbed_truth, synthetic_trajectory
 
@@ -199,12 +199,14 @@ def test_jitter_without_resampling_says_to_resample():
 
 # ---- keep the logged velocity ----------------------------------------------------
 def test_logged_velocity_is_kept_and_differentiated_once(ur5_log):
-    """v logged as 2 × dq/dt: kept bit for bit, and v̇ follows it (2 × q̈), not q."""
-    tr = ur5_log.with_(v=2.0 * ur5_log.v, a=None)
-    out = prepare(tr)
+    """v logged as 1.3 × dq/dt: kept bit for bit (with a warning naming the scale), and v̇ follows it
+    (1.3 × q̈), not q."""
+    tr = ur5_log.with_(v=1.3 * ur5_log.v, a=None)
+    with pytest.warns(DataWarning, match=r"v = 1\.3·dq/dt"):
+        out = prepare(tr)
     np.testing.assert_array_equal(out.v, tr.v)
     inner = slice(10, -10)
-    np.testing.assert_allclose(out.a[inner], 2.0 * ur5_log.a[inner], atol=0.05 * np.abs(ur5_log.a).max())
+    np.testing.assert_allclose(out.a[inner], 1.3 * ur5_log.a[inner], atol=0.05 * np.abs(ur5_log.a).max())
     assert out.provenance["v"] == "logged" and out.provenance["a"].startswith("derived: d/dt of logged v")
     forced = prepare(tr, velocity="from-q")
     np.testing.assert_allclose(forced.v[inner], ur5_log.v[inner], atol=0.02 * np.abs(ur5_log.v).max())
@@ -214,10 +216,10 @@ def test_logged_velocity_is_kept_and_differentiated_once(ur5_log):
 
 
 def test_cli_load_logs_keeps_the_logged_velocity(tmp_path, ur5_log, ur5):
-    f = _current_csv(tmp_path / "cur.csv", ur5_log.with_(v=2.0 * ur5_log.v))
+    f = _current_csv(tmp_path / "cur.csv", ur5_log.with_(v=1.3 * ur5_log.v))
     (tr,) = load_logs([f], ur5, "q=pos_{joint};v=vel_{joint};tau=i_{joint}", None, None, None, 1,
                       gains=",".join(map(str, GAINS)))
-    np.testing.assert_allclose(tr.v, 2.0 * ur5_log.v, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(tr.v, 1.3 * ur5_log.v, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(tr.tau, ur5_log.tau, rtol=1e-12, atol=1e-12)
 
 

@@ -1,10 +1,10 @@
 """The documented `drive-gains` command recovers the true gains from the data its doc makes (issue 24).
 
-The README quickstart and docs/arm.md §8 run ``sensorless example drive-gains --out cal`` and then
+The README quickstart and docs/arm.md §8 run ``sensorless example drive-gains --out DIR`` and then
 ``sensorless drive-gains ... --payload-mass M --frame F --com X,Y,Z``. Copying an earlier README
 command onto the example's data gave gains up to 2.6× wrong, every joint "ok": its ``--com`` was not
 where the example put the mass. Here each documented block runs as printed (through the CLI) and
-its mass, frame and CoM must be the example's (``cal/truth.json``), and the gains within 1 %.
+its mass, frame and CoM must be the example's (``DIR/truth.json``), and the gains within 1 %.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ def test_documented_drive_gains_recover_the_true_gains(doc, tmp_path, monkeypatc
         r = CliRunner().invoke(app, cmd[1:])
         assert r.exit_code == 0, f"{' '.join(cmd)}\n{r.output}"
     gains_cmd = cmds[1]
-    truth = json.loads((tmp_path / "cal" / "truth.json").read_text())
+    truth = json.loads((tmp_path / _option(cmds[0], "--out") / "truth.json").read_text())
     cal = truth["calibration"]
     assert float(_option(gains_cmd, "--payload-mass")) == cal["mass"]
     assert _option(gains_cmd, "--frame") == truth["frame"]

@@ -33,7 +33,7 @@ def test_logs_doc_runs_as_printed(tmp_path, monkeypatch):
     exec(compile(python, str(DOC), "exec"), {})
     # the commands on the logs the Python block makes (the long-log section has its own data step,
     # run by tests/test_docs_run.py)
-    commands = [c for c in _commands() if any(a.startswith("logs/") for a in c)]
+    commands = [c for c in _commands() if any(a.startswith("lab_logs/") for a in c)]
     assert len(commands) == 7
     run = CliRunner().invoke
     for args in commands:
@@ -41,7 +41,7 @@ def test_logs_doc_runs_as_printed(tmp_path, monkeypatch):
         assert r.exit_code == 0, (args, r.output)
         if "run.npz" in args:
             assert "arrays not used: 'motor_temp'" in " ".join(r.output.split())
-    r = run(app, ["identify", "--robot", "ur5", "--data", "logs/run", "--method", "ols", "--out", "logs/refused"])
+    r = run(app, ["identify", "--robot", "ur5", "--data", "lab_logs/run", "--method", "ols", "--out", "lab_refused"])
     text = " ".join(r.output.split())
     assert r.exit_code == 2 and "time column 'tick' counts controller ticks" in text and "--time-unit tick --rate HZ" in text
 

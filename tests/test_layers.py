@@ -23,7 +23,7 @@ STUDIES = TESTS.parent / "studies" / "src" / "sensorless_studies"
 
 LAYERS = {
     "errors": 0, "io": 0, "outdir": 0, "lazy": 0, "__version__": 0,  # ``from .. import __version__``: the package's own
-    "robot": 1, "parameters": 1, "model_checks": 1, "export": 1, "urdf_patch": 1,
+    "robot": 1, "parameters": 1, "model_checks": 1, "export": 1, "export_mjcf": 1, "urdf_patch": 1,
     "robot_paths": 1, "xacro_expand": 1, "_xacro_worker": 1,
     "data": 2, "testing": 2,
     "regressor": 3,

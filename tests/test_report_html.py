@@ -136,7 +136,7 @@ def test_report_of_an_lmi_run_holds_bodies_verdicts_percent_and_no_raw_json(lmi_
             assert unit == {"mass": "kg"}.get(key, "m" if key.startswith("com") else "kg·m²")
             assert prior == num(e["prior"]) and verdict == e["verdict"]
             assert ident == ("—" if e["verdict"] == "undetermined" else num(e["value"]))
-            assert std == ("∞" if e["std_data"] is None else num(e["std_data"], 2))
+            assert std == ("—" if e["std_data"] is None else num(e["std_data"], 2))
             assert share == pct(e["prior_share"]).replace("&lt;", "<")
             assert row["cells"][-1]["badges"] == [f"badge v-{e['verdict']}"] and row["class"] == f"v-{e['verdict']}"
             seen.add(e["verdict"])

@@ -39,7 +39,7 @@ from .io import atomic_write_text
 from .parameters import JointTerms, as_bodies, is_physically_consistent, urdf_inertial
 from .robot import Robot
 
-__all__ = ["write_urdf", "write_joint_terms", "read_joint_terms"]
+__all__ = ["write_urdf", "write_joint_terms", "read_joint_terms", "link_names", "joint_axis"]
 
 _REVOLUTE = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned"}
 _CONTINUOUS = {"JointModelRUBX", "JointModelRUBY", "JointModelRUBZ", "JointModelRevoluteUnboundedUnaligned"}
@@ -59,8 +59,9 @@ def _atomic_write(path: str | os.PathLike, text: str) -> Path:
     return atomic_write_text(path, text)
 
 
-def _link_names(model: pin.Model, floating: bool) -> list[str]:
-    """URDF link name per joint index (0 = fixed root, "" when floating), unique."""
+def link_names(model: pin.Model, floating: bool) -> list[str]:
+    """The link (body) name per joint index, as the exported files name them: the first BODY frame on the
+    joint, else ``<joint>_link`` (0 = the fixed root, "base_link" without a frame; "" when floating), unique."""
     names: list[str] = [""] if floating else []
     joints = set(model.names)
     for j in range(len(names), model.njoints):
@@ -73,7 +74,7 @@ def _link_names(model: pin.Model, floating: bool) -> list[str]:
     return names
 
 
-def _joint_axis(model: pin.Model, j: int) -> np.ndarray:
+def joint_axis(model: pin.Model, j: int) -> np.ndarray:
     """Axis of a 1-DoF joint from its motion subspace (angular part if revolute, else linear)."""
     jm = model.joints[j]
     jd = jm.createData()
@@ -94,7 +95,7 @@ def write_urdf(robot: Robot, pi: np.ndarray, path: str | os.PathLike, joint_term
     if np.size(pi) != 10 * robot.n_bodies:
         raise RobotModelError(f"expected {10 * robot.n_bodies} inertial parameters, got {np.shape(pi)}")
     P = as_bodies(np.ravel(pi))
-    names = _link_names(model, robot.floating_base)
+    names = link_names(model, robot.floating_base)
     for k in range(robot.n_bodies):
         if not P[k, 0] > 0.0:
             raise PhysicalConsistencyError(
@@ -140,7 +141,7 @@ def write_urdf(robot: Robot, pi: np.ndarray, path: str | os.PathLike, joint_term
         ET.SubElement(joint, "origin", xyz=_vec(M.translation), rpy=_vec(pin.rpy.matrixToRpy(M.rotation)))
         ET.SubElement(joint, "parent", link=names[parent])
         ET.SubElement(joint, "child", link=names[j])
-        ET.SubElement(joint, "axis", xyz=_vec(_joint_axis(model, j)))
+        ET.SubElement(joint, "axis", xyz=_vec(joint_axis(model, j)))
         iq, iv = jm.idx_q, jm.idx_v
         lim = {
             "effort": _f(np.clip(model.effortLimit[iv], 0.0, _FMAX)),

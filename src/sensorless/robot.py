@@ -30,7 +30,12 @@ from .parameters import pin_inertia
 from .robots.registry import find_robot, robot_names
 from .xacro_expand import expand_xacro
 
-__all__ = ["Actuation", "Robot", "add_frame", "frame_table", "load_robot"]
+__all__ = ["KINEMATICS_TOL", "Actuation", "Robot", "add_frame", "frame_table", "kinematics_difference",
+           "kinematics_fingerprint", "kinematics_summary", "kinematics_table", "load_robot"]
+
+#: placements within this many metres (rotation-matrix entries within this much) are the same kinematics:
+#: the precision files print, not a different robot
+KINEMATICS_TOL = 1e-5
 
 
 class Actuation:
@@ -292,7 +297,66 @@ class Robot(Actuation):
             "actuated_joints": list(self.actuated_joints),
             **({"passive_joints": list(self.passive_joints)} if self.passive_joints else {}),
             "total_mass": float(sum(self.model.inertias[j].mass for j in range(1, self.model.njoints))),
+            "kinematics": kinematics_summary(self.model),
         }
+
+
+def kinematics_table(model: pin.Model) -> list[list]:
+    """The kinematic tree of ``model`` as plain data, one row per joint below the universe:
+    ``[name, type, parent name, x, y, z, R00, R01, …, R22]`` (the joint's placement in its parent;
+    the type is Pinocchio's short name, with the axis for an unaligned joint)."""
+    rows = []
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        kind = joint.shortname()
+        if "Unaligned" in kind:
+            kind += "(" + ",".join(f"{a:.9g}" for a in joint.extract().axis) + ")"
+        M = model.jointPlacements[j]
+        numbers = np.concatenate([M.translation, M.rotation.reshape(-1)])
+        rows.append([model.names[j], kind, model.names[model.parents[j]],
+                     *(float(round(x, 9)) + 0.0 for x in numbers)])
+    return rows
+
+
+def kinematics_fingerprint(table: list[list]) -> str:
+    """A short hash of a :func:`kinematics_table` (names, types, parents, placements to 0.1 mm): equal
+    fingerprints are the same robot; unequal ones are compared with :func:`kinematics_difference`."""
+    import hashlib
+
+    text = ";".join(",".join(str(x) if isinstance(x, str) else f"{round(x, 4) + 0.0:.4f}" for x in row)
+                    for row in table)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def kinematics_summary(model: pin.Model) -> dict:
+    """``{"fingerprint", "joints"}`` of ``model``: what a model artifact stores of its robot."""
+    table = kinematics_table(model)
+    return {"fingerprint": kinematics_fingerprint(table), "joints": table}
+
+
+def kinematics_difference(stored: list[list], table: list[list], tol: float = KINEMATICS_TOL) -> str | None:
+    """The first difference of the robot given (``table``) from a model's robot (``stored``), both
+    :func:`kinematics_table` s, in words; None when they are the same robot."""
+    names, ours = [r[0] for r in stored], [r[0] for r in table]
+    if names != ours:
+        missing, extra = [n for n in names if n not in ours], [n for n in ours if n not in names]
+        if missing:
+            return f"the robot given has no joint(s) {missing[:3]}{' …' if len(missing) > 3 else ''}"
+        if extra:
+            return f"the robot given has joint(s) {extra[:3]}{' …' if len(extra) > 3 else ''} the model's has not"
+        return "the same joints in another order"
+    for a, b in zip(stored, table):
+        if a[1] != b[1]:
+            return f"joint '{a[0]}' is {b[1].replace('JointModel', '')} in the robot given, {a[1].replace('JointModel', '')} in the model's"
+        if a[2] != b[2]:
+            return f"joint '{a[0]}' hangs from '{b[2]}' in the robot given, from '{a[2]}' in the model's"
+        dt = float(np.linalg.norm(np.subtract(a[3:6], b[3:6], dtype=float)))
+        dr = float(np.max(np.abs(np.subtract(a[6:], b[6:], dtype=float))))
+        if dt > tol:
+            return f"joint '{a[0]}' is {dt:.3g} m from its place in the model's robot"
+        if dr > tol:
+            return f"joint '{a[0]}' is turned from its orientation in the model's robot"
+    return None
 
 
 #: file suffixes of a robot description (anything else is looked up in the registry)

@@ -65,3 +65,22 @@ def test_c_force_tracking_with_integral_torque_feedback(results):
     run_ = results[1]["c_force"]["runs"][0]
     assert run_["rms_error_n"] < 15.0  # 150 N amplitude
     assert 0.9 < run_["amplitude_ratio"] < 1.1
+
+
+def test_tracking_figure_has_a_time_axis():
+    """tracking.png: every column of panels ends with its x label (issue 42)."""
+    import types
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from sensorless_studies.experiments.torque_control_figures import tracking_figure
+
+    t = np.linspace(0, 1, 20)
+    fig = tracking_figure(plt, t, np.zeros((20, 6)), {"position": types.SimpleNamespace(q_true=np.zeros((20, 6)))})
+    bottom = [ax for ax in fig.axes if ax.get_xlabel()]
+    assert len(bottom) == 2 and all(ax.get_xlabel() == "time [s]" for ax in bottom)
+    plt.close(fig)

@@ -5,7 +5,7 @@ Each command group lives in its own module and registers itself on :data:`app`; 
 (:mod:`.plugins`).
 """
 
-from . import identify, predict, drive_gains, excite, frames, friction, hybrid_force, monitor, payload, stream  # noqa: F401  (each module registers its commands)
+from . import identify, predict, drive_gains, export, excite, frames, friction, hybrid_force, monitor, payload, stream  # noqa: F401  (each module registers its commands)
 import typer
 
 from .common import app, atomic_outdir, guarded

@@ -103,10 +103,23 @@ def _print_line(label: str, style: str, message: str) -> None:
     err_console.print(Text.assemble((label, style), " ", strip_control(message)), highlight=False, soft_wrap=True)
 
 
+#: the warning lines the running command printed (each once), for the reports it writes
+_PRINTED: list[str] = []
+
+
+def printed_warnings() -> list[str]:
+    """Every warning line the running command has printed so far, in order (its reports show them)."""
+    return list(_PRINTED)
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     name = getattr(category, "__name__", "Warning")
     prefix = "" if name in ("UserWarning", "IdentifiabilityWarning", "DataWarning") else f"{name}: "
-    _print_line("warning:", "yellow", prefix + one_line(cli_words(message)))
+    text = prefix + one_line(cli_words(message))
+    if text in _PRINTED:  # one line per cause: the same warning again (another fold, another log part) adds nothing
+        return
+    _PRINTED.append(text)
+    _print_line("warning:", "yellow", text)
 
 
 def config_named_files() -> list[tuple[str, str]]:
@@ -147,6 +160,7 @@ def guarded(fn):
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _show_warning
+            _PRINTED.clear()
             try:
                 with blas_threads_for_command():
                     return fn(*args, **kwargs)

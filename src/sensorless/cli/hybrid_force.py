@@ -85,9 +85,14 @@ def estimate_force(
     unobs = (f"; {res.n_unobservable} sample(s) with an unobservable component (NaN, 'unobservable' in the file)"
              if res.n_unobservable else "")
     console.print(
-        f"{len(res.t)} samples; RMS {', '.join(f'{l}={v:.3g}' for l, v in zip(res.labels, rms))}; "
+        f"{len(res.t)} samples; RMS {', '.join(f'{l}={v:.3g} {_unit(l)}' for l, v in zip(res.labels, rms))}; "
         f"damped on {100 * damped:.1f}% of samples{unobs}; wrote {out}" + (f" and {figure}" if figure else "")
     )
+
+
+def _unit(label: str) -> str:
+    """N for a force component (fx, fy, fz), N·m for a moment (mx, my, mz)."""
+    return "N·m" if label.startswith("m") else "N"
 
 
 def _figure_path(out: Path) -> Path:

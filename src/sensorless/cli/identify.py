@@ -7,8 +7,9 @@ from contextlib import nullcontext
 from pathlib import Path
 from typing import Optional
 
-from .common import MultiValueCommand, app, atomic_outdir, guarded
+from .common import MultiValueCommand, app, atomic_outdir, guarded, printed_warnings
 from .console import console
+from .flags import cli_words
 from .identify_options import identify_options, run_config
 from .options import check_config, config_option
 from .progress import progress_bars
@@ -42,13 +43,14 @@ def _identify(config: Optional[Path], options: dict, plotter) -> None:
     with atomic_outdir(out, cfg.execution.force, inputs=run_inputs(cfg)) as tmp, progress_bars() as bars, \
             (plotter if plotter is not None else nullcontext()):
         sent = []  # the figures go to the plot process as soon as the run has them
-        run = identify_run(cfg, bars=bars, say=lambda line: console.print(line, highlight=False, soft_wrap=True),
+        run = identify_run(cfg, bars=bars, say=lambda line: console.print(cli_words(line), highlight=False, soft_wrap=True),
                            figures=lambda jobs: sent.append(plotter is not None and plotter.submit(jobs_in(tmp, jobs))),
                            figure_layouts=None if plotter is None else lambda specs: plotter.prepare(jobs_in(tmp, specs)))
         for title, cols in run.tables:
             console.print(metrics_table(title, cols))
         print_bodies(run.result)
         print_floating_base(run.doc)
+        run.doc["terminal_warnings"] = printed_warnings()  # report.html shows what the terminal said
         run.write(tmp, plotter=plotter, submitted=any(sent))
     console.print(summary_line(run.result, cfg.solver.method, run.skipped, out))
 

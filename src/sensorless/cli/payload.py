@@ -188,6 +188,13 @@ def _scaled(traj, robot, scale):
     return traj.with_(tau=traj.tau * f)
 
 
+def _cell(x: float, fmt: str, unit: str = "") -> str:
+    """``x`` formatted, or "—" when the joint gives no finite value (no information on the payload)."""
+    import math
+
+    return f"{x:{fmt}}{unit}" if isinstance(x, (int, float)) and math.isfinite(x) else "—"
+
+
 def _print(est) -> None:
     from rich.table import Table
 
@@ -206,13 +213,14 @@ def _print(est) -> None:
     if est.headline_excludes:
         console.print(f"[yellow]joint(s) {est.headline_excludes} contradict the others and are left out of the "
                       f"estimate[/] (with them: m = {est.diagnostics['mass_with_flagged']:.4f} kg)")
-    table = Table(title="per-joint consistency: mass this joint alone implies vs the other joints (CoM fixed)")
+    table = Table(title="per-joint consistency: mass this joint alone implies vs the other joints (CoM fixed)",
+                  caption="—: the joint's torque carries no information on the payload mass")
     for col in ("joint", "mass [kg]", "± σ", "others [kg]", "± σ", "z", "share", "offset", "flag"):
         table.add_column(col, justify="right")
     fitted = set(est.settings.get("offsets") or ())
     for k, j in enumerate(est.per_joint):
         flag = "[red]CONTRADICTS[/]" if j.flagged else ("ok" if j.informative else "no info")
-        table.add_row(safe(j.joint), f"{j.mass:.4f}", f"{j.std:.4f}", f"{j.others_mass:.4f}", f"{j.others_std:.4f}",
-                      f"{j.z:+.1f}", f"{100 * j.share:.0f} %",
+        table.add_row(safe(j.joint), _cell(j.mass, ".4f"), _cell(j.std, ".4f"), _cell(j.others_mass, ".4f"),
+                      _cell(j.others_std, ".4f"), _cell(j.z, "+.1f"), _cell(100 * j.share, ".0f", " %"),
                       f"{est.offsets[k]:.3g}" if est.offsets is not None and j.joint in fitted else "—", flag)
     console.print(table)

@@ -30,7 +30,7 @@ from ..errors import DataError, JointNameError, ShapeMismatchError, setting
 from .tabular import is_number
 from .trajectory import Trajectory
 
-__all__ = ["split_gain_modifiers", "load_gains", "resolve_gains", "currents_to_torques"]
+__all__ = ["split_gain_modifiers", "load_gains", "resolve_gains", "currents_to_torques", "no_effort_message"]
 
 _MODIFIER = ":gain="
 _GAIN_FIELDS = ("tau", "current")
@@ -219,3 +219,14 @@ def currents_to_torques(traj: Trajectory, gains: Any, current_field: str | None 
     units = {**traj.units, "tau": "N·m (= drive gain × current)", "current": "as logged"}
     prov = {**traj.provenance, "tau": f"current × drive gain (from '{current_field}' columns)", "gains": gain_map}
     return traj.with_(tau=current * K, extras={**traj.extras, "current": current}, units=units, provenance=prov)
+
+
+def no_effort_message(traj: Trajectory) -> str:
+    """Why a log without torque/effort cannot be fitted or scored, and the way out: a log of motor
+    currents needs the drive gains (``gains``, τ = K·i per joint)."""
+    gains = setting("gains", placeholder="FILE")
+    if traj.extras.get("current") is not None:
+        return (f"the log has motor currents but no torque/effort: give the drive gains, {gains} (τ = K·i per joint; "
+                "`sensorless drive-gains` identifies them from a run with a known payload)")
+    return (f"the log has no torque/effort ('tau'); a log of motor currents needs the drive gains, {gains} "
+            "(τ = K·i per joint), and its current columns mapped (columns 'current=...')")

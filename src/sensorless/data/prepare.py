@@ -63,6 +63,7 @@ from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
 from .trims import LogTrims, TrimWindow, trim_window
 from .validation import validate_trajectory
+from .velocity_check import check_velocity
 
 __all__ = ["prepare", "load_log", "check_preprocessing", "parse_columns", "parse_resample", "VELOCITY_SOURCES",
            "BASE_VELOCITY_SOURCES"]
@@ -116,6 +117,16 @@ def _from_pose(base_velocity: str, traj: Trajectory, robot) -> bool:
                         traj.source)
     floating = robot is None or getattr(robot, "floating_base", False)
     return traj.base_q is not None and (mode == "from-pose" or (mode == "auto" and traj.base_v is None and floating))
+
+
+def _check_logged_velocity(traj: Trajectory) -> None:
+    """Refuse a logged v that is not dq/dt, warn about a delayed or scaled one (:mod:`.velocity_check`)."""
+    check = check_velocity(traj.t, traj.q, traj.v, traj.joint_names)
+    if check.refusal:
+        raise DataError(f"{check.refusal} Check the columns ({setting('columns')}); if q is right, "
+                        f"{setting('velocity', 'from-q')} derives v from q", traj.source)
+    if check.warning:
+        warnings.warn(f"{traj.source}: {check.warning}", DataWarning, stacklevel=3)
 
 
 def prepare(
@@ -193,6 +204,8 @@ def prepare(
     else:
         traj = _resample(traj, mode, max_gap=max_gap)
     traj = validate_trajectory(traj, check_units=False)
+    if traj.v is not None and vel == "logged":
+        _check_logged_velocity(traj)
 
     derive_v = traj.v is None or vel == "from-q"
     derive_a = derive_v or traj.a is None or savgol_window is not None

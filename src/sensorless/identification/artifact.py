@@ -36,11 +36,11 @@ from ..errors import ParameterError, SensorlessError, setting
 from ..io import check_input_file, read_json
 from ..outdir import warn_if_edited
 from ..regressor.joint_terms import joint_term, terms_where
-from .artifact_schema import (Checker, check_preprocessing_settings, check_robot_settings, check_structure_settings,
-                              check_verdicts, summary)
+from .artifact_schema import (Checker, check_kinematics, check_preprocessing_settings, check_robot_settings,
+                              check_structure_settings, check_verdicts, summary)
 
 __all__ = ["SCHEMA_VERSION", "RESULT", "MAX_MODEL_BYTES", "FrictionArtifact", "ModelArtifact", "is_friction_model",
-           "is_robot_description", "load_friction_model", "load_model_folder", "load_model_robot", "prior_model",
+           "check_same_robot", "export_mjcf", "is_robot_description", "load_friction_model", "load_model_folder", "load_model_robot", "prior_model",
            "read_result", "read_preprocessing", "read_robot_settings", "result_path", "robot_settings",
            "save_friction_model", "save_model_folder", "stamp", "write_result"]
 
@@ -184,6 +184,7 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
         c.string("method", method, max_len=32)
     if doc.get("robot") is not None:
         c.mapping("robot", doc["robot"])
+        check_same_robot(c, doc["robot"], robot)
     check_structure_settings(c, settings)
     _check_robot_matches(c, check_robot_settings(c, settings.get("robot")), robot)
     check_verdicts(c, (doc.get("diagnostics") or {}).get("verdicts") if isinstance(doc.get("diagnostics"), dict) else None)
@@ -199,6 +200,33 @@ def load_model_folder(model: str | Path, robot) -> ModelArtifact:
     params = _parameters(c, structure, values, doc, robot)
     _check_bodies(c, structure, params, physical=method == "lmi")
     return ModelArtifact(path, doc, structure, params, pre)
+
+
+def check_same_robot(c: Checker, stored: dict, robot) -> None:
+    """Refuse ``robot`` when it is not the robot the model was identified on (``stored``: the model's
+    ``robot``): its kinematic tree (``robot.kinematics``, compared to the printed precision) or, for
+    models written before the tree was stored, its body names. One line naming both robots."""
+    from ..robot import kinematics_difference, kinematics_fingerprint, kinematics_table
+
+    name = stored.get("name")
+    name = name[:80] if isinstance(name, str) else "?"
+    kin = check_kinematics(c, stored.get("kinematics"))
+    if kin is not None:
+        table = kinematics_table(robot.model)
+        ours = kinematics_fingerprint(table)
+        why = None if ours == kin["fingerprint"] else kinematics_difference(kin["joints"], table)
+        if why is not None:
+            raise ParameterError(f"{c.src}: identified on robot '{name}' (kinematics {kin['fingerprint']}), not on "
+                                 f"the robot given, '{robot.name}' (kinematics {ours}): {why}; give "
+                                 f"{setting('robot')} the robot the model was identified on")
+        return
+    bodies = stored.get("bodies")
+    if isinstance(bodies, list) and all(isinstance(b, str) for b in bodies):
+        missing = [b for b in bodies if b not in robot.body_names]
+        if missing:
+            raise ParameterError(f"{c.src}: identified on robot '{name}', whose bodies {missing[:3]}"
+                                 f"{' …' if len(missing) > 3 else ''} the robot given, '{robot.name}', has not; give "
+                                 f"{setting('robot')} the robot the model was identified on")
 
 
 def _check_robot_matches(c: Checker, stored: dict, robot) -> None:
@@ -393,6 +421,31 @@ def save_model_folder(directory: str | Path, result, doc: dict | None = None, *,
         warnings.warn(f"no URDF written: {exc}", RobotModelWarning, stacklevel=2)
     write_result(doc, directory / RESULT)
     return doc
+
+
+def export_mjcf(model: "str | Path | ModelArtifact", robot, path: str | Path) -> Path:
+    """The model folder ``model`` (loaded on ``robot``, :func:`load_model_folder`; or an artifact already
+    loaded on it) as MJCF at ``path``
+    (:func:`sensorless.export_mjcf.write_mjcf`: inertials, armature, damping, frictionloss, verdicts in
+    comments, the friction terms MuJoCo cannot hold named in the header). A model of coupled joints
+    (drive terms on motor coordinates) has no MJCF counterpart and is refused."""
+    from ..export_mjcf import write_mjcf
+
+    art = model if isinstance(model, ModelArtifact) else load_model_folder(model, robot)
+    s, p = art.structure, art.parameters
+    if getattr(robot, "coupled", False) or s.n_body_params != 10 * robot.n_bodies:
+        raise ParameterError(f"{art.path}: a model of coupled joints (drive terms on motor coordinates) has no MJCF "
+                             "counterpart; export a per-joint model")
+    terms = {j: {t: float(p[s.joint_term_index(j, t)]) for t in s.terms_of(j)} for j in s.robot.term_joints}
+    for j, t in terms.items():  # the friction law's shape, which MuJoCo's ideal dry friction lacks
+        if t.get("fc") and s.smoothing_of(j) > 0:
+            t["coulomb_smoothing"] = s.smoothing_of(j)
+        vs = (getattr(s, "stribeck_velocity", None) or {}).get(j)
+        if t.get("stribeck") and vs:
+            t["stribeck_velocity"] = float(vs)
+    verdicts = (art.doc.get("diagnostics") or {}).get("verdicts")
+    return write_mjcf(robot, p[: s.n_body_params], path, terms, verdicts=verdicts,
+                      title=f"{art.label}; robot '{robot.name}'")
 
 
 def _comment_urdf(path: Path, comment: str | None) -> None:

@@ -339,6 +339,30 @@ def check_structure_settings(c: Checker, s: Mapping) -> None:
 
 
 VERDICTS = ("data", "prior", "undetermined")
+#: at most this many joints in a stored kinematic tree
+MAX_KINEMATICS_JOINTS = 4096
+
+
+def check_kinematics(c: Checker, v: Any, key: str = "robot.kinematics") -> dict | None:
+    """``robot.kinematics`` (optional; files before it have none), written by
+    :func:`~sensorless.robot.kinematics_summary`: ``{"fingerprint": hex, "joints": [[name, type, parent,
+    x, y, z, R00 … R22], …]}``."""
+    if v is None:
+        return None
+    v = c.mapping(key, v)
+    c.string(f"{key}.fingerprint", v.get("fingerprint"), max_len=64)
+    rows = v.get("joints")
+    if not isinstance(rows, list) or len(rows) > MAX_KINEMATICS_JOINTS:
+        raise c.fail(f"{key}.joints", f"expected a list of at most {MAX_KINEMATICS_JOINTS} joints, got {summary(rows)}")
+    for i, row in enumerate(rows):
+        k = f"{key}.joints[{i}]"
+        if not isinstance(row, list) or len(row) != 15:
+            raise c.fail(k, f"expected [name, type, parent, x, y, z, 9 rotation entries], got {summary(row)}")
+        for j in range(3):
+            c.string(f"{k}[{j}]", row[j], max_len=256)
+        for j in range(3, 15):
+            c.number(f"{k}[{j}]", row[j], -1e6, 1e6)
+    return v
 
 
 def check_verdicts(c: Checker, v: Any, key: str = "diagnostics.verdicts") -> None:

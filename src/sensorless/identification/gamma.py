@@ -35,6 +35,7 @@ from ..data.periodicity import excitation_period
 from ..data.trajectory import Trajectory
 from ..errors import DataError, IdentifiabilityWarning, SolverError
 from ..regressor.compress import compress
+from ..data.blocks import blocked_folds
 from ..regressor.normal_equations import NormalEquations, compress_folds
 from ..regressor.terms import ModelStructure
 from .ellipsoids import resolve_ellipsoids
@@ -322,9 +323,8 @@ def split_folds(
                 raise DataError(f"no sample falls in phase block {f} of {n_folds}; is the period of {period} s right?")
         fold_of = lambda k, t: lambda lo, hi: blocks[k][lo:hi]  # noqa: E731
     else:
-        edges = np.linspace(0, total, n_folds + 1).round().astype(int)
-        starts = np.cumsum([0] + [len(t) for t in trajs])
-        fold_of = lambda k, t: lambda lo, hi: np.searchsorted(edges, starts[k] + np.arange(lo, hi), side="right") - 1  # noqa: E731
+        labels = blocked_folds([len(t) for t in trajs], n_folds)
+        fold_of = lambda k, t: lambda lo, hi: labels[k][lo:hi]  # noqa: E731
     if structure.row_map.per_sample:  # contacts fold their own equations: each fold compressed from its samples
         folds = [compress(structure, _fold_parts(trajs, fold_of, f), chunk=chunk, progress=progress)
                  for f in range(n_folds)]

@@ -49,6 +49,7 @@ import pinocchio as pin
 
 from ..data.filtering import uniform_dt
 from ..data.integral_filter import LowpassChain
+from ..data.gains import no_effort_message
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError, setting
 from .joint_terms import joint_term
@@ -127,7 +128,7 @@ def _generalised(structure: ModelStructure, traj: Trajectory, tau: np.ndarray | 
     r = structure.robot
     if tau is None:
         if traj.tau is None:
-            raise DataError("trajectory has no torque/effort ('tau')", traj.source)
+            raise DataError(no_effort_message(traj), traj.source)
         tr = in_robot_order(r, traj)
         tau = tr.tau[:, [r.joint_names.index(j) for j in r.actuated_joints]]
     out = np.zeros((len(traj), r.nv))

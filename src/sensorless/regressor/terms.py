@@ -46,6 +46,7 @@ from typing import Literal, Mapping
 import numpy as np
 import pinocchio as pin
 
+from ..data.gains import no_effort_message
 from ..data.trajectory import Trajectory
 from ..errors import DataError, RobotModelError
 from ..parameters import PARAMETER_NAMES
@@ -273,7 +274,7 @@ class ModelStructure:
         """Measured effort on the kept rows, shape (N, n_rows)."""
         r = self.robot
         if traj.tau is None:
-            raise DataError("trajectory has no torque/effort ('tau')", traj.source)
+            raise DataError(no_effort_message(traj), traj.source)
         tau = in_robot_order(r, traj).tau
         cols = [r.joint_names.index(j) for j in r.actuated_joints]
         y = np.zeros((len(traj), self.n_rows))

@@ -37,7 +37,7 @@ import pinocchio as pin
 
 from ..errors import JointNameError, RobotModelError
 from ..parameters import PARAMETER_NAMES
-from ..robot import Actuation, Robot
+from ..robot import Actuation, Robot, kinematics_summary
 from .drive_terms import DriveTerm
 from .rowmap import TransmissionRows
 from .terms import ModelStructure
@@ -226,6 +226,7 @@ class CoordinateRobot(Actuation):
             "bodies": list(self.body_names),
             "actuated_joints": list(self.actuated_joints),
             "total_mass": float(sum(m.inertias[int(k) + 1].mass for k in self._body_ids)),
+            "kinematics": kinematics_summary(m),
         }
 
 

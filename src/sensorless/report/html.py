@@ -19,7 +19,7 @@ from ..io import atomic_write_text
 from .html_bodies import bodies_table, joint_terms_table
 from .html_format import esc, is_number, num, pct
 
-__all__ = ["write_html_report", "render_html_report"]
+__all__ = ["write_html_report", "render_html_report", "metrics_html", "page"]
 
 _CSS = """body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1180px;color:#222;padding:0 1em}
 h1{font-size:1.5em;margin-bottom:.2em}h2{font-size:1.15em;border-bottom:1px solid #ccc;margin-top:1.6em}
@@ -46,7 +46,7 @@ def _kv(rows: list[tuple[str, str]], cls: str = "kv") -> str:
     return f"<table class={cls}>" + "".join(f"<tr><th class=l>{esc(k)}</th><td class=l>{v}</td></tr>" for k, v in rows) + "</table>"
 
 
-def _metrics_table(columns: dict[str, dict]) -> str:
+def metrics_html(columns: dict[str, dict]) -> str:
     """Rows = joints; per model (a ``TorqueMetrics.to_dict()`` document) RMSE [N·m] and NRMSE [%]."""
     cols = {name: doc for name, doc in columns.items() if doc and "per_joint" in doc}
     if not cols:
@@ -60,7 +60,8 @@ def _metrics_table(columns: dict[str, dict]) -> str:
         for doc in cols.values():
             e = doc["per_joint"].get(j, {})
             cells.append(f"<td>{num(e.get('rmse'))}</td>"
-                         + (f"<td title='{esc(e.get('note', ''))}'>at rest</td>" if e.get("static") else f"<td>{pct(e.get('nrmse'))}</td>"))
+                         + (f"<td title='{esc(e.get('note', ''))}'>at rest" + (f", bias {num(e['bias'])}" if e.get("bias") is not None else "")
+                            + "</td>" if e.get("static") else f"<td>{pct(e.get('nrmse'))}</td>"))
         rows.append(f"<tr><td class=l>{esc(j)}</td>{''.join(cells)}</tr>")
     means = "".join(f"<td>{num(d.get('mean_rmse'))}</td><td>{pct(d.get('mean_nrmse'))}</td>" for d in cols.values())
     return (f"<table><tr><th class=l rowspan=2>joint</th>{head1}</tr><tr>{head2}</tr>{''.join(rows)}"
@@ -96,6 +97,10 @@ def _summary(doc: dict) -> str:
     tm = doc.get("train_metrics") or {}
     if tm.get("mean_nrmse") is not None:
         rows.append(("training mean NRMSE", f"{pct(tm['mean_nrmse'])} %"))
+    blocked = doc.get("blocked_held_out")
+    if isinstance(blocked, dict) and blocked.get("mean_nrmse") is not None:
+        rows.append((f"blocked held-out mean NRMSE ({blocked.get('blocks')} time blocks of the training logs)",
+                     f"{pct(blocked['mean_nrmse'])} %"))
     for log, cols in (doc.get("validation") or {}).items():
         ms = _held_out_columns(cols, method)
         rows.append((f"held-out mean NRMSE, {Path(log).name}",
@@ -117,35 +122,44 @@ def _pretty_expr(expr: str) -> str:
 
 def _identifiability(doc: dict) -> str:
     """Rank, condition number and one row per base parameter: what it combines, its value, its
-    relative standard deviation (%) and whether it is poorly identified."""
+    relative standard deviation (%) and whether the data determine it, counted by the verdicts' rule
+    (relative std from the data alone at most :data:`~sensorless.identification.verdicts.DATA_REL_STD`),
+    and among those not determined, the poorly identified ones (their uncertainty also moves the torques)."""
+    from ..identification.verdicts import DATA_REL_STD
+
     d = doc.get("diagnostics") or {}
     bp = doc.get("base_parameters") or {}
     poor = d.get("poorly_identified") or []
     poor_names = {p.get("base_parameter") if isinstance(p, dict) else str(p) for p in poor}
+    names, exprs = bp.get("independent") or [], bp.get("expressions") or []
+    vals, rel = bp.get("values") or [], d.get("base_relative_std") or []
+    undetermined = [i for i in range(len(rel)) if rel[i] is None or not is_number(rel[i]) or rel[i] > DATA_REL_STD]
     out = [f"<h2 id=identifiability>Identifiability</h2><p>rank <b>{num(d.get('rank'))}</b> of {num(d.get('n_standard'))} "
            f"standard parameters (the other directions are invisible in joint torques, or unexcited by this log); "
-           f"condition number <b>{num(d.get('condition_number'))}</b>; <b>{len(poor)}</b> poorly identified base "
-           "parameter(s) (relative standard deviation above the limit and a torque effect above the noise).</p>"]
-    names, exprs = bp.get("independent") or [], bp.get("expressions") or []
+           f"condition number <b>{num(d.get('condition_number'))}</b>; <b>{len(undetermined)}</b> of {len(rel)} base "
+           f"parameter(s) not determined by the data (relative standard deviation from the data alone above "
+           f"{100 * DATA_REL_STD:.0f} % or none: the rule of the verdicts), <b>{len(poor)}</b> of them poorly "
+           "identified (above 100 % and a torque effect above the noise).</p>"]
     if not exprs:
         for p in poor[:40]:
             out.append(f"<div class=warn>{esc(p.get('base_parameter') if isinstance(p, dict) else p)}</div>")
         return "".join(out)
-    vals, rel = bp.get("values") or [], d.get("base_relative_std") or []
     rows = []
     for i, expr in enumerate(exprs):
         name = names[i] if i < len(names) else ""
         alone = expr.strip() == name
         r = rel[i] if i < len(rel) else None
         cls = " class=poor" if expr in poor_names else ""
+        shown = ("—" if r is None or not is_number(r) else "&gt; 1000" if r > 10 else pct(r))
+        state = ("<span class=bad>poor</span>" if cls else "not by the data" if i in undetermined else "data")
         rows.append(f"<tr{cls}><td>{i + 1}</td><td class=l>{esc(name)}</td>"
                     f"<td class='l expr'>{'<i>itself</i>' if alone else _pretty_expr(expr)}</td>"
-                    f"<td>{num(vals[i] if i < len(vals) else None)}</td><td>{'∞' if r is None and i < len(rel) else pct(r)}</td>"
-                    f"<td class=l>{'<span class=bad>poor</span>' if cls else ''}</td></tr>")
+                    f"<td>{num(vals[i] if i < len(vals) else None)}</td><td>{shown}</td>"
+                    f"<td class=l>{state}</td></tr>")
     out.append("<p class=legend>Each base parameter is the identifiable combination of standard parameters shown "
                "(<i>itself</i>: identifiable alone); rel. std = its standard deviation from the data / |value|.</p>"
                "<table><tr><th>#</th><th class=l>base parameter</th><th class=l>combines</th><th>value</th>"
-               "<th>rel. std [%]</th><th class=l></th></tr>" + "".join(rows) + "</table>")
+               "<th>rel. std [%]</th><th class=l>determined</th></tr>" + "".join(rows) + "</table>")
     return "".join(out)
 
 
@@ -218,6 +232,13 @@ def _settings(doc: dict) -> str:
             "numeric lists are summarised here and kept whole in the file.</p>" + _kv(rows, "settings"))
 
 
+def _gist(text: object) -> str:
+    """A warning without the settings it names (`field` in the library's words, --flag in the command's)."""
+    import re
+
+    return " ".join(re.sub(r"`[^`]*`|--[\w-]+(=\S+)?", "", str(text)).split())
+
+
 def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title: str | None = None) -> str:
     """The page for a result document (``result.json`` as written by ``identify``)."""
     d = doc.get("diagnostics") or {}
@@ -232,13 +253,20 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
     warns = list(d.get("warnings") or [])
     if doc.get("urdf_error"):
         warns.append(f"no URDF: {doc['urdf_error']}")
+    if doc.get("terminal_warnings") is not None:  # everything the terminal said (in its words), once
+        said = " ".join(_gist(w) for w in doc["terminal_warnings"])
+        warns = list(doc["terminal_warnings"]) + [w for w in warns if _gist(w)[:60] not in said]
     if warns:
         parts.append("<h2>Warnings</h2>" + "".join(f"<div class=warn>{esc(w)}</div>" for w in warns))
     parts += [bodies_table(doc), joint_terms_table(doc)]
     parts.append("<h2 id=metrics>Per-joint metrics (training)</h2>"
-                 + _metrics_table({method.upper(): doc.get("train_metrics")}))
+                 + metrics_html({method.upper(): doc.get("train_metrics")}))
     for log, cols in (doc.get("validation") or {}).items():
-        parts.append(f"<h2>Held-out: {esc(Path(log).name)}</h2>" + _metrics_table(_held_out_columns(cols, method)))
+        parts.append(f"<h2>Held-out: {esc(Path(log).name)}</h2>" + metrics_html(_held_out_columns(cols, method)))
+    blocked = doc.get("blocked_held_out")
+    if isinstance(blocked, dict):
+        parts.append(f"<h2>Blocked held-out (training logs)</h2><p class=legend>{esc(blocked.get('label', ''))}</p>"
+                     + metrics_html({method.upper(): blocked}))
     parts.append(_floating_base(doc))
     if figures:
         parts.append("<h2 id=figures>Figures</h2>")
@@ -252,8 +280,13 @@ def render_html_report(doc: dict, figures: dict[str, bytes] | None = None, title
                      + (f"; inertials: {esc(uv.get('values'))} values" if uv.get("values") else "")
                      + (f"; {esc(uv['fallback'])}" if uv.get("fallback") else "") + "</p>")
     parts.append(_settings(doc))
+    return page(f"{rname} identification", parts)
+
+
+def page(title: str, parts: list[str]) -> str:
+    """A self-contained page: ``parts`` (HTML) with the report's style and figure zoom."""
     body = "\n".join(p for p in parts if p)
-    return (f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{esc(rname)} identification</title>"
+    return (f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{esc(title)}</title>"
             f"<style>{_CSS}</style></head><body>\n{body}\n{_ZOOM}</body></html>\n")
 
 

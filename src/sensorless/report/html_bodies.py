@@ -29,7 +29,8 @@ VERDICT_LEGEND = (
     "standard deviation is small and the prior's share is below 50 %) · <span class='badge v-prior'>prior</span> "
     "the value comes mostly from the prior (the URDF or <code>--prior</code>) · "
     "<span class='badge v-undetermined'>undetermined</span> neither fixes it: the value is not shown. "
-    "± = standard deviation from the data alone (∞: part of the quantity lies where the log's regressor is blind); "
+    "± = standard deviation from the data alone (—: none, part of the quantity lies where the log's regressor is "
+    "blind; the verdict says where the value comes from); "
     "prior share = the part of the value the regulariser pulled from the prior.</p>")
 
 _HEAD = ("<tr><th class=l>{what}</th><th class=l>quantity</th><th class=l>unit</th><th>prior</th><th>identified</th>"
@@ -49,7 +50,9 @@ def _row(label: str, unit: str, e: dict, lead: str = "", row_id: str = "") -> st
         shown = f"<td title='not determined (solver value {num(value)})'>—</td>"
     else:
         shown = f"<td class=val>{num(value)}</td>"
-    std = "" if "std_data" not in e else "∞" if e["std_data"] is None else num(e["std_data"], 2)
+    std = ("" if "std_data" not in e else
+           f"<span title='no interval from the data alone: the value is the verdict's ({esc(v or '?')})'>—</span>"
+           if e["std_data"] is None else num(e["std_data"], 2))
     rid = f" id={row_id}" if row_id else ""
     return (f"<tr{rid} class='v-{esc(v or 'none')}'>{lead}<td class=l>{label}</td><td class=l>{esc(unit)}</td>"
             f"<td>{num(e.get('prior'))}</td>{shown}<td>{std}</td><td>{pct(e.get('prior_share'))}</td>"

@@ -173,7 +173,7 @@ def _identify(config: RunConfig, bars, say, figures, layouts=None) -> Run:
     from ..data.integrity import duplicate_logs, unique_logs
     from ..regressor.distributed import expand_paths
     from .figures import figure_jobs, figure_layouts
-    from .validation import check_plausible, floating_base_report, held_out_scores, ols_baseline
+    from .validation import blocked_scores, check_plausible, floating_base_report, held_out_scores, ols_baseline
 
     eps, vs = check_run_config(config)
     lg, m, sv, ex = config.logs, config.model, config.solver, config.execution
@@ -247,6 +247,11 @@ def _identify(config: RunConfig, bars, say, figures, layouts=None) -> Run:
     check_plausible(result, lmi_kw, sv.accept_implausible, sv.urdf_values)
     doc = result.to_dict()
     doc["validation"], tables = held_out_scores(validate, val, str(sv.method), model, cad, baseline)
+    if not val and train and fit.streamed is None:  # no held-out log: the blocked error of the training logs
+        blocked = blocked_scores(result, train, lmi_kw, str(sv.method))
+        if blocked is not None:
+            doc["blocked_held_out"], table = blocked
+            tables.append(table)
     fb = floating_base_report(structure, result, train, val, validate)
     if fb is not None:
         doc["floating_base"] = fb

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..errors import SensorlessError, setting
 
-__all__ = ["check_plausible", "ols_baseline", "held_out_scores", "floating_base_report"]
+__all__ = ["check_plausible", "ols_baseline", "held_out_scores", "blocked_scores", "floating_base_report"]
 
 
 def check_plausible(result, lmi_kw: dict, accept: bool, urdf_values: str = "prior") -> None:
@@ -55,6 +55,17 @@ def held_out_scores(validate, val, method: str, model, cad, baseline) -> tuple[d
         cols[method.upper()] = m_id
         tables.append((f"held-out {Path(p).name}", cols))
     return doc, tables
+
+
+def blocked_scores(result, train, lmi_kw: dict, method: str) -> tuple[dict, tuple] | None:
+    """Without held-out logs: (result.json ``blocked_held_out``, its table) — the blocked held-out error
+    of the training logs (:mod:`~sensorless.identification.blocked`); None when it cannot be computed."""
+    from ..identification.blocked import BLOCKS, LABEL, blocked_held_out
+
+    m = blocked_held_out(result, train, lmi_kw)
+    if m is None:
+        return None
+    return {"label": LABEL, "blocks": BLOCKS, **m.to_dict()}, (LABEL, {method.upper(): m})
 
 
 def floating_base_report(structure, result, train, val, validate) -> dict | None:

@@ -28,7 +28,8 @@ def psm_identify(
     train: Optional[Path] = typer.Option(None, help="training log (header-less CSV: q, q̇, effort × 7, 200 Hz)"),
     test: Optional[Path] = typer.Option(None, help="held-out log, same format"),
     params: Optional[Path] = typer.Option(None, help="optional: the authors' params.json, for comparison"),
-    save: PsmModel = typer.Option(PsmModel.ols, help="which model result.json holds: ols | wls | lmi"),
+    save: Optional[PsmModel] = typer.Option(None, help="which model result.json holds: ols | wls | lmi (default: lmi "
+                                                       "with --lmi, else ols)"),
     cutoff: float = typer.Option(5.4, help="zero-phase low-pass cut-off [Hz] on q, q̇ and effort"),
     smoothing: str = typer.Option("cv", help="Coulomb smoothing ε [rad/s], or 'cv' (3-fold cross-validation on the "
                                              "training log; slow)"),
@@ -44,6 +45,7 @@ def psm_identify(
     from ..experiments.psm_identification import psm_identification_study
     from sensorless.identification.artifact import save_model_folder
 
+    save = save or (PsmModel.lmi if lmi else PsmModel.ols)  # --lmi: the physically consistent model is the one kept
     if data is None and (train is None or test is None):
         raise OptionError("give --data (the WPI folder) or both --train and --test")
     if smoothing != "cv":

@@ -10,9 +10,24 @@ import numpy as np
 from ..simulation.leg_model import JOINTS
 from ..simulation.leg_protocols import Q_AIR
 
-__all__ = ["figures"]
+__all__ = ["figures", "tracking_figure"]
 
 SHORT = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
+
+
+def tracking_figure(plt, t: np.ndarray, q_ref: np.ndarray, logs: dict):
+    """Tracking error per joint against time, one line per controller in ``logs`` (``q_true``)."""
+    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    for j, ax in enumerate(axs.T.ravel()):
+        for name, style in (("position", "k-"), ("torque_p_K6=1", "r-"), ("torque_p_K6=0.25", "g-"), ("torque_pi_K6=0.25", "b--")):
+            if name in logs:
+                ax.plot(t, np.degrees(q_ref[:, j] - logs[name].q_true[:, j]), style, lw=0.8, label=name)
+        ax.set_title(SHORT[j])
+        ax.set_ylabel("error [deg]")
+    for ax in axs[-1]:
+        ax.set_xlabel("time [s]")
+    axs[0, 0].legend(fontsize=7)
+    return fig
 
 
 def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[str]:
@@ -55,16 +70,7 @@ def figures(out: Path, est_fig, fit_fig, track, force, openl, models) -> list[st
         ax.legend(fontsize=7)
     save(fig, "actuator_fits.png")
     # tracking
-    t, q_ref, logs = track["t"], track["q_ref"], track["logs"]
-    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-    for j, ax in enumerate(axs.T.ravel()):
-        for name, style in (("position", "k-"), ("torque_p_K6=1", "r-"), ("torque_p_K6=0.25", "g-"), ("torque_pi_K6=0.25", "b--")):
-            if name in logs:
-                ax.plot(t, np.degrees(q_ref[:, j] - logs[name].q_true[:, j]), style, lw=0.8, label=name)
-        ax.set_title(SHORT[j])
-        ax.set_ylabel("error [deg]")
-    axs[0, 0].legend(fontsize=7)
-    save(fig, "tracking.png")
+    save(tracking_figure(plt, track["t"], track["q_ref"], track["logs"]), "tracking.png")
     # force
     fig, ax = plt.subplots(figsize=(9, 4))
     ax.plot(force["t"], force["f_d"], "k", lw=1.5, label="desired")
