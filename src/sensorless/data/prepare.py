@@ -37,7 +37,9 @@
 8. **decimate** (anti-aliased).
 
 ``Trajectory.provenance`` records which signals were logged and which derived (and
-how), the drive gains, the trim window, the timing and the resampling.
+how), each logged channel's quantization step and decimals (``resolution``,
+:mod:`sensorless.data.resolution`, read before any resampling; they floor the noise of the rest
+detection), the drive gains, the trim window, the timing and the resampling.
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ from .filtering import trim as _trim
 from .limits import current_options, read_options
 from .plausibility import check_gain_plausibility
 from .imu import IMU_KEY
+from .resolution import record_floor, resolution_record
 from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
@@ -150,6 +153,7 @@ def prepare(
     for f in ("q", "v", "a", "tau", "base_q", "base_v", "base_a"):
         if getattr(traj, f) is not None:
             prov.setdefault(f, "logged")
+    prov["resolution"] = resolution_record(traj)  # as logged: a resampling or low-pass hides it
     traj = traj.with_(provenance=prov)
     if wrench_frames and robot is None:
         raise OptionError("wrench frames need the robot model (prepare(..., robot=...))")
@@ -211,8 +215,9 @@ def prepare(
         raise OptionError(f"{setting('rest')} must be one of {', '.join(REST_MODES)}, got {rest!r}")
     sigma_v = None
     if rest == "auto" and not derive_v and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:
-        sigma_v = signal_noise(traj.v)  # before the low-pass colours it (sensorless.data.rest)
-        sigma_q = signal_noise(traj.q)
+        res = traj.provenance["resolution"]  # as logged (a resampling interpolates between the quanta)
+        sigma_v = np.maximum(signal_noise(traj.v), record_floor(res, "v", traj.joint_names))  # before the low-pass
+        sigma_q = np.maximum(signal_noise(traj.q), record_floor(res, "q", traj.joint_names))  # colours it (.rest)
     w = int(savgol_window) if savgol_window is not None else default_savgol_window(
         1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 and np.median(np.diff(traj.t)) > 0 else float("nan"))
     if derive_a and traj.extras.get("contact") is not None:
