@@ -20,7 +20,7 @@ import numpy as np
 from ..data.trims import TrimWindow
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from .collision import ContactInterval, observer_warmup, quiet_mask, runs
+from .collision import ContactInterval, check_quiet_window, observer_warmup, quiet_mask, runs
 from .momentum import MomentumDynamics, MomentumObserver, ObserverResult
 from .monitored import MonitoredTorque, monitored_rows, monitored_torque
 from .static_band import (STATUS, MonitorTrace, RestAwareThresholds, StaticFriction, classify_at_rest,
@@ -160,6 +160,7 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
     else:
         static = StaticFriction(names, np.asarray(s.static_friction, float), ["given"] * len(names))
     mask = quiet_mask(t, window, traj.source, exclude=t < t[0] + warm)
+    check_quiet_window(raw, t, mask, names, s.quiet, usable=t >= t[0] + warm, source=traj.source)
     th = rest_aware_thresholds(raw, rest, mask, static, k=s.k, false_alarm_rate=None if s.k is not None else
                                s.false_alarm_rate, dt=dt, margin=s.static_margin)
     trace = classify_at_rest(raw, t, rest, th, quiet=mask, warmup=warm, settle=settle)
