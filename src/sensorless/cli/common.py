@@ -316,6 +316,10 @@ READING_OPTIONS = {
     "angle_unit": (Optional[AngleUnit], lambda: typer.Option(
         None, help="unit of the logged joint angles: rad | deg (q, v, v̇ of revolute joints converted from degrees; "
                    "recorded in result.json; default rad, or the model's)")),
+    "joint_order": (Optional[str], lambda: typer.Option(
+        None, help="names (default): a log's q columns are matched to the model by the joint names the log holds; "
+                   "model: a log that names none of its columns follows the model's joint order (confirms it where "
+                   "the file holds text arrays that may be its own names)")),
     "max_log_memory": (Optional[str], lambda: typer.Option(
         None, help="memory a log may expand to when read and preprocessed, e.g. 8GiB (default: a quarter of the "
                    "available memory, or $SENSORLESS_MAX_LOG_MEMORY); a larger log is refused before reading")),
@@ -331,7 +335,7 @@ READING_OPTIONS = {
 
 
 def log_reading_options(skip_bad: bool = True):
-    """Decorator: ``--angle-unit``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
+    """Decorator: ``--angle-unit``, ``--joint-order``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
     options = dict(READING_OPTIONS)
@@ -348,7 +352,8 @@ def log_reading_options(skip_bad: bool = True):
             with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
                               accept_implausible_gains=reading["accept_implausible_gains"],
                               skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"],
-                              angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"])):
+                              angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"]),
+                              joint_order=reading["joint_order"]):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)

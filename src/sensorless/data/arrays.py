@@ -83,7 +83,7 @@ def read_npz(path: Path, columns: Mapping | None) -> RawLog:
         keys = list(z.files)
         picked = _pick_fields(keys, columns, src)
         extra = [k for k in EXTRA_KEYS if k in keys]
-        name_key = pick_key("joint_names", keys, None, src, names=JOINT_NAME_KEYS)
+        name_key = pick_key("joint_names", keys, columns, src, names=JOINT_NAME_KEYS)
         check_npz(path, src, [*picked.values(), *extra])
         try:
             arrays = {field: as_float(z[key], src, key) for field, key in picked.items()}
@@ -96,7 +96,22 @@ def read_npz(path: Path, columns: Mapping | None) -> RawLog:
     if "q" not in arrays:
         raise missing_q(keys, src)
     used = {*picked.values(), *extra, name_key}
-    return RawLog(arrays, names, dict(picked), extras, [k for k in keys if k not in used])
+    unused = [k for k in keys if k not in used]
+    return RawLog(arrays, names, dict(picked), extras, unused, [k for k in unused if _npz_text(path, k)])
+
+
+def _npz_text(path: Path, key: str) -> bool:
+    """Whether NPZ member ``key`` holds strings (its header only)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as zf, zf.open(key + ".npy") as fh:
+            major, _ = np.lib.format.read_magic(fh)
+            read = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
+            _, _, dtype = read(fh)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+        return False
+    return dtype.kind in "US"
 
 
 def read_hdf5(path: Path, columns: Mapping | None) -> RawLog:
@@ -125,7 +140,7 @@ def _hdf5_fields(f, src: str, columns: Mapping | None) -> RawLog:
     base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
     picked = _pick_fields(keys, columns, src, base)
     extra = [k for k in EXTRA_KEYS if k in keys]
-    name_key = pick_key("joint_names", keys, None, src, base, names=JOINT_NAME_KEYS)
+    name_key = pick_key("joint_names", keys, columns, src, base, names=JOINT_NAME_KEYS)
     check_hdf5(f, [*picked.values(), *extra, *([name_key] if name_key else [])], src)
     arrays = {field: as_float(f[key][()], src, key) for field, key in picked.items()}
     names = None
@@ -136,4 +151,6 @@ def _hdf5_fields(f, src: str, columns: Mapping | None) -> RawLog:
     if "q" not in arrays:
         raise missing_q(keys, src)
     used = {*picked.values(), *extra, name_key}
-    return RawLog(arrays, names, dict(picked), {k: f[k][()] for k in extra}, [k for k in keys if k not in used])
+    unused = [k for k in keys if k not in used]
+    return RawLog(arrays, names, dict(picked), {k: f[k][()] for k in extra}, unused,
+                  [k for k in unused if f[k].dtype.kind in "SUO"])

@@ -21,9 +21,12 @@ where it is stored:
 * A folder of per-signal files (``q.dat``, ``tau.dat``, ...): a file name per field
   (:mod:`.textlog`).
 
-Joint names: ``joint_names``, else names stored in the file (``joint_names`` array, the
-``{joint}`` pattern or a shared header), else ``robot.joint_names`` if the column count
-matches, else ``joint_0..joint_{n-1}``. Time is converted to seconds (:mod:`.timebase`:
+Joint names: ``joint_names``, else names stored in the file (a ``joint_names`` or ``names`` array, or one
+mapped under the file's own name, ``columns={"joint_names": "estimatorJointNames"}``; the ``{joint}`` pattern
+or a shared header), else ``robot.joint_names`` if the column count matches: refused when the file holds
+text arrays the reader did not use (the log's own names, in its own order) unless the read option
+``joint_order="model"`` confirms the model's order; else ``joint_0..joint_{n-1}``. Named columns are matched
+to the model by name (reordered by validation). Time is converted to seconds (:mod:`.timebase`:
 ``time_unit`` s, ms, us, ns, or tick with ``rate`` ticks per second; a tick column read
 without a unit is refused); without a time field, ``t = arange(N) / rate``.
 
@@ -47,7 +50,7 @@ from .formats import SUPPORTED_EXTENSIONS, find_format
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
 from .limits import current_options, read_options
-from .names import FIELD_NAMES, RawLog, warn_unused
+from .names import FIELD_NAMES, RawLog, short_list, warn_unused
 from .orientation import orient_samples
 from .tabular import Columns
 from .timebase import check_rate, check_time_unit, to_seconds
@@ -57,7 +60,7 @@ from .validation import JOINT_EXTRAS, validate_trajectory
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["read_trajectory", "write_npz", "FIELDS"]
+__all__ = ["read_trajectory", "write_npz", "FIELDS", "JOINT_ORDERS"]
 
 FIELDS = tuple(FIELD_NAMES)
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
@@ -125,16 +128,20 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
             raise DataError(f"gains are given twice (in the column map and as {setting('gains')}); give them once", src)
         gains = column_gains
     if columns is not None:
-        unknown = [k for k in columns if k not in FIELDS]
+        unknown = [k for k in columns if k not in (*FIELDS, "joint_names")]
         if unknown:
-            raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {list(FIELDS)}", src)
+            raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {[*FIELDS, 'joint_names']}", src)
+        if "joint_names" in columns and fmt is not None and not fmt.arrays:
+            raise DataError(f"{setting('columns', {'joint_names': columns['joint_names']})} names an array of joint "
+                            "names, which only array files hold (NPZ, HDF5, MATLAB); a table's joint names come from "
+                            f"its header ({setting('columns', {'q': 'pos_{joint}'})})", src)
     check_time_unit(time_unit, rate, src)
     raw, what = _read_raw(fmt, path, src, columns, joint_names)
     warn_unused(src, raw.unused, what)
     n_hint = (len(joint_names) if joint_names is not None else len(raw.names) if raw.names is not None
               else len(robot.joint_names) if robot is not None else None)
     flipped = orient_samples(raw, n_hint, src) if fmt.arrays else []  # tables are sample-major
-    traj = _assemble(raw, src, joint_names, rate, robot, time_unit)
+    traj = _assemble(raw, src, joint_names, rate, robot, time_unit, current_options().get("joint_order") or "names")
     if flipped:
         traj.units["layout"] = f"stored channels × samples, transposed: {', '.join(flipped)}"
     if gains is not None:
@@ -211,8 +218,28 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
 
 
 # ---- assembly ----------------------------------------------------------------------
+JOINT_ORDERS = ("names", "model")
+
+
+def _model_order(raw: RawLog, robot: "Robot", n: int, src: str, joint_order: str) -> list[str]:
+    """The robot's joint names for a log that names none of its ``n`` q columns: refused when the file holds
+    text arrays (its joint names under a name of its own: the columns' order is then the log's, e.g. neck,
+    torso, arms, legs, not the model's) unless ``joint_order="model"`` confirms the model's order."""
+    if joint_order not in JOINT_ORDERS:
+        raise DataError(f"{setting('joint_order')} must be one of {', '.join(JOINT_ORDERS)}, got {joint_order!r}", src)
+    if raw.text and joint_order != "model":
+        first = raw.text[0]
+        raise DataError(
+            f"'q' ('{raw.origin.get('q', 'q')}') has {n} columns, as many as robot '{robot.name}' has joints, but "
+            f"their names were not read and the file holds text {short_list(raw.text, 8)}: if those are the joint "
+            f"names, map them, {setting('columns', {'joint_names': first})}, and the columns are matched to the "
+            f"model by name; if the columns follow the model's order ({', '.join(list(robot.joint_names)[:4])}, "
+            f"...), confirm it with {setting('joint_order', 'model')}", src)
+    return list(robot.joint_names)
+
+
 def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: float | None, robot: "Robot | None",
-              time_unit: str | None) -> Trajectory:
+              time_unit: str | None, joint_order: str = "names") -> Trajectory:
     arrays = raw.arrays
     for field, arr in arrays.items():
         if arr.ndim == 0:
@@ -240,7 +267,7 @@ def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: fl
                 f"{setting('columns', {'q': '...'})}",
                 src,
             )
-        names = list(robot.joint_names)
+        names = _model_order(raw, robot, n, src, joint_order)
     else:
         names = [f"joint_{i}" for i in range(n)]
 
