@@ -128,9 +128,10 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
             raise DataError(f"gains are given twice (in the column map and as {setting('gains')}); give them once", src)
         gains = column_gains
     if columns is not None:
-        unknown = [k for k in columns if k not in (*FIELDS, "joint_names")]
+        valid = [*FIELDS, "joint_names", *(EXTRA_KEYS if fmt is not None and fmt.items == "files" else ())]
+        unknown = [k for k in columns if k not in valid]
         if unknown:
-            raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {[*FIELDS, 'joint_names']}", src)
+            raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {valid}", src)
         if "joint_names" in columns and fmt is not None and not fmt.arrays:
             raise DataError(f"{setting('columns', {'joint_names': columns['joint_names']})} names an array of joint "
                             "names, which only array files hold (NPZ, HDF5, MATLAB); a table's joint names come from "
