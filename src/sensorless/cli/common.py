@@ -22,7 +22,7 @@ from .blas import blas_threads_for_command
 from .startup import before_scipy
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, current_context
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, JointOrder, TimeUnit, current_context
 from ..run.logs import load_logs
 from .plugins import PluginGroup
 
@@ -316,7 +316,7 @@ READING_OPTIONS = {
     "angle_unit": (Optional[AngleUnit], lambda: typer.Option(
         None, help="unit of the logged joint angles: rad | deg (q, v, v̇ of revolute joints converted from degrees; "
                    "recorded in result.json; default rad, or the model's)")),
-    "joint_order": (Optional[str], lambda: typer.Option(
+    "joint_order": (Optional[JointOrder], lambda: typer.Option(
         None, help="names (default): a log's q columns are matched to the model by the joint names the log holds; "
                    "model: a log that names none of its columns follows the model's joint order (confirms it where "
                    "the file holds text arrays that may be its own names)")),
@@ -329,8 +329,9 @@ READING_OPTIONS = {
         False, help="accept --gains whose torques are over 100× off the robot model's torque scale")),
     "skip_bad_rows": (bool, lambda: typer.Option(
         False, help="drop corrupt rows at the start or end of a log (non-finite or absurd values, time running "
-                    "backwards or repeating, a last row cut short; at most 5 % of the rows or 20) with a warning "
-                    "naming them; corruption in the middle stays an error")),
+                    "backwards or repeating or off the clock, a last row cut short; at most 5 % of the rows or 20) "
+                    "and isolated ones anywhere (at most 3 in a row, the clock continuing across them) with a "
+                    "warning naming each; longer corruption in the middle stays an error")),
 }
 
 
@@ -353,7 +354,7 @@ def log_reading_options(skip_bad: bool = True):
                               accept_implausible_gains=reading["accept_implausible_gains"],
                               skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"],
                               angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"]),
-                              joint_order=reading["joint_order"]):
+                              joint_order=None if reading["joint_order"] is None else str(reading["joint_order"])):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)
