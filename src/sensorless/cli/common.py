@@ -22,7 +22,7 @@ from .blas import blas_threads_for_command
 from .startup import before_scipy
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, JointOrder, TimeUnit, current_context
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, JointOrder, TimeFrom, TimeUnit, current_context
 from ..run.logs import load_logs
 from .plugins import PluginGroup
 
@@ -320,6 +320,9 @@ READING_OPTIONS = {
         None, help="names (default): a log's q columns are matched to the model by the joint names the log holds; "
                    "model: a log that names none of its columns follows the model's joint order (confirms it where "
                    "the file holds text arrays that may be its own names)")),
+    "time_from": (Optional[TimeFrom], lambda: typer.Option(
+        None, help="stamps (default): the log's time column; rate: the samples are uniform and the stamps are "
+                   "arrival times (bursts after gaps): t = k / --rate, or k / their mean rate over the log")),
     "max_log_memory": (Optional[str], lambda: typer.Option(
         None, help="memory a log may expand to when read and preprocessed, e.g. 8GiB (default: a quarter of the "
                    "available memory, or $SENSORLESS_MAX_LOG_MEMORY); a larger log is refused before reading")),
@@ -336,7 +339,7 @@ READING_OPTIONS = {
 
 
 def log_reading_options(skip_bad: bool = True):
-    """Decorator: ``--angle-unit``, ``--joint-order``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
+    """Decorator: ``--angle-unit``, ``--joint-order``, ``--time-from``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
     options = dict(READING_OPTIONS)
@@ -354,7 +357,8 @@ def log_reading_options(skip_bad: bool = True):
                               accept_implausible_gains=reading["accept_implausible_gains"],
                               skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"],
                               angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"]),
-                              joint_order=None if reading["joint_order"] is None else str(reading["joint_order"])):
+                              joint_order=None if reading["joint_order"] is None else str(reading["joint_order"]),
+                              time_from=None if reading["time_from"] is None else str(reading["time_from"])):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)

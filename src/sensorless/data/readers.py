@@ -60,7 +60,7 @@ from .validation import JOINT_EXTRAS, validate_trajectory
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["read_trajectory", "write_npz", "FIELDS", "JOINT_ORDERS"]
+__all__ = ["read_trajectory", "write_npz", "FIELDS", "JOINT_ORDERS", "TIME_SOURCES"]
 
 FIELDS = tuple(FIELD_NAMES)
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
@@ -142,7 +142,9 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
     n_hint = (len(joint_names) if joint_names is not None else len(raw.names) if raw.names is not None
               else len(robot.joint_names) if robot is not None else None)
     flipped = orient_samples(raw, n_hint, src) if fmt.arrays else []  # tables are sample-major
-    traj = _assemble(raw, src, joint_names, rate, robot, time_unit, current_options().get("joint_order") or "names")
+    opts = current_options()
+    traj = _assemble(raw, src, joint_names, rate, robot, time_unit, opts.get("joint_order") or "names",
+                     opts.get("time_from") or "stamps")
     if flipped:
         traj.units["layout"] = f"stored channels × samples, transposed: {', '.join(flipped)}"
     if gains is not None:
@@ -220,6 +222,27 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
 
 # ---- assembly ----------------------------------------------------------------------
 JOINT_ORDERS = ("names", "model")
+#: where the time axis comes from: the logged stamps, or the sample count at a rate (arrival-time stamps)
+TIME_SOURCES = ("stamps", "rate")
+
+
+def _from_rate(stamps, n: int, rate: float | None, time_unit, label: str, src: str) -> tuple[np.ndarray, str]:
+    """t = k / rate for ``time_from="rate"``: ``rate`` if given, else the mean rate over the logged stamps' span
+    (arrival times are late by a varying delay, but their long-run rate is the sampling rate)."""
+    if rate is not None:
+        rate = check_rate(rate, src)
+        return np.arange(n) / rate, f"s (built from rate={rate:g} Hz; {setting('time_from', 'rate')})"
+    if stamps is None:
+        raise DataError(f"{setting('time_from', 'rate')} needs {setting('rate', placeholder='HZ')} or a time column to "
+                        "take the mean rate from", src)
+    s, _ = to_seconds(np.asarray(stamps, dtype=float).reshape(n, -1)[:, 0], time_unit, None, label, src)
+    span = float(s[-1] - s[0])
+    if not (np.isfinite(span) and span > 0):
+        raise DataError(f"{setting('time_from', 'rate')}: the stamps of '{label}' span {span} s; give "
+                        f"{setting('rate', placeholder='HZ')}", src)
+    rate = (n - 1) / span
+    return s[0] + np.arange(n) / rate, (f"s (uniform at the mean rate of the stamps, {rate:.6g} Hz over their "
+                                        f"{span:.6g} s; {setting('time_from', 'rate')}: they are arrival times)")
 
 
 def _model_order(raw: RawLog, robot: "Robot", n: int, src: str, joint_order: str) -> list[str]:
@@ -240,7 +263,7 @@ def _model_order(raw: RawLog, robot: "Robot", n: int, src: str, joint_order: str
 
 
 def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: float | None, robot: "Robot | None",
-              time_unit: str | None, joint_order: str = "names") -> Trajectory:
+              time_unit: str | None, joint_order: str = "names", time_from: str = "stamps") -> Trajectory:
     arrays = raw.arrays
     for field, arr in arrays.items():
         if arr.ndim == 0:
@@ -273,7 +296,11 @@ def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: fl
         names = [f"joint_{i}" for i in range(n)]
 
     units: dict[str, str] = {}
-    if "t" in arrays:
+    if time_from not in TIME_SOURCES:
+        raise DataError(f"{setting('time_from')} must be one of {', '.join(TIME_SOURCES)}, got {time_from!r}", src)
+    if time_from == "rate":  # arrival-time stamps: the samples are uniform, their stamps are not
+        t, units["t"] = _from_rate(arrays.get("t"), q.shape[0], rate, time_unit, raw.origin.get("t", "t"), src)
+    elif "t" in arrays:
         t = arrays["t"]
         if t.ndim == 2 and t.shape[1] == 1:
             t = t[:, 0]

@@ -69,6 +69,7 @@ class LogsConfig:
     skip_bad_rows: bool = _f(False)
     angle_unit: str | None = _f(None, choices=("rad", "deg"))
     joint_order: str | None = _f(None, choices=("names", "model"))
+    time_from: str | None = _f(None, choices=("stamps", "rate"))
     max_log_memory: str | None = _f(None)
     allow_hdf5_external: bool = _f(False)
     accept_implausible_gains: bool = _f(False)
