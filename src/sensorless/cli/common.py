@@ -323,6 +323,9 @@ READING_OPTIONS = {
     "time_from": (Optional[TimeFrom], lambda: typer.Option(
         None, help="stamps (default): the log's time column; rate: the samples are uniform and the stamps are "
                    "arrival times (bursts after gaps): t = k / --rate, or k / their mean rate over the log")),
+    "base_rpy": (bool, lambda: typer.Option(
+        False, help="the logged base pose is x y z roll pitch yaw [rad] (extrinsic x-y-z: R = Rz(yaw) Ry(pitch) "
+                    "Rx(roll)), e.g. two arrays --columns 'base_q=base_position,base_rpy', instead of x y z qx qy qz qw")),
     "max_log_memory": (Optional[str], lambda: typer.Option(
         None, help="memory a log may expand to when read and preprocessed, e.g. 8GiB (default: a quarter of the "
                    "available memory, or $SENSORLESS_MAX_LOG_MEMORY); a larger log is refused before reading")),
@@ -339,7 +342,7 @@ READING_OPTIONS = {
 
 
 def log_reading_options(skip_bad: bool = True):
-    """Decorator: ``--angle-unit``, ``--joint-order``, ``--time-from``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
+    """Decorator: ``--angle-unit``, ``--joint-order``, ``--time-from``, ``--base-rpy``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
     options = dict(READING_OPTIONS)
@@ -358,7 +361,8 @@ def log_reading_options(skip_bad: bool = True):
                               skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"],
                               angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"]),
                               joint_order=None if reading["joint_order"] is None else str(reading["joint_order"]),
-                              time_from=None if reading["time_from"] is None else str(reading["time_from"])):
+                              time_from=None if reading["time_from"] is None else str(reading["time_from"]),
+                              base_rpy=reading["base_rpy"] or None):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)

@@ -22,9 +22,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import DataError, InputError
-from .arrays import EXTRA_KEYS, READ_ERRORS, as_float, joint_names_of, missing_q, one_line
+from .arrays import EXTRA_KEYS, READ_ERRORS, as_float, flat_keys, join_parts, joint_names_of, missing_q, one_line, pick_fields
 from .limits import check_log_size
-from .names import FIELD_NAMES, JOINT_NAME_KEYS, RawLog, pick_key
+from .names import JOINT_NAME_KEYS, RawLog, pick_key
 
 __all__ = ["read_mat", "is_mat73", "MAT73_HEADER"]
 
@@ -121,19 +121,20 @@ def _fields(leaves: Mapping[str, Any], columns: Mapping | None, src: str, value,
     is_text = is_text or _v5_text
     keys = list(leaves)
     base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
-    picked = {f: k for f in FIELD_NAMES if (k := pick_key(f, keys, columns, src, base)) is not None}
+    picked = pick_fields(keys, columns, src, base)
     if "q" not in picked:
         raise missing_q(keys, src)
     extra = {e: k for e in EXTRA_KEYS if (k := pick_key(e, keys, None, src, base, names=(e,))) is not None}
     name_key = pick_key("joint_names", keys, columns, src, base, names=JOINT_NAME_KEYS)
     if check is not None:
-        check([*picked.values(), *extra.values(), *([name_key] if name_key else [])])
-    arrays = {f: as_float(value(leaves[k], k, src, False), src, k) for f, k in picked.items()}
+        check([*flat_keys(picked), *extra.values(), *([name_key] if name_key else [])])
+    arrays = {f: join_parts([as_float(value(leaves[k], k, src, False), src, k) for k in ks], src, ks)
+              for f, ks in picked.items()}
     extras = {e: value(leaves[k], k, src, False) for e, k in extra.items()}
     names = joint_names_of(value(leaves[name_key], name_key, src, True), src, name_key) if name_key else None
-    used = {*picked.values(), *extra.values(), name_key}
+    used = {*flat_keys(picked), *extra.values(), name_key}
     unused = [k for k in keys if k not in used]
-    return RawLog(arrays, names, dict(picked), extras, unused, [k for k in unused if is_text(leaves[k])])
+    return RawLog(arrays, names, {f: ",".join(ks) for f, ks in picked.items()}, extras, unused, [k for k in unused if is_text(leaves[k])])
 
 
 # ---- v7.3 (HDF5) ---------------------------------------------------------------------------

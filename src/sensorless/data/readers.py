@@ -151,6 +151,14 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
         traj = currents_to_torques(traj, gains, gain_field)
     if raw.extras:
         traj = traj.with_(extras={**traj.extras, **_sample_extras(raw.extras, src, len(traj))})
+    if opts.get("base_rpy") and traj.base_q is not None:  # x y z + roll pitch yaw -> x y z + quaternion
+        from .base_pose import pose_from_rpy  # imported on use: SciPy's rotations
+
+        traj = traj.with_(base_q=pose_from_rpy(traj.base_q, src),
+                          units={**traj.units, "base_q": "x y z + quaternion from logged roll pitch yaw (base_rpy)"})
+    elif opts.get("base_rpy"):
+        raise DataError(f"{setting('base_rpy', True)}: the log has no base pose; map it, e.g. "
+                        f"{setting('columns', {'base_q': 'base_position,base_rpy'})}", src)
     traj = to_radians(traj, angle_unit, robot)
     return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers, **rows)
 

@@ -70,6 +70,7 @@ class LogsConfig:
     angle_unit: str | None = _f(None, choices=("rad", "deg"))
     joint_order: str | None = _f(None, choices=("names", "model"))
     time_from: str | None = _f(None, choices=("stamps", "rate"))
+    base_rpy: bool = _f(False)
     max_log_memory: str | None = _f(None)
     allow_hdf5_external: bool = _f(False)
     accept_implausible_gains: bool = _f(False)
