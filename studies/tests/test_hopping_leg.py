@@ -155,3 +155,18 @@ def test_predict_uses_the_locks_of_the_identification(tmp_path, panda_train_npz)
     code, out = _run(["predict", "--robot", "panda", "--model", tmp_path / "m", "--lock", "panda_joint7",
                       "--data", panda_train_npz, "--out", tmp_path / "p2.npz"])
     assert code == 2 and "--lock panda_finger_joint1" in out
+
+
+def test_wrench_mode_on_the_fixed_base_leg_with_a_passive_rail(leg):
+    """Issue 40: --contact-mode wrench on a fixed-base robot with a passive joint crashed (IndexError, exit 3) in
+    the base-wrench report, which needs a floating base; it now fits and says there are no base rows."""
+    d = leg["dir"]
+    code, out = _run(["identify", "--robot", leg["urdf"], "--passive", "rail", "--data", d / "train.npz",
+                      "--contact-frames", FOOT, "--contact-offset", FOOT_RADIUS, "--contact-mode", "wrench",
+                      "--joint-terms", "fv,fc,armature", "--no-plot", "--out", d / "id_wrench"])
+    assert code == 0, out
+    assert "no base-wrench rows" in " ".join(out.split()) and "nan" not in out
+    doc = json.loads((d / "id_wrench" / "result.json").read_text())
+    assert doc["floating_base"]["note"].startswith("fixed base") and "base_wrench" not in doc["floating_base"]["train"][0]
+    total = doc["diagnostics"]["verdicts"]["robot"]["total_mass"]["value"]
+    assert abs(total / TRUTH.total_mass - 1) < 0.1  # the plate's wrench determines the mass
