@@ -80,7 +80,7 @@ def test_a_trim_is_cut_before_the_time_axis_is_checked():
 
 def test_corruption_in_the_middle_stays_an_error_naming_the_sample():
     t, q, tau = _corrupt(*_log())
-    q[600, 1] = np.nan
+    q[600:610, 1] = np.nan  # more than a few isolated rows: a fault of the recording, not a glitch
     with pytest.raises(NonFiniteError, match=r"sample 600 .*`skip_bad_rows` drops only a corrupt prefix or suffix "
                                              r"of at most 50 rows \(it dropped 9 row\(s\) at the start.*middle"):
         with pytest.warns(DataWarning):
@@ -137,3 +137,31 @@ def test_csv_with_corrupt_leading_rows_and_a_last_row_cut_mid_number(tmp_path):
     with pytest.warns(DataWarning, match=r"dropped 9 row\(s\) at the start .* and 1 row\(s\) at the end \(sample 1008"):
         out = read_trajectory(path, skip_bad_rows=True)
     assert len(out) == N - 1 and np.allclose(out.q, q[:-1]) and np.allclose(out.t, t[:-1])
+
+
+def test_isolated_garbage_rows_anywhere_are_dropped_each_named(tmp_path):
+    """Issue 40: a first row written at t = 0 before the logger's clock ran (a 3048 s gap was kept), and
+    isolated garbage rows in the middle (a row cut short, an absurd value, a stamp out of order): all dropped
+    by --skip-bad-rows, every one named; without it the error names the first."""
+    t, q, tau = _log()
+    t, q, tau = t + 3000.0, q.copy(), tau.copy()
+    t[0] = 0.0
+    q[0] = 0.0
+    q[300, 1] = np.nan
+    tau[555, 0] = 4e150
+    t[700] = t[700] + 7.3  # a stamp out of order, its neighbours continue the clock
+    table = pd.DataFrame({"time": t, "q_a": q[:, 0], "q_b": q[:, 1], "tau_a": tau[:, 0], "tau_b": tau[:, 1]})
+    path = tmp_path / "run.csv"
+    table.to_csv(path, index=False)
+    with pytest.raises(DataError):
+        read_trajectory(path)
+    with pytest.warns(DataWarning) as w:
+        out = read_trajectory(path, skip_bad_rows=True)
+    msg = " ".join(str(x.message) for x in w)
+    assert "1 row(s) at the start (sample 0: 1 with a stamp off the clock" in msg, msg
+    for row, why in ((300, "non-finite"), (555, "absurd values"), (700, "a stamp out of order")):
+        assert f"sample {row}: " in msg and why in msg, (row, msg)
+    keep = np.setdiff1d(np.arange(1, N), [300, 555, 700])
+    assert len(out) == len(keep) and np.array_equal(out.t, t[keep]) and np.allclose(out.q, q[keep])
+    assert [d["sample"] for d in out.provenance["rows_dropped"]["isolated"]] == [300, 555, 700]
+    assert np.max(np.diff(out.t)) < 0.05

@@ -223,3 +223,31 @@ def test_a_pose_that_never_changes_is_a_base_at_rest():
     t = np.arange(200) / 100.0
     pose = clean_base_pose(t, np.tile([0.1, 0.2, 0.9], (200, 1)), np.tile([0, 0, 0.6, 0.8], (200, 1)))
     assert pose.report["n_at_rest"] == 200 and np.abs(pose.base_v).max() < 1e-9 and np.abs(pose.base_a).max() < 1e-9
+
+
+def test_base_pose_as_position_and_euler_angles_in_two_arrays(tmp_path):
+    """Issue 40: a base pose logged as position and roll/pitch/yaw in two arrays is mapped with
+    --columns 'base_q=base_position,base_rpy' and --base-rpy (stored sample-major or channel-major)."""
+    import scipy.io
+    from scipy.spatial.transform import Rotation
+
+    from sensorless.data import read_trajectory
+    from sensorless.data.limits import read_options
+
+    n = 300
+    t = np.arange(n) / 100.0
+    pos = np.column_stack([0.1 * t, np.sin(t), 0.3 + 0.01 * np.cos(3 * t)])
+    rpy = np.column_stack([0.1 * np.sin(t), 0.05 * np.cos(2 * t), 2.5 * t - 3.0])  # yaw through ±π
+    q = np.column_stack([np.sin(t), np.cos(t)])
+    np.savez(tmp_path / "log.npz", t=t, q=q, base_position=pos, base_rpy=rpy)
+    scipy.io.savemat(tmp_path / "log.mat", {"t": t, "q": q, "base_position": pos.T, "base_rpy": rpy.T})
+    want = np.hstack([pos, Rotation.from_euler("xyz", rpy).as_quat()])
+    cols = {"base_q": "base_position,base_rpy"}
+    for name in ("log.npz", "log.mat"):
+        with pytest.raises(DataError, match=r"base_q.*6.*"):  # six columns are not a quaternion pose
+            read_trajectory(tmp_path / name, columns=cols)
+        with read_options(base_rpy=True):
+            tr = read_trajectory(tmp_path / name, columns=cols)
+        np.testing.assert_allclose(tr.base_q, want, atol=1e-12)
+    with read_options(base_rpy=True), pytest.raises(DataError, match=r"no base pose.*base_position,base_rpy"):
+        read_trajectory(tmp_path / "log.npz")

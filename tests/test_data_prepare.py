@@ -277,3 +277,23 @@ def test_cli_bad_trim_and_gap_are_one_line_errors_without_output(tmp_path, ur5_l
     r = runner.invoke(app, ["identify", "--robot", "ur5", "--data", str(g), "--columns", cols, "--gains", "2",
                             "--resample", "100", "--out", str(out)])
     assert r.exit_code == 2 and "gap of" in r.output and "sample 400" in r.output and not out.exists()
+
+
+def test_derived_accelerations_that_are_mostly_quantization_noise_are_named():
+    """Issue 40: v and v̇ differentiated from a position in 0.25 mm quanta over a short window carry more noise
+    than motion; the noise each joint's v̇ gets (σ of q floored at its quantum, through the window) is recorded
+    and a warning names the joint, with the window that would bring it to a quarter of the motion."""
+    from sensorless.data import prepare
+
+    t = np.arange(4000) / 1000.0
+    slow = 0.002 * np.sin(2 * np.pi * 0.5 * t)  # 2 mm at 0.5 Hz: v̇ RMS 14 mm/s²
+    fine = 0.5 * np.sin(2 * np.pi * 1.0 * t)
+    q = np.column_stack([np.round(slow / 2.5e-4) * 2.5e-4, fine])
+    traj = Trajectory(t=t, q=q, tau=np.zeros_like(q), joint_names=("slider", "hip"))
+    with pytest.warns(DataWarning, match=r"derived accelerations of slider \(σ .* a window of \d+ samples would"):
+        out = prepare(traj, savgol_window=23)
+    info = out.provenance["derivative_noise"]
+    assert info["window_samples"] == 23 and info["from"] == "q"
+    assert info["noise_std"]["slider"] > 0.5 * info["rms"]["slider"]
+    assert info["noise_std"]["hip"] < 0.01 * info["rms"]["hip"]
+    assert out.provenance["resolution"]["q"]["slider"]["step"] == pytest.approx(2.5e-4)

@@ -109,3 +109,53 @@ def test_noise_and_robust_scale_of_a_long_log_come_from_a_strided_subsample():
     x[123_457, 1] = 1e6  # a glitch between the strided samples
     m, s = robust_scale(x)
     assert np.flatnonzero(np.abs(x[:, 1] - m[1]) > OUTLIER_THRESHOLD * s[1]).tolist() == [123_457]
+
+
+@pytest.fixture(scope="module")
+def rounded_creeping_ur10(tmp_path_factory):
+    """The creeping UR10 as a UR logs it: q and v written to 4 decimals, encoder-grade noise below the last
+    decimal (v at rest reads 0, the creep 3·10⁻⁴ rad/s reads 0.0003 with flicker)."""
+    from sensorless_studies.simulation.current_arm import drive_gains_for, simulate, truth_model
+
+    d = tmp_path_factory.mktemp("creep4")
+    robot, truth = truth_model("ur10", 0, stribeck=True, friction_scale=4.0)
+    K = drive_gains_for(robot)
+    kw = dict(motion=10.0, idle_start=3.0, idle_end=3.0, ramp=1.0, v_noise=2e-5, q_noise=2e-6,
+              creep={"wrist_1_joint": CREEP})
+    for name, seed in (("a", 1), ("b", 2)):
+        df = simulate(robot, truth, K, seed=seed, **kw)
+        cols = [c for c in df.columns if c.startswith(("pos_", "vel_"))]
+        df[cols] = df[cols].round(4)
+        df.to_csv(d / f"{name}.csv", index=False)
+    (d / "gains.json").write_text(json.dumps(dict(zip(robot.actuated_joints, map(float, K)))))
+    return d, robot
+
+
+def test_a_creeping_joint_logged_to_4_decimals_slides_and_the_held_ones_rest(rounded_creeping_ur10):
+    from sensorless.data.prepare import load_log
+
+    d, robot = rounded_creeping_ur10
+    te = load_log(d / "b.csv", robot, COLS, None, None, None, 1, gains=str(d / "gains.json"), trim="0:2.5")
+    rest = te.provenance["rest"]
+    k = list(te.joint_names).index("wrist_1_joint")  # reads 0.0003 steadily: above δ, sliding at its logged speed
+    assert rest["fraction_at_rest"]["wrist_1_joint"] < 0.1 and abs(np.median(te.v[:, k]) / CREEP - 1) < 0.2, rest
+    assert all(rest["fraction_at_rest"][j] > 0.9 for j in robot.actuated_joints if j != "wrist_1_joint"), rest
+    assert min(rest["velocity_noise"].values()) >= 1e-4 / np.sqrt(12) * 0.999  # the 4th decimal's floor
+    assert te.provenance["resolution"]["v"]["wrist_1_joint"]["decimals"] == 4
+
+
+@pytest.mark.slow
+def test_defaults_on_a_rounded_creeping_joint_are_within_1_2x_of_the_best_flags(rounded_creeping_ur10, tmp_path):
+    """Acceptance (issue 40, item 4): held-out NRMSE of the creeping joint with the defaults against the best
+    documented flags (--coulomb-smoothing 0 and presliding)."""
+    d, _ = rounded_creeping_ur10
+    nrmse = {}
+    for label, extra in (("default", []), ("best", ["--coulomb-smoothing", "0", "--joint-terms",
+                                                     "fv,fc,stribeck,offset,armature,presliding"])):
+        r = CliRunner().invoke(app, ["identify", "--robot", "ur10", "--data", str(d / "a.csv"), "--validate",
+                                     str(d / "b.csv"), "--columns", COLS, "--gains", str(d / "gains.json"),
+                                     "--no-plot", "--out", str(tmp_path / label), *extra])
+        assert r.exit_code == 0, r.output
+        doc = json.loads((tmp_path / label / "result.json").read_text())
+        nrmse[label] = next(iter(doc["validation"].values()))["lmi"]["per_joint"]["wrist_1_joint"]["nrmse"]
+    assert nrmse["default"] <= 1.2 * nrmse["best"], nrmse

@@ -151,3 +151,41 @@ def test_cli_tick_options_are_recorded_and_predict_reuses_them(tmp_path, ur5):
     with np.load(tmp_path / "p.npz") as z:
         t = z["times"] if "times" in z.files else z["t"]
     np.testing.assert_allclose(np.diff(t), 0.002, rtol=1e-9)
+
+
+def test_tick_tab_tab_value_files_have_no_phantom_column(tmp_path):
+    """Issue 40: per-signal files written tick<TAB><TAB>value… were read with an all-NaN first joint column."""
+    ticks, t, q, v, tau = _log()
+    d = tmp_path / "run"
+    d.mkdir()
+    for name, val in (("q.dat", q), ("tau.dat", tau)):
+        (d / name).write_text("".join(f"{k}\t\t" + "\t".join(f"{x:.17g}" for x in row) + "\n"
+                                      for k, row in zip(ticks, val)))
+    tr = read_trajectory(d, time_unit="tick", rate=1000)
+    assert tr.q.shape == q.shape
+    np.testing.assert_array_equal(tr.q, q)
+    np.testing.assert_array_equal(tr.tau, tau)
+
+
+def test_a_field_composed_of_columns_of_several_files_and_contact_flags_from_a_file(tmp_path):
+    """Issue 40: a passive slider whose position another sensor logs: q = the height sensor's column 1, then
+    columns 1 and 2 of the joint encoders' file (in that order); the contact flags from their own file."""
+    ticks, t, q, v, tau = _log()
+    d = tmp_path / "leg"
+    d.mkdir()
+    height = np.column_stack([q[:, 0], 5.0 + q[:, 0]])  # the slider, and a second sensor no field uses
+    joints = np.column_stack([q[:, 1], q[:, 2], np.zeros(len(q))])
+    _write(d / "height_sensors.dat", ticks, height, header=None)
+    _write(d / "joint_positions.dat", ticks, joints, header=None)
+    _write(d / "torques.dat", ticks, tau, header=None)
+    flags = (np.sin(t) > 0).astype(float)[:, None]
+    _write(d / "feet.dat", ticks[5:], flags[5:], header=None)  # starts later: joined on the shared ticks
+    cols = {"q": "height_sensors.dat:1,joint_positions.dat:1:3", "tau": "torques", "contact": "feet.dat"}
+    tr = _quiet(d, columns=cols, time_unit="tick", rate=1000)
+    np.testing.assert_array_equal(tr.q, q[5:])
+    np.testing.assert_array_equal(tr.tau, tau[5:])
+    np.testing.assert_array_equal(tr.extras["contact"], flags[5:].astype(bool))
+    with pytest.raises(DataError, match=r"'joint_positions.dat:1:x' is not FILE, FILE:K or FILE:A:B"):
+        read_trajectory(d, columns={**cols, "q": "height_sensors.dat:1,joint_positions.dat:1:x"})
+    with pytest.raises(DataError, match=r"columns 2:9 \(for 'q'\) are beyond the file's 4 columns"):
+        read_trajectory(d, columns={**cols, "q": "joint_positions.dat:2:9"}, time_unit="tick", rate=1000)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from sensorless.cli import app
@@ -49,3 +50,15 @@ def test_cli_validation_on_a_held_pose(panda, tmp_path):
         per = val[model]["per_joint"]
         assert all(d["nrmse"] is None and d["static"] and np.isfinite(d["bias"]) for d in per.values())
         assert val[model]["mean_nrmse"] is None
+
+    # predict reports the held pose as identify --validate does (issue 40: it printed NRMSE of 16–172 %)
+    r = CliRunner().invoke(app, ["predict", "--robot", "panda", "--model", str(tmp_path / "m"), "--data",
+                                 str(tmp_path / "held.npz"), "--out", str(tmp_path / "p.npz")])
+    assert r.exit_code == 0, r.output
+    assert "at rest" in r.output and "N·m rms" in r.output
+    got = json.loads(str(np.load(tmp_path / "p.npz")["metrics"]))
+    assert got["mean_nrmse"] is None and set(got["static_joints"]) == set(val["ols"]["per_joint"])
+    for j, d in got["per_joint"].items():
+        assert d["nrmse"] is None and d["static"]
+        assert d["rmse"] == pytest.approx(val["ols"]["per_joint"][j]["rmse"], rel=1e-6)
+        assert d["bias"] == pytest.approx(val["ols"]["per_joint"][j]["bias"], rel=1e-6, abs=1e-9)

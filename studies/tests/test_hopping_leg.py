@@ -155,3 +155,49 @@ def test_predict_uses_the_locks_of_the_identification(tmp_path, panda_train_npz)
     code, out = _run(["predict", "--robot", "panda", "--model", tmp_path / "m", "--lock", "panda_joint7",
                       "--data", panda_train_npz, "--out", tmp_path / "p2.npz"])
     assert code == 2 and "--lock panda_finger_joint1" in out
+
+
+def test_wrench_mode_on_the_fixed_base_leg_with_a_passive_rail(leg):
+    """Issue 40: --contact-mode wrench on a fixed-base robot with a passive joint crashed (IndexError, exit 3) in
+    the base-wrench report, which needs a floating base; it now fits and says there are no base rows."""
+    d = leg["dir"]
+    code, out = _run(["identify", "--robot", leg["urdf"], "--passive", "rail", "--data", d / "train.npz",
+                      "--contact-frames", FOOT, "--contact-offset", FOOT_RADIUS, "--contact-mode", "wrench",
+                      "--joint-terms", "fv,fc,armature", "--no-plot", "--out", d / "id_wrench"])
+    assert code == 0, out
+    assert "no base-wrench rows" in " ".join(out.split()) and "nan" not in out
+    doc = json.loads((d / "id_wrench" / "result.json").read_text())
+    assert doc["floating_base"]["note"].startswith("fixed base") and "base_wrench" not in doc["floating_base"]["train"][0]
+    total = doc["diagnostics"]["verdicts"]["robot"]["total_mass"]["value"]
+    assert abs(total / TRUTH.total_mass - 1) < 0.1  # the plate's wrench determines the mass
+
+
+def test_rail_height_in_quarter_millimetre_quanta(leg, tmp_path):
+    """Acceptance (issue 40): the rail's height logged in 0.25 mm quanta, no logged velocity (v and v̇ from the
+    quantized q): the total mass stays within 10 % (and its resolution is recorded), and the passive force path
+    (every row, the rail's included) is no worse than the same command with the rail's row left out."""
+    for name in ("train", "test"):
+        z = dict(np.load(leg["dir"] / f"{name}.npz"))
+        k = list(z["joint_names"]).index("rail")
+        z["q"][:, k] = np.round(z["q"][:, k] / 2.5e-4) * 2.5e-4  # the height sensor's quanta
+        np.savez(tmp_path / f"{name}.npz", **{key: val for key, val in z.items() if key != "v"})
+    code, out = _run(["identify", "--robot", leg["urdf"], "--passive", "rail", "--data", tmp_path / "train.npz",
+                      "--contact-frames", FOOT, "--contact-offset", FOOT_RADIUS, "--joint-terms", "fv,fc,armature",
+                      "--no-plot", "--out", tmp_path / "id"])
+    assert code == 0, out
+    doc = json.loads((tmp_path / "id" / "result.json").read_text())
+    total = doc["diagnostics"]["verdicts"]["robot"]["total_mass"]
+    assert abs(total["value"] / TRUTH.total_mass - 1) < 0.1, total
+    res = doc["settings"]["signals"][str(tmp_path / "train.npz")]["resolution"]
+    assert res["q"]["rail"]["step"] == pytest.approx(2.5e-4)
+    plate = leg["logs"]["test"].plate_force[:, 2]
+    rmse = {}
+    for label, extra in (("every row", []), ("rail row left out", ["--joints", "hip,knee"])):
+        code, text = _run(["estimate-force", "--robot", leg["urdf"], "--model", tmp_path / "id", "--data",
+                           tmp_path / "test.npz", "--frame", FOOT, "--components", "fz", "--no-plot", "--out",
+                           tmp_path / f"f{len(rmse)}.npz", *extra])
+        assert code == 0, text
+        f = np.load(tmp_path / f"f{len(rmse)}.npz")["force"][:, 0]
+        rmse[label] = float(np.sqrt(np.mean((f - plate[: len(f)]) ** 2)))
+    print(f"\nFz RMSE against the plate, rail in 0.25 mm quanta: {rmse}; total mass {total['value']:.3f} kg")
+    assert rmse["every row"] <= rmse["rail row left out"], rmse

@@ -22,7 +22,7 @@ from .blas import blas_threads_for_command
 from .startup import before_scipy
 from .flags import cli_words
 from .logs import log_trims, trim_option
-from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, TimeUnit, config_error, current_context
+from .options import RATE_HELP, TIME_UNIT_HELP, AngleUnit, BaseVelocity, JointOrder, TimeFrom, TimeUnit, config_error, current_context
 from ..run.logs import load_logs
 from .plugins import PluginGroup
 
@@ -368,6 +368,16 @@ READING_OPTIONS = {
     "angle_unit": (Optional[AngleUnit], lambda: typer.Option(
         None, help="unit of the logged joint angles: rad | deg (q, v, v̇ of revolute joints converted from degrees; "
                    "recorded in result.json; default rad, or the model's)")),
+    "joint_order": (Optional[JointOrder], lambda: typer.Option(
+        None, help="names (default): a log's q columns are matched to the model by the joint names the log holds; "
+                   "model: a log that names none of its columns follows the model's joint order (confirms it where "
+                   "the file holds text arrays that may be its own names)")),
+    "time_from": (Optional[TimeFrom], lambda: typer.Option(
+        None, help="stamps (default): the log's time column; rate: the samples are uniform and the stamps are "
+                   "arrival times (bursts after gaps): t = k / --rate, or k / their mean rate over the log")),
+    "base_rpy": (bool, lambda: typer.Option(
+        False, help="the logged base pose is x y z roll pitch yaw [rad] (extrinsic x-y-z: R = Rz(yaw) Ry(pitch) "
+                    "Rx(roll)), e.g. two arrays --columns 'base_q=base_position,base_rpy', instead of x y z qx qy qz qw")),
     "max_log_memory": (Optional[str], lambda: typer.Option(
         None, help="memory a log may expand to when read and preprocessed, e.g. 8GiB (default: a quarter of the "
                    "available memory, or $SENSORLESS_MAX_LOG_MEMORY); a larger log is refused before reading")),
@@ -377,13 +387,14 @@ READING_OPTIONS = {
         False, help="accept --gains whose torques are over 100× off the robot model's torque scale")),
     "skip_bad_rows": (bool, lambda: typer.Option(
         False, help="drop corrupt rows at the start or end of a log (non-finite or absurd values, time running "
-                    "backwards or repeating, a last row cut short; at most 5 % of the rows or 20) with a warning "
-                    "naming them; corruption in the middle stays an error")),
+                    "backwards or repeating or off the clock, a last row cut short; at most 5 % of the rows or 20) "
+                    "and isolated ones anywhere (at most 3 in a row, the clock continuing across them) with a "
+                    "warning naming each; longer corruption in the middle stays an error")),
 }
 
 
 def log_reading_options(skip_bad: bool = True):
-    """Decorator: ``--angle-unit``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
+    """Decorator: ``--angle-unit``, ``--joint-order``, ``--time-from``, ``--base-rpy``, ``--max-log-memory``, ``--allow-hdf5-external``, ``--accept-implausible-gains``,
     ``--skip-bad-rows`` (and ``--skip-bad`` unless the command has its own), applied to every log the command reads
     (:func:`sensorless.data.limits.read_options`)."""
     options = dict(READING_OPTIONS)
@@ -400,7 +411,10 @@ def log_reading_options(skip_bad: bool = True):
             with read_options(max_memory=reading["max_log_memory"], allow_external=reading["allow_hdf5_external"],
                               accept_implausible_gains=reading["accept_implausible_gains"],
                               skip_bad=reading.get("skip_bad"), skip_bad_rows=reading["skip_bad_rows"],
-                              angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"])):
+                              angle_unit=None if reading["angle_unit"] is None else str(reading["angle_unit"]),
+                              joint_order=None if reading["joint_order"] is None else str(reading["joint_order"]),
+                              time_from=None if reading["time_from"] is None else str(reading["time_from"]),
+                              base_rpy=reading["base_rpy"] or None):
                 return fn(*args, **kwargs)
 
         return add_options(options, into="reading")(run)

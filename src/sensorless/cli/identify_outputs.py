@@ -45,12 +45,13 @@ def print_floating_base(doc: dict) -> None:
     if not fb:
         return
     mass = doc.get("mass_properties") or {}
-    bw = fb["train"][0]["base_wrench"]
-    cc = fb["train"][0]["com_cop"]
+    bw = fb["train"][0].get("base_wrench")  # None on a fixed base (a leg on a passive rail)
+    cc = fb["train"][0].get("com_cop") or {"n_samples": 0}
     console.print(
-        f"identified total mass {mass.get('total_mass', float('nan')):.3f} kg (model file "
-        f"{mass.get('urdf_total_mass', float('nan')):.3f} kg); base-wrench RMSE (world) {bw['force_rmse_norm']:.3g} N, "
-        f"{bw['moment_rmse_norm']:.3g} N·m"
+        (f"identified total mass {mass['total_mass']:.3f} kg (model file {mass.get('urdf_total_mass', float('nan')):.3f} "
+         "kg)" if "total_mass" in mass else "measured wrenches")
+        + (f"; base-wrench RMSE (world) {bw['force_rmse_norm']:.3g} N, {bw['moment_rmse_norm']:.3g} N·m" if bw
+           else f"; {fb.get('note', 'no base-wrench rows')}")
         + (f"; CoM–CoP on standing windows {1e3 * cc['distance_mean']:.1f} mm" if cc["n_samples"] else ""))
     for traj_doc in fb["train"]:
         c = traj_doc["contacts"]
@@ -62,7 +63,7 @@ def print_floating_base(doc: dict) -> None:
             err_console.print(f"[yellow]warning:[/] the log's contact flags leave out samples whose measured normal "
                               f"force is above the noise: {missed} (those forces are not used)")
     for traj_doc in fb["train"]:
-        if traj_doc["com_cop"]["ok"] is False:
+        if (traj_doc.get("com_cop") or {}).get("ok") is False:
             err_console.print(f"[yellow]warning:[/] the identified CoM is {1e3 * traj_doc['com_cop']['distance_mean']:.1f} mm "
                               "from the measured CoP on standing windows (a wrench bias? try --wrench-offset)")
 

@@ -90,7 +90,8 @@ def monitor(
     warmup: Optional[float] = typer.Option(None, help="seconds at the start never flagged (default: until the "
                                            "observer has converged)"),
     min_duration: float = typer.Option(0.02, help="shortest reported contact [s]"),
-    merge_gap: float = typer.Option(0.05, help="merge contacts separated by less than this [s]"),
+    merge_gap: float = typer.Option(0.05, help="merge contacts separated by less than this or than the observer's "
+                                               "settling time [s]"),
     lock: Optional[List[str]] = lock_option("joints to lock (default: the model's, settings.robot)"),
     passive: Optional[List[str]] = passive_option(),
     floating_base: Optional[bool] = floating_base_option(),

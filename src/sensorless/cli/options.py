@@ -19,7 +19,7 @@ from ..errors import OptionError
 
 __all__ = ["Method", "Regularization", "GammaSearch", "Ellipsoids", "Outliers", "Velocity", "BaseVelocity", "ContactMode", "ContactRows",
            "WrenchOffset", "Rest", "Criterion", "ForceReference", "PayloadMode", "Align", "ALIGN_HELP",
-           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "FrictionState", "config_option", "check_config", "config_error"]
+           "LinearMethod", "PsmModel", "Training", "Acceleration", "TauLog", "TimeUnit", "AngleUnit", "JointOrder", "TimeFrom", "FrictionState", "config_option", "check_config", "config_error"]
 
 
 def _choices(name: str, values: tuple[str, ...]) -> type[StrEnum]:
@@ -52,6 +52,8 @@ Acceleration = _choices("Acceleration", ("simulator", "logged", "savgol", "savgo
 TauLog = _choices("TauLog", ("sample", "mean"))
 TimeUnit = _choices("TimeUnit", ("s", "ms", "us", "ns", "tick"))
 AngleUnit = _choices("AngleUnit", ("rad", "deg"))
+JointOrder = _choices("JointOrder", ("names", "model"))
+TimeFrom = _choices("TimeFrom", ("stamps", "rate"))
 FrictionState = _choices("FrictionState", ("auto", "on", "off"))
 TIME_UNIT_HELP = ("unit of the logs' time column when it is not seconds: ms, us, ns, or tick (a controller's tick "
                   "counter, with --rate HZ); epoch stamps in ms/us/ns are recognised without it, a tick column is "

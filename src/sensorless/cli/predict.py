@@ -23,7 +23,7 @@ def predict(
     robot: Optional[str],
     model: Optional[Path],
     data: Path = typer.Option(..., help="log to predict"),
-    out: Path = typer.Option(..., help="output .npz with t, tau_pred, joints, model (and tau_measured, metrics if "
+    out: Path = typer.Option(..., help="output .npz with t, tau_pred, joints, model (and tau_measured, metrics (JSON) if "
                                        "available)"),
     lock: Optional[List[str]] = lock_option("joints to lock (default: the model's, settings.robot)"),
     passive: Optional[List[str]] = passive_option(),
@@ -80,7 +80,9 @@ def predict(
         meas = structure.target(traj)
         arrays["tau_measured"] = meas
         name = "prior" if art.origin == "prior" else "model"
-        metrics = torque_metrics(meas, pred, structure.row_names, static=static_rows(traj, structure.row_names))
+        rows = structure.row_names  # a joint held still in the log: RMSE and bias, not NRMSE (as identify --validate)
+        metrics = torque_metrics(meas, pred, rows, static=static_rows(traj, rows))
+        arrays["metrics"] = np.array(json.dumps(metrics.to_dict()))
         console.print(metrics_table(Path(data).name, {name: metrics}))
     write_npz_atomic(out, **arrays)
     if plot:

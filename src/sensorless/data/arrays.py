@@ -24,7 +24,8 @@ from .imu import IMU_KEY
 from .names import FIELD_NAMES, JOINT_NAME_KEYS, RawLog, pick_key, short_list
 from .trajectory import as_float_array
 
-__all__ = ["read_npz", "read_hdf5", "EXTRA_KEYS", "READ_ERRORS", "one_line", "joint_names_of", "as_float"]
+__all__ = ["read_npz", "read_hdf5", "EXTRA_KEYS", "READ_ERRORS", "one_line", "joint_names_of", "as_float", "flat_keys",
+           "join_parts", "pick_fields"]
 
 #: Per-sample contact data of legged-robot logs, flags (N, n_feet) and measured contact forces
 #: (N, n_feet, 3 or 6) in the order of the contact frames, and the base IMU accelerometer (N, 3).
@@ -67,8 +68,38 @@ def missing_q(keys: list[str], src: str) -> DataError:
                      f"say which array holds them: {setting('columns', {'q': 'NAME'})}", src)
 
 
-def _pick_fields(keys: list[str], columns: Mapping | None, src: str, base=lambda k: k) -> dict[str, str]:
-    return {f: k for f in FIELD_NAMES if (k := pick_key(f, keys, columns, src, base)) is not None}
+def pick_fields(keys: list[str], columns: Mapping | None, src: str, base=lambda k: k) -> dict[str, tuple[str, ...]]:
+    """field -> the array(s) it is read from: one, or several a ``columns`` entry lists with commas
+    (``base_q=base_position,base_rpy``: their columns side by side, :func:`join_parts`)."""
+    out = {}
+    for f in FIELD_NAMES:
+        spec = columns.get(f) if columns is not None else None
+        if isinstance(spec, str) and "," in spec:
+            out[f] = tuple(pick_key(f, keys, {f: part}, src, base) for part in spec.split(","))
+        elif (k := pick_key(f, keys, columns, src, base)) is not None:
+            out[f] = (k,)
+    return out
+
+
+def join_parts(parts: list[np.ndarray], src: str, keys) -> np.ndarray:
+    """One array from the arrays of :func:`pick_fields`: side by side along the channel axis (each part's
+    shorter axis; the sample axis is the longer one and must agree)."""
+    if len(parts) == 1:
+        return parts[0]
+    two = [p.reshape(-1, 1) if p.ndim == 1 else p for p in parts]
+    if any(p.ndim != 2 for p in two):
+        raise ShapeMismatchError(f"arrays {list(keys)} must each be 1-D or 2-D to be joined", src)
+    along = [int(np.argmax(p.shape)) for p in two]
+    n = {p.shape[a] for p, a in zip(two, along)}
+    if len(n) > 1:
+        raise ShapeMismatchError(f"arrays {list(keys)} have different sample counts {sorted(n)}; they cannot be "
+                                 "joined", src)
+    return np.hstack([p if a == 0 else p.T for p, a in zip(two, along)])
+
+
+def flat_keys(picked: dict) -> list[str]:
+    """Every array key :func:`pick_fields` picked."""
+    return [k for ks in picked.values() for k in ks]
 
 
 def read_npz(path: Path, columns: Mapping | None) -> RawLog:
@@ -81,12 +112,12 @@ def read_npz(path: Path, columns: Mapping | None) -> RawLog:
         raise DataError("holds a single array (.npy), not an NPZ archive of named arrays", src)
     with archive as z:
         keys = list(z.files)
-        picked = _pick_fields(keys, columns, src)
+        picked = pick_fields(keys, columns, src)
         extra = [k for k in EXTRA_KEYS if k in keys]
-        name_key = pick_key("joint_names", keys, None, src, names=JOINT_NAME_KEYS)
-        check_npz(path, src, [*picked.values(), *extra])
+        name_key = pick_key("joint_names", keys, columns, src, names=JOINT_NAME_KEYS)
+        check_npz(path, src, [*flat_keys(picked), *extra])
         try:
-            arrays = {field: as_float(z[key], src, key) for field, key in picked.items()}
+            arrays = {field: join_parts([as_float(z[k], src, k) for k in ks], src, ks) for field, ks in picked.items()}
             extras = {k: z[k] for k in extra}
             names = joint_names_of(z[name_key], src, name_key) if name_key else None
         except (DataError, InputError):
@@ -95,8 +126,24 @@ def read_npz(path: Path, columns: Mapping | None) -> RawLog:
             raise DataError(f"cannot read an array from the NPZ archive ({one_line(exc)})", src) from None
     if "q" not in arrays:
         raise missing_q(keys, src)
-    used = {*picked.values(), *extra, name_key}
-    return RawLog(arrays, names, dict(picked), extras, [k for k in keys if k not in used])
+    used = {*flat_keys(picked), *extra, name_key}
+    unused = [k for k in keys if k not in used]
+    return RawLog(arrays, names, {f: ",".join(ks) for f, ks in picked.items()}, extras, unused,
+                  [k for k in unused if _npz_text(path, k)])
+
+
+def _npz_text(path: Path, key: str) -> bool:
+    """Whether NPZ member ``key`` holds strings (its header only)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as zf, zf.open(key + ".npy") as fh:
+            major, _ = np.lib.format.read_magic(fh)
+            read = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
+            _, _, dtype = read(fh)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+        return False
+    return dtype.kind in "US"
 
 
 def read_hdf5(path: Path, columns: Mapping | None) -> RawLog:
@@ -123,11 +170,11 @@ def _hdf5_fields(f, src: str, columns: Mapping | None) -> RawLog:
     keys: list[str] = []
     f.visititems(lambda name, obj: keys.append(name) if isinstance(obj, h5py.Dataset) else None)
     base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
-    picked = _pick_fields(keys, columns, src, base)
+    picked = pick_fields(keys, columns, src, base)
     extra = [k for k in EXTRA_KEYS if k in keys]
-    name_key = pick_key("joint_names", keys, None, src, base, names=JOINT_NAME_KEYS)
-    check_hdf5(f, [*picked.values(), *extra, *([name_key] if name_key else [])], src)
-    arrays = {field: as_float(f[key][()], src, key) for field, key in picked.items()}
+    name_key = pick_key("joint_names", keys, columns, src, base, names=JOINT_NAME_KEYS)
+    check_hdf5(f, [*flat_keys(picked), *extra, *([name_key] if name_key else [])], src)
+    arrays = {field: join_parts([as_float(f[k][()], src, k) for k in ks], src, ks) for field, ks in picked.items()}
     names = None
     if name_key is not None:
         names = joint_names_of(f[name_key][()], src, name_key)
@@ -135,5 +182,7 @@ def _hdf5_fields(f, src: str, columns: Mapping | None) -> RawLog:
         names = joint_names_of(f.attrs["joint_names"], src)
     if "q" not in arrays:
         raise missing_q(keys, src)
-    used = {*picked.values(), *extra, name_key}
-    return RawLog(arrays, names, dict(picked), {k: f[k][()] for k in extra}, [k for k in keys if k not in used])
+    used = {*flat_keys(picked), *extra, name_key}
+    unused = [k for k in keys if k not in used]
+    return RawLog(arrays, names, {fl: ",".join(ks) for fl, ks in picked.items()}, {k: f[k][()] for k in extra}, unused,
+                  [k for k in unused if f[k].dtype.kind in "SUO"])

@@ -12,11 +12,19 @@ and a step of the time axis is broken when the time goes backwards, or repeats (
 repeated stamps are accepted for resampling to merge them; then only a repeat at either
 end of the kept rows counts).
 
-The rows kept are the longest run of clean rows joined by unbroken steps. What lies before
+**Isolated rows** anywhere: a run of at most :data:`ISOLATED_ROWS` corrupt rows between clean
+rows whose stamps continue the clock across it (the step over the run is at most
+:data:`ISOLATED_GAP` median periods per row) is a logger's glitch: those rows are dropped, each
+named. A row whose stamp breaks the order of its neighbours (``t[i−1] < t[i+1]`` but ``t[i]``
+outside them) counts as corrupt there.
+
+The rows kept are then the longest run of clean rows joined by unbroken steps. What lies before
 it (the prefix) and after it (the suffix) is dropped when it holds at most
-``max(20, 5 % of the rows)`` rows (:func:`max_edge_rows`). A longer piece means the
-corruption is in the middle of the log: it is not dropped, and the checks of
-:func:`~sensorless.data.validate_trajectory` name its sample.
+``max(20, 5 % of the rows)`` rows (:func:`max_edge_rows`), as is a first or last row whose
+stamp is off the clock: more than :data:`STAMP_GAP` median periods (and a second) from its
+neighbour (a logger writing a row at t = 0 before its clock runs: a 3048 s gap otherwise).
+A longer piece means the corruption is in the middle of the log: it is not dropped, and the
+checks of :func:`~sensorless.data.validate_trajectory` name its sample.
 """
 
 from __future__ import annotations
@@ -28,7 +36,8 @@ import numpy as np
 
 from .outliers import robust_scale
 
-__all__ = ["ABSURD_VALUE", "ABSURD_SCALES", "Edge", "RowScan", "max_edge_rows", "scan_rows"]
+__all__ = ["ABSURD_VALUE", "ABSURD_SCALES", "Edge", "ISOLATED_GAP", "ISOLATED_ROWS", "RowScan", "STAMP_GAP",
+           "max_edge_rows", "scan_rows"]
 
 ABSURD_VALUE = 1e12
 ABSURD_SCALES = 1e6
@@ -36,7 +45,12 @@ EDGE_SHARE = 0.05
 MIN_EDGE_ROWS = 20
 _SCALE_ROWS = 100_000  # the robust scale of a longer column is taken on evenly spaced rows
 
-_KINDS = ("clean", "missing or non-finite values", "absurd values", "time going backwards", "a repeated time stamp")
+ISOLATED_ROWS = 3
+ISOLATED_GAP = 3.0
+STAMP_GAP = 100.0
+
+_KINDS = ("clean", "missing or non-finite values", "absurd values", "time going backwards", "a repeated time stamp",
+          "a stamp off the clock", "a stamp out of order")
 
 
 def max_edge_rows(n: int) -> int:
@@ -80,12 +94,25 @@ class RowScan:
     middle: str | None
     window: tuple[float, float] | None = None
     window_loses: int = 0
+    #: isolated corrupt rows inside ``start:stop`` (module docstring): (row, why)
+    isolated: tuple[tuple[int, str], ...] = ()
+
+    @property
+    def dropped(self) -> bool:
+        return bool(self.edges or self.isolated)
+
+    def keep(self) -> np.ndarray:
+        """The rows kept, in order."""
+        rows = np.arange(self.start, self.stop)
+        return rows[~np.isin(rows, [i for i, _ in self.isolated])] if self.isolated else rows
 
     def describe(self) -> str:
-        return " and ".join(e.describe() for e in self.edges)
+        iso = [f"{len(self.isolated)} isolated row(s) (" + "; ".join(f"sample {i}: {w}" for i, w in self.isolated) + ")"]
+        return " and ".join([e.describe() for e in self.edges] + (iso if self.isolated else []))
 
     def to_dict(self) -> dict:
-        return {"rows_read": self.n, "kept": [self.start, self.stop - 1], "dropped": [e.to_dict() for e in self.edges]}
+        return {"rows_read": self.n, "kept": [self.start, self.stop - 1], "dropped": [e.to_dict() for e in self.edges],
+                "isolated": [{"sample": i, "reason": w} for i, w in self.isolated]}
 
 
 def _row_faults(t: np.ndarray, columns: list) -> tuple[np.ndarray, Callable[[int], str]]:
@@ -123,6 +150,16 @@ def scan_rows(t: np.ndarray, columns: list, allow_duplicate_times: bool = False)
     t = np.asarray(t, dtype=float)
     n = len(t)
     kind, cell = _row_faults(t, columns)
+    isolated = _isolated(t, kind, cell)
+    if isolated:  # scan the rest as if those rows were not there, then map back
+        keep = np.setdiff1d(np.arange(n), [i for i, _ in isolated])
+        sub = scan_rows(t[keep], [(f, np.asarray(a).reshape(n, -1)[keep], lab) for f, a, lab in columns],
+                        allow_duplicate_times)
+        edges = tuple(Edge(e.where, int(keep[e.first]), int(keep[e.last]), e.reasons) for e in sub.edges)
+        start = int(keep[sub.start]) if sub.start < len(keep) else n
+        stop = int(keep[sub.stop - 1]) + 1 if sub.stop > 0 else 0
+        inside = tuple((i, w) for i, w in isolated if start <= i < stop)
+        return RowScan(n, start, stop, edges, sub.middle, sub.window, sub.window_loses, inside)
     good = kind == 0
     with np.errstate(invalid="ignore"):
         dt = np.diff(t)
@@ -151,6 +188,8 @@ def scan_rows(t: np.ndarray, columns: list, allow_duplicate_times: bool = False)
             a, b = min(i, j), max(i, j)
             if t[b] <= t[a]:
                 return (3 if t[b] < t[a] else 4), f"t[{b}] = {t[b]:.6f} s after t[{a}] = {t[a]:.6f} s"
+            if t[b] - t[a] > _clock_gap(t):
+                return 5, f"t[{a}] = {t[a]:.6f} s, t[{b}] = {t[b]:.6f} s: {t[b] - t[a]:.6g} s apart"
         return 0, ""
 
     def edge(where: str, rows: range) -> Edge:
@@ -163,6 +202,7 @@ def scan_rows(t: np.ndarray, columns: list, allow_duplicate_times: bool = False)
                         for k, (c, i, d) in sorted(tally.items(), key=lambda kv: (kv[0] == 0, kv[1][1])))
         return Edge(where, rows.start, rows.stop - 1, reasons)
 
+    start, stop = _off_clock(t, start, stop)
     limit = max_edge_rows(n)
     edges, middle = [], None
     for where, rows, border in (("start", range(0, start), start - 1), ("end", range(stop, n), stop)):
@@ -191,3 +231,52 @@ def _window(t: np.ndarray, kind: np.ndarray, lo_row: int, hi_row: int, start: in
     if not lo < hi:
         return None, 0
     return (float(lo), float(hi)), int(np.sum((core < lo) | (core > hi)))
+
+
+def _clock_gap(t: np.ndarray) -> float:
+    """A step longer than this [s] between a first or last row and its neighbour is a stamp off the clock."""
+    with np.errstate(invalid="ignore"):
+        dt = np.diff(t)
+    dt = dt[np.isfinite(dt) & (dt > 0)]
+    return max(STAMP_GAP * float(np.median(dt)), 1.0) if dt.size else np.inf
+
+
+def _off_clock(t: np.ndarray, start: int, stop: int) -> tuple[int, int]:
+    """The kept run ``start:stop`` without a first or last row whose stamp is off the clock (module docstring)."""
+    gap = _clock_gap(t)
+    while stop - start > 2 and t[start + 1] - t[start] > gap:
+        start += 1
+    while stop - start > 2 and t[stop - 1] - t[stop - 2] > gap:
+        stop -= 1
+    return start, stop
+
+
+def _isolated(t: np.ndarray, kind: np.ndarray, cell) -> list[tuple[int, str]]:
+    """Runs of at most ``ISOLATED_ROWS`` corrupt rows between clean rows whose stamps continue the clock across
+    them (module docstring), each row with why."""
+    n = len(t)
+    if n < 8:
+        return []
+    bad = kind != 0
+    order = np.zeros(n, bool)  # a stamp outside its neighbours while they are in order
+    with np.errstate(invalid="ignore"):
+        inner = (t[2:] > t[:-2]) & ((t[1:-1] < t[:-2]) | (t[1:-1] > t[2:]))  # a repeat is not out of order
+    order[1:-1] = inner & ~bad[1:-1] & ~bad[:-2] & ~bad[2:]
+    bad = bad | order
+    with np.errstate(invalid="ignore"):
+        dt = np.diff(t)
+    fine = dt[np.isfinite(dt) & (dt > 0)]
+    period = float(np.median(fine)) if fine.size else np.nan
+    out = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):  # corrupt rows a..b-1
+        if a == 0 or b == n or b - a > ISOLATED_ROWS:
+            continue
+        step = t[b] - t[a - 1]
+        if not (np.isfinite(step) and 0 < step <= ISOLATED_GAP * (b - a + 1) * period):
+            continue
+        for i in range(a, b):
+            why = (f"{_KINDS[kind[i]]}, {cell(i)}" if kind[i] else
+                   f"{_KINDS[6]}, t = {t[i]:.6f} s between {t[i - 1]:.6f} and {t[i + 1]:.6f} s")
+            out.append((int(i), why))
+    return out

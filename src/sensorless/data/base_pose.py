@@ -46,7 +46,7 @@ from .filtering import SavitzkyGolay, note_processing, default_savgol_window, bu
 from .trajectory import Trajectory
 
 __all__ = ["BasePose", "clean_base_pose", "with_base_pose", "clip_to_pose", "base_motion_from_pose",
-           "ORIENTATION_FORMATS", "DEFAULT_POSE_MAX_GAP"]
+           "ORIENTATION_FORMATS", "DEFAULT_POSE_MAX_GAP", "pose_from_rpy"]
 
 #: ``quat_xyzw`` (Pinocchio/SciPy order), ``quat_wxyz``, or ``rpy`` (extrinsic x-y-z roll,
 #: pitch, yaw [rad], i.e. R = Rz(yaw) Ry(pitch) Rx(roll)).
@@ -95,6 +95,16 @@ def _rotations(orientation: np.ndarray, fmt: str, src: str) -> np.ndarray:
                             f"(norm {norm[bad[0]]:.3g}); check orientation_format ('{fmt}')", src)
         out[ok] = quat / norm[:, None]
     return out
+
+
+def pose_from_rpy(pose: np.ndarray, src: str = "<log>") -> np.ndarray:
+    """[x y z roll pitch yaw] (N, 6) -> [x y z qx qy qz qw] (N, 7) (``rpy`` of :data:`ORIENTATION_FORMATS`;
+    a NaN row stays NaN): a base pose logged as position and Euler angles (``--base-rpy``)."""
+    pose = np.asarray(pose, dtype=float)
+    if pose.ndim != 2 or pose.shape[1] != 6:
+        raise ShapeMismatchError(f"'base_q' has shape {pose.shape}; a base pose with Euler angles needs 6 columns "
+                                 f"(x y z roll pitch yaw, {setting('base_rpy', True)})", src)
+    return np.hstack([pose[:, :3], _rotations(pose[:, 3:], "rpy", src)])
 
 
 def _valid_samples(t, p, quat, hold_tol: float, source: str) -> tuple[np.ndarray, dict]:

@@ -24,9 +24,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import DataError, InputError
-from .arrays import EXTRA_KEYS, READ_ERRORS, as_float, joint_names_of, missing_q, one_line
+from .arrays import EXTRA_KEYS, READ_ERRORS, as_float, flat_keys, join_parts, joint_names_of, missing_q, one_line, pick_fields
 from .limits import check_log_size
-from .names import FIELD_NAMES, JOINT_NAME_KEYS, RawLog, pick_key
+from .names import JOINT_NAME_KEYS, RawLog, pick_key
 
 __all__ = ["read_mat", "is_mat73", "MAT73_HEADER"]
 
@@ -85,6 +85,16 @@ def _is_opaque(val: Any) -> bool:
     return isinstance(val, (sm.MatlabOpaque, sm.MatlabObject, sm.MatlabFunction))
 
 
+def _v5_text(val: Any) -> bool:
+    """A v4–v7 variable that holds text: a string, a char/cell array of text or a MATLAB string object."""
+    if isinstance(val, str) or _is_opaque(val):
+        return True
+    if isinstance(val, (list, tuple)):
+        return bool(val) and all(isinstance(v, str) for v in val)
+    return isinstance(val, np.ndarray) and (val.dtype.kind in "US" or (val.dtype.kind == "O" and val.size > 0 and all(
+        isinstance(v, str) for v in val.reshape(-1))))
+
+
 def _v5_value(val: Any, key: str, src: str, text: bool) -> Any:
     if _is_opaque(val):
         if text:
@@ -106,23 +116,27 @@ def _v5_value(val: Any, key: str, src: str, text: bool) -> Any:
     return np.asarray(val)
 
 
-def _fields(leaves: Mapping[str, Any], columns: Mapping | None, src: str, value, check=None) -> RawLog:
+def _fields(leaves: Mapping[str, Any], columns: Mapping | None, src: str, value, check=None, is_text=None) -> RawLog:
     """Pick the fields, joint names and extras among ``leaves`` (path -> stored value, read by
-    ``value(stored, path, src, text)``; ``check(paths)`` vets what will be read first)."""
+    ``value(stored, path, src, text)``; ``check(paths)`` vets what will be read first; ``is_text(stored)``: the
+    variable holds text, e.g. joint names under a name of the file's own)."""
+    is_text = is_text or _v5_text
     keys = list(leaves)
     base = lambda k: k.rsplit("/", 1)[-1]  # noqa: E731
-    picked = {f: k for f in FIELD_NAMES if (k := pick_key(f, keys, columns, src, base)) is not None}
+    picked = pick_fields(keys, columns, src, base)
     if "q" not in picked:
         raise missing_q(keys, src)
     extra = {e: k for e in EXTRA_KEYS if (k := pick_key(e, keys, None, src, base, names=(e,))) is not None}
-    name_key = pick_key("joint_names", keys, None, src, base, names=JOINT_NAME_KEYS)
+    name_key = pick_key("joint_names", keys, columns, src, base, names=JOINT_NAME_KEYS)
     if check is not None:
-        check([*picked.values(), *extra.values(), *([name_key] if name_key else [])])
-    arrays = {f: as_float(value(leaves[k], k, src, False), src, k) for f, k in picked.items()}
+        check([*flat_keys(picked), *extra.values(), *([name_key] if name_key else [])])
+    arrays = {f: join_parts([as_float(value(leaves[k], k, src, False), src, k) for k in ks], src, ks)
+              for f, ks in picked.items()}
     extras = {e: value(leaves[k], k, src, False) for e, k in extra.items()}
     names = joint_names_of(value(leaves[name_key], name_key, src, True), src, name_key) if name_key else None
-    used = {*picked.values(), *extra.values(), name_key}
-    return RawLog(arrays, names, dict(picked), extras, [k for k in keys if k not in used])
+    used = {*flat_keys(picked), *extra.values(), name_key}
+    unused = [k for k in keys if k not in used]
+    return RawLog(arrays, names, {f: ",".join(ks) for f, ks in picked.items()}, extras, unused, [k for k in unused if is_text(leaves[k])])
 
 
 # ---- v7.3 (HDF5) ---------------------------------------------------------------------------
@@ -144,7 +158,8 @@ def _read_mat73(path: Path, columns: Mapping | None, src: str) -> RawLog:
 
         f.visititems(visit)
         return _fields(leaves, columns, src, lambda ds, key, s, text: _decode73(f, ds, key, s, text),
-                       check=lambda keys: check_hdf5(f, keys, src))
+                       check=lambda keys: check_hdf5(f, keys, src),
+                       is_text=lambda ds: _matlab_class(ds) in ("char", "cell", "string"))
     except (DataError, InputError):
         raise
     except READ_ERRORS as exc:

@@ -68,13 +68,15 @@ def short_list(items: Sequence, limit: int = 40) -> str:
 class RawLog:
     """What a reader found: ``arrays`` per field (as stored, before orientation and units),
     joint ``names`` stored in the file, ``origin`` (field -> the array/column it came from),
-    per-sample ``extras`` (contact flags/forces, IMU), and the ``unused`` arrays/columns."""
+    per-sample ``extras`` (contact flags/forces, IMU), the ``unused`` arrays/columns, and which of those
+    hold ``text`` (joint names under a name of the file's own: ``--columns joint_names=NAME``)."""
 
     arrays: dict[str, np.ndarray]
     names: list[str] | None = None
     origin: dict[str, str] = field(default_factory=dict)
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     unused: list[str] = field(default_factory=list)
+    text: list[str] = field(default_factory=list)
 
 
 def pick_key(fld: str, keys: Sequence[str], columns: Mapping | None, src: str,

@@ -37,7 +37,9 @@
 8. **decimate** (anti-aliased).
 
 ``Trajectory.provenance`` records which signals were logged and which derived (and
-how), the drive gains, the trim window, the timing and the resampling.
+how), each logged channel's quantization step and decimals (``resolution``,
+:mod:`sensorless.data.resolution`, read before any resampling; they floor the noise of the rest
+detection), the drive gains, the trim window, the timing and the resampling.
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ from .limits import current_options, read_options
 from .integrity import check_integrity
 from .plausibility import check_gain_plausibility
 from .imu import IMU_KEY
+from .resolution import record_floor, resolution_record
 from .rest import REST_MODES, signal_noise, zero_at_rest
 from .resample import DEFAULT_MAX_GAP, resample as _resample, timing
 from .trajectory import Trajectory
@@ -162,6 +165,7 @@ def prepare(
     for f in ("q", "v", "a", "tau", "base_q", "base_v", "base_a"):
         if getattr(traj, f) is not None:
             prov.setdefault(f, "logged")
+    prov["resolution"] = resolution_record(traj)  # as logged: a resampling or low-pass hides it
     traj = traj.with_(provenance=prov)
     if wrench_frames and robot is None:
         raise OptionError("wrench frames need the robot model (prepare(..., robot=...))")
@@ -225,8 +229,9 @@ def prepare(
         raise OptionError(f"{setting('rest')} must be one of {', '.join(REST_MODES)}, got {rest!r}")
     sigma_v = None
     if rest == "auto" and not derive_v and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:
-        sigma_v = signal_noise(traj.v)  # before the low-pass colours it (sensorless.data.rest)
-        sigma_q = signal_noise(traj.q)
+        res = traj.provenance["resolution"]  # as logged (a resampling interpolates between the quanta)
+        sigma_v = np.maximum(signal_noise(traj.v), record_floor(res, "v", traj.joint_names))  # before the low-pass
+        sigma_q = np.maximum(signal_noise(traj.q), record_floor(res, "q", traj.joint_names))  # colours it (.rest)
     w = int(savgol_window) if savgol_window is not None else default_savgol_window(
         1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 and np.median(np.diff(traj.t)) > 0 else float("nan"))
     if derive_a and traj.extras.get("contact") is not None:
@@ -252,6 +257,11 @@ def prepare(
             "cutoff_hz": float(lowpass), "filter": "Butterworth order 4, zero-phase (sosfiltfilt)", "channels": channels
             + (["base_q", "base_v", "base_a"] if from_pose else [])}})
 
+    noisy_source = None
+    if derive_a and len(traj) > 3 * DEFAULT_SAVGOL_WINDOW:  # the derivative's noise, before the low-pass colours it
+        noisy_source = ("q", traj.q) if derive_v else ("v", traj.v)
+        noisy_source = (*noisy_source, np.maximum(signal_noise(noisy_source[1]), record_floor(
+            traj.provenance.get("resolution"), noisy_source[0], traj.joint_names)))
     if derive_v:
         traj = savgol_derivatives(traj, window=w, polyorder=_POLYORDER)
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
@@ -265,6 +275,8 @@ def prepare(
         how = f"Savitzky-Golay (window {w}, order {_POLYORDER})"
         traj = traj.with_(a=a, units=note_processing(traj, f"savgol(centred, window={w}, polyorder={_POLYORDER}): a = d/dt of logged v"),
                           provenance={**traj.provenance, "a": f"derived: d/dt of logged v, {how}"})
+    if noisy_source is not None:
+        traj = _derivative_noise(traj, *noisy_source, w)
     if derive_a and traj.extras.get("contact") is not None:
         traj = _widen_contacts(traj, w // 2)
     if sigma_v is not None:
@@ -300,6 +312,43 @@ def _contact_phase_window(flags: np.ndarray) -> int:
     median = float(runs[np.searchsorted(np.cumsum(runs), 0.5 * runs.sum())])  # the phase of the median sample
     w = int(max(11, CONTACT_PHASE_SHARE * median))
     return w if w % 2 else w + 1
+
+
+#: a derived v̇ whose noise std exceeds this share of its RMS is mostly noise (a warning names the joint)
+NOISE_DOMINATES = 0.5
+#: a joint whose q (or v) spans more than this many noise stds moves (only those are warned about)
+MOVING_SIGMAS = 20.0
+
+
+def _derivative_noise(traj: Trajectory, source: str, x: np.ndarray, sigma: np.ndarray, w: int) -> Trajectory:
+    """``provenance["derivative_noise"]``: per joint, the std of the derived v̇ that the noise of ``source`` (q or
+    v; σ floored at its quantization, :mod:`.resolution`) implies through the Savitzky–Golay window ``w``,
+    σ_a = σ ‖c‖ (c the derivative's coefficients), beside the RMS of v̇; a DataWarning names the joints where
+    σ_a is over :data:`NOISE_DOMINATES` of it and that move (their rows then carry mostly noise: a passive slider whose height
+    is quantized, differentiated twice over a short window), with the window that would bring it to a quarter."""
+    from .savgol import savgol_coeffs
+
+    dt = float(np.median(np.diff(traj.t)))
+    order = 2 if source == "q" else 1
+    gain = lambda win: float(np.linalg.norm(savgol_coeffs(win, _POLYORDER, deriv=order, delta=dt)))  # noqa: E731
+    noise = sigma * gain(w)
+    rms = np.sqrt(np.mean(np.asarray(traj.a, dtype=float) ** 2, axis=0))
+    names = list(traj.joint_names)
+    info = {"window_samples": int(w), "from": source, "noise_std": dict(zip(names, map(float, noise))),
+            "rms": dict(zip(names, map(float, rms)))}
+    moves = np.ptp(np.asarray(x, dtype=float), axis=0) > MOVING_SIGMAS * sigma  # a held joint's v̇ is noise anyway
+    bad = [j for j in range(len(names)) if moves[j] and noise[j] > NOISE_DOMINATES * rms[j] and noise[j] > 0]
+    if bad:
+        parts = []
+        for j in bad:
+            wins = [v for v in range(w + 2, min(len(traj), 50 * w), 2) if sigma[j] * gain(v) <= 0.25 * rms[j]]
+            hint = f"; a window of {wins[0]} samples would bring it to a quarter" if wins else ""
+            parts.append(f"{names[j]} (σ {noise[j]:.3g} against an RMS of {rms[j]:.3g}{hint})")
+        warnings.warn(f"{traj.source}: the derived accelerations of {', '.join(parts)} are mostly noise: the "
+                      f"{source} noise through the {w}-sample derivative window (the rows of those joints carry "
+                      f"it into a fit or a force estimate; {setting('savgol_window')} sets the window)",
+                      DataWarning, stacklevel=3)
+    return traj.with_(provenance={**traj.provenance, "derivative_noise": info})
 
 
 def _widen_contacts(traj: Trajectory, half: int) -> Trajectory:

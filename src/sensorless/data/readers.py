@@ -21,9 +21,12 @@ where it is stored:
 * A folder of per-signal files (``q.dat``, ``tau.dat``, ...): a file name per field
   (:mod:`.textlog`).
 
-Joint names: ``joint_names``, else names stored in the file (``joint_names`` array, the
-``{joint}`` pattern or a shared header), else ``robot.joint_names`` if the column count
-matches, else ``joint_0..joint_{n-1}``. Time is converted to seconds (:mod:`.timebase`:
+Joint names: ``joint_names``, else names stored in the file (a ``joint_names`` or ``names`` array, or one
+mapped under the file's own name, ``columns={"joint_names": "estimatorJointNames"}``; the ``{joint}`` pattern
+or a shared header), else ``robot.joint_names`` if the column count matches: refused when the file holds
+text arrays the reader did not use (the log's own names, in its own order) unless the read option
+``joint_order="model"`` confirms the model's order; else ``joint_0..joint_{n-1}``. Named columns are matched
+to the model by name (reordered by validation). Time is converted to seconds (:mod:`.timebase`:
 ``time_unit`` s, ms, us, ns, or tick with ``rate`` ticks per second; a tick column read
 without a unit is refused); without a time field, ``t = arange(N) / rate``.
 
@@ -47,7 +50,7 @@ from .formats import SUPPORTED_EXTENSIONS, find_format
 from .gains import currents_to_torques, split_gain_modifiers
 from .imu import IMU_KEY
 from .limits import current_options, read_options
-from .names import FIELD_NAMES, RawLog, warn_unused
+from .names import FIELD_NAMES, RawLog, short_list, warn_unused
 from .orientation import orient_samples
 from .tabular import Columns
 from .timebase import check_rate, check_time_unit, to_seconds
@@ -57,7 +60,7 @@ from .validation import JOINT_EXTRAS, validate_trajectory
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["read_trajectory", "write_npz", "FIELDS"]
+__all__ = ["read_trajectory", "write_npz", "FIELDS", "JOINT_ORDERS", "TIME_SOURCES"]
 
 FIELDS = tuple(FIELD_NAMES)
 _NPZ_KEYS = {"t": "times", "q": "positions", "v": "velocities", "a": "accelerations", "tau": "torques"}
@@ -125,22 +128,37 @@ def _read_trajectory(path: Path, joint_names, columns, rate, robot, time_unit, g
             raise DataError(f"gains are given twice (in the column map and as {setting('gains')}); give them once", src)
         gains = column_gains
     if columns is not None:
-        unknown = [k for k in columns if k not in FIELDS]
+        valid = [*FIELDS, "joint_names", *(EXTRA_KEYS if fmt is not None and fmt.items == "files" else ())]
+        unknown = [k for k in columns if k not in valid]
         if unknown:
-            raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {list(FIELDS)}", src)
+            raise DataError(f"unknown field(s) {unknown} in columns; valid fields: {valid}", src)
+        if "joint_names" in columns and fmt is not None and not fmt.arrays:
+            raise DataError(f"{setting('columns', {'joint_names': columns['joint_names']})} names an array of joint "
+                            "names, which only array files hold (NPZ, HDF5, MATLAB); a table's joint names come from "
+                            f"its header ({setting('columns', {'q': 'pos_{joint}'})})", src)
     check_time_unit(time_unit, rate, src)
     raw, what = _read_raw(fmt, path, src, columns, joint_names)
     warn_unused(src, raw.unused, what)
     n_hint = (len(joint_names) if joint_names is not None else len(raw.names) if raw.names is not None
               else len(robot.joint_names) if robot is not None else None)
     flipped = orient_samples(raw, n_hint, src) if fmt.arrays else []  # tables are sample-major
-    traj = _assemble(raw, src, joint_names, rate, robot, time_unit)
+    opts = current_options()
+    traj = _assemble(raw, src, joint_names, rate, robot, time_unit, opts.get("joint_order") or "names",
+                     opts.get("time_from") or "stamps")
     if flipped:
         traj.units["layout"] = f"stored channels × samples, transposed: {', '.join(flipped)}"
     if gains is not None:
         traj = currents_to_torques(traj, gains, gain_field)
     if raw.extras:
         traj = traj.with_(extras={**traj.extras, **_sample_extras(raw.extras, src, len(traj))})
+    if opts.get("base_rpy") and traj.base_q is not None:  # x y z + roll pitch yaw -> x y z + quaternion
+        from .base_pose import pose_from_rpy  # imported on use: SciPy's rotations
+
+        traj = traj.with_(base_q=pose_from_rpy(traj.base_q, src),
+                          units={**traj.units, "base_q": "x y z + quaternion from logged roll pitch yaw (base_rpy)"})
+    elif opts.get("base_rpy"):
+        raise DataError(f"{setting('base_rpy', True)}: the log has no base pose; map it, e.g. "
+                        f"{setting('columns', {'base_q': 'base_position,base_rpy'})}", src)
     traj = to_radians(traj, angle_unit, robot)
     return validate_trajectory(traj, robot, allow_duplicate_times=allow_duplicate_times, outliers=outliers, **rows)
 
@@ -211,8 +229,49 @@ def write_npz(traj: Trajectory, path: str | Path) -> Path:
 
 
 # ---- assembly ----------------------------------------------------------------------
+JOINT_ORDERS = ("names", "model")
+#: where the time axis comes from: the logged stamps, or the sample count at a rate (arrival-time stamps)
+TIME_SOURCES = ("stamps", "rate")
+
+
+def _from_rate(stamps, n: int, rate: float | None, time_unit, label: str, src: str) -> tuple[np.ndarray, str]:
+    """t = k / rate for ``time_from="rate"``: ``rate`` if given, else the mean rate over the logged stamps' span
+    (arrival times are late by a varying delay, but their long-run rate is the sampling rate)."""
+    if rate is not None:
+        rate = check_rate(rate, src)
+        return np.arange(n) / rate, f"s (built from rate={rate:g} Hz; {setting('time_from', 'rate')})"
+    if stamps is None:
+        raise DataError(f"{setting('time_from', 'rate')} needs {setting('rate', placeholder='HZ')} or a time column to "
+                        "take the mean rate from", src)
+    s, _ = to_seconds(np.asarray(stamps, dtype=float).reshape(n, -1)[:, 0], time_unit, None, label, src)
+    span = float(s[-1] - s[0])
+    if not (np.isfinite(span) and span > 0):
+        raise DataError(f"{setting('time_from', 'rate')}: the stamps of '{label}' span {span} s; give "
+                        f"{setting('rate', placeholder='HZ')}", src)
+    rate = (n - 1) / span
+    return s[0] + np.arange(n) / rate, (f"s (uniform at the mean rate of the stamps, {rate:.6g} Hz over their "
+                                        f"{span:.6g} s; {setting('time_from', 'rate')}: they are arrival times)")
+
+
+def _model_order(raw: RawLog, robot: "Robot", n: int, src: str, joint_order: str) -> list[str]:
+    """The robot's joint names for a log that names none of its ``n`` q columns: refused when the file holds
+    text arrays (its joint names under a name of its own: the columns' order is then the log's, e.g. neck,
+    torso, arms, legs, not the model's) unless ``joint_order="model"`` confirms the model's order."""
+    if joint_order not in JOINT_ORDERS:
+        raise DataError(f"{setting('joint_order')} must be one of {', '.join(JOINT_ORDERS)}, got {joint_order!r}", src)
+    if raw.text and joint_order != "model":
+        first = raw.text[0]
+        raise DataError(
+            f"'q' ('{raw.origin.get('q', 'q')}') has {n} columns, as many as robot '{robot.name}' has joints, but "
+            f"their names were not read and the file holds text {short_list(raw.text, 8)}: if those are the joint "
+            f"names, map them, {setting('columns', {'joint_names': first})}, and the columns are matched to the "
+            f"model by name; if the columns follow the model's order ({', '.join(list(robot.joint_names)[:4])}, "
+            f"...), confirm it with {setting('joint_order', 'model')}", src)
+    return list(robot.joint_names)
+
+
 def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: float | None, robot: "Robot | None",
-              time_unit: str | None) -> Trajectory:
+              time_unit: str | None, joint_order: str = "names", time_from: str = "stamps") -> Trajectory:
     arrays = raw.arrays
     for field, arr in arrays.items():
         if arr.ndim == 0:
@@ -240,12 +299,16 @@ def _assemble(raw: RawLog, src: str, joint_names: Sequence[str] | None, rate: fl
                 f"{setting('columns', {'q': '...'})}",
                 src,
             )
-        names = list(robot.joint_names)
+        names = _model_order(raw, robot, n, src, joint_order)
     else:
         names = [f"joint_{i}" for i in range(n)]
 
     units: dict[str, str] = {}
-    if "t" in arrays:
+    if time_from not in TIME_SOURCES:
+        raise DataError(f"{setting('time_from')} must be one of {', '.join(TIME_SOURCES)}, got {time_from!r}", src)
+    if time_from == "rate":  # arrival-time stamps: the samples are uniform, their stamps are not
+        t, units["t"] = _from_rate(arrays.get("t"), q.shape[0], rate, time_unit, raw.origin.get("t", "t"), src)
+    elif "t" in arrays:
         t = arrays["t"]
         if t.ndim == 2 and t.shape[1] == 1:
             t = t[:, 0]

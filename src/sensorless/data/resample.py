@@ -26,7 +26,7 @@ from .filtering import MAX_JITTER, MAX_UPSAMPLE, with_arrays, sign_continuous
 from .trajectory import Trajectory
 from ..errors import TooFewSamplesError
 
-__all__ = ["Timing", "timing", "resample", "DEFAULT_MAX_GAP", "CUBIC_FIELDS"]
+__all__ = ["ARRIVAL_GAP", "ARRIVAL_SHORT_SHARE", "arrival_stamps", "Timing", "timing", "resample", "DEFAULT_MAX_GAP", "CUBIC_FIELDS"]
 
 #: Largest step accepted by :func:`resample`, in nominal periods.
 DEFAULT_MAX_GAP = 4.0
@@ -140,11 +140,14 @@ def resample(
     if big.size:
         k = int(big[0])
         a, b = int(first[k]), int(first[k + 1])
+        arrival = arrival_stamps(t)
+        fix = (f"; the stamps look like arrival times ({arrival}): read the samples as uniform at their mean rate "
+               f"with {setting('time_from', 'rate')}" if arrival else
+               f"; trim the log around it ({setting('trim')}) or raise the tolerance ({setting('max_gap')})")
         raise TimestampError(
             f"gap of {1e3 * steps[k]:.1f} ms between sample {a} (t={tu[k]:.6f} s) and sample {b} "
             f"(t={tu[k + 1]:.6f} s), more than {max_gap:g} × the median period "
-            f"({1e3 * info.period:.3f} ms; {big.size} such gap(s)); trim the log around it ({setting('trim')}) "
-            f"or raise the tolerance ({setting('max_gap')})", src)
+            f"({1e3 * info.period:.3f} ms; {big.size} such gap(s)){fix}", src)
     if tu.size < 2:
         raise TooFewSamplesError("resample: fewer than 2 distinct time stamps", src)
     from scipy.interpolate import interp1d, make_interp_spline  # imported on use (start-up time)
@@ -178,3 +181,24 @@ def resample(
     prov = {**traj.provenance, "resampled": {"rate_hz": rate, "max_gap_periods": max_gap,
                                              "duplicates_merged": info.duplicates, "before": info.to_dict()}}
     return with_arrays(traj, out, t=tu[0] + grid, units=units, provenance=prov)
+
+
+#: arrival-time stamps: at least this share of the steps under a tenth of the mean step, and gaps over
+#: :data:`ARRIVAL_GAP` mean steps (samples delivered in bursts: 0.3 ms apart after 40–170 ms)
+ARRIVAL_SHORT_SHARE = 0.3
+ARRIVAL_GAP = 3.0
+
+
+def arrival_stamps(t: np.ndarray) -> str:
+    """A description of the burst pattern when the stamps ``t`` are arrival times (samples delivered in packets:
+    many steps far below the mean and gaps far above it), else ``""``."""
+    t = np.asarray(t, dtype=float)
+    steps = np.diff(t)
+    if steps.size < 10 or not np.all(np.isfinite(steps)):
+        return ""
+    mean = (t[-1] - t[0]) / steps.size
+    short, gaps = steps < 0.1 * mean, steps > ARRIVAL_GAP * mean
+    if mean <= 0 or short.mean() < ARRIVAL_SHORT_SHARE or not gaps.any():
+        return ""
+    return (f"{100 * short.mean():.0f} % of the steps under {1e3 * 0.1 * mean:.3g} ms, bursts after gaps of up to "
+            f"{1e3 * steps.max():.3g} ms; mean rate {1 / mean:.6g} Hz")

@@ -26,9 +26,10 @@ quiet stretch, so a motion next to it does not leak in) is estimated by
 
 whichever has the smaller standard error (v is often a difference of q, so the two are not
 independent and are not pooled). The joint creeps where |ĉ| > ``CREEP_SIGMAS`` · SE (5: a joint at
-rest passes for creeping about once in 2·10⁶ windows). σ is floored at the quantum / √12 of
-the signal (the smallest non-zero step between samples), so that a quantised encoder at rest does
-not have zero noise.
+rest passes for creeping about once in 2·10⁶ windows). Every σ here is floored at the signal's
+quantization noise Δ/√12, Δ its step or rounding read from the log (:mod:`~sensorless.data.resolution`),
+so that a quantised encoder or a q and v logged to 4 decimals at rest do not have zero noise (δ ≥
+1.4 Δ: one quantum of v is quiet).
 
 A quiet joint that is not creeping is **at rest**: v_j = v̇_j = 0 there. A creeping joint gets
 v_j = ĉ (the sign of its friction is known, its speed far better than from one noisy sample)
@@ -44,6 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DataError
+from .resolution import noise_floor
 from .savgol import savgol_coeffs, savgol_filter
 
 __all__ = ["CREEP_SECONDS", "CREEP_SIGMAS", "NOISE_SAMPLES", "RANGE_SIGMAS", "REST_SIGMAS", "REST_MODES", "creep_drift", "rest_info", "rest_mask", "rest_state",
@@ -67,7 +69,8 @@ def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndar
     """Per-column white-noise std of ``x`` (N, n) from its Savitzky–Golay residual r = x − S x:
     var r = σ² (1 − c₀), c₀ the smoother's centre coefficient, so σ̂ = 1.4826 MAD(r) / √(1 − c₀)
     (robust to the motion's own residual at reversals); the MAD of every k-th residual beyond
-    :data:`NOISE_SAMPLES`."""
+    :data:`NOISE_SAMPLES`. Never below the column's quantization noise Δ/√12
+    (:func:`~sensorless.data.resolution.noise_floor`: a rounded signal held still has a MAD of 0)."""
     x = np.asarray(x, dtype=float)
     if x.ndim == 1:
         x = x[:, None]
@@ -78,7 +81,7 @@ def signal_noise(x: np.ndarray, window: int = 11, polyorder: int = 3) -> np.ndar
     r = r[window:-window] if x.shape[0] > 3 * window else r
     r = r[:: -(-len(r) // NOISE_SAMPLES)]
     mad = np.median(np.abs(r - np.median(r, axis=0)), axis=0)
-    return 1.4826 * mad / np.sqrt(1.0 - c0)
+    return np.maximum(1.4826 * mad / np.sqrt(1.0 - c0), noise_floor(x))
 
 
 def _quiet(v, sigma, window, sigmas, q, sigma_q) -> np.ndarray:
@@ -86,18 +89,16 @@ def _quiet(v, sigma, window, sigmas, q, sigma_q) -> np.ndarray:
 
     w = max(int(window), 1)
     peak = running_max(np.abs(v), w)
-    mask = peak <= sigmas * np.asarray(sigma, dtype=float)[None, :]
+    mask = peak <= sigmas * _quantum_floor(v, sigma)[None, :]
     if q is not None and sigma_q is not None:
         span = running_max(q, w) - running_min(q, w)
-        mask &= span <= RANGE_SIGMAS * np.asarray(sigma_q, dtype=float)[None, :]
+        mask &= span <= RANGE_SIGMAS * _quantum_floor(q, sigma_q)[None, :]
     return mask
 
 
 def _quantum_floor(x: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """σ floored at (smallest non-zero step of the column) / √12, the noise of a quantised signal."""
-    d = np.abs(np.diff(x, axis=0))
-    step = np.array([np.min(c[c > 0]) if np.any(c > 0) else 0.0 for c in d.T]) if len(d) else np.zeros(x.shape[1])
-    return np.maximum(np.asarray(sigma, dtype=float), step / np.sqrt(12.0))
+    """σ floored at the column's quantization noise Δ/√12 (:func:`~sensorless.data.resolution.noise_floor`)."""
+    return np.maximum(np.asarray(sigma, dtype=float), noise_floor(x))
 
 
 def _window_sums(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

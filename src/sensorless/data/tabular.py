@@ -61,16 +61,25 @@ def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
     if first is None:
         raise DataError("file is empty", src)
     sep = next((s for s in (",", ";", "\t") if s in first), r"\s+")
-    tokens = [tok.strip().strip("\"'") for tok in (first.split(sep) if sep != r"\s+" else first.split())]
+    if sep == "\t" and "\t\t" in first.rstrip("\r\n"):
+        sep = r"\t+"  # tick<TAB><TAB>value: runs of tabs are one separator (no empty column between them)
+    tokens = [tok.strip().strip("\"'") for tok in (first.split(sep) if sep not in (r"\s+", r"\t+")
+                                                    else re.split(sep, first.strip()))]
     header = any(tok and not is_number(tok) for tok in tokens)
     try:
         df = pd.read_csv(
-            path, sep=sep, header=0 if header else None, comment="#", skipinitialspace=True, encoding="utf-8-sig"
-        )
+            path, sep=sep, header=0 if header else None, comment="#", skipinitialspace=True, encoding="utf-8-sig",
+            **({"engine": "python"} if sep == r"\t+" else {}))
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError) as exc:
         raise DataError(f"cannot parse as CSV: {str(exc).strip()}", src) from None
     if header:
         df.columns = [str(c).strip() for c in df.columns]
+    # a separator at the end of every line (or doubled) leaves an unnamed column with no value at all
+    empty = [c for c in df.columns if (not header or str(c).startswith("Unnamed:")) and df[c].isna().all()]
+    if empty and len(empty) < len(df.columns):
+        df = df.drop(columns=empty)
+        if not header:
+            df.columns = range(len(df.columns))
     return df, header
 
 

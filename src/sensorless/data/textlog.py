@@ -8,7 +8,12 @@ one column per joint. ``--data run/`` reads the folder as one log:
 * each file stands for the field its name is recognised as
   (:data:`~sensorless.data.names.FIELD_NAMES`: ``q``, ``dq``/``v``, ``ddq``, ``tau``/
   ``effort``, ``current``/``i``, ...); ``--columns 'q=pos;tau=trq'`` names the files instead
-  (by stem or file name). Files no field uses are named in one warning;
+  (by stem or file name). A field may also be composed of columns of several files, joint
+  columns in the order given: ``--columns 'q=height_sensors.dat:1,joint_positions.dat:1:3'``
+  (``FILE:K`` is the file's column K, ``FILE:A:B`` its columns A..B−1, counted from 0 with the
+  time column; a passive slider whose position another sensor logs). Contact flags (and
+  wrenches) come from a file the same way, ``--columns 'contact=feet.dat'``. Files no field uses are
+  named in one warning;
 * the time column of each file is the one a header names (``t``, ``time``, ``tick``, ...,
   or ``--columns t=NAME``); without a header it is the first column. Every other column is
   a joint, in the same order in every file (a header shared by every file gives the joint names);
@@ -30,6 +35,7 @@ import numpy as np
 
 from ..errors import DataError, DataWarning, ShapeMismatchError, TimestampError, setting, did_you_mean
 from .limits import prescan_text
+from .arrays import EXTRA_KEYS
 from .names import FIELD_NAMES, RawLog, field_of, normalise, pick_key, short_list
 from .tabular import TIME_COLUMNS, numeric_columns, read_text_table
 
@@ -54,23 +60,41 @@ def _files(path: Path, src: str) -> dict[str, Path]:
     return by_stem
 
 
-def _choose(files: dict[str, Path], columns: Mapping | None, src: str) -> dict[str, Path]:
-    """field -> file: the ``columns`` entries (a stem or file name), else the recognised names."""
-    chosen: dict[str, Path] = {}
+def _pieces(fld: str, spec: str, files: dict[str, Path], src: str) -> list[tuple[Path, "tuple[int, int] | None"]]:
+    """``'a.dat:1,b.dat:1:3'`` -> [(a.dat, (1, 2)), (b.dat, (1, 3))]; ``'a'`` -> [(a.dat, None)] (every joint column)."""
+    out = []
+    for item in spec.split(","):
+        name, *sel = (s.strip() for s in item.strip().split(":"))
+        hit = next((f for f in files.values() if name in (f.name, f.stem)), None)
+        if hit is None:
+            raise DataError(f"no file '{name}' (for '{fld}') in the folder; files: {short_list(list(files))}", src)
+        try:
+            cols = None if not sel else (int(sel[0]), int(sel[0]) + 1) if len(sel) == 1 else (int(sel[0]), int(sel[1]))
+        except ValueError:
+            cols = (-1, -1)
+        if cols is not None and (len(sel) > 2 or not 0 <= cols[0] < cols[1]):
+            raise DataError(f"{setting('columns', {fld: spec})}: '{item.strip()}' is not FILE, FILE:K or FILE:A:B "
+                            "(0-based column numbers of the file, A < B)", src)
+        out.append((hit, cols))
+    return out
+
+
+def _choose(files: dict[str, Path], columns: Mapping | None, src: str) -> dict[str, list]:
+    """field -> [(file, columns or None)]: the ``columns`` entries (a stem or file name, or pieces of files),
+    else the recognised names."""
+    chosen: dict[str, list] = {}
     stems = list(files)
-    for fld in FIELD_NAMES:
+    for fld in (*FIELD_NAMES, *EXTRA_KEYS):
         if fld == "t":
             continue
         if columns is not None and fld in columns:
             spec = columns[fld]
             if not isinstance(spec, str):
-                raise DataError(f"{setting('columns', {fld: '...'})} must name one file of the folder, got {spec!r}", src)
-            hit = next((f for f in files.values() if spec.strip() in (f.name, f.stem)), None)
-            if hit is None:
-                raise DataError(f"no file '{spec}' (for '{fld}') in the folder; files: {short_list(stems)}", src)
-            chosen[fld] = hit
-        elif (stem := pick_key(fld, stems, None, src)) is not None:
-            chosen[fld] = files[stem]
+                raise DataError(f"{setting('columns', {fld: '...'})} must name one file of the folder, or columns of "
+                                f"files ({setting('columns', {fld: 'a.dat:1,b.dat:1:3'})}), got {spec!r}", src)
+            chosen[fld] = _pieces(fld, spec, files, src)
+        elif fld in FIELD_NAMES and (stem := pick_key(fld, stems, None, src)) is not None:
+            chosen[fld] = [(files[stem], None)]
     if "q" not in chosen:
         raise DataError(f"no file of joint positions (looked for {[n + '.dat' for n in FIELD_NAMES['q'][:4]]}...); "
                         f"files: {short_list(stems)}; name it with {setting('columns', {'q': 'FILE'})}", src)
@@ -91,13 +115,21 @@ def _time_label(df, header: bool, columns: Mapping | None, name: str):
     return next((lower[normalise(n)] for n in TIME_COLUMNS if normalise(n) in lower), None)
 
 
-def _read_one(path: Path, fld: str, columns: Mapping | None):
-    """(time or None, values (N, n), the time column's label, joint header or None) of one file."""
+def _read_one(path: Path, fld: str, columns: Mapping | None, cols: "tuple[int, int] | None" = None):
+    """(time or None, values (N, n), the time column's label, joint header or None) of one file; ``cols``: the
+    file's columns [A, B) to take (default every column but the time)."""
     name = str(path)
     prescan_text(path, name)
     df, header = read_text_table(path)
     tcol = _time_label(df, header, columns, name)
     joints = [c for c in df.columns if c != tcol]
+    if cols is not None:
+        if cols[1] > len(df.columns):
+            raise DataError(f"columns {cols[0]}:{cols[1]} (for '{fld}') are beyond the file's {len(df.columns)} "
+                            "columns (counted from 0 with the time column)", name)
+        joints = list(df.columns[cols[0]:cols[1]])
+        if tcol in joints:
+            raise DataError(f"columns {cols[0]}:{cols[1]} (for '{fld}') include the time column '{tcol}'", name)
     if not joints:
         raise DataError(f"no joint columns besides the time column '{tcol}'", name)
     t = None if tcol is None else numeric_columns(df, [tcol], "t", name)[:, 0]
@@ -140,7 +172,8 @@ def read_signal_folder(path: Path, columns: Mapping | None) -> RawLog:
     src = str(path)
     files = _files(path, src)
     chosen = _choose(files, columns, src)
-    read = {fld: (f, *_read_one(f, fld, columns)) for fld, f in chosen.items()}
+    read = _compose({fld: [(f, *_read_one(f, fld, columns, cols)) for f, cols in pieces]
+                     for fld, pieces in chosen.items()}, src)
     timed = [fld for fld, r in read.items() if r[1] is not None]
     if timed and len(timed) != len(read):
         untimed = [read[f][0].name for f in read if f not in timed]
@@ -159,16 +192,39 @@ def read_signal_folder(path: Path, columns: Mapping | None) -> RawLog:
         if len(set(lengths.values())) > 1:
             raise ShapeMismatchError(f"the signal files have no time column and different lengths {lengths}", src)
         arrays = {fld: r[2] for fld, r in read.items()}
-    headers = [r[4] for r in read.values()]
+    headers = [r[4] for fld, r in read.items() if fld not in EXTRA_KEYS]
     names = headers[0] if headers[0] is not None and all(h == headers[0] for h in headers) else None
-    origin = {fld: r[0].name for fld, r in read.items()}
+    origin = {fld: columns[fld] if columns is not None and fld in columns else r[0].name for fld, r in read.items()}
     if timed:
         origin["t"] = read["q"][3]
-    used = {f.stem for f in chosen.values()}
+    used = {f.stem for pieces in chosen.values() for f, _ in pieces}
     unused = [f.name for stem, f in files.items() if stem not in used]
     if names is not None and any(field_of(n) is not None for n in names):
         names = None  # a header of field words (q1?) is not joint names
-    return RawLog(arrays, names, origin, {}, unused)
+    extras = {k: arrays.pop(k) for k in EXTRA_KEYS if k in arrays}
+    return RawLog(arrays, names, origin, extras, unused)
+
+
+def _compose(read: dict[str, list[tuple]], src: str) -> dict[str, tuple]:
+    """One (path, t, values, time label, header) per field from its pieces: the pieces joined on the stamps they
+    share (as the files of different fields are) and their columns side by side, in the order given."""
+    out = {}
+    for fld, pieces in read.items():
+        if len(pieces) == 1:
+            out[fld] = pieces[0]
+            continue
+        if any(p[1] is None for p in pieces):
+            if not all(p[1] is None for p in pieces) or len({len(p[2]) for p in pieces}) > 1:
+                raise DataError(f"the files composing '{fld}' ({', '.join(p[0].name for p in pieces)}) need the same "
+                                "time column, or none and the same length", src)
+            values = np.hstack([p[2] for p in pieces])
+            out[fld] = (pieces[0][0], None, values, None, None)
+            continue
+        t, parts = _join({str(i): (p[0], p[1], p[2]) for i, p in enumerate(pieces)}, src)
+        heads = [p[4] for p in pieces]
+        header = sum(heads, []) if all(h is not None for h in heads) else None
+        out[fld] = (pieces[0][0], t, np.hstack([parts[str(i)] for i in range(len(pieces))]), pieces[0][3], header)
+    return out
 
 
 def _close(name: str, known) -> str:

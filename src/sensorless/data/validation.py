@@ -134,9 +134,9 @@ def validate_trajectory(
     rows = np.arange(n)  # the log's own row of each sample, for the messages
     if skip_bad_rows:
         scan = scan_rows(t, _columns(traj, names), allow_duplicate_times)
-        if scan.edges:
-            rows = rows[scan.start:scan.stop]
-            traj = traj.take(slice(scan.start, scan.stop))
+        if scan.dropped:
+            rows = scan.keep()
+            traj = traj.take(rows if scan.isolated else slice(scan.start, scan.stop))
             traj = traj.with_(provenance={**traj.provenance, "rows_dropped": scan.to_dict()})
             warnings.warn(f"{src}: {setting('skip_bad_rows', True)} dropped {scan.describe()}", DataWarning, stacklevel=2)
     if trim is not None:

@@ -17,6 +17,12 @@ for the log's own stamps). The observer's filters start from zero state, so its 
 is a start-up transient until L(s) has converged: :func:`observer_warmup` is the time its
 step response needs to stay within ``tol`` of 1 (order 1: ln(1/tol)/K ≈ 6.9/K; order 2,
 ζ = 1: ≈ 9.2/K for tol = 10⁻³); those samples are never flagged and never quiet.
+
+The quiet segment is checked before it is used (:func:`check_quiet_window`): a push inside it
+would set σ to the push (10 N·m instead of 0.01) and hide every later contact. Its spread per joint
+is compared with the typical spread of the log, the median standard deviation of all windows of the
+same length after the warm-up (most of a log is contact-free); more than :data:`QUIET_SPREAD_RATIO`
+times it is refused, naming the joint and the quietest window of the log.
 A robot held still needs more than one threshold per joint: see :mod:`.static_band`.
 """
 
@@ -31,8 +37,8 @@ from ..data.integral_filter import observer_filter
 from ..data.trims import TrimWindow
 from ..errors import DataError, setting
 
-__all__ = ["ContactInterval", "Thresholds", "contact_intervals", "detect_contacts", "observer_warmup", "quiet_mask",
-           "threshold_multiplier",
+__all__ = ["ContactInterval", "QUIET_SPREAD_RATIO", "Thresholds", "check_quiet_window", "contact_intervals",
+           "detect_contacts", "observer_warmup", "quiet_mask", "threshold_multiplier",
            "quiet_thresholds", "runs", "score_detection"]
 
 
@@ -91,6 +97,46 @@ def quiet_mask(t: np.ndarray, window: "str | tuple | TrimWindow", source: str = 
         raise DataError(f"quiet segment {spec}{rel} holds {int(inside.sum())} samples{left} (need ≥ 20; the log spans "
                         f"{t[-1] - t[0]:.3f} s, stamps {t[0]:.6f} to {t[-1]:.6f})", source)
     return mask
+
+
+#: a quiet window whose spread exceeds this many times the log's typical spread (per joint) holds a contact
+QUIET_SPREAD_RATIO = 4.0
+
+
+def _window_std(x: np.ndarray, w: int) -> np.ndarray:
+    """Standard deviation of every window of ``w`` samples of the columns of ``x`` (N, n) → (N − w + 1, n)."""
+    c1 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    c2 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x * x, axis=0)])
+    m = (c1[w:] - c1[:-w]) / w
+    return np.sqrt(np.maximum((c2[w:] - c2[:-w]) / w - m * m, 0.0))
+
+
+def check_quiet_window(r: np.ndarray, t: np.ndarray, quiet: np.ndarray, names, window: str,
+                       usable: "np.ndarray | None" = None, source: str = "<log>") -> None:
+    """DataError when the quiet window of the observer output ``r`` (N, n) holds a contact (module docstring);
+    ``usable`` (N,) marks the samples windows may cover (default all, e.g. after the warm-up)."""
+    r, t, quiet = np.asarray(r, float), np.asarray(t, float), np.asarray(quiet, bool)
+    usable = np.ones(len(t), bool) if usable is None else np.asarray(usable, bool)
+    idx = np.flatnonzero(quiet)
+    w = int(idx[-1] - idx[0] + 1)
+    start = int(np.argmax(usable))
+    x = r[start:]
+    if len(x) < 3 * w or not np.all(np.isfinite(x)):
+        return  # too short a log to compare the window with
+    spread = _window_std(x, w)
+    typical = np.median(spread, axis=0)
+    mine = r[quiet].std(axis=0)
+    ratio = mine / np.where(typical > 0, typical, np.inf)
+    bad = np.flatnonzero(ratio > QUIET_SPREAD_RATIO)
+    if not bad.size:
+        return
+    j = int(bad[np.argmax(ratio[bad])])
+    best = start + int(np.argmin(np.max(spread / np.where(typical > 0, typical, 1.0), axis=1)))
+    lo, hi = t[best] - t[0], t[min(best + w - 1, len(t) - 1)] - t[0]
+    raise DataError(f"{setting('quiet', window)}: the quiet window is not contact-free: on {names[j]} the observer "
+                    f"output spreads {mine[j]:.3g} N·m there, {ratio[j]:.0f}× its typical {typical[j]:.3g} N·m over "
+                    f"windows of the same length (a push or a motion inside it would set every threshold); the quietest "
+                    f"window of the log is {setting('quiet', f'{lo:.3f}:{hi:.3f}')}", source)
 
 
 def observer_warmup(gain: float, order: int, dt: float, damping: float = 1.0, tol: float = 1e-3) -> float:

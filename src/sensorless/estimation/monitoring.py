@@ -20,7 +20,7 @@ import numpy as np
 from ..data.trims import TrimWindow
 from ..data.trajectory import Trajectory
 from ..errors import DataError
-from .collision import ContactInterval, observer_warmup, quiet_mask, runs
+from .collision import ContactInterval, check_quiet_window, observer_warmup, quiet_mask, runs
 from .momentum import MomentumDynamics, MomentumObserver, ObserverResult
 from .monitored import MonitoredTorque, monitored_rows, monitored_torque
 from .static_band import (STATUS, MonitorTrace, RestAwareThresholds, StaticFriction, classify_at_rest,
@@ -64,7 +64,9 @@ class MonitorSettings:
     ``quiet``: contact-free window, ``--trim`` syntax; ``k`` or ``false_alarm_rate`` [1/min];
     observer ``gain`` K [1/s] and ``order``; ``static_friction``: "model", "off" or f_s per
     monitored joint [N·m]; ``static_margin``: the band is ±f_s (1 + margin); ``rest_speed``:
-    "auto" or δ [rad/s]; ``warmup``: None (until the observer has converged) or seconds."""
+    "auto" or δ [rad/s]; ``warmup``: None (until the observer has converged) or seconds; ``merge_gap`` [s]:
+    contacts closer than this, or than the observer's settling time, are one (the output of a contact that
+    ended decays through L(s) for that long: a re-crossing then is its tail, not a new contact)."""
 
     quiet: str = "0:1"
     k: float | None = None
@@ -160,17 +162,19 @@ def monitor_log(dyn: MomentumDynamics, traj: Trajectory, settings: MonitorSettin
     else:
         static = StaticFriction(names, np.asarray(s.static_friction, float), ["given"] * len(names))
     mask = quiet_mask(t, window, traj.source, exclude=t < t[0] + warm)
+    check_quiet_window(raw, t, mask, names, s.quiet, usable=t >= t[0] + warm, source=traj.source)
     th = rest_aware_thresholds(raw, rest, mask, static, k=s.k, false_alarm_rate=None if s.k is not None else
                                s.false_alarm_rate, dt=dt, margin=s.static_margin)
     trace = classify_at_rest(raw, t, rest, th, quiet=mask, warmup=warm, settle=settle)
-    flag, contacts, band = rest_intervals(trace, t, raw, th, min_duration=s.min_duration, merge_gap=s.merge_gap)
+    merge = max(s.merge_gap, settle)  # a re-crossing while r still decays through L(s) is the same contact
+    flag, contacts, band = rest_intervals(trace, t, raw, th, min_duration=s.min_duration, merge_gap=merge)
     lo, hi = window.bounds(t)
     used = {**asdict(s), "static_friction": s.static_friction if isinstance(s.static_friction, str)
             else list(s.static_friction)}
     used.update({
         "quiet_window_s": [float(max(lo, t[0]) - t[0]), float(min(hi, t[-1]) - t[0])],
         "quiet_window_stamps": [float(max(lo, t[0])), float(min(hi, t[-1]))], "quiet_samples": int(mask.sum()),
-        "warmup_s": warm, "warmup_source": "observer convergence (step response within 1e-3)" if s.warmup is None
+        "merge_gap_s": merge, "warmup_s": warm, "warmup_source": "observer convergence (step response within 1e-3)" if s.warmup is None
         else "given", "settle_s": settle, "k_used": th.k, "rest_speed_per_joint": dict(zip(names, speeds.tolist())),
         "rest_position_range": dict(zip(names, q_range.tolist())),
         "rest_speed_source": speed_src, "status_codes": list(STATUS),

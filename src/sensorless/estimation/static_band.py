@@ -319,8 +319,9 @@ def rest_speeds(traj, names, window: int | None = None) -> tuple[np.ndarray, np.
     """(δ, q range, source) per joint of ``names``: at rest |v| ≤ δ [rad/s] and q stays within the
     range [rad]. δ is the log's own rest detection when preprocessing ran it (5 σ_v), else
     ``REST_SIGMAS`` times the velocity noise (of the logged v, or of a Savitzky–Golay v of
-    ``window`` samples from q); the range is ``RANGE_SIGMAS`` σ_q, at least two encoder steps
-    (the smallest non-zero change of q)."""
+    ``window`` samples from q; every σ at least the signal's quantization noise); the range is
+    ``RANGE_SIGMAS`` σ_q, at least two encoder steps (:func:`~sensorless.data.resolution.channel_resolution`)."""
+    from ..data.resolution import channel_resolution
     from ..data.rest import RANGE_SIGMAS, REST_SIGMAS, signal_noise
     from ..data.savgol import savgol_coeffs
 
@@ -331,8 +332,7 @@ def rest_speeds(traj, names, window: int | None = None) -> tuple[np.ndarray, np.
     idx = [joints.index(n) for n in names]
     q = np.asarray(traj.q, float)[:, idx]
     rest = traj.provenance.get("rest") or {}
-    dq = np.abs(np.diff(q, axis=0))
-    step = np.array([np.min(c[c > 0]) if np.any(c > 0) else 0.0 for c in dq.T])
+    step = np.array([channel_resolution(c).step for c in q.T])  # the encoder's quantum (0: none)
     sigma_q = (np.array([rest["position_noise"][n] for n in names], float) if rest.get("position_noise")
                else signal_noise(q))
     q_range = np.maximum(RANGE_SIGMAS * sigma_q, 2.0 * step)

@@ -138,7 +138,8 @@ def reading_options(config: RunConfig):
     lg = config.logs
     return read_options(max_memory=lg.max_log_memory, allow_external=lg.allow_hdf5_external,
                         accept_implausible_gains=lg.accept_implausible_gains, skip_bad_rows=lg.skip_bad_rows,
-                        angle_unit=None if lg.angle_unit is None else str(lg.angle_unit))
+                        angle_unit=None if lg.angle_unit is None else str(lg.angle_unit), joint_order=lg.joint_order,
+                        time_from=lg.time_from, base_rpy=lg.base_rpy or None)
 
 
 def identify_run(config: RunConfig, *, bars=None, say: Callable[[str], None] | None = None,

@@ -79,6 +79,10 @@ def floating_base_report(structure, result, train, val, validate) -> dict | None
     p = result.parameters
     fb = {"contact_rows": structure.settings()["contact_rows"], "wrench_offset": structure.offset_values(p),
           "train": [], "validation": {}}
+    if not getattr(structure.robot, "floating_base", False):  # e.g. a leg on a passive rail: no base rows
+        fb["note"] = "fixed base: no base-wrench rows and no base pose (the measured wrench enters the joint rows)"
+        fb["train"] = [{"contacts": contact_summary(structure, traj)} for traj in train]
+        return fb
     for traj in train:
         fb["train"].append({"base_wrench": base_wrench_metrics(structure, p, traj),
                             "com_cop": com_cop_check(structure, p, traj),
