@@ -34,6 +34,7 @@ from .least_squares import (
 )
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
+from .resampling import Resampling
 from .presliding import needs_presliding_search, search_presliding
 from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
 from .torque_channels import TorqueChannels, check_information, check_torque_channels
@@ -53,16 +54,29 @@ JOINT_TERM_MAX_VIF = 1e3
 
 
 
-def _fold_pass(structure, data: list, chunk: int, progress) -> tuple[list[NormalEquations], NormalEquations]:
-    """The cross-validation folds of ``--gamma auto`` (:func:`~.gamma.split_folds`: phase blocks of the
-    excitation period, one pass) and the whole log's equations as their sum: one pass over the
-    samples instead of one for the fit and another for the folds (the same sums up to rounding)."""
+def _fold_pass(structure, data: list, chunk: int, progress, gamma_folds: bool) -> tuple[list | None, NormalEquations, list]:
+    """One pass over the samples for the fit's equations (their sum), the time blocks of the uncertainty
+    (:mod:`.resampling`; none when the log is too short) and, with ``gamma_folds``, the cross-validation
+    folds of ``--gamma auto`` (:func:`~.gamma.fold_function`: phase blocks of the excitation period):
+    fold ``o · n_blocks + b`` holds fold ``o``'s samples in block ``b``. Returns (γ folds or None, whole, blocks)."""
     import functools
 
-    from .gamma import CV_FOLDS, split_folds
+    from .gamma import CV_FOLDS, fold_function, split_folds
+    from .resampling import compress_blocks, n_blocks_for
 
-    folds = split_folds(structure, data, CV_FOLDS, chunk, "auto", progress=progress)
-    return folds, functools.reduce(NormalEquations.merge, folds)
+    outer = fold_function(data, CV_FOLDS, "auto") if gamma_folds else None
+    n_outer = CV_FOLDS if gamma_folds else 1
+    k = n_blocks_for(sum(len(t) for t in data), structure.n_rows, structure.n_params, len(data), n_outer)
+    if k == 0:
+        folds = split_folds(structure, data, CV_FOLDS, chunk, "auto", progress=progress) if gamma_folds else None
+        whole = (functools.reduce(NormalEquations.merge, folds) if folds
+                 else compress(structure, data, chunk=chunk, progress=progress))
+        return folds, whole, []
+    parts = compress_blocks(structure, data, k, outer=outer, n_outer=n_outer, chunk=chunk, progress=progress)
+    merge = lambda xs: functools.reduce(NormalEquations.merge, xs)  # noqa: E731
+    blocks = [merge(parts[b::k]) for b in range(k)]
+    folds = [merge(parts[o * k:(o + 1) * k]) for o in range(n_outer)] if gamma_folds else None
+    return folds, merge(blocks), blocks
 
 def identify(
     model: Robot | ModelStructure,
@@ -176,9 +190,11 @@ def identify(
         data = data if isinstance(data, NormalEquations) else list(data)
     cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
     t0 = time.perf_counter()
-    if method == "lmi" and gamma == "auto" and not folds and not isinstance(data, NormalEquations) \
-            and not structure.row_map.per_sample:
-        folds, ne = _fold_pass(cand or structure, data, chunk, progress)
+    blocks: list[NormalEquations] = []
+    if isinstance(data, list) and not (folds and method == "lmi" and gamma == "auto"):
+        gfolds = method == "lmi" and gamma == "auto" and not structure.row_map.per_sample
+        got, ne, blocks = _fold_pass(cand or structure, data, chunk, progress, gfolds)
+        folds = got if gfolds else folds
     else:
         ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
                                                                       progress=progress)
@@ -192,6 +208,7 @@ def identify(
         choice, stribeck_search = choose_stribeck(cand, ne, weights)
         before, structure, ne = structure, cand.structure_for(choice), cand.select(ne, choice)
         folds = [cand.select(f, choice) for f in folds] if folds else folds
+        blocks = [cand.select(f, choice) for f in blocks]
         prior = carry_prior(prior, before, structure)  # the search may have dropped Stribeck terms
     base = base_parameters(structure)
     sample_count_check(ne, base)
@@ -287,7 +304,7 @@ def identify(
     verdicts = compute_verdicts(structure, ne, params, row_weights=row_w, method=method,
                                 prior=prior, gamma=float(gamma) if method == "lmi" else 0.0,
                                 regularization=regularization, lmi=extra.get("lmi"), standard=standard,
-                                rank=base.rank)
+                                rank=base.rank, resampling=Resampling(blocks) if blocks else None)
     if method == "lmi":
         verdicts["active_bounds"] = active_bounds(extra["lmi"], params, structure)
     diagnostics = {
