@@ -298,13 +298,16 @@ def identify(
     notes = _identifiability_notes(poor, slow, report, structure, base.rank) + fit_notes
     for note in notes:
         warnings.warn(note, IdentifiabilityWarning, stacklevel=2)
-    train = metrics_from_sums(
-        structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
-    )
     verdicts = compute_verdicts(structure, ne, params, row_weights=row_w, method=method,
                                 prior=prior, gamma=float(gamma) if method == "lmi" else 0.0,
                                 regularization=regularization, lmi=extra.get("lmi"), standard=standard,
                                 rank=base.rank, resampling=Resampling(blocks) if blocks else None)
+    params = _present(structure, ne, params, prior, verdicts, row_w, method, extra)
+    if "fit_parameters" in extra["presented"]:
+        base_values = base.base(params)
+    train = metrics_from_sums(
+        structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
+    )
     if method == "lmi":
         verdicts["active_bounds"] = active_bounds(extra["lmi"], params, structure)
     diagnostics = {
@@ -338,6 +341,30 @@ def identify(
     }
     return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings,
                                 equations=ne)
+
+
+def _present(structure, ne, params, prior, verdicts, row_w, method, extra) -> np.ndarray:
+    """The model every output presents (:mod:`.presented`): the verdicts' values taken at it, the fit kept in
+    ``extra["presented"]["fit_parameters"]``; the fit itself when none is presented (the reason recorded)."""
+    from ..regressor.joint_terms import terms_where
+    from .presented import presented_parameters
+    from .verdicts import present_verdicts
+
+    p0 = structure.prior() if prior is None else np.asarray(prior, dtype=float)
+    nonneg = None
+    if method == "lmi":  # the LMI held these terms ≥ 0: so does the presented model
+        nonneg = [structure.joint_term_index(j, t) for j in structure.robot.term_joints
+                  for t in structure.terms_of(j) if t in terms_where("nonnegative")]
+    new, info = presented_parameters(structure, ne, params, p0, verdicts, row_w, nonneg)
+    if new is None:  # the fit is presented: an entry labelled prior whose value is not the prior's says so
+        extra["presented"] = info
+        present_verdicts(verdicts, structure, params, p0)
+        return params
+    new[structure.fixed_zero_index] = 0.0
+    info["fit_parameters"] = [float(x) for x in params]
+    extra["presented"] = info
+    present_verdicts(verdicts, structure, new, p0)
+    return new
 
 
 def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dict | None:

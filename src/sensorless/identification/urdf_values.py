@@ -11,6 +11,9 @@ inertias of links seen only through a floating base's rows). When the prior's ma
 reached, or a body would stop being physical, the regularised values are written and the reason
 recorded.
 ``mode="regularised"`` (``--urdf-values regularised``) always writes the regularised values.
+A result that carries a presented model (``diagnostics["presented"]``, :mod:`.presented`: physically
+consistent, nearest the prior within the data's uncertainty, the prior's masses where the data do not
+determine them) is written as it is: model.urdf then holds exactly the values result.json shows.
 """
 
 from __future__ import annotations
@@ -52,6 +55,11 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     names = list(result.robot.body_names)
     info: dict = {"values": mode, "prior_mass_bodies": []}
     if mode == "regularised" or not verdicts:
+        return pi, info
+    shown = result.diagnostics.get("presented")
+    if shown is not None:  # the presented model (:mod:`.presented`), already nearest the prior, or the fit: written as is
+        info["prior_mass_bodies"] = list(shown.get("prior_mass_bodies", []))
+        info["values"] = "presented"
         return pi, info
     P0 = _prior_bodies(verdicts, names)
     if not (P0[:, 0] > 0).any():  # no inertial prior (e.g. a robot authored without masses): nothing to move toward

@@ -40,7 +40,7 @@ from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 
 __all__ = ["DATA_REL_STD", "NULL_CUTOFF", "NULL_FRACTION", "JOINT_UNIT", "VERDICTS", "compute_verdicts",
-           "linear_split", "regulariser_hessian", "body_verdict", "quantity_verdict"]
+           "linear_split", "regulariser_hessian", "body_verdict", "quantity_verdict", "present_verdicts"]
 
 VERDICTS = ("data", "prior", "undetermined")
 DATA_REL_STD = 0.2  # data-alone std ≤ 20 % of the quantity's scale → determined by the data
@@ -249,3 +249,27 @@ def count_verdicts(doc: dict) -> dict[str, int]:
 def _f(x) -> float | None:
     x = float(x)
     return x if np.isfinite(x) else None
+
+
+def present_verdicts(doc: dict, structure: ModelStructure, params: np.ndarray, prior: np.ndarray,
+                     rel_tol: float = 1e-4) -> dict:
+    """``doc`` (:func:`compute_verdicts`) with every value taken at the presented ``params``
+    (:mod:`.presented`): intervals re-centred on them, and an entry labelled ``prior`` whose value is
+    not the prior's (beyond ``rel_tol``) relabelled ``undetermined``: ``prior`` means the value written is
+    the prior's."""
+    params = np.asarray(params, dtype=float)
+    nb = structure.n_body_params
+    scale = np.ones(structure.n_params)
+    for group, name, qty, _, val, p0, _ in _quantities(structure, params, np.asarray(prior, dtype=float),
+                                                        np.concatenate([np.ones(nb), scale[nb:]]), {}):
+        e = (doc[group] if group == "robot" else doc[group].get(name, {})).get(qty)
+        if e is None:
+            continue
+        old = e["value"]
+        e["value"] = _f(val)
+        if e.get("interval") and old is not None and e["value"] is not None:
+            e["interval"] = [e["interval"][0] - old + e["value"], e["interval"][1] - old + e["value"]]
+        if e["verdict"] == "prior" and not abs(val - p0) <= rel_tol * max(abs(p0), 1e-6):
+            e["verdict"] = "undetermined"
+    doc["counts"] = count_verdicts(doc)
+    return doc
