@@ -29,8 +29,10 @@ def print_bodies(result) -> None:
         mv = v["mass"]["verdict"]
         std = v["mass"].get("std", v["mass"]["std_data"])
         rest = [v[q]["verdict"] for q in v if q != "mass"]
-        t.add_row(b, links.get(b, b), "—" if mv == "undetermined" else f"{pi[k, 0]:.3f}",
-                  f"{std:.2g}" if mv == "data" and std is not None else "",
+        lin = v["mass"].get("std_data")
+        sig = (f"{std:.2g}" + (f" (linear {lin:.2g})" if v["mass"].get("linear_too_narrow") and lin is not None else "")
+               if mv == "data" and std is not None else "")
+        t.add_row(b, links.get(b, b), "—" if mv == "undetermined" else f"{pi[k, 0]:.3f}", sig,
                   f"{pi0[k, 0]:.3f}", mv,
                   ", ".join(f"{n} {rest.count(n)}" for n in ("data", "prior", "undetermined") if rest.count(n)))
     tot = (result.diagnostics.get("verdicts") or {}).get("robot", {}).get("total_mass")
