@@ -6,19 +6,20 @@ whose mass only enters them can come out 2–18× its CAD mass. What ``result.js
 ``report.html`` and ``model.urdf`` show is instead the solution of ::
 
     min_π  Σ_k ½ tr((J0_k⁻¹ (J_k − J0_k))²)                  the prior's metric (:func:`.regularizers.pullback_matrix`)
-    s.t.   (π − π*)ᵀ A (π − π*) ≤ RSS(π̂) − RSS(π*) + s² κ · REGION
+    s.t.   (π − π*)ᵀ A (π − π*) ≤ RSS(π̂) − RSS(π*) + s² · REGION
            J_k(π) ⪰ 0                                         every body physical
            m_k = m0_k   for a body whose mass the data do not determine (verdict ≠ ``data``)
            the fit's sign constraints on the joint terms (the registry's ``nonnegative`` flag)
 
 with ``A`` the fit's weighted normal matrix, ``π*`` its unconstrained least-squares minimiser,
-``π̂`` the fit, ``s²`` the weighted residual variance and ``κ ≥ 1`` the median ratio of resampled to
-linear variance (:mod:`.resampling`): models that explain the data as well as the fit, up to one
-standard deviation of its own uncertainty (:data:`REGION` = 1: the likelihood-ratio region of one
-degree of freedom at 68 %, as wide as the data's own spread says). A direction the data do not
-determine costs almost nothing there and goes to the prior; a determined one moves less than its σ, so
-the presented model predicts as the fit does (a region of χ²_{0.95}(rank) let a 69-parameter Panda fit
-drift to 1.2× its held-out RMSE).
+``π̂`` the fit and ``s²`` the weighted residual variance: models that explain the data as well as the
+fit, up to one standard deviation of the fit's linear uncertainty along any direction (:data:`REGION` = 1:
+the likelihood-ratio region of one degree of freedom at 68 %). A direction the data do not determine
+costs almost nothing there and goes to the prior; a determined one moves by less than its (linear, so
+lower-bound) σ, so the presented model predicts as the fit does (a region of χ²_{0.95}(rank) let a
+69-parameter Panda fit drift to 1.2× its held-out RMSE). The region uses the linear σ, not the resampled
+one, so that the same equations give the same model whichever path compressed them (streamed, in memory,
+precompressed).
 Where fixing a prior mass leaves no feasible model, that body is left free (greedily, farthest from the
 prior first, :func:`.urdf_values.greedy_prefixes`) and its mass is whatever the nearest model holds (its
 verdict says so). The program is assembled once for Clarabel's own API (no cvxpy import: ``--method ols`` never loads
@@ -32,7 +33,7 @@ import numpy as np
 
 __all__ = ["REGION", "presented_parameters"]
 
-REGION = 1.0  #: the RSS the presented model may add to the fit's, in units of s²κ
+REGION = 1.0  #: the RSS the presented model may add to the fit's, in units of s²
 _TIE = 1e-8  # pull of the joint terms toward the fit's values (scaled units)
 
 
@@ -68,16 +69,15 @@ def presented_parameters(structure, ne, fit: np.ndarray, prior: np.ndarray, verd
     y_fit = fit * d
     rss = lambda y: float(np.sum((R @ (y - y_star)) ** 2))  # noqa: E731  RSS(π) − RSS(π*)
     s2 = float(verdicts["settings"]["residual_variance"])
-    kappa = _inflation(verdicts)
     rank = int(keep.sum())
-    budget = rss(y_fit) + s2 * kappa * REGION
-    if not s2 * kappa * REGION > 1e-12 * max(c, 1e-300):  # noise-free: no room beyond the solver's own error
+    budget = rss(y_fit) + s2 * REGION
+    if not s2 * REGION > 1e-12 * max(c, 1e-300):  # noise-free: no room beyond the solver's own error
         return None, {"reason": "the data leave no room around the fit (no residual)"}
     names = list(structure.robot.body_names)
     fixed = [k for k, bname in enumerate(names)
              if P0[k, 0] > 0 and verdicts["bodies"][bname]["mass"]["verdict"] != "data"]
     info: dict = {"objective": "pullback metric at the prior (½ tr((J0⁻¹ΔJ)²) per body)",
-                  "region": f"RSS of the fit + {REGION:g} × s² × κ (rank {rank})", "kappa": kappa,
+                  "region": f"RSS of the fit + {REGION:g} × s² (rank {rank})",
                   "rss_fit": rss(y_fit), "rss_budget": budget}
     M = np.zeros((p, p))  # the objective's metric on π (bodies with a prior), and its linear part
     for k in range(len(names)):
@@ -188,14 +188,3 @@ class _Program:
             if np.linalg.eigvalsh(0.5 * (J + J.T)).min() < -tol * max(abs(J).max(), 1e-12):
                 return False
         return True
-
-
-def _inflation(verdicts: dict) -> float:
-    """κ: the median ratio (std_resampled / std_data)² over the entries that have both (≥ 1; 1 without resampling)."""
-    r = []
-    for group in ("bodies", "joints"):
-        for entries in verdicts.get(group, {}).values():
-            for e in entries.values():
-                if isinstance(e, dict) and e.get("std_data") and e.get("std_resampled"):
-                    r.append((e["std_resampled"] / e["std_data"]) ** 2)
-    return float(max(np.median(r), 1.0)) if r else 1.0
