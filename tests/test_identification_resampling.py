@@ -138,3 +138,26 @@ def test_identify_reports_both_stds_and_the_verdict_takes_the_larger(ur5):
     assert n >= 12 and hits >= 0.8 * n, (hits, n)
     for b in ur5.body_names:  # a fixed-base arm's single masses are not seen: no interval, never `data`
         assert v["bodies"][b]["mass"]["verdict"] != "data"
+
+
+def test_held_out_blocks_say_when_the_identified_model_predicts_worse_than_the_prior(ur5):
+    """A model fitted to torques that are not the robot's (a channel scaled and shifted per block: garbage) predicts
+    held-out blocks worse than the prior: identify says so (warning, diagnostics); on a sound log it does not."""
+    from sensorless.errors import IdentifiabilityWarning
+
+    truth = perturbed_truth(ur5, rng=1)
+    m = random_fourier(ur5, rng=0, base_freq=0.1).sample(100.0, 32.0)
+    good = synthetic_trajectory(truth, m, noise_std=0.05, rng=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify(ur5, good, method="lmi", gamma=1e-3)
+    h = res.diagnostics["held_out_blocks"]
+    assert h["identified"] < 0.1 * h["prior"] and "message" not in h
+    rng = np.random.default_rng(0)
+    tau = good.tau.copy()
+    for seg in np.array_split(np.arange(len(good)), 16):  # every block its own unmodelled torque
+        tau[seg] += rng.normal(0, 30.0, tau.shape[1])
+    with pytest.warns(IdentifiabilityWarning, match="held-out time blocks worse than the prior"):
+        res = identify(ur5, good.with_(tau=tau), method="ols", joint_terms=("fv",), check_torques=False)
+    h = res.diagnostics["held_out_blocks"]
+    assert h["identified"] > h["prior"] and h["message"] in res.diagnostics["warnings"]

@@ -303,6 +303,12 @@ def identify(
                                 regularization=regularization, lmi=extra.get("lmi"), standard=standard,
                                 rank=base.rank, resampling=Resampling(blocks) if blocks else None)
     params = _present(structure, ne, params, prior, verdicts, row_w, method, extra)
+    if blocks:
+        held = _held_out_blocks(structure, ne, blocks, prior, row_w, method, gamma, regularization, extra)
+        extra["held_out_blocks"] = held
+        if held.get("message"):
+            notes.append(held["message"])
+            warnings.warn(held["message"], IdentifiabilityWarning, stacklevel=2)
     if "fit_parameters" in extra["presented"]:
         base_values = base.base(params)
     train = metrics_from_sums(
@@ -365,6 +371,36 @@ def _present(structure, ne, params, prior, verdicts, row_w, method, extra) -> np
     extra["presented"] = info
     present_verdicts(verdicts, structure, new, p0)
     return new
+
+
+def _held_out_blocks(structure, ne, blocks, prior, row_w, method, gamma, regularization, extra) -> dict:
+    """The identified model against the prior on held-out time blocks (:meth:`~.resampling.Resampling.held_out`):
+    each block predicted by the fit on the others (the regularised quadratic toward the prior, the LMI's
+    linearisation, :func:`~.verdicts.regulariser_hessian`; the least-squares fit nearest the prior otherwise)
+    and by the prior model; a message when the identified model predicts them worse."""
+    from ..errors import setting
+    from .verdicts import regulariser_hessian
+
+    p0 = structure.prior() if prior is None else np.asarray(prior, dtype=float)
+    A, b, c = ne.total(row_w)
+    H = (regulariser_hessian(structure, p0, extra["lmi"], float(gamma), regularization, A, c, ne.n_samples)
+         if method == "lmi" and regularization is not None and float(gamma) > 0 else np.zeros_like(A))
+
+    def refit(Ak, bk):
+        K = Ak + H
+        d = np.sqrt(np.maximum(np.diag(K), 1e-300 * max(float(np.diag(K).max()), 1e-300)))
+        step = np.linalg.pinv(K / np.outer(d, d), rcond=1e-10, hermitian=True) @ ((bk - Ak @ p0) / d)
+        return p0 + step / d
+
+    out = Resampling(blocks, row_w).held_out(refit, {"prior": p0})
+    out = {"identified": out["refit"], "prior": out["prior"], "blocks": out["blocks"],
+           "score": "relative residual Σ w‖Wπ − y‖² / Σ w‖y‖² over held-out time blocks"}
+    if out["identified"] > out["prior"]:
+        out["message"] = (f"the identified model predicts held-out time blocks worse than the prior model (relative "
+                          f"residual {out['identified']:.3g} against {out['prior']:.3g}): the data do not support "
+                          "the identified values; check the log's units, gains and unmodelled torques, or lean on the "
+                          f"prior ({setting('gamma', placeholder='larger')})")
+    return out
 
 
 def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dict | None:

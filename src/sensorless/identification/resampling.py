@@ -175,6 +175,25 @@ class Resampling:
         self.chosen = {"parts": G, "blocks_per_part": g}
         return best, half
 
+    def held_out(self, refit: Callable, fixed: dict[str, np.ndarray]) -> dict:
+        """Blocked held-out error: each block scored by ``refit(A, b)`` (the model fitted on the other blocks'
+        weighted equations) and by each ``fixed`` model (e.g. the prior), as the relative residual
+        ``Σ_k Σ_r w_r ‖W_r π − y_r‖² / Σ_k Σ_r w_r ‖y_r‖²`` over the blocks: ``{"refit": x, name: y, …, "blocks": K}``."""
+        w = np.ones(self.blocks[0].A.shape[0]) if self.row_weights is None else np.asarray(self.row_weights, float)
+        live = [ne for ne in self.blocks if ne.n_samples > 0]
+        A = sum(ne.total(w)[0] for ne in live)
+        b = sum(ne.total(w)[1] for ne in live)
+        energy = sum(float(w @ ne.c) for ne in live)
+        out = {"refit": 0.0, **{k: 0.0 for k in fixed}, "blocks": len(live)}
+        for ne in live:
+            Ak, bk, _ = ne.total(w)
+            out["refit"] += float(w @ ne.residual_ss(refit(A - Ak, b - bk)))
+            for k, pi in fixed.items():
+                out[k] += float(w @ ne.residual_ss(pi))
+        for k in ["refit", *fixed]:
+            out[k] /= max(energy, 1e-300)
+        return out
+
     def settings(self) -> dict:
         return {"method": "blocked jackknife over contiguous time blocks and logs (largest over part sizes)",
                 "blocks": len(self.blocks), "min_parts": MIN_PARTS, **self.chosen}
