@@ -72,11 +72,18 @@ def _fold_pass(structure, data: list, chunk: int, progress, gamma_folds: bool) -
         whole = (functools.reduce(NormalEquations.merge, folds) if folds
                  else compress(structure, data, chunk=chunk, progress=progress))
         return folds, whole, []
-    parts = compress_blocks(structure, data, k, outer=outer, n_outer=n_outer, chunk=chunk, progress=progress)
-    merge = lambda xs: functools.reduce(NormalEquations.merge, xs)  # noqa: E731
-    blocks = [merge(parts[b::k]) for b in range(k)]
-    folds = [merge(parts[o * k:(o + 1) * k]) for o in range(n_outer)] if gamma_folds else None
-    return folds, merge(blocks), blocks
+    upper = not structure.row_map.per_sample  # the pass leaves A_r upper-triangular: mirrored once per sum
+    parts = compress_blocks(structure, data, k, outer=outer, n_outer=n_outer, chunk=chunk, progress=progress,
+                            mirror=not upper)
+    blocks = [NormalEquations.sum(parts[b::k], left_out=False) for b in range(k)]
+    folds = ([NormalEquations.sum(parts[o * k:(o + 1) * k], left_out=False) for o in range(n_outer)]
+             if gamma_folds else None)
+    whole = NormalEquations.sum(folds or blocks, left_out=False)
+    if all(p.left_out is not None for p in parts):  # the equations left out of the fit (a law scored on every sample)
+        whole.left_out = NormalEquations.sum([p.left_out for p in parts])
+    for ne in [whole, *blocks, *(folds or [])] if upper else []:
+        ne.mirror_upper()
+    return folds, whole, blocks
 
 def identify(
     model: Robot | ModelStructure,
@@ -191,11 +198,12 @@ def identify(
     cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
     t0 = time.perf_counter()
     blocks: list[NormalEquations] = []
-    if isinstance(data, list) and not (folds and method == "lmi" and gamma == "auto"):
-        gfolds = method == "lmi" and gamma == "auto" and not structure.row_map.per_sample
-        got, ne, blocks = _fold_pass(cand or structure, data, chunk, progress, gfolds)
+    split = isinstance(data, list) and not (folds and method == "lmi" and gamma == "auto")  # blocks (and γ's folds)
+    gfolds = method == "lmi" and gamma == "auto" and not structure.row_map.per_sample
+    if split and cand is None:
+        got, ne, blocks = _fold_pass(structure, data, chunk, progress, gfolds)
         folds = got if gfolds else folds
-    else:
+    else:  # with Stribeck / width candidates the blocks are folded after the choice, at the chosen (small) size
         ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
                                                                       progress=progress)
     t_compress = time.perf_counter() - t0
@@ -208,8 +216,10 @@ def identify(
         choice, stribeck_search = choose_stribeck(cand, ne, weights)
         before, structure, ne = structure, cand.structure_for(choice), cand.select(ne, choice)
         folds = [cand.select(f, choice) for f in folds] if folds else folds
-        blocks = [cand.select(f, choice) for f in blocks]
         prior = carry_prior(prior, before, structure)  # the search may have dropped Stribeck terms
+        if split:  # a second pass at the chosen structure's size: the candidates' columns × 40 folds cost more
+            got, _, blocks = _fold_pass(structure, data, chunk, None, gfolds)
+            folds = got if gfolds else folds
     base = base_parameters(structure)
     sample_count_check(ne, base)
     slow: dict[str, float] = {}

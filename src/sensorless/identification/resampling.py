@@ -41,6 +41,7 @@ __all__ = ["N_BLOCKS", "MIN_PARTS", "MEMORY_BUDGET", "Resampling", "block_index"
            "compress_blocks", "linear_estimates", "option_spread", "t_quantile"]
 
 N_BLOCKS = 16  #: contiguous time blocks over all logs (at most; fewer for short logs or large models)
+MAX_FOLDS = 40  #: blocks × the folds of a second partition (γ's cross-validation) kept apart in one pass
 MIN_PARTS = 4  #: the fewest parts a jackknife is computed on
 MIN_BLOCK_SAMPLES = 20  #: a block holds at least this many samples
 MEMORY_BUDGET = 256e6  #: bytes the blocks' normal equations may take together
@@ -48,10 +49,12 @@ MEMORY_BUDGET = 256e6  #: bytes the blocks' normal equations may take together
 
 def n_blocks_for(n_samples: int, rows: int, n_params: int, n_logs: int = 1, outer: int = 1) -> int:
     """How many blocks: :data:`N_BLOCKS` (at least one per log), fewer when a block would hold less than
-    :data:`MIN_BLOCK_SAMPLES` samples or the blocks' equations (× ``outer`` folds) exceed the memory budget;
+    :data:`MIN_BLOCK_SAMPLES` samples, the blocks × ``outer`` folds exceed :data:`MAX_FOLDS` (each is
+    folded and mirrored apart) or their equations the memory budget;
     0 when fewer than :data:`MIN_PARTS` blocks are possible (no resampling)."""
     per = 8.0 * rows * n_params * (n_params + 1) * max(outer, 1)
-    k = min(max(N_BLOCKS, n_logs), n_samples // MIN_BLOCK_SAMPLES, int(MEMORY_BUDGET // max(per, 1.0)))
+    k = min(max(N_BLOCKS, n_logs), MAX_FOLDS // max(outer, 1), n_samples // MIN_BLOCK_SAMPLES,
+            int(MEMORY_BUDGET // max(per, 1.0)))
     return int(k) if k >= MIN_PARTS else 0
 
 
@@ -72,11 +75,13 @@ def block_index(lengths: Sequence[int], n_blocks: int) -> list[np.ndarray]:
 
 
 def compress_blocks(structure, trajs: list, n_blocks: int, *, outer=None, n_outer: int = 1, chunk: int = 2048,
-                    progress=None) -> list[NormalEquations]:
+                    progress=None, mirror: bool = True) -> list[NormalEquations]:
     """The blocks' normal equations in one pass (their sum: the whole log's). ``outer(k, traj)`` (with
     ``n_outer``): a second partition, e.g. the cross-validation folds of γ; fold ``o · n_blocks + b`` then
     holds the samples of outer fold ``o`` and block ``b`` (merge over ``b`` for the outer folds, over
-    ``o`` for the blocks). Structures that fold their own equations (contacts) compress each part apart."""
+    ``o`` for the blocks). Structures that fold their own equations (contacts) compress each part apart.
+    ``mirror=False``: the folds' A_r left upper-triangular where the pass allows (``NormalEquations.mirror_upper``
+    after summing them; a contact structure's are complete whatever it is)."""
     from ..regressor.compress import compress
     from ..regressor.normal_equations import compress_folds
 
@@ -87,7 +92,7 @@ def compress_blocks(structure, trajs: list, n_blocks: int, *, outer=None, n_oute
         fold_of = lambda k, t: (lambda o: lambda lo, hi: o(lo, hi) * n_blocks + idx[k][lo:hi])(outer(k, t))  # noqa: E731
     n = n_blocks * max(n_outer, 1)
     if not structure.row_map.per_sample:
-        return compress_folds(structure, trajs, fold_of, n, chunk=chunk, progress=progress)
+        return compress_folds(structure, trajs, fold_of, n, chunk=chunk, progress=progress, mirror=mirror)
     out = []
     for f in range(n):
         parts = [t.take(m) for k, t in enumerate(trajs) if (m := fold_of(k, t)(0, len(t)) == f).any()]
@@ -96,11 +101,19 @@ def compress_blocks(structure, trajs: list, n_blocks: int, *, outer=None, n_oute
     return out
 
 
-def t_quantile(dof: int, level: float = 0.95) -> float:
-    """Student's t quantile of a two-sided ``level`` interval with ``dof`` degrees of freedom."""
-    from scipy.special import stdtrit
+#: Student's t quantiles of a two-sided 95 % interval, 1 … 30 degrees of freedom
+_T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
+         2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042)
 
-    return float(stdtrit(max(int(dof), 1), 0.5 + level / 2))
+
+def t_quantile(dof: int) -> float:
+    """Student's t quantile of a two-sided 95 % interval with ``dof`` degrees of freedom (a table to 30, then
+    the Cornish–Fisher expansion about the normal quantile: no SciPy import on the fit's path)."""
+    nu = max(int(dof), 1)
+    if nu <= len(_T975):
+        return _T975[nu - 1]
+    z = 1.959963984540054
+    return z + (z**3 + z) / (4 * nu) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * nu**2)
 
 
 def _solve(A: np.ndarray, b: np.ndarray, Q: np.ndarray, null_cutoff: float, null_fraction: float) -> np.ndarray:
