@@ -312,7 +312,8 @@ def identify(
                                 prior=prior, gamma=float(gamma) if method == "lmi" else 0.0,
                                 regularization=regularization, lmi=extra.get("lmi"), standard=standard,
                                 rank=base.rank, resampling=Resampling(blocks) if blocks else None)
-    params = _present(structure, ne, params, prior, verdicts, row_w, method, extra)
+    fit_params = params
+    params = _present(structure, ne, base, params, prior, verdicts, row_w, method, extra)
     if blocks:
         held = _held_out_blocks(structure, ne, blocks, prior, row_w, method, gamma, regularization, extra)
         extra["held_out_blocks"] = held
@@ -325,7 +326,7 @@ def identify(
         structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
     )
     if method == "lmi":
-        verdicts["active_bounds"] = active_bounds(extra["lmi"], params, structure)
+        verdicts["active_bounds"] = active_bounds(extra["lmi"], fit_params, structure)  # the LMI's own
     diagnostics = {
         "rank": base.rank,
         "n_standard": structure.n_params,
@@ -359,7 +360,7 @@ def identify(
                                 equations=ne)
 
 
-def _present(structure, ne, params, prior, verdicts, row_w, method, extra) -> np.ndarray:
+def _present(structure, ne, base, params, prior, verdicts, row_w, method, extra) -> np.ndarray:
     """The model every output presents (:mod:`.presented`): the verdicts' values taken at it, the fit kept in
     ``extra["presented"]["fit_parameters"]``; the fit itself when none is presented (the reason recorded)."""
     from ..regressor.joint_terms import terms_where
@@ -371,7 +372,7 @@ def _present(structure, ne, params, prior, verdicts, row_w, method, extra) -> np
     if method == "lmi":  # the LMI held these terms ≥ 0: so does the presented model
         nonneg = [structure.joint_term_index(j, t) for j in structure.robot.term_joints
                   for t in structure.terms_of(j) if t in terms_where("nonnegative")]
-    new, info = presented_parameters(structure, ne, params, p0, verdicts, row_w, nonneg)
+    new, info = presented_parameters(structure, ne, params, p0, verdicts, base.B, row_w, nonneg)
     if new is None:  # the fit is presented: an entry labelled prior whose value is not the prior's says so
         extra["presented"] = info
         present_verdicts(verdicts, structure, params, p0)
