@@ -21,7 +21,10 @@ costs almost nothing there and goes to the prior; a determined one moves by less
 lower-bound) σ, so the presented model predicts as the fit does (a region of χ²_{0.95}(rank) let a
 69-parameter Panda fit drift to 1.2× its held-out RMSE). The region uses the linear σ, not the resampled
 one, so that the same equations give the same model whichever path compressed them (streamed, in memory,
-precompressed). Fixing the masses inside the data's region instead would move directions the log barely sees but
+precompressed). A fit that is no physical body (least squares) may lie far from every physical model
+that explains the data; its region is the likelihood-ratio 95 % region instead,
+``(π − π*)ᵀ A (π − π*) ≤ s² χ²_{0.95}(rank)``, the one that holds the truth (a 1σ region around an OLS
+fit on a Panda log left only a 40 kg link). Fixing the masses inside the data's region instead would move directions the log barely sees but
 another motion does (KUKA, trained on one excitation, predicting another: 13.6 → 14.5 % NRMSE). Where a
 prior mass leaves no physical body, that body keeps the step-1 mass (greedily, farthest from the prior
 first, :func:`.urdf_values.greedy_prefixes`) and its verdict says so. Step 1 is assembled for Clarabel's own
@@ -55,6 +58,8 @@ def presented_parameters(structure, ne, fit: np.ndarray, prior: np.ndarray, verd
     """``(π, info)`` of the two steps above, or ``(None, info)`` with ``info["reason"]`` when no model is presented
     other than the fit (a massless prior, a failed solve). ``B``: the structural base map (standard → base
     parameters); ``nonnegative``: indices held ≥ 0."""
+    from ..parameters import check_physical_consistency
+
     fit, prior = np.asarray(fit, dtype=float), np.asarray(prior, dtype=float)
     p, nb = structure.n_params, structure.n_body_params
     P0 = prior[:nb].reshape(-1, 10)
@@ -72,7 +77,9 @@ def presented_parameters(structure, ne, fit: np.ndarray, prior: np.ndarray, verd
     rss = lambda y: float(np.sum((R @ (y - y_star)) ** 2))  # noqa: E731  RSS(π) − RSS(π*)
     s2 = float(verdicts["settings"]["residual_variance"])
     rank = int(keep.sum())
-    budget = rss(y_fit) + s2 * REGION
+    physical_fit = all(r.consistent for r in check_physical_consistency(fit[:nb]))
+    # a fit that is no physical body (least squares): the region that holds the truth at 95 %, χ²(rank)·s²
+    budget = rss(y_fit) + s2 * REGION if physical_fit else s2 * _chi2_95(rank)
     if not s2 * REGION > 1e-12 * max(c, 1e-300):  # noise-free: no room beyond the solver's own error
         return None, {"reason": "the data leave no room around the fit (no residual)"}
     names = list(structure.robot.body_names)
@@ -130,6 +137,13 @@ def _prior_masses(pi: np.ndarray, B: np.ndarray, P0: np.ndarray, fixed: list[int
     return out, (kept if moved is not None else [])
 
 
+def _chi2_95(df: int) -> float:
+    """The 95 % quantile of χ² with ``df`` degrees of freedom (Wilson–Hilferty: within 1 % for df ≥ 3)."""
+    k = max(int(df), 1)
+    z = 1.6448536269514722
+    return k * (1 - 2 / (9 * k) + z * np.sqrt(2 / (9 * k))) ** 3
+
+
 class _Program:
     """The program of the module docstring in Clarabel's form ``min ½yᵀPy + qᵀy, Ay + s = b, s ∈ K`` (the variable
     ``y = d·π``): zero cone (the fixed masses), non-negative cone (the joint terms held ≥ 0), one second-order
@@ -173,6 +187,8 @@ class _Program:
                 [clarabel.SecondOrderConeT(n_soc)] + [clarabel.PSDTriangleConeT(4)] * n_psd
         settings = clarabel.DefaultSettings()
         settings.verbose = False
+        # tighter than the defaults (1e-8): the same equations compressed by another path give the same model
+        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-11
         try:
             sol = clarabel.DefaultSolver(self.P, self.q, A, b, cones, settings).solve()
         except (KeyboardInterrupt, SystemExit):
