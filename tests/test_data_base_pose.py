@@ -176,7 +176,7 @@ def test_cli_identify_from_a_mocap_pose(legs, mocap_walk, tmp_path):
     res = CliRunner().invoke(app, ["identify", "--robot", "talos_legs", "--data", str(path), "--out", str(out),
                                    "--contact-frames", ",".join(FEET), "--contact-dims", "6,6", "--contact-mode", "wrench",
                                    "--joint-terms", "", "--method", "ols", "--no-plot", "--urdf-values", "regularised",
-                                   "--accept-implausible", "--lowpass", "15"])
+                                   "--accept-implausible", "--accept-implausible-torques", "--lowpass", "15"])
     assert res.exit_code == 0, res.output
     assert "clipped 5 sample(s) after" in " ".join(res.output.split())
     doc = json.loads((out / "result.json").read_text())

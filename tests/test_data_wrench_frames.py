@@ -106,7 +106,7 @@ def test_frames_are_changed_before_the_lowpass(legs, world_log):
 def _identify(path, out, *extra):
     args = ["identify", "--robot", "talos_legs", "--data", str(path), "--out", str(out), "--contact-frames",
             ",".join(FEET), "--contact-dims", "6,6", "--contact-mode", "wrench", "--joint-terms", "", "--method", "ols",
-            "--no-plot", "--urdf-values", "regularised", "--accept-implausible", *extra]  # a short log: equality is the point
+            "--no-plot", "--urdf-values", "regularised", "--accept-implausible", "--accept-implausible-torques", *extra]  # a short log: equality is the point
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
     return json.loads((out / "result.json").read_text())

@@ -89,9 +89,12 @@ def test_cli_refuses_scaled_torques_naming_the_joint_unless_accepted(log, tmp_pa
     args = ["identify", "--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2",
             "--data", str(tmp_path / "mNm.npz"), "--method", "ols", "--joint-terms", "fv,fc,offset", "--no-plot"]
     res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "a")])
-    assert res.exit_code == 2 and "panda_joint" in res.output and "--accept-implausible" in res.output
+    assert res.exit_code == 2 and "panda_joint" in res.output and "--accept-implausible-torques" in res.output
     assert not (tmp_path / "a").exists()
-    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "b"), "--accept-implausible"])
+    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "c"), "--accept-implausible"])
+    assert res.exit_code == 2 and "--accept-implausible-torques" in res.output  # each override its own check
+    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "b"), "--accept-implausible-torques",
+                                   "--accept-implausible"])  # mN·m: the model is implausible too
     assert res.exit_code == 0, res.output
     assert (tmp_path / "b" / "result.json").exists()
 

@@ -43,7 +43,6 @@ EXEMPT = {
     "data/arrays": ("test_data.py", "the NPZ/HDF5 reader behind read_trajectory (its NPZ and HDF5 tests)"),
     "data/bench_log": ("test_cli_friction.py", "the friction command's bench-log reader"),
     "data/containers": ("test_data_limits.py", "declared NPZ/HDF5 sizes checked before reading"),
-    "data/plausibility": ("test_corrupt_inputs.py", "issue-26 file: drive gains off the model's torque scale"),
     "estimation/monitored": ("test_realtime_monitor.py", "the offline reference the stream monitor is compared to"),
     "identification/drive_gains": ("test_friction_gains.py", "issue-17 file: drive gains from a pair within 2 %"),
     "identification/fleet": ("test_regressor_distributed.py", "fleet identification on the distributed fold"),

@@ -101,7 +101,7 @@ def test_cli_records_contact_fractions(tmp_path, walk):
     res = CliRunner().invoke(app, ["identify", "--robot", "talos_legs", "--data", str(path), "--out", str(out),
                                    "--contact-frames", ",".join(FEET), "--contact-dims", "6,6", "--contact-mode",
                                    "wrench", "--joint-terms", "", "--method", "ols",
-                                   "--accept-implausible"])
+                                   "--accept-implausible", "--accept-implausible-torques"])
     assert res.exit_code == 0, res.output
     doc = json.loads((out / "result.json").read_text())
     c = doc["floating_base"]["train"][0]["contacts"]

@@ -28,6 +28,9 @@ from sensorless.regressor.distributed import LogReader, PickledModel, worker_str
 from sensorless.errors import DistributedError  # noqa: E402
 
 TOL = 1e-10
+#: parameters after identify's presented model (identification/presented.py): a conic solution, equal across
+#: paths to the solver's precision (the equations are summed in another order)
+TOL_PRESENTED = 1e-6
 ROBOT = ["--robot", "panda", "--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2"]
 
 
@@ -89,8 +92,8 @@ def test_dask_identification_equals_local_path(fleet, structure, client, method)
     _, files = fleet
     local = _local(structure, files, method)
     dask = identify_files(structure, files, client=client, method=method)
-    assert _rel(dask.base_values, local.base_values) < TOL
-    assert _rel(dask.parameters, local.parameters) < TOL
+    assert _rel(dask.base_values, local.base_values) < TOL_PRESENTED
+    assert _rel(dask.parameters, local.parameters) < TOL_PRESENTED
     assert dask.diagnostics["n_samples"] == local.diagnostics["n_samples"] == 12_000
     assert dask.settings["files_used"] == 4 and dask.settings["skipped_files"] == []
     s_d, s_l = dask.diagnostics["residual_sigma"], local.diagnostics["residual_sigma"]
@@ -145,7 +148,7 @@ def test_lmi_on_dask_equals_local(fleet, structure, client, gamma):
     local = _local(structure, files, "lmi", gamma=gamma)
     dask = identify_files(structure, files, client=client, method="lmi", gamma=gamma)
     assert dask.diagnostics["gamma"] == local.diagnostics["gamma"]
-    assert _rel(dask.parameters, local.parameters) < TOL
+    assert _rel(dask.parameters, local.parameters) < TOL_PRESENTED
 
 
 # ---- bad files, retries, dead workers --------------------------------------------------------
@@ -172,7 +175,7 @@ def test_skip_bad_skips_and_reports_the_file_and_equals_local_on_the_rest(with_c
     (entry,) = res.settings["skipped_files"]
     assert entry["file"] == bad and "not a readable Parquet" in entry["error"]
     assert res.settings["files_used"] == 4
-    assert _rel(res.base_values, _local(structure, fleet[1], "ols").base_values) < TOL
+    assert _rel(res.base_values, _local(structure, fleet[1], "ols").base_values) < TOL_PRESENTED
     with pytest.raises(DataError, match="every file was skipped"):
         compress_files(structure, [bad], client=client, skip_bad=True)
     # the cross-validation folds (two passes) skip it too, and cut the other files as the local path does
@@ -238,7 +241,7 @@ def test_worker_killed_mid_run_gives_the_same_result(fleet, structure, tmp_path,
     assert Path(reader.marker).exists()  # the worker did die while reading files[1] ...
     assert after != pids  # ... and the nanny replaced it
     assert res.settings["files_used"] == 4
-    assert _rel(res.base_values, local.base_values) < TOL
+    assert _rel(res.base_values, local.base_values) < TOL_PRESENTED
 
 
 # ---- worker-side structure cache and connection errors -------------------------------------------
@@ -292,7 +295,7 @@ def test_cli_identify_on_a_cluster_equals_local_and_expands_the_glob(fleet, tcp_
                "--workers", 2, "--out", tmp_path / "dask"])
     assert r2.exit_code == 0, r2.output
     (doc_l, p_l), (doc_d, p_d) = _params(tmp_path / "local"), _params(tmp_path / "dask")
-    assert _rel(p_d, p_l) < TOL
+    assert _rel(p_d, p_l) < TOL_PRESENTED
     assert doc_d["settings"]["data"] == doc_l["settings"]["data"] and len(doc_d["settings"]["data"]) == 4
     assert doc_d["settings"]["scheduler"] == tcp_cluster and doc_d["settings"]["skipped_files"] == []
     assert (tmp_path / "dask" / "torques.png").exists()
@@ -403,7 +406,7 @@ def test_cli_auto_coulomb_smoothing_on_a_cluster_equals_local(fleet, tcp_cluster
     assert {j: r["vs"] for j, r in fd["stribeck_search"].items()} == {j: r["vs"] for j, r in fl["stribeck_search"].items()}
     assert fd["stribeck_velocity"] == fl["stribeck_velocity"] and ({j: set(t) for j, t in doc_d["joint_terms"].items()}
                                                               == {j: set(t) for j, t in doc_l["joint_terms"].items()})
-    assert _rel(p_d, p_l) < TOL
+    assert _rel(p_d, p_l) < TOL_PRESENTED
 
 
 def test_cli_wrench_mode_with_imu_frame_on_a_cluster_equals_local(tcp_cluster, tmp_path, solo12):
@@ -431,6 +434,6 @@ def test_cli_wrench_mode_with_imu_frame_on_a_cluster_equals_local(tcp_cluster, t
     assert r2.exit_code == 0, r2.output
     assert "contact rows: base" in r2.output
     (doc_l, p_l), (doc_d, p_d) = _params(tmp_path / "local"), _params(tmp_path / "dask")
-    assert _rel(p_d, p_l) < TOL
+    assert _rel(p_d, p_l) < TOL_PRESENTED
     m_true = float(truth.robot.inertial_parameters().reshape(-1, 10)[:, 0].sum())
     assert doc_d["mass_properties"]["total_mass"] == pytest.approx(m_true, rel=2e-3)

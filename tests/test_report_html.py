@@ -119,7 +119,7 @@ def test_report_of_an_lmi_run_holds_bodies_verdicts_percent_and_no_raw_json(lmi_
     body_t, joint_t = [t for t in p.tables if t["class"] == "verdicts"]
     head = _texts(body_t["rows"][0])
     col = {h: k for k, h in enumerate(head)}
-    assert {"prior", "identified", "± (data)", "prior share [%]", "verdict"} <= set(col)
+    assert {"prior", "identified", "σ", "prior share [%]", "verdict"} <= set(col)
 
     # per body: 10 rows (m, c_x..c_z, six inertia entries), the body cell names its link; then the total mass
     rows = body_t["rows"][1:]
@@ -136,7 +136,9 @@ def test_report_of_an_lmi_run_holds_bodies_verdicts_percent_and_no_raw_json(lmi_
             assert unit == {"mass": "kg"}.get(key, "m" if key.startswith("com") else "kg·m²")
             assert prior == num(e["prior"]) and verdict == e["verdict"]
             assert ident == ("—" if e["verdict"] == "undetermined" else num(e["value"]))
-            assert std == ("—" if e["std_data"] is None else num(e["std_data"], 2))
+            sd = e.get("std", e["std_data"])  # the verdict's σ; the linear one too where it is > 2× narrower
+            assert std.startswith("—" if sd is None else num(sd, 2))
+            assert ("(linear" in std) == bool(e.get("linear_too_narrow") and e["std_data"] is not None)
             assert share == pct(e["prior_share"]).replace("&lt;", "<")
             assert row["cells"][-1]["badges"] == [f"badge v-{e['verdict']}"] and row["class"] == f"v-{e['verdict']}"
             seen.add(e["verdict"])

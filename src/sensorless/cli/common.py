@@ -384,7 +384,7 @@ READING_OPTIONS = {
     "allow_hdf5_external": (bool, lambda: typer.Option(
         False, help="read HDF5 datasets stored in other files (external raw storage, virtual datasets)")),
     "accept_implausible_gains": (bool, lambda: typer.Option(
-        False, help="accept --gains whose torques are over 100× off the robot model's torque scale")),
+        False, help="accept --gains whose torques no robot model plus friction can produce (turns off this check only)")),
     "skip_bad_rows": (bool, lambda: typer.Option(
         False, help="drop corrupt rows at the start or end of a log (non-finite or absurd values, time running "
                     "backwards or repeating or off the clock, a last row cut short; at most 5 % of the rows or 20) "

@@ -36,7 +36,7 @@ _ALIASES = {
     "accept": "accept_implausible",
 }
 # library keywords whose CLI option sets the opposite boolean
-_NEGATED = {"check_torques": "accept_implausible"}
+_NEGATED = {"check_torques": "accept_implausible_torques"}
 # values a CLI option spells differently from the Python value
 _VALUES = {("ellipsoids", False): "none", ("ellipsoids", None): "none", ("regularization", None): "none",
            ("gains", None): "off"}

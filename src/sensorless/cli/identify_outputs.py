@@ -7,7 +7,9 @@ from .console import console, err_console, safe
 
 def print_bodies(result) -> None:
     """Mass per body, named by joint and link (result.json: parameter_links), with its verdict
-    (diagnostics.verdicts): a mass the data do not determine is shown as '—', never as identified."""
+    (diagnostics.verdicts) and σ (the larger of the linear and the resampled one): the values result.json,
+    report.html and model.urdf hold (one presented model); a ``prior`` mass is the prior's, an
+    ``undetermined`` one (neither the data's nor the prior's) is shown as '—', never as identified."""
     from rich.table import Table
 
     from ..identification.result import body_links
@@ -16,7 +18,7 @@ def print_bodies(result) -> None:
     verdicts = (result.diagnostics.get("verdicts") or {}).get("bodies", {})
     t = Table(title="identified bodies (parameters 'joint.p' in result.json; 'link.p' in parameter_links; "
                     "verdicts in diagnostics.verdicts)")
-    for col in ("joint", "link", "m [kg]", "± (data) [kg]", "CAD m [kg]", "mass from", "CoM / inertia from"):
+    for col in ("joint", "link", "m [kg]", "σ [kg]", "CAD m [kg]", "mass from", "CoM / inertia from"):
         t.add_column(col, justify="left" if col in ("joint", "link", "mass from", "CoM / inertia from") else "right")
     pi, pi0 = result.inertial_parameters.reshape(-1, 10), result.robot.inertial_parameters().reshape(-1, 10)
     for k, b in enumerate(result.robot.body_names):
@@ -25,14 +27,17 @@ def print_bodies(result) -> None:
             t.add_row(safe(b), safe(links.get(b, b)), f"{pi[k, 0]:.3f}", "", f"{pi0[k, 0]:.3f}", "", "")
             continue
         mv = v["mass"]["verdict"]
-        std = v["mass"]["std_data"]
+        std = v["mass"].get("std", v["mass"]["std_data"])
         rest = [v[q]["verdict"] for q in v if q != "mass"]
-        t.add_row(safe(b), safe(links.get(b, b)), f"{pi[k, 0]:.3f}" if mv == "data" else "—",
-                  f"{std:.2g}" if mv == "data" and std is not None else "", f"{pi0[k, 0]:.3f}", mv,
+        lin = v["mass"].get("std_data")
+        sig = (f"{std:.2g}" + (f" (linear {lin:.2g})" if v["mass"].get("linear_too_narrow") and lin is not None else "")
+               if mv == "data" and std is not None else "")
+        t.add_row(safe(b), safe(links.get(b, b)), "—" if mv == "undetermined" else f"{pi[k, 0]:.3f}", sig,
+                  f"{pi0[k, 0]:.3f}", mv,
                   ", ".join(f"{n} {rest.count(n)}" for n in ("data", "prior", "undetermined") if rest.count(n)))
     tot = (result.diagnostics.get("verdicts") or {}).get("robot", {}).get("total_mass")
     if tot is not None and tot["verdict"] == "data":  # e.g. a floating base, or a passive rail carrying it all
-        std = tot["std_data"]
+        std = tot.get("std", tot["std_data"])
         t.add_row("total", "", f"{tot['value']:.3f}", f"{std:.2g}" if std is not None else "", f"{tot['prior']:.3f}",
                   "data", "")
     console.print(t)

@@ -375,7 +375,10 @@ def check_verdicts(c: Checker, v: Any, key: str = "diagnostics.verdicts") -> Non
          "counts": {verdict: number of body masses}, "settings": {...thresholds},
          "active_bounds": {"bodies": {body: [bound]}, "joint_terms_at_zero": [...]}}   # LMI only
         entry = {"value", "prior", "std_data" (null: the data alone cannot determine it),
-                 "prior_share" (null: no regulariser), "verdict": "data" | "prior" | "undetermined"}
+                 "std_resampled" (blocked jackknife; null: not resampled or unseen by a part),
+                 "std" (the larger: the verdict's), "interval" ([lo, hi] at 95 %, or null),
+                 "linear_too_narrow" (resampled > 2× linear), "prior_share" (null: no regulariser),
+                 "verdict": "data" | "prior" | "undetermined"}
     """
     if v is None:
         return
@@ -386,8 +389,9 @@ def check_verdicts(c: Checker, v: Any, key: str = "diagnostics.verdicts") -> Non
                 k = f"{key}.{group}.{name}.{q}"
                 c.mapping(k, e)
                 c.string(f"{k}.verdict", e.get("verdict"), VERDICTS)
-                if e.get("std_data") is not None:
-                    c.number(f"{k}.std_data", e["std_data"], 0.0)
+                for s in ("std_data", "std_resampled", "std"):
+                    if e.get(s) is not None:
+                        c.number(f"{k}.{s}", e[s], 0.0)
                 if e.get("prior_share") is not None:
                     c.number(f"{k}.prior_share", e["prior_share"], 0.0, 1.0)
 

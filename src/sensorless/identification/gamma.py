@@ -42,7 +42,7 @@ from .ellipsoids import resolve_ellipsoids
 from .lmi import DEFAULT_GAMMAS, LmiProblem, build_lmi
 from .unconstrained import regularizer_metric, unconstrained_solution
 
-__all__ = ["CV_FOLDS", "GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "grid_search", "select_gamma", "validation_score"]
+__all__ = ["CV_FOLDS", "GAMMA_SEARCHES", "GammaSelection", "cross_validate_gamma", "fold_function", "grid_search", "select_gamma", "validation_score"]
 
 GAMMA_SEARCHES = ("bracket", "exhaustive", "closed-form")
 CV_FOLDS = 5  # folds of ``--gamma auto``
@@ -309,6 +309,20 @@ def split_folds(
             raise DataError("cross-validation needs at least 2 folds of normal equations")
         return items  # type: ignore[return-value]
     trajs: list[Trajectory] = items  # type: ignore[assignment]
+    fold_of = fold_function(trajs, n_folds, period)
+    if structure.row_map.per_sample:  # contacts fold their own equations: each fold compressed from its samples
+        folds = [compress(structure, _fold_parts(trajs, fold_of, f), chunk=chunk, progress=progress)
+                 for f in range(n_folds)]
+    else:
+        folds = compress_folds(structure, trajs, fold_of, n_folds, chunk=chunk, progress=progress)
+    for _ in folds:
+        tick()
+    return folds
+
+
+def fold_function(trajs: list[Trajectory], n_folds: int, period: float | str | None):
+    """``fold_of(k, traj)(start, stop)``: the cross-validation fold of samples [start, stop) of the k-th log
+    (:func:`split_folds`: phase blocks of ``period``, or contiguous pieces of the concatenated logs)."""
     total = sum(len(t) for t in trajs)
     if n_folds < 2 or total < 2 * n_folds:
         raise DataError(f"cannot split {total} samples into {n_folds} folds (need n_folds >= 2)")
@@ -325,14 +339,7 @@ def split_folds(
     else:
         labels = blocked_folds([len(t) for t in trajs], n_folds)
         fold_of = lambda k, t: lambda lo, hi: labels[k][lo:hi]  # noqa: E731
-    if structure.row_map.per_sample:  # contacts fold their own equations: each fold compressed from its samples
-        folds = [compress(structure, _fold_parts(trajs, fold_of, f), chunk=chunk, progress=progress)
-                 for f in range(n_folds)]
-    else:
-        folds = compress_folds(structure, trajs, fold_of, n_folds, chunk=chunk, progress=progress)
-    for _ in folds:
-        tick()
-    return folds
+    return fold_of
 
 
 def _fold_parts(trajs: list[Trajectory], fold_of, f: int) -> list[Trajectory]:

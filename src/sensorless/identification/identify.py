@@ -34,6 +34,7 @@ from .least_squares import (
 )
 from .metrics import metrics_from_sums
 from .result import IdentificationResult
+from .resampling import Resampling
 from .presliding import needs_presliding_search, search_presliding
 from .stribeck import StribeckCandidates, carry_prior, choose_stribeck
 from .torque_channels import TorqueChannels, check_information, check_torque_channels
@@ -53,16 +54,36 @@ JOINT_TERM_MAX_VIF = 1e3
 
 
 
-def _fold_pass(structure, data: list, chunk: int, progress) -> tuple[list[NormalEquations], NormalEquations]:
-    """The cross-validation folds of ``--gamma auto`` (:func:`~.gamma.split_folds`: phase blocks of the
-    excitation period, one pass) and the whole log's equations as their sum: one pass over the
-    samples instead of one for the fit and another for the folds (the same sums up to rounding)."""
+def _fold_pass(structure, data: list, chunk: int, progress, gamma_folds: bool) -> tuple[list | None, NormalEquations, list]:
+    """One pass over the samples for the fit's equations (their sum), the time blocks of the uncertainty
+    (:mod:`.resampling`; none when the log is too short) and, with ``gamma_folds``, the cross-validation
+    folds of ``--gamma auto`` (:func:`~.gamma.fold_function`: phase blocks of the excitation period):
+    fold ``o · n_blocks + b`` holds fold ``o``'s samples in block ``b``. Returns (γ folds or None, whole, blocks)."""
     import functools
 
-    from .gamma import CV_FOLDS, split_folds
+    from .gamma import CV_FOLDS, fold_function, split_folds
+    from .resampling import compress_blocks, n_blocks_for
 
-    folds = split_folds(structure, data, CV_FOLDS, chunk, "auto", progress=progress)
-    return folds, functools.reduce(NormalEquations.merge, folds)
+    outer = fold_function(data, CV_FOLDS, "auto") if gamma_folds else None
+    n_outer = CV_FOLDS if gamma_folds else 1
+    k = n_blocks_for(sum(len(t) for t in data), structure.n_rows, structure.n_params, len(data), n_outer)
+    if k == 0:
+        folds = split_folds(structure, data, CV_FOLDS, chunk, "auto", progress=progress) if gamma_folds else None
+        whole = (functools.reduce(NormalEquations.merge, folds) if folds
+                 else compress(structure, data, chunk=chunk, progress=progress))
+        return folds, whole, []
+    upper = not structure.row_map.per_sample  # the pass leaves A_r upper-triangular: mirrored once per sum
+    parts = compress_blocks(structure, data, k, outer=outer, n_outer=n_outer, chunk=chunk, progress=progress,
+                            mirror=not upper)
+    blocks = [NormalEquations.sum(parts[b::k], left_out=False) for b in range(k)]
+    folds = ([NormalEquations.sum(parts[o * k:(o + 1) * k], left_out=False) for o in range(n_outer)]
+             if gamma_folds else None)
+    whole = NormalEquations.sum(folds or blocks, left_out=False)
+    if all(p.left_out is not None for p in parts):  # the equations left out of the fit (a law scored on every sample)
+        whole.left_out = NormalEquations.sum([p.left_out for p in parts])
+    for ne in [whole, *blocks, *(folds or [])] if upper else []:
+        ne.mirror_upper()
+    return folds, whole, blocks
 
 def identify(
     model: Robot | ModelStructure,
@@ -176,10 +197,13 @@ def identify(
         data = data if isinstance(data, NormalEquations) else list(data)
     cand = StribeckCandidates(structure, stribeck_grid, width_grid) if (stribeck_grid or width_grid) else None
     t0 = time.perf_counter()
-    if method == "lmi" and gamma == "auto" and not folds and not isinstance(data, NormalEquations) \
-            and not structure.row_map.per_sample:
-        folds, ne = _fold_pass(cand or structure, data, chunk, progress)
-    else:
+    blocks: list[NormalEquations] = []
+    split = isinstance(data, list) and not (folds and method == "lmi" and gamma == "auto")  # blocks (and γ's folds)
+    gfolds = method == "lmi" and gamma == "auto" and not structure.row_map.per_sample
+    if split and cand is None:
+        got, ne, blocks = _fold_pass(structure, data, chunk, progress, gfolds)
+        folds = got if gfolds else folds
+    else:  # with Stribeck / width candidates the blocks are folded after the choice, at the chosen (small) size
         ne = data if isinstance(data, NormalEquations) else compress(cand or structure, data, chunk=chunk,
                                                                       progress=progress)
     t_compress = time.perf_counter() - t0
@@ -193,6 +217,9 @@ def identify(
         before, structure, ne = structure, cand.structure_for(choice), cand.select(ne, choice)
         folds = [cand.select(f, choice) for f in folds] if folds else folds
         prior = carry_prior(prior, before, structure)  # the search may have dropped Stribeck terms
+        if split:  # a second pass at the chosen structure's size: the candidates' columns × 40 folds cost more
+            got, _, blocks = _fold_pass(structure, data, chunk, None, gfolds)
+            folds = got if gfolds else folds
     base = base_parameters(structure)
     sample_count_check(ne, base)
     slow: dict[str, float] = {}
@@ -281,15 +308,25 @@ def identify(
     notes = _identifiability_notes(poor, slow, report, structure, base.rank) + fit_notes
     for note in notes:
         warnings.warn(note, IdentifiabilityWarning, stacklevel=2)
-    train = metrics_from_sums(
-        structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
-    )
     verdicts = compute_verdicts(structure, ne, params, row_weights=row_w, method=method,
                                 prior=prior, gamma=float(gamma) if method == "lmi" else 0.0,
                                 regularization=regularization, lmi=extra.get("lmi"), standard=standard,
-                                rank=base.rank)
+                                rank=base.rank, resampling=Resampling(blocks) if blocks else None)
+    fit_params = params
+    params = _present(structure, ne, base, params, prior, verdicts, row_w, method, extra)
+    if blocks:
+        held = _held_out_blocks(structure, ne, blocks, prior, row_w, method, gamma, regularization, extra)
+        extra["held_out_blocks"] = held
+        if held.get("message"):
+            notes.append(held["message"])
+            warnings.warn(held["message"], IdentifiabilityWarning, stacklevel=2)
+    if "fit_parameters" in extra["presented"]:
+        base_values = base.base(params)
+    train = metrics_from_sums(
+        structure.row_names, ne.residual_ss(params), ne.c, ne.y_max - ne.y_min, ne.n_samples
+    )
     if method == "lmi":
-        verdicts["active_bounds"] = active_bounds(extra["lmi"], params, structure)
+        verdicts["active_bounds"] = active_bounds(extra["lmi"], fit_params, structure)  # the LMI's own
     diagnostics = {
         "rank": base.rank,
         "n_standard": structure.n_params,
@@ -321,6 +358,60 @@ def identify(
     }
     return IdentificationResult(method, structure, base, base_values, params, {"svd": "min_norm_svd", "lmi": "lmi"}.get(method, standard), train, diagnostics, settings,
                                 equations=ne)
+
+
+def _present(structure, ne, base, params, prior, verdicts, row_w, method, extra) -> np.ndarray:
+    """The model every output presents (:mod:`.presented`): the verdicts' values taken at it, the fit kept in
+    ``extra["presented"]["fit_parameters"]``; the fit itself when none is presented (the reason recorded)."""
+    from ..regressor.joint_terms import terms_where
+    from .presented import presented_parameters
+    from .verdicts import present_verdicts
+
+    p0 = structure.prior() if prior is None else np.asarray(prior, dtype=float)
+    nonneg = None
+    if method == "lmi":  # the LMI held these terms ≥ 0: so does the presented model
+        nonneg = [structure.joint_term_index(j, t) for j in structure.robot.term_joints
+                  for t in structure.terms_of(j) if t in terms_where("nonnegative")]
+    new, info = presented_parameters(structure, ne, params, p0, verdicts, base.B, row_w, nonneg)
+    if new is None:  # the fit is presented: an entry labelled prior whose value is not the prior's says so
+        extra["presented"] = info
+        present_verdicts(verdicts, structure, params, p0)
+        return params
+    new[structure.fixed_zero_index] = 0.0
+    info["fit_parameters"] = [float(x) for x in params]
+    extra["presented"] = info
+    present_verdicts(verdicts, structure, new, p0)
+    return new
+
+
+def _held_out_blocks(structure, ne, blocks, prior, row_w, method, gamma, regularization, extra) -> dict:
+    """The identified model against the prior on held-out time blocks (:meth:`~.resampling.Resampling.held_out`):
+    each block predicted by the fit on the others (the regularised quadratic toward the prior, the LMI's
+    linearisation, :func:`~.verdicts.regulariser_hessian`; the least-squares fit nearest the prior otherwise)
+    and by the prior model; a message when the identified model predicts them worse."""
+    from ..errors import setting
+    from .verdicts import regulariser_hessian
+
+    p0 = structure.prior() if prior is None else np.asarray(prior, dtype=float)
+    A, b, c = ne.total(row_w)
+    H = (regulariser_hessian(structure, p0, extra["lmi"], float(gamma), regularization, A, c, ne.n_samples)
+         if method == "lmi" and regularization is not None and float(gamma) > 0 else np.zeros_like(A))
+
+    def refit(Ak, bk):
+        K = Ak + H
+        d = np.sqrt(np.maximum(np.diag(K), 1e-300 * max(float(np.diag(K).max()), 1e-300)))
+        step = np.linalg.pinv(K / np.outer(d, d), rcond=1e-10, hermitian=True) @ ((bk - Ak @ p0) / d)
+        return p0 + step / d
+
+    out = Resampling(blocks, row_w).held_out(refit, {"prior": p0})
+    out = {"identified": out["refit"], "prior": out["prior"], "blocks": out["blocks"],
+           "score": "relative residual Σ w‖Wπ − y‖² / Σ w‖y‖² over held-out time blocks"}
+    if out["identified"] > out["prior"]:
+        out["message"] = (f"the identified model predicts held-out time blocks worse than the prior model (relative "
+                          f"residual {out['identified']:.3g} against {out['prior']:.3g}): the data do not support "
+                          "the identified values; check the log's units, gains and unmodelled torques, or lean on the "
+                          f"prior ({setting('gamma', placeholder='larger')})")
+    return out
 
 
 def _constraint_cost(ne: NormalEquations, params: np.ndarray, lmi, row_w) -> dict | None:

@@ -11,13 +11,16 @@ inertias of links seen only through a floating base's rows). When the prior's ma
 reached, or a body would stop being physical, the regularised values are written and the reason
 recorded.
 ``mode="regularised"`` (``--urdf-values regularised``) always writes the regularised values.
+A result that carries a presented model (``diagnostics["presented"]``, :mod:`.presented`: physically
+consistent, nearest the prior within the data's uncertainty, the prior's masses where the data do not
+determine them) is written as it is: model.urdf then holds exactly the values result.json shows.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["URDF_VALUES", "greedy_prefixes", "urdf_inertials", "urdf_comment"]
+__all__ = ["URDF_VALUES", "greedy_prefixes", "reach_prior_masses", "urdf_inertials", "urdf_comment"]
 
 URDF_VALUES = ("prior", "regularised")
 
@@ -53,6 +56,11 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     info: dict = {"values": mode, "prior_mass_bodies": []}
     if mode == "regularised" or not verdicts:
         return pi, info
+    shown = result.diagnostics.get("presented")
+    if shown is not None:  # the presented model (:mod:`.presented`), already nearest the prior, or the fit: written as is
+        info["prior_mass_bodies"] = list(shown.get("prior_mass_bodies", []))
+        info["values"] = "presented"
+        return pi, info
     P0 = _prior_bodies(verdicts, names)
     if not (P0[:, 0] > 0).any():  # no inertial prior (e.g. a robot authored without masses): nothing to move toward
         return pi, info
@@ -68,13 +76,13 @@ def _urdf_inertials(result, mode: str) -> tuple[np.ndarray, dict]:
     # greedily, farthest from the prior first: keep each body whose prior mass stays reachable
     order = sorted(fix, key=lambda k: -abs(np.log(max(pi[10 * k], 1e-12) / P0[k, 0])))
     def reach(ks: list[int]) -> np.ndarray | None:
-        return _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(ks, dtype=int), P0[ks, 0])
+        return reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(ks, dtype=int), P0[ks, 0])
 
     if _physical(pi) or reach([]) is not None:
         kept, cand = greedy_prefixes(order, reach)
         # then every other direction the data do not see goes to the prior too (CoMs and inertias of
         # bodies the log cannot resolve, e.g. links seen only through the floating-base rows)
-        polished = _reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept, dtype=int), P0[kept, 0],
+        polished = reach_prior_masses(pi, result.base.B[:, :nb], S, np.array(kept, dtype=int), P0[kept, 0],
                                        target=P0.ravel())
     else:  # no physical bodies give the identified dynamics (an unconstrained fit): fixing masses, or
         # moving toward the prior, only adds to or keeps those constraints, so no program is feasible
@@ -135,7 +143,7 @@ def _physical(pi) -> bool:
     return all(r.consistent for r in check_physical_consistency(pi))
 
 
-def _reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
+def reach_prior_masses(pi, B, S, fix, m0, target=None) -> np.ndarray | None:
     """``π̂ + Δ`` with ``B Δ = 0``, the masses ``fix`` at ``m0``, every body's pseudo-inertia ⪰ 0 and
     ``‖S⁻¹Δ‖`` minimal, or with ``target`` ``‖S⁻¹(π̂ + Δ − target)‖`` minimal (a small SDP,
     :mod:`.prior_projection`); None when infeasible, unsolved or not physical."""

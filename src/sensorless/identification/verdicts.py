@@ -18,7 +18,13 @@ weighted residual variance ``s² = Σ_r w_r RSS_r / (N·rows − rank)``:
   ``φ̂ ≈ aᵀ(A+H)⁺b + aᵀ(A+H)⁺Hπ0 = φ_data + φ_prior`` — exact for a quadratic regulariser
   without active constraints, a linearisation otherwise — and
   ``prior_share = |φ_prior| / (|φ_data| + |φ_prior|)``.
-* **verdict**: ``"data"`` when ``std ≤`` :data:`DATA_REL_STD` ``× max(|φ̂|, |φ0|, unit)``
+* **resampled std** (:mod:`.resampling`, when the fit kept its time blocks): the blocked-jackknife
+  spread of the same data-alone estimate over time blocks and logs, ``std_resampled``, and its 95 %
+  ``interval``; it sees what the linear std cannot (errors in q, v, v̇, quantization, unmodelled
+  torque, correlated residuals). The verdict uses ``std = max(std_data, std_resampled)``;
+  ``linear_too_narrow`` marks entries where the two differ by more than 2×.
+* **verdict**: ``"data"`` when ``std ≤`` :data:`DATA_REL_STD` ``× max(|φ̂|, |φ0|, unit)``, and, for
+  a mass (a body's, the total), when its 95 % interval is narrower than the value itself,
   (``unit``: the body's mass, ``ℓ``, ``m ℓ²`` scale of the solver, ``ℓ`` its radius of gyration;
   for a joint term :data:`JOINT_UNIT` × the value that alone explains the joint's RMS torque) and
   the prior share is below ½; else ``"prior"`` when a prior fixed the value (LMI with γ > 0, or
@@ -34,7 +40,7 @@ from ..regressor.normal_equations import NormalEquations
 from ..regressor.terms import ModelStructure
 
 __all__ = ["DATA_REL_STD", "NULL_CUTOFF", "NULL_FRACTION", "JOINT_UNIT", "VERDICTS", "compute_verdicts",
-           "linear_split", "regulariser_hessian", "body_verdict", "quantity_verdict"]
+           "linear_split", "regulariser_hessian", "body_verdict", "quantity_verdict", "present_verdicts"]
 
 VERDICTS = ("data", "prior", "undetermined")
 DATA_REL_STD = 0.2  # data-alone std ≤ 20 % of the quantity's scale → determined by the data
@@ -132,10 +138,12 @@ def _quantities(structure: ModelStructure, params: np.ndarray, prior: np.ndarray
 
 
 def quantity_verdict(std: float, share: float | None, value: float, prior: float, unit: float,
-                     prior_fixed: bool) -> str:
-    """``data`` | ``prior`` | ``undetermined`` (module docstring)."""
+                     prior_fixed: bool, half_width: float | None = None) -> str:
+    """``data`` | ``prior`` | ``undetermined`` (module docstring); ``half_width``: the 95 % interval's
+    half-width of a mass, which must be narrower than the value (``2·half_width < |value|``)."""
     size = max(abs(value), abs(prior), abs(unit))
-    if np.isfinite(std) and std <= DATA_REL_STD * size and (share is None or share < 0.5):
+    narrow = half_width is None or (np.isfinite(half_width) and 2.0 * half_width < abs(value))
+    if np.isfinite(std) and std <= DATA_REL_STD * size and (share is None or share < 0.5) and narrow:
         return "data"
     return "prior" if prior_fixed else "undetermined"
 
@@ -162,9 +170,10 @@ def _row_units(structure: ModelStructure, ne: NormalEquations) -> dict[str, floa
 def compute_verdicts(structure: ModelStructure, ne: NormalEquations, params: np.ndarray, *, row_weights=None,
                      method: str = "lmi", prior: np.ndarray | None = None, gamma: float = 0.0,
                      regularization=None, lmi: dict | None = None, standard: str = "closest_to_prior",
-                     rank: int | None = None) -> dict:
+                     rank: int | None = None, resampling=None) -> dict:
     """The ``diagnostics["verdicts"]`` document: per body and joint term ``{value, prior, std_data,
-    prior_share, verdict}`` (module docstring), plus the thresholds used."""
+    std_resampled, std, interval, linear_too_narrow, prior_share, verdict}`` (module docstring), plus the
+    thresholds used. ``resampling``: the fit's time blocks (:class:`~.resampling.Resampling`), or None."""
     params = np.asarray(params, dtype=float)
     prior = structure.prior() if prior is None else np.asarray(prior, dtype=float)
     A, b, c = ne.total(None if row_weights is None else np.asarray(row_weights, dtype=float))
@@ -197,19 +206,32 @@ def compute_verdicts(structure: ModelStructure, ne: NormalEquations, params: np.
     null = np.linalg.norm(Ah @ N0, axis=1) if N0.size else np.zeros(len(Q))
     undet = null > NULL_FRACTION * np.linalg.norm(Ah, axis=1)
     std = np.where(undet, np.inf, np.sqrt(np.maximum(var, 0.0)))
+    std_rs = half_rs = np.full(len(Q), np.nan)
+    if resampling is not None:
+        resampling.row_weights = w
+        std_rs, half_rs = resampling.spread(Amat)
+        std_rs = np.where(undet, np.inf, std_rs)
+    both = np.fmax(std, std_rs)  # nan (no resampling) → the linear std
+    half = np.fmax(1.959963984540054 * std, half_rs)
     share = [None] * len(Q)
     if H is not None:
         pd, pp = linear_split(A, b, H, prior, Amat)
         share = [float(abs(y) / max(abs(x) + abs(y), 1e-300)) for x, y in zip(pd, pp)]
     massless = {body for body, mass in zip(structure.robot.body_names, prior[0:nb:10]) if not mass > 0}
     doc: dict = {"bodies": {}, "joints": {}, "robot": {}}
-    for (group, name, qty, _, val, p0, unit), sd, sh in zip(Q, std, share):
+    for (group, name, qty, _, val, p0, unit), sd, sr, st, hw, sh in zip(Q, std, std_rs, both, half, share):
         fixed = prior_set and name not in massless and not (group == "robot" and massless)
-        entry = {"value": _f(val), "prior": _f(p0), "std_data": _f(sd), "prior_share": sh,
-                 "verdict": quantity_verdict(float(sd), sh, float(val), float(p0), float(unit), fixed)}
+        massy = qty in ("mass", "total_mass")
+        entry = {"value": _f(val), "prior": _f(p0), "std_data": _f(sd), "std_resampled": _f(sr), "std": _f(st),
+                 "interval": [_f(val - hw), _f(val + hw)] if np.isfinite(hw) else None,
+                 "linear_too_narrow": None if np.isnan(sr) else bool(np.isfinite(sd) and not sr <= 2.0 * sd),
+                 "prior_share": sh,
+                 "verdict": quantity_verdict(float(st), sh, float(val), float(p0), float(unit), fixed,
+                                             float(hw) if massy else None)}
         (doc[group] if group == "robot" else doc[group].setdefault(name, {}))[qty] = entry
     doc["settings"] = {"data_rel_std": DATA_REL_STD, "null_cutoff": NULL_CUTOFF, "null_fraction": NULL_FRACTION,
                        "joint_unit": JOINT_UNIT, "residual_variance": s2,
+                       "resampling": resampling.settings() if resampling is not None else None,
                        "prior_fixes_unseen": bool(prior_set), "com": "linearised c = h/m at the estimate",
                        "inertia": "entries about the body frame origin (Pinocchio's I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)"}
     doc["counts"] = count_verdicts(doc)
@@ -227,3 +249,27 @@ def count_verdicts(doc: dict) -> dict[str, int]:
 def _f(x) -> float | None:
     x = float(x)
     return x if np.isfinite(x) else None
+
+
+def present_verdicts(doc: dict, structure: ModelStructure, params: np.ndarray, prior: np.ndarray,
+                     rel_tol: float = 1e-4) -> dict:
+    """``doc`` (:func:`compute_verdicts`) with every value taken at the presented ``params``
+    (:mod:`.presented`): intervals re-centred on them, and an entry labelled ``prior`` whose value is
+    not the prior's (beyond ``rel_tol``) relabelled ``undetermined``: ``prior`` means the value written is
+    the prior's."""
+    params = np.asarray(params, dtype=float)
+    nb = structure.n_body_params
+    scale = np.ones(structure.n_params)
+    for group, name, qty, _, val, p0, _ in _quantities(structure, params, np.asarray(prior, dtype=float),
+                                                        np.concatenate([np.ones(nb), scale[nb:]]), {}):
+        e = (doc[group] if group == "robot" else doc[group].get(name, {})).get(qty)
+        if e is None:
+            continue
+        old = e["value"]
+        e["value"] = _f(val)
+        if e.get("interval") and old is not None and e["value"] is not None:
+            e["interval"] = [e["interval"][0] - old + e["value"], e["interval"][1] - old + e["value"]]
+        if e["verdict"] == "prior" and not abs(val - p0) <= rel_tol * max(abs(p0), 1e-6):
+            e["verdict"] = "undetermined"
+    doc["counts"] = count_verdicts(doc)
+    return doc

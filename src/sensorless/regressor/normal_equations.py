@@ -148,8 +148,7 @@ class NormalEquations:
 
     def mirror_upper(self) -> None:
         """Complete each A_r from its upper triangle (after folds with ``upper_only``)."""
-        for r in range(self.A.shape[0]):
-            self.A[r] = _mirror(self.A[r])
+        self.A[:] = np.triu(self.A) + np.swapaxes(np.triu(self.A, 1), -1, -2)  # every row at once: _mirror's sums
         if self.left_out is not None:
             self.left_out.mirror_upper()
 
@@ -184,6 +183,24 @@ class NormalEquations:
             self.y_sum + other.y_sum, self.n_samples + other.n_samples,
             self.left_out.merge(other.left_out) if both else None,
         )
+
+    @classmethod
+    def sum(cls, parts: "list[NormalEquations]", left_out: bool = True) -> "NormalEquations":
+        """The equations of ``parts`` together (:meth:`merge` over the list, accumulated in place: one copy);
+        without their ``left_out`` equations unless ``left_out``."""
+        first = parts[0]
+        keep = left_out and all(p.left_out is not None for p in parts)
+        out = cls(first.A.copy(), first.b.copy(), first.c.copy(), first.y_min.copy(), first.y_max.copy(),
+                  first.y_sum.copy(), first.n_samples, cls.sum([p.left_out for p in parts]) if keep else None)
+        for p in parts[1:]:
+            out.A += p.A
+            out.b += p.b
+            out.c += p.c
+            np.minimum(out.y_min, p.y_min, out=out.y_min)
+            np.maximum(out.y_max, p.y_max, out=out.y_max)
+            out.y_sum += p.y_sum
+            out.n_samples += p.n_samples
+        return out
 
     def total(self, row_weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
         """Summed (A, b, c) with optional per-row weights w_r (= 1/σ_r²)."""
@@ -240,12 +257,15 @@ def compress_folds(
     chunk: int = 2048,
     progress: Callable[[int], None] | None = None,
     overlap: bool | None = None,
+    mirror: bool = True,
 ) -> list[NormalEquations]:
     """:func:`compress_trajectories` with each sample folded into the equations of its fold:
     ``fold_of(k, traj)(start, stop)`` gives the folds (0 … n_folds − 1) of samples [start, stop) of
     the k-th trajectory. One pass: every chunk's regressor is evaluated once, and the masks of the
     fit (rest, reversals) are those of the whole log, so the folds sum to the whole log's equations
-    (up to rounding). Structures that fold their own equations (contacts) take ``fold_of=None``."""
+    (up to rounding). Structures that fold their own equations (contacts) take ``fold_of=None``.
+    ``mirror=False`` leaves each A_r as its upper triangle (the lower cross blocks not added): the caller
+    sums folds first and completes the sums with :meth:`NormalEquations.mirror_upper` (mirroring is linear)."""
     track = bool(getattr(structure, "track_left_out", False))
     nes = [NormalEquations.zeros(structure.n_rows, structure.n_params, left_out=track) for _ in range(max(n_folds, 1))]
     row_map = structure.row_map
@@ -300,7 +320,7 @@ def compress_folds(
                 f.result()
     if not seen:
         raise DataError("no trajectory was given")
-    if not own_fold:
+    if not own_fold and mirror:
         for ne in nes:
             ne.mirror_upper()
     return nes

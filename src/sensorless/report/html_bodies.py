@@ -34,7 +34,7 @@ VERDICT_LEGEND = (
     "prior share = the part of the value the regulariser pulled from the prior.</p>")
 
 _HEAD = ("<tr><th class=l>{what}</th><th class=l>quantity</th><th class=l>unit</th><th>prior</th><th>identified</th>"
-         "<th>± (data)</th><th>prior share [%]</th><th class=l>verdict</th></tr>")
+         "<th>σ</th><th>prior share [%]</th><th class=l>verdict</th></tr>")
 
 
 def verdict_cell(verdict: str | None) -> str:
@@ -50,9 +50,12 @@ def _row(label: str, unit: str, e: dict, lead: str = "", row_id: str = "") -> st
         shown = f"<td title='not determined (solver value {num(value)})'>—</td>"
     else:
         shown = f"<td class=val>{num(value)}</td>"
+    sd = e.get("std", e.get("std_data")) if "std_data" in e else None
     std = ("" if "std_data" not in e else
            f"<span title='no interval from the data alone: the value is the verdict's ({esc(v or '?')})'>—</span>"
-           if e["std_data"] is None else num(e["std_data"], 2))
+           if sd is None else num(sd, 2))
+    if e.get("linear_too_narrow") and e.get("std_data") is not None:  # both, where they differ by more than 2×
+        std += f" <small title='linear covariance: a lower bound'>(linear {num(e['std_data'], 2)})</small>"
     rid = f" id={row_id}" if row_id else ""
     return (f"<tr{rid} class='v-{esc(v or 'none')}'>{lead}<td class=l>{label}</td><td class=l>{esc(unit)}</td>"
             f"<td>{num(e.get('prior'))}</td>{shown}<td>{std}</td><td>{pct(e.get('prior_share'))}</td>"

@@ -82,7 +82,7 @@ class LocalBackend:
         total = self.chunked.n_samples if self.chunked else sum(len(t) for t in train)
         friction = needs_friction_law(structure, eps)
         kw = dict(progress=j.bars.step("regressor (samples)", total=total).advance, outliers="keep", validated=True,
-                  weights=row_sigma, check_torques=not c.solver.accept_implausible,
+                  weights=row_sigma, check_torques=not c.solver.accept_implausible_torques,
                   gamma_progress=j.bars.callback("γ cross-validation (folds, solves)"), **lmi_kw)
         fric, law, streamed = None, None, None
         if self.chunked:  # one pass over the log (sensorless.identification.streamed), or None: read it whole

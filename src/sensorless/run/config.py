@@ -136,11 +136,13 @@ class SolverConfig:
                              "CoM within 7.5 cm); --no-contain-prior: geometry only")
     weights: str = _f("auto", "per-joint noise weighting, every method: auto (two-step: σ from an unweighted fit's "
                       "residual) | none | FILE (JSON {joint: σ} or CSV 'joint,σ' rows)")
-    accept_implausible: bool = _f(False, "keep going when a torque channel looks constant, dead, swapped, "
-                                  "sign-flipped or > 100× off the prior model's scale, or the identified model is "
-                                  "implausible (a non-finite value, a body heavier than the whole prior robot, a CoM "
-                                  "outside its body, a determined total mass > 50 % off the prior's); refused by "
-                                  "default, naming the joint or quantity", cli_only=True)
+    accept_implausible: bool = _f(False, "keep going when the identified model is implausible (a non-finite value, "
+                                  "a body heavier than the whole prior robot, a CoM outside its body, a determined "
+                                  "total mass > 50 % off the prior's); refused by default, naming the quantity. Turns "
+                                  "off this check only", cli_only=True)
+    accept_implausible_torques: bool = _f(False, "fit torque channels that look constant, dead, swapped, sign-flipped "
+                                          "or > 100× off the prior model's scale; refused by default, naming the "
+                                          "joint. Turns off this check only", cli_only=True)
     urdf_values: str = _f("prior", "model.urdf: prior (a body whose mass the data do not determine gets the prior's "
                           "mass, the identified dynamics unchanged) | regularised (the regularised values of "
                           "result.json)")

@@ -5,6 +5,8 @@ of the model, the baseline and the CAD model, and the floating-base checks of a 
 from __future__ import annotations
 
 import warnings
+
+import numpy as np
 from pathlib import Path
 
 from ..errors import SensorlessError, setting
@@ -35,11 +37,19 @@ def ols_baseline(fit, row_sigma):
             warnings.simplefilter("ignore")  # the baseline's own identifiability is not reported
             if fit.streamed is not None:  # a solve on the streamed pass's equations
                 ols = fit.streamed.ols_baseline(row_sigma)
-                return PhysicalModel.from_parameters(ols.structure, ols.parameters)
-            return PhysicalModel(structure=fit.structure, method="ols", outliers="keep", weights=row_sigma,
-                                 check_torques=False).fit(fit.equations)
+                return PhysicalModel.from_parameters(ols.structure, _fit_parameters(ols))
+            ols = PhysicalModel(structure=fit.structure, method="ols", outliers="keep", weights=row_sigma,
+                                check_torques=False).fit(fit.equations)
+            return PhysicalModel.from_parameters(ols.structure_, _fit_parameters(ols.result_))
     except SensorlessError:
         return None
+
+
+def _fit_parameters(result) -> np.ndarray:
+    """The least-squares solution itself (the baseline is the unconstrained fit, not the model identify presents,
+    :mod:`sensorless.identification.presented`)."""
+    shown = result.diagnostics.get("presented") or {}
+    return np.array(shown.get("fit_parameters", result.parameters), dtype=float)
 
 
 def held_out_scores(validate, val, method: str, model, cad, baseline) -> tuple[dict, list]:

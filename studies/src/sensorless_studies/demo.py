@@ -18,7 +18,7 @@ import numpy as np
 from rich.console import Console
 
 from sensorless.data import write_npz
-from sensorless.torque_models import CADModel
+from sensorless.torque_models import CADModel, PhysicalModel
 from sensorless.excitation import random_fourier
 from sensorless.identification import identify
 from sensorless.identification.artifact import save_model_folder
@@ -52,14 +52,17 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
                "wls": identify(structure, train, method="wls")}
     results["lmi"] = identify(structure, train, method="lmi", gamma="auto")
     cad = CADModel(robot).fit()
-    scores = {"CAD": cad.score(test), **{m.upper(): r.score(test) for m, r in results.items()}}
+    # least squares as it is (the unconstrained solution, not the physical model identify presents from it)
+    fits = {m: np.array(r.diagnostics["presented"].get("fit_parameters", r.parameters)) for m, r in results.items()}
+    models = {m: PhysicalModel.from_parameters(r.structure, fits[m]) if m != "lmi" else r for m, r in results.items()}
+    scores = {"CAD": cad.score(test), **{m.upper(): r.score(test) for m, r in models.items()}}
     console.print(metrics_table("Panda, held-out trajectory", scores, field="rmse"))
     console.print(metrics_table("Panda, held-out trajectory", scores, field="nrmse"))
 
     ols, lmi = results["ols"], results["lmi"]
     B = ols.base
     truth_base = B.base(truth.parameters(structure.joint_terms))
-    rel_err = float(np.linalg.norm(ols.base_values - truth_base) / np.linalg.norm(truth_base))
+    rel_err = float(np.linalg.norm(B.base(fits["ols"]) - truth_base) / np.linalg.norm(truth_base))
     doc = lmi.to_dict()  # the model folder holds the LMI model: result.json and model.urdf are one model
     doc["demo"] = {
         "noise_std": NOISE_STD,
@@ -67,13 +70,13 @@ def run_demo(out: Path, seed: int = 0, console: Console | None = None) -> dict:
         "held_out_rmse_over_noise": {m: (scores[m].rmse / NOISE_STD).tolist() for m in ("OLS", "WLS", "LMI")},
         "ols_relative_base_parameter_error_norm": rel_err,
         "inconsistent_bodies": {
-            m: [r.name for r in check_physical_consistency(res.inertial_parameters, list(robot.body_names))
-                if not r.consistent] for m, res in results.items()},
+            m: [r.name for r in check_physical_consistency(fits[m][:structure.n_body_params], list(robot.body_names))
+                if not r.consistent] for m in results},
         "settings": {"seed": seed, "rate_hz": rate, "duration_s": duration, "robot": "panda (fingers locked)"},
     }
     doc["validation"] = {"validate.npz": {"cad": scores["CAD"].to_dict(),
                                           **{m: scores[m.upper()].to_dict() for m in results}}}
-    plot_torques(test.t, structure.target(test), {"OLS": ols.predict(test), "LMI": lmi.predict(test), "CAD": cad.predict(test)},
+    plot_torques(test.t, structure.target(test), {"OLS": models["ols"].predict(test), "LMI": lmi.predict(test), "CAD": cad.predict(test)},
                  structure.row_names, out / "torques.png", title="Panda: held-out torques", robot=structure.robot)
     plot_friction(structure, lmi.parameters, [train], out / "friction.png", title="Panda: joint friction (training log)")
     save_model_folder(out, lmi, doc)

@@ -257,3 +257,22 @@ def bench_friction_state(
         console.print(f"{name}: state chosen on {d['chosen_state']}/{seeds}; near-reversal RMSE ratio (chosen / best "
                       f"static) median {d['median_ratio_reversals']:.3f}, max {d['max_ratio_reversals']:.3f}")
     return res
+
+
+@bench_command("calibration")
+def bench_calibration_cmd(
+    seeds: int = typer.Option(5, help="simulated arms per case"),
+    seed: int = typer.Option(0, help="first seed"),
+    cases: str = typer.Option(",".join(("clean", "quantized", "flexible", "gain_error", "one_joint", "holding")),
+                              help="comma-separated cases (sensorless_studies.benchmarks.calibration)"),
+) -> dict:
+    """Interval coverage per quantity class (masses, CoM, inertia, joint terms) on simulated UR5 logs carrying
+    real artefacts (quantization, rounding, flexibility, gain error, one joint at a time, holding torque)."""
+    from ..benchmarks.calibration import CASES, run
+
+    chosen = tuple(c.strip() for c in cases.split(",") if c.strip())
+    bad = [c for c in chosen if c not in CASES]
+    if seeds < 1 or bad or not chosen:
+        raise OptionError(f"--seeds must be >= 1 and --cases among {', '.join(CASES)}" + (f" (got {bad})" if bad else ""))
+    with progress_bars() as bars:
+        return run(chosen, seeds=seeds, seed=seed, console=console, progress=bars.callback("calibration (case × seed)"))
