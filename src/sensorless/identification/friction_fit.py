@@ -16,8 +16,9 @@ fit of τ, and the non-linear ones are chosen on grids (variable projection):
 **Drives.** A series with a drive input u (a motor current, or an input torque) has the output
 torque τ_out as its torque: the fit is of K u = τ_out + τ_f, i.e. of −τ_out on the law's columns and
 −u (the gain K, always), with two optional terms (:mod:`sensorless.regressor.friction_state`):
-``gain_back`` (the gain differs when the output drives the motor back) and ``load`` (Coulomb friction
-growing with |τ_out|). The Coulomb term is then optional too (``terms`` without ``fc``: the linear
+``gain_back`` (the gain differs when the output drives the motor back), ``load`` (Coulomb friction
+growing with |τ_out|) and, where the motor-side position is logged, ``stiffness`` (an elastic
+transmission: the pair ``stiffness_motor``, ``stiffness_out``). The Coulomb term is then optional too (``terms`` without ``fc``: the linear
 current fit K u + o).
 
 **Choice.** Each candidate is scored by BIC = N ln(SSE/N) + p ln N (p: its amplitudes, initial states
@@ -57,9 +58,10 @@ __all__ = ["CHOICES", "DEFAULT_TERMS", "FIT_TERMS", "STATE_MODES", "TIME_FOLDS",
 
 #: terms fitted by default (``damping`` is offered with a state; ``stribeck``, the drive terms
 #: ``gain_back`` and ``load`` (with a drive) and the state are kept where the choice supports them)
-DEFAULT_TERMS = ("fc", "stribeck", "fv", "offset", "inertia", "gain_back", "load")
-#: every term a bench fit takes (``gain`` is implied by a drive input)
-FIT_TERMS = ("fc", "stribeck", "damping", "fv", "offset", "inertia", "gain_back", "load")
+DEFAULT_TERMS = ("fc", "stribeck", "fv", "offset", "inertia", "gain_back", "load", "stiffness")
+#: every term a bench fit takes (``gain`` is implied by a drive input; ``stiffness`` is the pair
+#: ``stiffness_motor``, ``stiffness_out``)
+FIT_TERMS = ("fc", "stribeck", "damping", "fv", "offset", "inertia", "gain_back", "load", "stiffness")
 STATE_MODES = ("auto", "on", "off")
 #: how candidates are compared (module docstring)
 CHOICES = ("held-out", "bic")
@@ -77,7 +79,8 @@ _Z95 = 1.959964
 @dataclasses.dataclass
 class JointSeries:
     """One joint of one log: 1-D arrays at the log's own stamps; with a ``drive`` input u (current or
-    input torque), ``tau`` is the output torque τ_out (module docstring)."""
+    input torque), ``tau`` is the output torque τ_out (module docstring); ``motor`` the motor-side
+    position."""
 
     t: np.ndarray
     q: np.ndarray
@@ -86,6 +89,7 @@ class JointSeries:
     a: "np.ndarray | None" = None
     source: str = "<array>"
     drive: "np.ndarray | None" = None
+    motor: "np.ndarray | None" = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -112,8 +116,9 @@ def joint_series(traj: Trajectory, joint: str) -> JointSeries:
         tau = traj.tau[:, j]
     if traj.v is None:
         raise DataError(f"the friction fit needs the velocity and the torque of '{joint}'", traj.source)
+    qm = traj.extras.get("q_motor")
     return JointSeries(traj.t, traj.q[:, j], traj.v[:, j], tau, None if traj.a is None else traj.a[:, j],
-                       traj.source, drive)
+                       traj.source, drive, None if qm is None or drive is None else np.asarray(qm, dtype=float)[:, j])
 
 
 @dataclasses.dataclass
@@ -357,6 +362,7 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     with_fc = "fc" in terms
     opt_load = drive and "load" in terms
     opt_back = drive and "gain_back" in terms
+    opt_stiff = drive and "stiffness" in terms and all(s.motor is not None for s in series)
     # with a drive the law's sum is τ_f − K u = −τ_out (:mod:`sensorless.regressor.friction_state`)
     y = np.concatenate([-s.tau if drive else s.tau for s in series])
     v_all = np.concatenate([s.v for s in series])
@@ -385,9 +391,11 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     fixed = {"fv": v_all, "offset": np.ones(N),
              "inertia": np.concatenate([s.a for s in series]) if "inertia" in terms else None,
              "gain": None if u_all is None else -u_all,
-             "gain_back": None if u_all is None else -u_all * (u_all * v_all < 0)}
+             "gain_back": None if u_all is None else -u_all * (u_all * v_all < 0),
+             "stiffness_motor": -np.concatenate([s.motor for s in series]) if opt_stiff else None,
+             "stiffness_out": -np.concatenate([s.q for s in series])}
     base_terms = [t for t in ("fv", "offset", "inertia") if t in terms] + (["gain"] if drive else []) + (
-        ["gain_back"] if opt_back else [])
+        ["gain_back"] if opt_back else []) + (["stiffness_motor", "stiffness_out"] if opt_stiff else [])
     B = np.column_stack([fixed[t] for t in base_terms]) if base_terms else np.zeros((N, 0))
     load_abs = np.abs(np.concatenate([s.tau for s in series])) if opt_load else None
     bic_of = lambda sse, p: N * np.log(max(sse, 1e-300) / N) + p * np.log(N)  # noqa: E731
@@ -406,11 +414,14 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         return cand
 
     def subsets(nb_off: int):
-        """(base column positions, base names) with and without the optional gain_back."""
+        """(base column positions, base names) with and without each optional group (gain_back; the
+        stiffness pair)."""
         out = []
         for back in ((False, True) if opt_back else (False,)):
-            names = [t for t in base_terms if back or t != "gain_back"]
-            out.append(([nb_off + base_terms.index(t) for t in names], names))
+            for stiff in ((False, True) if opt_stiff else (False,)):
+                names = [t for t in base_terms if (back or t != "gain_back")
+                         and (stiff or t not in ("stiffness_motor", "stiffness_out"))]
+                out.append(([nb_off + base_terms.index(t) for t in names], names))
         return out
 
     sgn = np.tanh(v_all / eps) if eps > 0 else np.sign(v_all)
@@ -599,8 +610,8 @@ def _design(c: _Candidate, series, qps, eps: float, starts) -> np.ndarray:
     """The regressor of candidate ``c`` (a state's with its initial-state columns)."""
     law = _law(c, eps, 0.0)
     if c.kind == "static":
-        return np.concatenate([law.columns(s.q, s.v, s.a, drive=s.drive, load=s.tau) for s in series])
-    X = np.concatenate([law.columns(qp, s.v, s.a, states=dahl_states(qp, s.v, [c.k], [c.vs or 1.0])[:, 0, :],
-                                    drive=s.drive, load=s.tau)
+        return np.concatenate([law.columns(s.q, s.v, s.a, drive=s.drive, load=s.tau, motor=s.motor) for s in series])
+    X = np.concatenate([law.columns(s.q, s.v, s.a, states=dahl_states(qp, s.v, [c.k], [c.vs or 1.0])[:, 0, :],
+                                    drive=s.drive, load=s.tau, motor=s.motor)
                         for qp, s in zip(qps, series)])
     return np.column_stack([X, _initial_columns(qps, starts, c.k)])

@@ -128,7 +128,12 @@ class FrictionModel:
                 if u is None:
                     raise DataError(f"the friction law of '{j}' maps a drive input to the output torque; the log "
                                     f"needs the current (or input torque) of '{j}'", traj.source)
-                out[:, k] = law.output_torque(traj.q[:, c], traj.v[:, c], a, drive=np.asarray(u, dtype=float)[:, c])
+                qm = traj.extras.get("q_motor")
+                if "stiffness_motor" in law.coef and qm is None:
+                    raise DataError(f"the friction law of '{j}' has a transmission stiffness; the log needs the "
+                                    f"motor-side position (q_motor) of '{j}'", traj.source)
+                out[:, k] = law.output_torque(traj.q[:, c], traj.v[:, c], a, drive=np.asarray(u, dtype=float)[:, c],
+                                              motor=None if qm is None else np.asarray(qm, dtype=float)[:, c])
             else:
                 out[:, k] = law.torque(traj.q[:, c], traj.v[:, c], a)
         return out

@@ -40,7 +40,10 @@ friction, K u = τ_out + τ_f, with the gain K among the amplitudes. Three terms
 * ``gain_back`` ΔK, column −u·[u v < 0]: the gain while the output drives the motor back
   (direction-dependent efficiency: K when driving, K + ΔK when back-driven);
 * ``load`` μ, column |τ_load| s_c (|τ_load| T in a static law): Coulomb friction that grows with the
-  transmitted torque, (fc + μ |τ_load|) s.
+  transmitted torque, (fc + μ |τ_load|) s;
+* ``stiffness_motor``, ``stiffness_out`` (a pair, where the motor-side position q_m is logged too):
+  columns −q_m and −q, so τ_out gains k_m q_m + k_o q: an elastic transmission (a cable, a strain-wave
+  gear) whose twist r q_m − q carries torque (k_m = k r, k_o = −k; its rest twist is in the offset).
 
 A prediction of τ_out without τ_load takes τ_load = τ_out and solves τ_out = r − μ |τ_out| s for it
 (r the rest of K u − τ_f): τ_out = r / (1 + μ s sgn r), one value for |μ s| < 1
@@ -63,9 +66,10 @@ __all__ = ["DRIVE_TERMS", "FrictionLaw", "FrictionStateIntegrator", "LAW_KINDS",
 
 LAW_KINDS = ("static", "state")
 #: linear terms of a law, in column order (``damping`` only with a state; ``inertia`` = J v̇)
-LAW_TERMS = ("fc", "stribeck", "damping", "fv", "offset", "inertia", "gain", "gain_back", "load")
+LAW_TERMS = ("fc", "stribeck", "damping", "fv", "offset", "inertia", "gain", "gain_back", "load", "stiffness_motor",
+             "stiffness_out")
 #: terms of a drive (module docstring: u and τ_out logged)
-DRIVE_TERMS = ("gain", "gain_back", "load")
+DRIVE_TERMS = ("gain", "gain_back", "load", "stiffness_motor", "stiffness_out")
 
 
 def play(q: np.ndarray, h: float, start: float | None = None) -> np.ndarray:
@@ -181,10 +185,10 @@ class FrictionLaw:
 
     def columns(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None, *,
                 states: "np.ndarray | None" = None, drive: "np.ndarray | None" = None,
-                load: "np.ndarray | None" = None) -> np.ndarray:
+                load: "np.ndarray | None" = None, motor: "np.ndarray | None" = None) -> np.ndarray:
         """Regressor (N, len(terms)) along a log from the zero state (``states``: precomputed
-        (N, 2) [s_c, s_s] of this law, e.g. from :func:`dahl_states`; ``drive`` u and ``load`` τ_load
-        for the drive terms, module docstring)."""
+        (N, 2) [s_c, s_s] of this law, e.g. from :func:`dahl_states`; ``drive`` u, ``load`` τ_load and
+        ``motor`` the motor-side position q_m for the drive terms, module docstring)."""
         v = np.asarray(v, dtype=float)
         if "inertia" in self.coef and a is None:
             raise DataError("the friction law has an inertia term and needs the acceleration v̇")
@@ -192,6 +196,8 @@ class FrictionLaw:
             raise DataError("the friction law has a drive gain and needs the drive input (current or input torque)")
         if "load" in self.coef and load is None:
             raise DataError("the friction law has a load-dependent term and needs the load torque")
+        if "stiffness_motor" in self.coef and motor is None:
+            raise DataError("the friction law has a transmission stiffness and needs the motor-side position q_motor")
         if self.kind == "state":
             if states is None:
                 states = dahl_states(play(q, self.play), v, [self.k], [self.vs or 1.0])[:, 0, :]
@@ -206,24 +212,28 @@ class FrictionLaw:
             cols["gain"], cols["gain_back"] = -u, -u * (u * v < 0)
         if load is not None:
             cols["load"] = np.abs(np.asarray(load, dtype=float)) * sc
+        if motor is not None:
+            cols["stiffness_motor"] = -np.asarray(motor, dtype=float)
+        cols["stiffness_out"] = -np.asarray(q, dtype=float)
         return np.column_stack([cols[t] for t in self.terms]) if self.terms else np.zeros((v.size, 0))
 
     def torque(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None, *,
-               drive: "np.ndarray | None" = None, load: "np.ndarray | None" = None) -> np.ndarray:
+               drive: "np.ndarray | None" = None, load: "np.ndarray | None" = None,
+               motor: "np.ndarray | None" = None) -> np.ndarray:
         """τ_f (+ J v̇) along a log, the state starting at 0 (N,); a drive law's τ_f − K u = −τ_out."""
-        return self.columns(q, v, a, drive=drive, load=load) @ np.array(list(self.coef.values()))
+        return self.columns(q, v, a, drive=drive, load=load, motor=motor) @ np.array(list(self.coef.values()))
 
     def output_torque(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None, *,
-                      drive: np.ndarray) -> np.ndarray:
+                      drive: np.ndarray, motor: "np.ndarray | None" = None) -> np.ndarray:
         """A drive law's output torque τ_out from the drive input u alone (N,): with a ``load`` term
         τ_load = τ_out, solved in closed form (module docstring)."""
         mu = self.coef.get("load", 0.0)
         rest = FrictionLaw(self.kind, {t: c for t, c in self.coef.items() if t != "load"}, self.eps, self.vs, self.k,
                            self.play)
-        r = -rest.torque(q, v, a, drive=drive)
+        r = -rest.torque(q, v, a, drive=drive, motor=motor)
         if mu == 0.0:
             return r
-        s = self.columns(q, v, None if "inertia" not in self.coef else a, drive=drive,
+        s = self.columns(q, v, None if "inertia" not in self.coef else a, drive=drive, motor=motor,
                          load=np.ones_like(np.asarray(v, dtype=float)))[:, self.terms.index("load")]
         return r / np.maximum(1.0 + mu * s * np.sign(r), 1e-6)
 
