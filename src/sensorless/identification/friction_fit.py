@@ -5,9 +5,10 @@ torque τ at its own time stamps (no uniform sampling needed). Every candidate i
 amplitudes given its non-linear parameters (:mod:`sensorless.regressor.friction_state`), so each is a least-squares
 fit of τ, and the non-linear ones are chosen on grids (variable projection):
 
-* **static**: τ_f = fc tanh(v/ε) [+ (fs − fc) e^{−(v/vs)²} tanh(v/ε)] + fv v + o [+ J v̇], ε from
-  the velocity noise (:func:`~.friction.coulomb_smoothing_from_noise`), vs on the grid of
-  :func:`~.friction.stribeck_grid`;
+* **static**: τ_f = fc tanh(v/ε) [+ (fs − fc) e^{−(v/vs)²} tanh(v/ε)] + fv v + o [+ J v̇], ε on a
+  geometric grid from the velocity noise (:func:`~.friction.coulomb_smoothing_from_noise`) up to
+  :data:`WIDTH_SPAN` × the 95th percentile of |v| (a given ``coulomb_smoothing`` fixes it), vs on the
+  grid of :func:`~.friction.stribeck_grid`;
 * **state**: the Dahl/LuGre states s_c, s_s for each inverse presliding distance k on a grid
   (1/k from 10⁻⁴ to 0.3 × the median stroke between reversals, and at least twice the play
   half-width h = 3 position-noise stds), each vs, with or without the damping σ1 (q̇ − |q̇| s_c),
@@ -51,7 +52,7 @@ from ..data.rest import signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, ExcitationError, OptionError, setting
 from .friction import coulomb_smoothing_from_noise, stribeck_grid
-from ..regressor.friction_state import STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
+from ..regressor.friction_state import LAW_TERMS, STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
 
 __all__ = ["CHOICES", "DEFAULT_TERMS", "FIT_TERMS", "STATE_MODES", "TIME_FOLDS", "JointFit", "JointSeries",
            "fit_joint_friction", "joint_series", "sign_diagnosis"]
@@ -71,6 +72,10 @@ TIME_FOLDS = 5
 PRESLIDING_GRID = np.geomspace(1e-4, 0.3, 25)
 #: dissipative or inertial terms kept ≥ 0 (a negative slope at low speed is the Stribeck term's)
 NONNEGATIVE = ("damping", "fv", "inertia")
+#: the Coulomb transition widths tried: from the noise-based ε up to this × the 95th percentile of |v|
+WIDTH_SPAN = 0.2
+#: ... on this many points (geometric)
+WIDTH_POINTS = 8
 #: play half-width h = this × the position noise std
 PLAY_SIGMAS = 3.0
 _Z95 = 1.959964
@@ -158,9 +163,11 @@ class _Candidate:
     bic: float = np.inf
     cv: float = np.inf
     folds: "np.ndarray | None" = None
+    eps: float = 0.0
 
     def summary(self) -> dict:
         return {"kind": self.kind, "terms": list(self.terms), "vs": self.vs or None,
+                "coulomb_smoothing": self.eps if self.kind == "static" else None,
                 "presliding_distance": 1.0 / self.k if self.k else None, "bic": float(self.bic),
                 "held_out_sse": float(self.cv) if np.isfinite(self.cv) else None, "valid": bool(self.ok)}
 
@@ -384,6 +391,10 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     fold = np.concatenate(fold_rows)
     qps = [play(s.q, h) for s in series]
     strokes = np.concatenate([_turning_strokes(qp) for qp in qps])
+    # the transition width ε of tanh(v/ε): from the velocity noise up (a compliant drive's friction turns
+    # over a wider band than the noise), chosen with vs per structure (variable projection)
+    widths = (np.unique(np.geomspace(eps, max(eps, WIDTH_SPAN * speed), WIDTH_POINTS)) if coulomb_smoothing == "auto"
+              and eps > 0 else np.array([eps]))
     noise = {"velocity": sig_v, "position": sig_q, "coulomb_smoothing": eps, "play": h,
              "median_stroke": float(np.median(strokes)) if strokes.size else None, "reversals": int(strokes.size)}
 
@@ -391,53 +402,71 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     fixed = {"fv": v_all, "offset": np.ones(N),
              "inertia": np.concatenate([s.a for s in series]) if "inertia" in terms else None,
              "gain": None if u_all is None else -u_all,
-             "gain_back": None if u_all is None else -u_all * (u_all * v_all < 0),
              "stiffness_motor": -np.concatenate([s.motor for s in series]) if opt_stiff else None,
              "stiffness_out": -np.concatenate([s.q for s in series])}
     base_terms = [t for t in ("fv", "offset", "inertia") if t in terms] + (["gain"] if drive else []) + (
-        ["gain_back"] if opt_back else []) + (["stiffness_motor", "stiffness_out"] if opt_stiff else [])
+        ["stiffness_motor", "stiffness_out"] if opt_stiff else [])
     B = np.column_stack([fixed[t] for t in base_terms]) if base_terms else np.zeros((N, 0))
-    load_abs = np.abs(np.concatenate([s.tau for s in series])) if opt_load else None
+    load_abs = np.abs(np.concatenate([s.tau for s in series])) if opt_load else np.zeros(N)
+    back_u = u_all if opt_back else np.zeros(N)
     bic_of = lambda sse, p: N * np.log(max(sse, 1e-300) / N) + p * np.log(N)  # noqa: E731
     cands: list[_Candidate] = []
 
-    def add(gram, idx, kind, names, vs=0.0, k=0.0, extra=0) -> _Candidate:
+    def add(gram, idx, kind, names, vs=0.0, k=0.0, extra=0, width=0.0) -> _Candidate:
         nonneg = [i for i, t in enumerate(names) if t in NONNEGATIVE]
         c, sse, used = gram.fit(idx, nonneg)
         ok = all(c[names.index(t)] > 0 for t in ("fc", "stribeck", "load")
                  if t in names and (kind == "state" or t != "fc"))
         p = used + extra
-        cand = _Candidate(kind, tuple(names), vs, k, c, sse, p, bool(ok), bic_of(sse, p))
+        cand = _Candidate(kind, tuple(names), vs, k, c, sse, p, bool(ok), bic_of(sse, p), eps=width)
         if choice == "held-out" or kind == "static":
             cand.cv, cand.folds = gram.held_out(idx, nonneg)
         cands.append(cand)
         return cand
 
-    def subsets(nb_off: int):
-        """(base column positions, base names) with and without each optional group (gain_back; the
-        stiffness pair)."""
+    groups = ([("gain_back",)] if opt_back else []) + ([("stiffness_motor", "stiffness_out")] if opt_stiff else []) + (
+        [("load",)] if opt_load else [])
+    optional = {t for g in groups for t in g}
+    combos = [tuple(t for g, on in zip(groups, mask) for t in g if on)
+              for mask in np.ndindex(*(2,) * len(groups))] if groups else [()]
+
+    def structures(pos: dict, core: list) -> list:
+        """(column positions, names) in law-term order for the ``core`` names plus each combination of
+        the optional groups (gain_back; the stiffness pair; load); ``pos``: name -> column."""
         out = []
-        for back in ((False, True) if opt_back else (False,)):
-            for stiff in ((False, True) if opt_stiff else (False,)):
-                names = [t for t in base_terms if (back or t != "gain_back")
-                         and (stiff or t not in ("stiffness_motor", "stiffness_out"))]
-                out.append(([nb_off + base_terms.index(t) for t in names], names))
+        for extra_terms in combos:
+            names = sorted(core + [t for t in base_terms if t not in optional] + list(extra_terms), key=LAW_TERMS.index)
+            out.append(([pos[t] for t in names], names))
         return out
 
-    sgn = np.tanh(v_all / eps) if eps > 0 else np.sign(v_all)
+    def sc_columns(sc: np.ndarray, rows: slice) -> np.ndarray:
+        """The columns that depend on the Coulomb sign or state s_c: gain_back, load (:mod:`..friction_state`)."""
+        u = back_u[rows]
+        return np.column_stack([-u * np.maximum(0.0, -np.sign(u) * sc), load_abs[rows] * sc])
+
     nb, m = B.shape[1], len(grid_vs)
-    load_col = load_abs * sgn if opt_load else np.zeros(N)
-    gram = _Gram(1 + m + nb + 1, n_folds)
-    for i0 in range(0, N, STATE_BLOCK):
-        sl = slice(i0, i0 + STATE_BLOCK)
-        gram.add(np.column_stack([sgn[sl]] + [np.exp(-((v_all[sl] / vs) ** 2)) * sgn[sl] for vs in grid_vs]
-                                 + [B[sl], load_col[sl]]), y[sl], fold[sl])
-    for j, vs in enumerate([None] + list(grid_vs)):
-        for bidx, bnames in subsets(1 + m):
-            for ld in ((False, True) if opt_load else (False,)):
-                idx = ([0] if with_fc else []) + ([j] if vs else []) + bidx + ([1 + m + nb] if ld else [])
-                names = (["fc"] if with_fc else []) + (["stribeck"] if vs else []) + bnames + (["load"] if ld else [])
-                add(gram, idx, "static", names, vs or 0.0, extra=1 if vs else 0)
+    pos = {"fc": 0, **{t: 1 + m + i for i, t in enumerate(base_terms)}, "gain_back": 1 + m + nb, "load": 2 + m + nb}
+
+    def static_pass(ws) -> None:
+        for width in ws:
+            sgn = np.tanh(v_all / width) if width > 0 else np.sign(v_all)
+            gram = _Gram(1 + m + nb + 2, n_folds)
+            for i0 in range(0, N, STATE_BLOCK):
+                sl = slice(i0, min(i0 + STATE_BLOCK, N))
+                gram.add(np.column_stack([sgn[sl]] + [np.exp(-((v_all[sl] / vs) ** 2)) * sgn[sl] for vs in grid_vs]
+                                         + [B[sl], sc_columns(sgn[sl], sl)]), y[sl], fold[sl])
+            for j, vs in enumerate([None] + list(grid_vs)):
+                core = (["fc"] if with_fc else []) + (["stribeck"] if vs else [])
+                for idx, names in structures({**pos, "stribeck": j}, core):
+                    add(gram, idx, "static", names, vs or 0.0, extra=(1 if vs else 0) + (len(widths) > 1),
+                        width=width)
+
+    static_pass(widths)
+    if widths.size > 1:  # refine ε between the neighbours of the best-fitting grid point
+        top = min((c for c in cands if c.kind == "static" and c.ok), key=lambda c: c.bic)
+        g = int(np.argmin(np.abs(widths - top.eps)))
+        fine = np.geomspace(widths[max(g - 1, 0)], widths[min(g + 1, widths.size - 1)], 9)
+        static_pass([w for w in fine if not np.any(np.isclose(w, widths))])
     key = (lambda c: (c.cv, c.n_params)) if choice == "held-out" else (lambda c: (c.bic, c.n_params))
 
     def best(kind: str) -> "_Candidate | None":
@@ -466,7 +495,7 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         why_not = "the position noise hides every presliding distance shorter than 0.3 × the stroke"
     else:
         k_grid = 1.0 / lengths
-        ctx = (series, qps, starts, B, y, base_terms, fold_rows, n_folds, load_abs, subsets)
+        ctx = (series, qps, starts, B, y, base_terms, fold_rows, n_folds, sc_columns, structures)
         _state_candidates(ctx, k_grid, list(grid_vs), (False, True), add)
         sharp = float(k_grid.max()) * (1 - 1e-12)
         for c in cands:
@@ -496,8 +525,8 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         chosen = static_best
         reason = why_not or (f"static: the state law's {label} {score(state_best):.4g} is not below the static "
                              f"law's {score(static_best):.4g}")
-    law, static_law = _law(chosen, eps, h), _law(static_best, eps, h)
-    X = _design(chosen, series, qps, eps, starts)
+    law, static_law = _law(chosen, h), _law(static_best, h)
+    X = _design(chosen, series, qps, starts)
     e = y - X @ chosen.coef
     free = np.array([not (i < len(chosen.terms) and chosen.terms[i] in NONNEGATIVE and chosen.coef[i] == 0.0)
                      for i in range(X.shape[1])])
@@ -565,50 +594,48 @@ def _initial_columns(qps, starts, k: float) -> np.ndarray:
 
 def _state_candidates(ctx, k_grid, vs_list, damping, add, with_none: bool = True) -> None:
     """Add, via ``add``, the state candidates for each k of ``k_grid``, each vs of ``vs_list`` (and no
-    Stribeck term with ``with_none``), with each ``damping`` choice and each subset of the optional drive
-    terms. The columns of each k are [s_c, s_s (each vs), damping, fixed terms, |τ_load| s_c, initial
-    states], folded into one Gram matrix per k and fold block by block
+    Stribeck term with ``with_none``), with each ``damping`` choice and each combination of the optional
+    drive terms. The columns of each k are [s_c, s_s (each vs), damping, fixed terms, gain_back, load,
+    initial states], folded into one Gram matrix per k and fold block by block
     (:func:`~sensorless.regressor.friction_state.dahl_state_blocks`: memory independent of the log length)."""
-    series, qps, starts, B, y, base_terms, fold_rows, n_folds, load_abs, subsets = ctx
+    series, qps, starts, B, y, base_terms, fold_rows, n_folds, sc_columns, structures = ctx
     if len(k_grid) == 0:
         return
     k_grid = np.asarray(k_grid, dtype=float)
     m, nb, n_logs = len(vs_list), B.shape[1], len(series)
-    grams = [_Gram(2 + m + nb + 1 + n_logs, n_folds) for _ in k_grid]
+    grams = [_Gram(2 + m + nb + 2 + n_logs, n_folds) for _ in k_grid]
     for i, (qp, ser, s0) in enumerate(zip(qps, series, starts)):
         travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(qp)))])
         for i0, i1, S in dahl_state_blocks(qp, ser.v, k_grid, vs_list):
-            v, Bb, yb = ser.v[i0:i1], B[s0 + i0:s0 + i1], y[s0 + i0:s0 + i1]
-            lb = load_abs[s0 + i0:s0 + i1] if load_abs is not None else np.zeros(i1 - i0)
+            rows = slice(s0 + i0, s0 + i1)
+            v, Bb, yb = ser.v[i0:i1], B[rows], y[rows]
             fb = fold_rows[i][i0:i1]
             init = np.zeros((i1 - i0, n_logs))
             for g, k in enumerate(k_grid):
                 init[:, i] = np.exp(-k * travel[i0:i1])
                 sc = S[:, g, 0]
-                grams[g].add(np.column_stack([S[:, g, :], v - np.abs(v) * sc, Bb, lb * sc, init]), yb, fb)
-    rest = list(range(2 + m + nb + 1, 2 + m + nb + 1 + n_logs))
+                grams[g].add(np.column_stack([S[:, g, :], v - np.abs(v) * sc, Bb, sc_columns(sc, rows), init]), yb, fb)
+    rest = list(range(4 + m + nb, 4 + m + nb + n_logs))
+    pos = {"fc": 0, "damping": 1 + m, **{t: 2 + m + i for i, t in enumerate(base_terms)}, "gain_back": 2 + m + nb,
+           "load": 3 + m + nb}
     for g, k in enumerate(k_grid):
         for j, vs in ([(None, None)] if with_none else []) + list(enumerate(vs_list)):
             for d in damping:
-                for bidx, bnames in subsets(2 + m):
-                    for ld in ((False, True) if load_abs is not None else (False,)):
-                        idx = ([0] + ([1 + j] if vs else []) + ([1 + m] if d else []) + bidx
-                               + ([2 + m + nb] if ld else []) + rest)
-                        names = (["fc"] + (["stribeck"] if vs else []) + (["damping"] if d else []) + bnames
-                                 + (["load"] if ld else []))
-                        add(grams[g], idx, "state", names, vs or 0.0, float(k), extra=1 + (1 if vs else 0))
+                core = ["fc"] + (["stribeck"] if vs else []) + (["damping"] if d else [])
+                for idx, names in structures({**pos, "stribeck": 1 + (j or 0)}, core):
+                    add(grams[g], idx + rest, "state", names, vs or 0.0, float(k), extra=1 + (1 if vs else 0))
 
 
-def _law(c: _Candidate, eps: float, h: float) -> FrictionLaw:
+def _law(c: _Candidate, h: float) -> FrictionLaw:
     coef = dict(zip(c.terms, map(float, c.coef[: len(c.terms)])))
     if c.kind == "state":
         return FrictionLaw("state", coef, vs=c.vs, k=c.k, play=h)
-    return FrictionLaw("static", coef, eps=eps, vs=c.vs)
+    return FrictionLaw("static", coef, eps=c.eps, vs=c.vs)
 
 
-def _design(c: _Candidate, series, qps, eps: float, starts) -> np.ndarray:
+def _design(c: _Candidate, series, qps, starts) -> np.ndarray:
     """The regressor of candidate ``c`` (a state's with its initial-state columns)."""
-    law = _law(c, eps, 0.0)
+    law = _law(c, 0.0)
     if c.kind == "static":
         return np.concatenate([law.columns(s.q, s.v, s.a, drive=s.drive, load=s.tau, motor=s.motor) for s in series])
     X = np.concatenate([law.columns(s.q, s.v, s.a, states=dahl_states(qp, s.v, [c.k], [c.vs or 1.0])[:, 0, :],

@@ -37,8 +37,9 @@ torque τ_out; :mod:`sensorless.identification.friction_fit`): the input drives 
 friction, K u = τ_out + τ_f, with the gain K among the amplitudes. Three terms of a law say so:
 
 * ``gain`` K, column −u (the law's sum is τ_f − K u = −τ_out);
-* ``gain_back`` ΔK, column −u·[u v < 0]: the gain while the output drives the motor back
-  (direction-dependent efficiency: K when driving, K + ΔK when back-driven);
+* ``gain_back`` ΔK, column −u·w, w = max(0, −sgn(u) s_c) (max(0, −sgn(u) T) in a static law): the gain
+  while the output drives the motor back (direction-dependent efficiency: K when driving, K + ΔK when
+  back-driven; w is 0 at rest and 1 once sliding against u, with the Coulomb term's transition);
 * ``load`` μ, column |τ_load| s_c (|τ_load| T in a static law): Coulomb friction that grows with the
   transmitted torque, (fc + μ |τ_load|) s;
 * ``stiffness_motor``, ``stiffness_out`` (a pair, where the motor-side position q_m is logged too):
@@ -209,7 +210,7 @@ class FrictionLaw:
                 "inertia": None if a is None else np.asarray(a, dtype=float)}
         if drive is not None:
             u = np.asarray(drive, dtype=float)
-            cols["gain"], cols["gain_back"] = -u, -u * (u * v < 0)
+            cols["gain"], cols["gain_back"] = -u, -u * np.maximum(0.0, -np.sign(u) * sc)
         if load is not None:
             cols["load"] = np.abs(np.asarray(load, dtype=float)) * sc
         if motor is not None:
