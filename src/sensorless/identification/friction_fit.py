@@ -164,6 +164,7 @@ class _Candidate:
     cv: float = np.inf
     folds: "np.ndarray | None" = None
     eps: float = 0.0
+    source: "tuple | None" = None  # (Gram, column positions, non-negative positions)
 
     def summary(self) -> dict:
         return {"kind": self.kind, "terms": list(self.terms), "vs": self.vs or None,
@@ -325,6 +326,26 @@ def _hac(X: np.ndarray, e: np.ndarray, starts: Sequence[int]) -> tuple[np.ndarra
     return Ginv @ S @ Ginv, max(infl, 1.0)
 
 
+def _check_log_signs(chosen: "_Candidate", series: Sequence[JointSeries], joint: str) -> None:
+    """DataError when the logs, each fitted alone with the chosen terms, give the gain or the Coulomb
+    friction clearly opposite signs (one log's sensor counts the other way: a flip for every log cannot
+    fix it)."""
+    gram, idx, nonneg = chosen.source
+    own = np.array([_bounded_fit(gram.Gf[f], gram.bf[f], idx, nonneg)[0] for f in range(len(series))])
+    for t in ("gain", "fc"):
+        if t not in chosen.terms:
+            continue
+        x = own[:, chosen.terms.index(t)]
+        scale = float(np.median(np.abs(x)))
+        pos, neg = x > 0.25 * scale, x < -0.25 * scale
+        if pos.any() and neg.any():
+            minority = neg if neg.sum() <= pos.sum() else pos
+            names = ", ".join(f"{series[i].source} ({x[i]:.4g})" for i in np.flatnonzero(minority))
+            raise DataError(f"joint '{joint}': fitted alone, the logs give {t} opposite signs ({names} against "
+                            f"{np.median(x[~minority]):.4g} in the others): a sensor of those logs counts the other "
+                            f"way; {setting('flip')} reverses every log, so fit them separately with it")
+
+
 def _folds(series: Sequence[JointSeries]) -> tuple[list[np.ndarray], int]:
     """Per series the fold of each row, and the number of folds: one per log, or :data:`TIME_FOLDS`
     contiguous blocks of a single log."""
@@ -418,7 +439,8 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         ok = all(c[names.index(t)] > 0 for t in ("fc", "stribeck", "load")
                  if t in names and (kind == "state" or t != "fc"))
         p = used + extra
-        cand = _Candidate(kind, tuple(names), vs, k, c, sse, p, bool(ok), bic_of(sse, p), eps=width)
+        cand = _Candidate(kind, tuple(names), vs, k, c, sse, p, bool(ok), bic_of(sse, p), eps=width,
+                          source=(gram, idx, nonneg))
         if choice == "held-out" or kind == "static":
             cand.cv, cand.folds = gram.held_out(idx, nonneg)
         cands.append(cand)
@@ -544,6 +566,8 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     wrong = sign_diagnosis(dict(zip(chosen.terms, chosen.coef)), intervals, drive=drive)
     if wrong is not None:
         raise DataError(f"joint '{joint}': {wrong}", series[0].source)
+    if len(series) >= 2:
+        _check_log_signs(chosen, series, joint)
     pre = None
     if chosen.kind == "state":
         # N ln(SSE/SSE_min) ≈ ΔSSE/σ² ≤ χ²₁(95 %) × the long-run inflation of the residual variance
