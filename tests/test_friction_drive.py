@@ -146,5 +146,7 @@ def test_drive_bench_coverage_over_20_seeds(name, bench, tmp_path):
         model = FrictionModel(state="off").fit(logs)
         e = model.predict(test)[:, 0] - measured_torque(test, "joint")
         ratios.append(float(np.sqrt(np.mean(e**2))) / drive_noise(bench))
+    print(f"{name}: inside the 95 % interval in {hits} of 20 seeds; held-out RMSE / noise max {max(ratios):.3f}, "
+          f"median {np.median(ratios):.3f}")
     assert all(h >= 18 for h in hits.values()), hits
     assert max(ratios) <= 1.1, ratios

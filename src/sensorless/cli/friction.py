@@ -285,7 +285,8 @@ def _print(model, errors: dict, held_out: bool) -> None:
             lo, hi = fit.presliding_interval or (None, None)
             t.add_row("presliding 1/k", f"{1 / law.k:.4g}", f"[{_fmt(lo)}, {_fmt(hi)}]")
         else:
-            t.add_row("ε (tanh)", f"{law.eps:.4g}", "(noise)")
+            how = "(grid, from the noise up)" if model.coulomb_smoothing == "auto" else "(given)"
+            t.add_row("ε (tanh)", f"{law.eps:.4g}", how)
         console.print(t)
     t = Table(title=("held-out" if held_out else "training") + " RMSE: overall / near reversals")
     for col in ("log", "joint", "law", "model", "best static law"):

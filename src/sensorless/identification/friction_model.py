@@ -138,6 +138,24 @@ class FrictionModel:
                 out[:, k] = law.torque(traj.q[:, c], traj.v[:, c], a)
         return out
 
+    def friction_pair(self, traj: Trajectory, *, static: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """(measured, modelled) friction (N, n_joints): τ and τ̂ of a plain law; of a drive law what its
+        drive terms deliver minus the measured and the predicted output torque (the friction the
+        transmission takes)."""
+        pred = self.predict(traj, static=static)
+        cols = self._check(traj)
+        meas = np.column_stack([measured_torque(traj, j) for j in self.joint_names_])
+        laws = self.static_laws_ if static else self.laws_
+        for k, (j, c) in enumerate(zip(self.joint_names_, cols)):
+            law = laws[j]
+            if law.is_drive:
+                u = np.asarray(traj.extras.get("current", traj.tau), dtype=float)[:, c]
+                qm = traj.extras.get("q_motor")
+                d = law.drive_torque(traj.q[:, c], traj.v[:, c], drive=u,
+                                     motor=None if qm is None else np.asarray(qm, dtype=float)[:, c])
+                meas[:, k], pred[:, k] = d - meas[:, k], d - pred[:, k]
+        return meas, pred
+
     def integrator(self) -> FrictionStateIntegrator:
         """A streaming evaluator of the laws (states from 0), in ``joint_names_`` order."""
         return FrictionStateIntegrator([self.laws_[j] for j in self.joint_names_])

@@ -224,6 +224,16 @@ class FrictionLaw:
         """τ_f (+ J v̇) along a log, the state starting at 0 (N,); a drive law's τ_f − K u = −τ_out."""
         return self.columns(q, v, a, drive=drive, load=load, motor=motor) @ np.array(list(self.coef.values()))
 
+    def drive_torque(self, q: np.ndarray, v: np.ndarray, *, drive: np.ndarray,
+                     motor: "np.ndarray | None" = None) -> np.ndarray:
+        """The torque a drive law's drive terms deliver (K u + ΔK u w + k_m q_m + k_o q; N,): minus the
+        output torque, the friction (0 for a law without drive terms)."""
+        terms = [t for t in self.terms if t in ("gain", "gain_back", "stiffness_motor", "stiffness_out")]
+        if not terms:
+            return np.zeros(np.shape(v))
+        cols = self.columns(q, v, np.zeros(np.shape(v)), drive=drive, load=np.zeros(np.shape(v)), motor=motor)
+        return -cols[:, [self.terms.index(t) for t in terms]] @ np.array([self.coef[t] for t in terms])
+
     def output_torque(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None, *,
                       drive: np.ndarray, motor: "np.ndarray | None" = None) -> np.ndarray:
         """A drive law's output torque τ_out from the drive input u alone (N,): with a ``load`` term
