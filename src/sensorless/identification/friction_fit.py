@@ -27,14 +27,16 @@ and non-linear parameters) and, with ``choice="held-out"`` (the bench command's)
 held-out error**: the data are cut into folds (each log one fold when there are several logs, else
 :data:`TIME_FOLDS` contiguous time blocks; blocks as long as a log are far longer than the residual's
 correlation), each fold is predicted by the amplitudes fitted on the others (one Gram matrix per fold:
-no refit of the columns) and the squared errors are summed. The optional terms, the Stribeck velocity
-and the state are then those with the lowest held-out error (an extra term has to lower it to be
-kept); ``choice="bic"`` takes the lowest BIC instead. A Stribeck term counts only with fs − fc > 0 (as
+no refit of the columns) and the squared errors are summed. Within a structure (its set of terms, static
+or state) the non-linear parameters ε, vs and k are those that fit best (lowest SSE: variable
+projection); the structure, i.e. the optional terms and the state, is the one with the lowest held-out
+error (an extra term has to lower it to be kept); ``choice="bic"`` takes the lowest BIC instead. A Stribeck term counts only with fs − fc > 0 (as
 in :mod:`.stribeck`), a load term only with μ > 0, a state only with fc > 0, σ1 ≥ 0 and a presliding
 distance above the grid's shortest (a state that wants an even shorter one is the static law).
 Intervals (95 %) of the amplitudes are from the Newey–West covariance (the residuals of a friction fit
-are correlated over many samples), widened to the spread of the fold estimates (a block jackknife)
-where that is wider; that of 1/k from the BIC-scaled profile of the residual over the k grid.
+are correlated over many samples), widened to the spread of the fold estimates (a block jackknife with
+Student's t on folds − 1 degrees of freedom, three folds or more) where that is wider; that of 1/k
+from the BIC-scaled profile of the residual over the k grid.
 
 **Signs.** A Coulomb friction, a gain or a load coefficient whose whole interval is below 0 is refused
 (:class:`~sensorless.errors.DataError`) with its likely cause (which signal's sign is reversed) and the
@@ -555,13 +557,17 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     cov, infl = _hac(X[:, free], e, starts)
     sd = np.zeros(X.shape[1])
     sd[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    half = _Z95 * sd
     if chosen.folds is not None and chosen.folds.shape[0] >= 3:
-        # block jackknife over the folds: the spread of the estimate across independent parts of the data
+        # block jackknife over the folds: the spread of the estimate across independent parts of the data,
+        # with F − 1 degrees of freedom (Student's t: three blocks say little about a spread)
+        from scipy.stats import t as student
+
         F = chosen.folds.shape[0]
         jk = np.sqrt((F - 1) / F * np.sum((chosen.folds - chosen.folds.mean(axis=0)) ** 2, axis=0))
-        sd[: jk.size] = np.maximum(sd[: jk.size], jk)
+        half[: jk.size] = np.maximum(half[: jk.size], float(student.ppf(0.975, F - 1)) * jk)
     # a term held at its bound 0 (its unconstrained value was negative) has no interval (None)
-    intervals = {t: [float(chosen.coef[i] - _Z95 * sd[i]), float(chosen.coef[i] + _Z95 * sd[i])] if free[i] else None
+    intervals = {t: [float(chosen.coef[i] - half[i]), float(chosen.coef[i] + half[i])] if free[i] else None
                  for i, t in enumerate(chosen.terms)}
     wrong = sign_diagnosis(dict(zip(chosen.terms, chosen.coef)), intervals, drive=drive)
     if wrong is not None:
