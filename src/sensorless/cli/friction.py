@@ -73,7 +73,7 @@ def _read_bench_logs(paths, prep: dict, cols, gap, joints, need_acceleration: bo
                            need_acceleration=need_acceleration, flip=tuple(prep.get("flip") or ())) for p in paths]
 
 
-def test_groups(test: "list[str]") -> "tuple[list[Path], list[str]]":
+def _test_groups(test: "list[str]") -> "tuple[list[Path], list[str]]":
     """``--test`` values as (paths, group of each): ``GROUP=FILE`` names the group, a bare FILE (or one
     that exists as written) is in the group "held-out"."""
     paths, groups = [], []
@@ -146,7 +146,7 @@ def friction(
     term_list = tuple(t.strip() for t in terms.split(",") if t.strip()) or DEFAULT_TERMS
     names = [j.strip() for j in joints.split(",") if j.strip()] if joints else None
     flips = [f.strip() for f in flip.split(",") if f.strip()] if flip else []
-    test_paths, groups = test_groups(test)
+    test_paths, groups = _test_groups(test)
     prep = {"columns": columns, "gains": gains, "rate": rate, "time_unit": time_unit, "max_gap": max_gap,
             "velocity": str(velocity), "savgol_window": savgol_window, "trim": trim,
             "angle_unit": current_options().get("angle_unit") or "rad", "flip": flips or None}
@@ -339,7 +339,6 @@ def predict_friction(model: Path, data: Path, out: Path, prep: dict) -> None:
     pred = fm.predict(traj)
     if not np.all(np.isfinite(pred)):
         raise OptionError(f"{art.path}: the friction model predicts non-finite torques on {data}")
-    cols = [list(traj.joint_names).index(j) for j in joints]
     from ..identification.friction_model import measured_torque
 
     meas = np.column_stack([measured_torque(traj, j) for j in joints])

@@ -76,8 +76,9 @@ PRESLIDING_GRID = np.geomspace(1e-4, 0.3, 25)
 NONNEGATIVE = ("damping", "fv", "inertia")
 #: the Coulomb transition widths tried: from the noise-based ε up to this × the 95th percentile of |v|
 WIDTH_SPAN = 0.2
-#: ... on this many points (geometric)
+#: ... on this many points (geometric), then refined this many times (9 points between the best's neighbours)
 WIDTH_POINTS = 8
+WIDTH_REFINE = 2
 #: play half-width h = this × the position noise std
 PLAY_SIGMAS = 3.0
 _Z95 = 1.959964
@@ -486,11 +487,13 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
                         width=width)
 
     static_pass(widths)
-    if widths.size > 1:  # refine ε between the neighbours of the best-fitting grid point
+    tried = widths
+    for _ in range(WIDTH_REFINE if widths.size > 1 else 0):  # refine ε between the best point's neighbours
         top = min((c for c in cands if c.kind == "static" and c.ok), key=lambda c: c.bic)
-        g = int(np.argmin(np.abs(widths - top.eps)))
-        fine = np.geomspace(widths[max(g - 1, 0)], widths[min(g + 1, widths.size - 1)], 9)
-        static_pass([w for w in fine if not np.any(np.isclose(w, widths))])
+        g = int(np.argmin(np.abs(tried - top.eps)))
+        fine = np.geomspace(tried[max(g - 1, 0)], tried[min(g + 1, tried.size - 1)], 9)
+        static_pass([w for w in fine if not np.any(np.isclose(w, tried))])
+        tried = np.unique(np.concatenate([tried, fine]))
     key = (lambda c: (c.cv, c.n_params)) if choice == "held-out" else (lambda c: (c.bic, c.n_params))
 
     def best(kind: str) -> "_Candidate | None":
