@@ -330,8 +330,8 @@ def _hac(X: np.ndarray, e: np.ndarray, starts: Sequence[int]) -> tuple[np.ndarra
 
 
 def _check_log_signs(chosen: "_Candidate", series: Sequence[JointSeries], joint: str) -> None:
-    """DataError when the logs, each fitted alone with the chosen terms, give the gain or the Coulomb
-    friction clearly opposite signs (one log's sensor counts the other way: a flip for every log cannot
+    """DataError when the logs, each fitted alone with the terms of ``chosen`` (the plain law), give the
+    gain or the Coulomb friction clearly opposite signs (one log's sensor counts the other way: a flip for every log cannot
     fix it)."""
     gram, idx, nonneg = chosen.source
     own = np.array([_bounded_fit(gram.Gf[f], gram.bf[f], idx, nonneg)[0] for f in range(len(series))])
@@ -553,37 +553,24 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         reason = why_not or (f"static: the state law's {label} {score(state_best):.4g} is not below the static "
                              f"law's {score(static_best):.4g}")
     law, static_law = _law(chosen, h), _law(static_best, h)
-    X = _design(chosen, series, qps, starts)
-    e = y - X @ chosen.coef
-    free = np.array([not (i < len(chosen.terms) and chosen.terms[i] in NONNEGATIVE and chosen.coef[i] == 0.0)
-                     for i in range(X.shape[1])])
-    cov, infl = _hac(X[:, free], e, starts)
-    sd = np.zeros(X.shape[1])
-    sd[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    half = _Z95 * sd
-    if chosen.folds is not None and chosen.folds.shape[0] >= 3:
-        # block jackknife over the folds: the spread of the estimate across independent parts of the data,
-        # with F − 1 degrees of freedom (Student's t: three blocks say little about a spread)
-        from scipy.stats import t as student
-
-        F = chosen.folds.shape[0]
-        jk = np.sqrt((F - 1) / F * np.sum((chosen.folds - chosen.folds.mean(axis=0)) ** 2, axis=0))
-        half[: jk.size] = np.maximum(half[: jk.size], float(student.ppf(0.975, F - 1)) * jk)
-    # a term held at its bound 0 (its unconstrained value was negative) has no interval (None)
-    intervals = {t: [float(chosen.coef[i] - half[i]), float(chosen.coef[i] + half[i])] if free[i] else None
-                 for i, t in enumerate(chosen.terms)}
-    wrong = sign_diagnosis(dict(zip(chosen.terms, chosen.coef)), intervals, drive=drive)
+    intervals, infl = _intervals(chosen, series, qps, starts, y)
+    plain = [c for c in cands if c.kind == "static" and not set(c.terms) & (optional | {"stribeck"})]
+    base = min(plain, key=lambda c: c.bic) if plain else chosen
+    # signs are read on the plain law: optional terms (a stiffness) can leave the gain undetermined
+    wrong = sign_diagnosis(dict(zip(base.terms, base.coef)), _intervals(base, series, qps, starts, y)[0]
+                           if base is not chosen else intervals, drive=drive)
     if wrong is not None:
         raise DataError(f"joint '{joint}': {wrong}", series[0].source)
     if len(series) >= 2:
-        _check_log_signs(chosen, series, joint)
+        _check_log_signs(base, series, joint)
     pre = None
     if chosen.kind == "state":
         # N ln(SSE/SSE_min) ≈ ΔSSE/σ² ≤ χ²₁(95 %) × the long-run inflation of the residual variance
         pre = _profile_interval(np.array(profile["presliding_distance"]), np.array(profile["bic"]), 3.84 * infl)
     best_of = {}
     for c in cands:
-        k2 = (c.kind, "stribeck" in c.terms, "damping" in c.terms, "gain_back" in c.terms, "load" in c.terms)
+        k2 = (c.kind, "stribeck" in c.terms, "damping" in c.terms, "gain_back" in c.terms, "load" in c.terms,
+              "stiffness_out" in c.terms)
         if c.ok and (k2 not in best_of or c.bic < best_of[k2].bic):
             best_of[k2] = c
     bic = {"static": float(static_best.bic), "state": None if state_best is None else float(state_best.bic),
@@ -596,6 +583,30 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
                 "state": None if state_best is None or not np.isfinite(state_best.cv) else float(state_best.cv) / N,
                 "chosen": float(chosen.cv) / N if np.isfinite(chosen.cv) else None}
     return JointFit(joint, law, static_law, bic, reason, intervals, pre, profile, int(N), noise, held)
+
+
+def _intervals(c: "_Candidate", series, qps, starts, y: np.ndarray) -> tuple[dict, float]:
+    """95 % intervals of candidate ``c``'s amplitudes (module docstring: Newey–West, widened to the block
+    jackknife with Student's t) and the long-run inflation of the residual variance."""
+    X = _design(c, series, qps, starts)
+    e = y - X @ c.coef
+    free = np.array([not (i < len(c.terms) and c.terms[i] in NONNEGATIVE and c.coef[i] == 0.0)
+                     for i in range(X.shape[1])])
+    cov, infl = _hac(X[:, free], e, starts)
+    sd = np.zeros(X.shape[1])
+    sd[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    half = _Z95 * sd
+    if c.folds is not None and c.folds.shape[0] >= 3:
+        # block jackknife over the folds: the spread of the estimate across independent parts of the data,
+        # with F − 1 degrees of freedom (Student's t: three blocks say little about a spread)
+        from scipy.stats import t as student
+
+        F = c.folds.shape[0]
+        jk = np.sqrt((F - 1) / F * np.sum((c.folds - c.folds.mean(axis=0)) ** 2, axis=0))
+        half[: jk.size] = np.maximum(half[: jk.size], float(student.ppf(0.975, F - 1)) * jk)
+    # a term held at its bound 0 (its unconstrained value was negative) has no interval (None)
+    return ({t: [float(c.coef[i] - half[i]), float(c.coef[i] + half[i])] if free[i] else None
+             for i, t in enumerate(c.terms)}, infl)
 
 
 def _profile_interval(L: np.ndarray, b: np.ndarray, level: float) -> list[float]:
