@@ -331,11 +331,12 @@ def _hac(X: np.ndarray, e: np.ndarray, starts: Sequence[int]) -> tuple[np.ndarra
 
 def _check_log_signs(chosen: "_Candidate", series: Sequence[JointSeries], joint: str) -> None:
     """DataError when the logs, each fitted alone with the terms of ``chosen`` (the plain law), give the
-    gain or the Coulomb friction clearly opposite signs (one log's sensor counts the other way: a flip for every log cannot
+    gain (a drive) or the Coulomb friction (a plain bench) clearly opposite signs (one log's sensor counts the other way: a flip for every log cannot
     fix it)."""
     gram, idx, nonneg = chosen.source
     own = np.array([_bounded_fit(gram.Gf[f], gram.bf[f], idx, nonneg)[0] for f in range(len(series))])
-    for t in ("gain", "fc"):
+    # the gain of a drive (its friction can be small beside K u), else the Coulomb friction
+    for t in (("gain",) if "gain" in chosen.terms else ("fc",)):
         if t not in chosen.terms:
             continue
         x = own[:, chosen.terms.index(t)]
