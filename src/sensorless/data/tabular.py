@@ -47,9 +47,9 @@ def is_number(tok: str) -> bool:
 
 def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
     """The table of a CSV or whitespace-separated text file and whether it has a header (no
-    header if the first row is all numbers); ``#`` or ``%`` starts a comment line. A header written
-    as the last comment line before the data (``%time, pos, ...``, as MATLAB-style loggers do) is the
-    header when it has as many names as the first row has numbers."""
+    header if the first row is all numbers); ``#`` or ``%`` starts a comment line. A ``%`` line just
+    before the data with as many names as the first row has fields is the header (``%time,field.…`` of
+    ``rostopic echo -p``, the last ``%`` line of MATLAB-style loggers)."""
     import pandas as pd
 
     src = str(path)
@@ -62,7 +62,7 @@ def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
                     break
                 skip += 1
                 if line.strip():
-                    last_comment = line.lstrip()[1:]
+                    last_comment = line.lstrip()[1:] if line.lstrip().startswith("%") else None
     except OSError as exc:
         raise DataError(f"cannot open: {exc.strerror or exc}", src) from None
     if first is None:
@@ -72,7 +72,7 @@ def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
     tokens = split(first)
     header = any(tok and not is_number(tok) for tok in tokens)
     names = None
-    if not header and last_comment is not None:
+    if last_comment is not None:
         cand = split(last_comment)
         if len(cand) == len(tokens) and all(cand) and not all(is_number(c) for c in cand):
             names, header = cand, True
