@@ -233,18 +233,25 @@ class _Gram:
         for f in range(nf):
             if self.yyf[f] == 0.0 and not self.Gf[f].any():
                 continue
-            c, _ = _bounded_fit(G - self.Gf[f], b - self.bf[f], idx, nonneg)
+            # a column (a log's initial state) with next to nothing outside the fold gets 0, not a wild value
+            Gt = G - self.Gf[f]
+            seen = np.diag(Gt)[idx] > _SEEN * np.maximum(np.diag(G)[idx], 1e-300)
+            c, _ = _bounded_fit(Gt, b - self.bf[f], idx, nonneg, seen)
             Gh, bh = self.Gf[f][np.ix_(idx, idx)], self.bf[f][idx]
             sse += max(float(self.yyf[f] - 2 * c @ bh + c @ Gh @ c), 0.0)
             coefs.append(c)
         return sse, np.array(coefs)
 
 
-def _bounded_fit(G: np.ndarray, b: np.ndarray, idx, nonneg) -> tuple[np.ndarray, np.ndarray]:
+#: a column whose squared norm outside a held-out fold is below this share of its total is not fitted there
+_SEEN = 1e-6
+
+
+def _bounded_fit(G: np.ndarray, b: np.ndarray, idx, nonneg, seen=None) -> tuple[np.ndarray, np.ndarray]:
     """Coefficients of columns ``idx`` from normal equations ``G``, ``b``, those at positions ``nonneg``
-    held ≥ 0 (:meth:`_Gram.fit`), and the mask of the free ones."""
+    held ≥ 0 (:meth:`_Gram.fit`) and those not ``seen`` (a mask) held at 0, and the mask of the free ones."""
     idx = np.asarray(idx, dtype=int)
-    free = np.ones(idx.size, dtype=bool)
+    free = np.ones(idx.size, dtype=bool) if seen is None else np.asarray(seen, dtype=bool).copy()
     nonneg = np.asarray(list(nonneg), dtype=int)
     while True:
         sub = idx[free]
