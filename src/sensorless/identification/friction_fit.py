@@ -336,6 +336,14 @@ def _hac(X: np.ndarray, e: np.ndarray, starts: Sequence[int]) -> tuple[np.ndarra
     return Ginv @ S @ Ginv, max(infl, 1.0)
 
 
+def _score_held_out(c: "_Candidate") -> "_Candidate":
+    """``c`` with its blocked held-out SSE and per-fold amplitudes (:meth:`_Gram.held_out`), computed once."""
+    if c.folds is None:
+        gram, idx, nonneg = c.source
+        c.cv, c.folds = gram.held_out(idx, nonneg)
+    return c
+
+
 def _check_log_signs(chosen: "_Candidate", series: Sequence[JointSeries], joint: str) -> None:
     """DataError when the logs, each fitted alone with the terms of ``chosen`` (the plain law), give the
     gain (a drive) or the Coulomb friction (a plain bench) clearly opposite signs (one log's sensor counts the other way: a flip for every log cannot
@@ -452,8 +460,6 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         p = used + extra
         cand = _Candidate(kind, tuple(names), vs, k, c, sse, p, bool(ok), bic_of(sse, p), eps=width,
                           source=(gram, idx, nonneg))
-        if choice == "held-out" or kind == "static":
-            cand.cv, cand.folds = gram.held_out(idx, nonneg)
         cands.append(cand)
         return cand
 
@@ -511,6 +517,8 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
         for c in cands:
             if c.kind == kind and c.ok and (c.terms not in per or c.bic < per[c.terms].bic):
                 per[c.terms] = c
+        for c in per.values():  # the held-out error only of each structure's best fit (the costly part)
+            _score_held_out(c)
         return min(per.values(), key=key) if per else None
 
     static_best = best("static")
@@ -563,7 +571,7 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     law, static_law = _law(chosen, h), _law(static_best, h)
     intervals, infl = _intervals(chosen, series, qps, starts, y)
     plain = [c for c in cands if c.kind == "static" and not set(c.terms) & (optional | {"stribeck"})]
-    base = min(plain, key=lambda c: c.bic) if plain else chosen
+    base = _score_held_out(min(plain, key=lambda c: c.bic)) if plain else chosen
     # signs are read on the plain law: optional terms (a stiffness) can leave the gain undetermined
     wrong = sign_diagnosis(dict(zip(base.terms, base.coef)), _intervals(base, series, qps, starts, y)[0]
                            if base is not chosen else intervals, drive=drive)
@@ -607,11 +615,11 @@ def _intervals(c: "_Candidate", series, qps, starts, y: np.ndarray) -> tuple[dic
     if c.folds is not None and c.folds.shape[0] >= 3:
         # block jackknife over the folds: the spread of the estimate across independent parts of the data,
         # with F − 1 degrees of freedom (Student's t: three blocks say little about a spread)
-        from scipy.stats import t as student
+        from scipy.special import stdtrit  # Student's t quantile (scipy.stats loads in seconds)
 
         F = c.folds.shape[0]
         jk = np.sqrt((F - 1) / F * np.sum((c.folds - c.folds.mean(axis=0)) ** 2, axis=0))
-        half[: jk.size] = np.maximum(half[: jk.size], float(student.ppf(0.975, F - 1)) * jk)
+        half[: jk.size] = np.maximum(half[: jk.size], float(stdtrit(F - 1, 0.975)) * jk)
     # a term held at its bound 0 (its unconstrained value was negative) has no interval (None)
     return ({t: [float(c.coef[i] - half[i]), float(c.coef[i] + half[i])] if free[i] else None
              for i, t in enumerate(c.terms)}, infl)
