@@ -122,6 +122,9 @@ def test_cli_takes_current_and_output_torque_and_pools_test_groups(tmp_path):
     assert r.exit_code == 0, r.output
     z = np.load(tmp_path / "p.npz")
     assert float(np.sqrt(np.mean((z["tau_pred"] - z["tau_measured"]) ** 2))) <= 1.1 * drive_noise(LOAD)
+    r = runner.invoke(app, ["monitor", "--model", str(tmp_path / "m"), "--data", str(paths[3]), "--quiet", "0:3",
+                            "--out", str(tmp_path / "mon")])
+    assert r.exit_code != 0 and "observer does not take" in r.output, r.output
 
 
 def test_commented_header_of_a_lab_logger_is_read(tmp_path):
