@@ -117,6 +117,11 @@ def test_cli_takes_current_and_output_torque_and_pools_test_groups(tmp_path):
     assert pooled["logs"] == 2 and pooled["model"] <= 1.1 * drive_noise(LOAD)
     assert pooled["linear K·u + o"] > pooled["linear + Coulomb/viscous"] > pooled["model"]
     assert doc["laws"]["joint"]["coef"]["gain"] == pytest.approx(LOAD.gain, rel=0.01)
+    from sensorless.data.gains import load_gains  # the fitted gain, as a file --gains reads
+
+    gains = load_gains(tmp_path / "m" / "gains.json")
+    lo, hi = json.loads((tmp_path / "m" / "gains.json").read_text())["intervals"]["joint"]
+    assert gains["joint"] == pytest.approx(LOAD.gain, rel=0.01) and lo < gains["joint"] < hi  # coverage: slow test
     r = runner.invoke(app, ["predict", "--model", str(tmp_path / "m"), "--data", str(paths[3]),
                             "--out", str(tmp_path / "p.npz")])
     assert r.exit_code == 0, r.output

@@ -40,7 +40,7 @@ from .logs import trim_option
 from .options import FrictionState, TimeUnit, Velocity
 from .progress import progress_bars
 
-__all__ = ["friction", "friction_model_log", "predict_friction", "read_bench_logs"]
+__all__ = ["drive_gains_of", "friction", "friction_model_log", "predict_friction", "read_bench_logs"]
 
 #: the preprocessing keys a friction model stores (settings.preprocessing) and predict reuses
 BENCH_KEYS = ("columns", "gains", "rate", "time_unit", "max_gap", "velocity", "savgol_window", "angle_unit", "flip")
@@ -99,7 +99,8 @@ def friction(
     test: List[str] = typer.Option([], help="held-out log(s): RMSE overall and near velocity reversals; "
                                             "GROUP=FILE puts the log in a group whose RMSE is pooled"),
     out: Path = typer.Option(Path("friction_model"), help="output folder: result.json (a model for `sensorless "
-                                                          "predict`), friction.png (written atomically)"),
+                                                          "predict`), friction.png, and for a drive gains.json "
+                                                          "(for --gains; written atomically)"),
     joints: Optional[str] = typer.Option(None, help="joints to fit, comma-separated (default: every joint of the "
                                                     "first log); the name of the joint of a bare-column log"),
     terms: str = typer.Option("fc,stribeck,fv,offset,inertia,gain_back,load,stiffness",
@@ -177,6 +178,11 @@ def friction(
         if resolved is not None:
             doc["settings"]["preprocessing"]["gains"] = resolved
         save_friction_model(tmp, model, doc)
+        gains = drive_gains_of(model)
+        if gains is not None:
+            from ..io import write_json_atomic
+
+            write_json_atomic(gains, tmp / "gains.json")
         if plot:
             from ..report.friction_bench_plot import plot_bench_friction
 
@@ -199,6 +205,26 @@ def _smoothing(text: str):
     if not (np.isfinite(val) and val >= 0):
         raise OptionError(f"--coulomb-smoothing must be 'auto' or a number >= 0 [rad/s], got '{text}'")
     return val
+
+
+def drive_gains_of(model) -> "dict | None":
+    """The drive gains K of a model whose laws are drives, as a gains file (``--gains gains.json``
+    elsewhere): ``{"gains": {joint: K}}`` for the joints whose K has a 95 % interval clear of 0, the
+    intervals, the back-driven gains, and the joints left out with the reason; None for a plain model."""
+    if not model.laws_ or not all(law.is_drive for law in model.laws_.values()):
+        return None
+    out = {"gains": {}, "intervals": {}, "gain_back": {}, "undetermined": {},
+           "source": "sensorless friction (gain fitted with the friction from the current and the output torque)"}
+    for j, law in model.laws_.items():
+        iv = model.fits_[j].intervals.get("gain") if model.fits_ else None
+        if iv is None or iv[0] <= 0 <= iv[1]:
+            out["undetermined"][j] = (f"K = {law.coef['gain']:.4g}, 95 % interval {iv} includes 0 (another term, "
+                                      "e.g. the stiffness, carries the torque)")
+            continue
+        out["gains"][j], out["intervals"][j] = law.coef["gain"], iv
+        if "gain_back" in law.coef:
+            out["gain_back"][j] = law.coef["gain"] + law.coef["gain_back"]
+    return out
 
 
 def _references(model, train: list, smoothing, names) -> dict:
