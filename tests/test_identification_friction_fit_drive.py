@@ -158,3 +158,10 @@ def test_drive_bench_coverage_over_20_seeds(name, bench, tmp_path):
           f"median {np.median(ratios):.3f}")
     assert all(h >= 18 for h in hits.values()), hits
     assert max(ratios) <= 1.1, ratios
+
+
+def test_an_output_torque_without_a_drive_input_is_refused(tmp_path):
+    p = write_drive_csv(simulate_drive_bench(LOAD, seed=0, duration=2.0), tmp_path / "b.csv")
+    pd.read_csv(p)[["t", "q", "tau_out"]].to_csv(tmp_path / "out_only.csv", index=False)
+    with pytest.raises(DataError, match="output torque 'tau_out' with the current"):
+        read_bench_log(tmp_path / "out_only.csv")

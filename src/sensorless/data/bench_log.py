@@ -61,7 +61,7 @@ def bare_columns(path: "str | Path") -> "dict | None":
         hit = [n for n in names if n.lower() in FIELD_WORDS[field]]
         if len(hit) == 1:
             cols[field] = hit[0]
-    if ("q" not in cols and "v" not in cols) or ("tau" not in cols and "current" not in cols):
+    if ("q" not in cols and "v" not in cols) or not {"tau", "current", "tau_out"} & set(cols):
         return None
     if "q" not in cols:
         cols["q"] = cols["v"]  # replaced by ∫ v dt after reading
