@@ -11,7 +11,7 @@ fit of τ, and the non-linear ones are chosen on grids (variable projection):
   grid of :func:`~.friction.stribeck_grid`;
 * **state**: the Dahl/LuGre states s_c, s_s for each inverse presliding distance k on a grid
   (1/k from 10⁻⁴ to 0.3 × the median stroke between reversals, and at least twice the play
-  half-width h = 3 position-noise stds), each vs, with or without the damping σ1 (q̇ − |q̇| s_c),
+  half-width h = 3 position-noise stds, at least one encoder step), each vs, with or without the damping σ1 (q̇ − |q̇| s_c),
   plus one initial-state column e^{−kS} per log.
 
 **Drives.** A series with a drive input u (a motor current, or an input torque) has the output
@@ -57,7 +57,7 @@ from .friction import coulomb_smoothing_from_noise, stribeck_grid
 from ..regressor.friction_state import LAW_TERMS, STATE_BLOCK, FrictionLaw, dahl_state_blocks, dahl_states, play
 
 __all__ = ["CHOICES", "DEFAULT_TERMS", "FIT_TERMS", "STATE_MODES", "TIME_FOLDS", "JointFit", "JointSeries",
-           "fit_joint_friction", "joint_series", "sign_diagnosis"]
+           "encoder_quantum", "fit_joint_friction", "joint_series", "sign_diagnosis"]
 
 #: terms fitted by default (``damping`` is offered with a state; ``stribeck``, the drive terms
 #: ``gain_back`` and ``load`` (with a drive) and the state are kept where the choice supports them)
@@ -365,6 +365,18 @@ def _check_log_signs(chosen: "_Candidate", series: Sequence[JointSeries], joint:
                             f"way; {setting('flip')} reverses every log, so fit them separately with it")
 
 
+def encoder_quantum(dq: np.ndarray) -> float:
+    """The step of a quantized position (its smallest non-zero change, when 95 % of the changes are whole
+    multiples of it), else 0."""
+    dq = np.abs(np.asarray(dq, dtype=float))
+    dq = dq[dq > 0]
+    if dq.size < 10:
+        return 0.0
+    step = float(dq.min())
+    m = dq / step
+    return step if np.mean(np.abs(m - np.round(m)) < 0.01) >= 0.95 else 0.0
+
+
 def _folds(series: Sequence[JointSeries]) -> tuple[list[np.ndarray], int]:
     """Per series the fold of each row, and the number of folds: one per log, or :data:`TIME_FOLDS`
     contiguous blocks of a single log."""
@@ -423,7 +435,9 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     dt = float(np.median(np.concatenate([np.diff(s.t) for s in series])))
     eps = (float(coulomb_smoothing_from_noise(np.array([sig_v]), speed=np.array([speed]))[0])
            if coulomb_smoothing == "auto" else float(coulomb_smoothing))
-    h = PLAY_SIGMAS * max(sig_q, sig_v * dt)
+    quantum = encoder_quantum(np.concatenate([np.diff(s.q) for s in series]))
+    # a play of one encoder count at least: a count flickering back and forth is not a reversal
+    h = max(PLAY_SIGMAS * max(sig_q, sig_v * dt), quantum)
     grid_vs = (stribeck_grid(np.array([speed]), np.array([eps]), np.array([0.0]), [joint], [joint])[joint]
                if "stribeck" in terms and with_fc else [])
     starts = np.cumsum([0] + [len(s) for s in series[:-1]]).tolist()
@@ -435,7 +449,7 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     # over a wider band than the noise), chosen with vs per structure (variable projection)
     widths = (np.unique(np.geomspace(eps, max(eps, WIDTH_SPAN * speed), WIDTH_POINTS)) if coulomb_smoothing == "auto"
               and eps > 0 else np.array([eps]))
-    noise = {"velocity": sig_v, "position": sig_q, "coulomb_smoothing": eps, "play": h,
+    noise = {"velocity": sig_v, "position": sig_q, "coulomb_smoothing": eps, "play": h, "encoder_step": quantum,
              "median_stroke": float(np.median(strokes)) if strokes.size else None, "reversals": int(strokes.size)}
 
     u_all = np.concatenate([s.drive for s in series]) if drive else None
