@@ -10,7 +10,8 @@ fit of τ, and the non-linear ones are chosen on grids (variable projection):
   :data:`WIDTH_SPAN` × the 95th percentile of |v| (a given ``coulomb_smoothing`` fixes it), vs on the
   grid of :func:`~.friction.stribeck_grid`;
 * **state**: the Dahl/LuGre states s_c, s_s for each inverse presliding distance k on a grid
-  (1/k from 10⁻⁴ to 0.3 × the median stroke between reversals, and at least twice the play
+  (1/k from 10⁻⁴ to 0.3 × the median stroke between reversals, strokes within :data:`STROKE_PLAYS`
+  play half-widths left out, and at least twice the play
   half-width h = 3 position-noise stds, at least one encoder step), each vs, with or without the damping σ1 (q̇ − |q̇| s_c),
   plus one initial-state column e^{−kS} per log.
 
@@ -79,6 +80,8 @@ WIDTH_SPAN = 0.2
 #: ... on this many points (geometric), then refined this many times (9 points between the best's neighbours)
 WIDTH_POINTS = 8
 WIDTH_REFINE = 2
+#: strokes shorter than this many play half-widths are left out of the median stroke (dither at a turn)
+STROKE_PLAYS = 4.0
 #: play half-width h = this × the position noise std
 PLAY_SIGMAS = 3.0
 _Z95 = 1.959964
@@ -445,6 +448,7 @@ def fit_joint_friction(series: Sequence[JointSeries], *, joint: str = "joint", t
     fold = np.concatenate(fold_rows)
     qps = [play(s.q, h) for s in series]
     strokes = np.concatenate([_turning_strokes(qp) for qp in qps])
+    strokes = strokes[strokes > STROKE_PLAYS * h]  # back-and-forth within a few plays is dither, not a stroke
     # the transition width ε of tanh(v/ε): from the velocity noise up (a compliant drive's friction turns
     # over a wider band than the noise), chosen with vs per structure (variable projection)
     widths = (np.unique(np.geomspace(eps, max(eps, WIDTH_SPAN * speed), WIDTH_POINTS)) if coulomb_smoothing == "auto"
