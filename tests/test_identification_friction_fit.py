@@ -114,3 +114,12 @@ def test_observer_carries_the_state_run_equals_step_and_sees_a_push(lugre_fit):
         out[kind] = (float(np.sqrt(np.mean(r[free] ** 2))), float(np.mean(r[contact])))
     assert out["state"][0] <= 0.5 * out["static"][0]
     assert out["state"][1] == pytest.approx(0.2, rel=0.1)
+
+
+def test_held_out_choice_on_one_short_log_keeps_the_state():
+    """One 20 s log: five time blocks; a block's initial-state column, empty outside it, is held at 0
+    there (not fitted wild), so the state's held-out error is the state's, not the initial transient's."""
+    train, _ = simulate_lugre_joint(LUGRE, duration=20.0, seed=0)
+    fit = FrictionModel().fit([train]).fits_["joint"]
+    assert fit.held_out["by"] == "time block" and fit.held_out["folds"] == 5
+    assert fit.law.kind == "state" and fit.held_out["state"] < 0.1 * fit.held_out["static"]

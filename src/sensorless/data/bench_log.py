@@ -15,6 +15,11 @@ Column names: a single-joint CSV may use the bare field words (``t, q, v, tau`` 
 ``velocity``, ``torque``, ``current`` …; :data:`~sensorless.data.tabular.FIELD_WORDS`) — the joint
 is then named ``joint`` (or the one name given); multi-joint logs use the usual ``q_<joint>`` …
 columns. A log with a velocity but no position gets q = ∫ v dt (trapezoid).
+
+A bench with a drive may log the motor current (``current``) or the input torque (``tau``) *and* the
+output torque (``tau_out``, e.g. a jaw-side sensor), and the motor-side position (``q_motor``): they
+are kept as they are (``extras``; the friction fit estimates the gain). ``flip`` reverses the sign of
+fields a sensor counts the other way (:data:`FLIP_FIELDS`; ``q`` reverses q, v and v̇).
 """
 
 from __future__ import annotations
@@ -28,10 +33,12 @@ import numpy as np
 from ..errors import DataError, DataWarning, OptionError, TimestampError, setting
 from .trajectory import Trajectory
 
-__all__ = ["DEFAULT_BENCH_GAP", "bare_columns", "read_bench_log"]
+__all__ = ["DEFAULT_BENCH_GAP", "FLIP_FIELDS", "bare_columns", "read_bench_log"]
 
 #: a step over this many median periods splits the log for differentiation (not an error)
 DEFAULT_BENCH_GAP = 10.0
+#: fields whose sign ``flip`` may reverse
+FLIP_FIELDS = ("q", "tau", "current", "tau_out", "q_motor")
 
 
 def bare_columns(path: "str | Path") -> "dict | None":
@@ -50,11 +57,11 @@ def bare_columns(path: "str | Path") -> "dict | None":
     sep = "\t" if "\t" in head else ";" if ";" in head and "," not in head else ","
     names = [c.strip().strip('"') for c in head.strip().split(sep)]
     cols = {}
-    for field in ("q", "v", "a", "tau", "current"):
+    for field in ("q", "v", "a", "tau", "current", "tau_out", "q_motor"):
         hit = [n for n in names if n.lower() in FIELD_WORDS[field]]
         if len(hit) == 1:
             cols[field] = hit[0]
-    if ("q" not in cols and "v" not in cols) or ("tau" not in cols and "current" not in cols):
+    if ("q" not in cols and "v" not in cols) or not {"tau", "current", "tau_out"} & set(cols):
         return None
     if "q" not in cols:
         cols["q"] = cols["v"]  # replaced by ∫ v dt after reading
@@ -64,11 +71,13 @@ def bare_columns(path: "str | Path") -> "dict | None":
 def read_bench_log(path: "str | Path", *, columns: "dict | None" = None, joints: "Sequence[str] | None" = None,
                    gains=None, rate: "float | None" = None, time_unit: "str | None" = None, trim=None,
                    max_gap: float = DEFAULT_BENCH_GAP, velocity: str = "logged",
-                   savgol_window: "int | None" = None, need_acceleration: bool = True) -> Trajectory:
+                   savgol_window: "int | None" = None, need_acceleration: bool = True,
+                   flip: Sequence[str] = ()) -> Trajectory:
     """Read a bench log (module docstring) into a Trajectory with t, q, v (and v̇ when
     ``need_acceleration``) and τ at the log's own stamps. ``columns``: a column map (default: the
     file's header conventions, or bare field words); ``joints``: the joint names of a log whose
-    columns do not name them; ``velocity``: "logged" (keep a logged v) or "from-q"."""
+    columns do not name them; ``velocity``: "logged" (keep a logged v) or "from-q"; ``flip``: fields
+    whose sign is reversed (module docstring)."""
     from .trims import trim_window
     from .readers import read_trajectory
 
@@ -86,9 +95,17 @@ def read_bench_log(path: "str | Path", *, columns: "dict | None" = None, joints:
         names = names or ["joint"]
     traj = read_trajectory(path, columns=bare or columns, joint_names=names, rate=rate, time_unit=time_unit,
                            gains=gains, allow_duplicate_times=True)
-    if traj.tau is None:
-        raise DataError(f"the log has no torque: give a 'tau' column, or currents with {setting('gains')}", src)
+    bad = [f for f in flip if f not in FLIP_FIELDS]
+    if bad:
+        raise OptionError(f"{setting('flip')} takes fields among {', '.join(FLIP_FIELDS)}, got {bad}")
+    drive = "tau_out" in traj.extras and (traj.tau is not None or "current" in traj.extras)
+    if traj.tau is None and not drive:
+        raise DataError(f"the log has no torque: give a 'tau' column, or currents with {setting('gains')}, or an "
+                        f"output torque 'tau_out' with the current", src)
     prov = dict(traj.provenance)
+    if flip:
+        traj = _flipped(traj, flip, src)
+        prov["flipped"] = list(flip)
     if bare is not None and bare["q"] == bare.get("v"):
         traj = traj.with_(q=_integrate(traj.t, traj.v))
         prov["q"] = "derived: ∫ v dt (trapezoid)"
@@ -131,6 +148,23 @@ def read_bench_log(path: "str | Path", *, columns: "dict | None" = None, joints:
     return traj.with_(provenance=prov)
 
 
+def _flipped(traj: Trajectory, flip: Sequence[str], src: str) -> Trajectory:
+    """``traj`` with the sign of the fields ``flip`` reversed (``q``: q, v and v̇)."""
+    kw, extras = {}, dict(traj.extras)
+    for f in flip:
+        if f == "q":
+            kw.update({k: -getattr(traj, k) for k in ("q", "v", "a") if getattr(traj, k) is not None})
+        elif f == "tau":
+            if traj.tau is None:
+                raise DataError(f"{setting('flip', 'tau')}: the log has no torque", src)
+            kw["tau"] = -traj.tau
+        elif f not in extras:
+            raise DataError(f"{setting('flip', f)}: the log has no '{f}' column", src)
+        else:
+            extras[f] = -np.asarray(extras[f], dtype=float)
+    return traj.with_(extras=extras, **kw)
+
+
 def _integrate(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     dq = 0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None]
     return np.concatenate([np.zeros((1, v.shape[1])), np.cumsum(dq, axis=0)])
@@ -155,7 +189,9 @@ def _merge_duplicates(traj: Trajectory) -> Trajectory:
         np.add.at(out, inv, x)
         return out / counts.reshape((-1,) + (1,) * (x.ndim - 1))
 
-    return traj.with_(t=tu, q=avg(traj.q), v=avg(traj.v), a=avg(traj.a), tau=avg(traj.tau))
+    extras = {k: (avg(np.asarray(x, dtype=float)) if np.ndim(x) >= 1 and len(x) == traj.t.size else x)
+              for k, x in traj.extras.items()}
+    return traj.with_(t=tu, q=avg(traj.q), v=avg(traj.v), a=avg(traj.a), tau=avg(traj.tau), extras=extras)
 
 
 def _derivatives(seg: Trajectory, derive_v: bool, window: "int | None"):

@@ -31,6 +31,8 @@ FIELD_NAMES: dict[str, tuple[str, ...]] = {
     "tau": ("tau", "effort", "efforts", "torque", "torques", "eff", "trq", "joint_torques"),
     "current": ("current", "currents", "i", "cur", "curr"),
     "command": ("command", "commands", "cmd", "q_cmd"),
+    "tau_out": ("tau_out", "output_torque", "load_torque", "tau_load"),
+    "q_motor": ("q_motor", "motor_position", "motor_angle"),
     "base_q": ("base_q",),
     "base_v": ("base_v",),
     "base_a": ("base_a",),

@@ -49,7 +49,7 @@ SCALE_SAMPLES = 200_000
 OUTLIER_MODES = ("error", "drop", "keep")
 _MAD_TO_SIGMA = 1.4826
 _FIELDS = ("q", "v", "a", "tau", "base_q", "base_v", "base_a")
-_EXTRAS = ("current", "command")
+_EXTRAS = ("current", "command", "tau_out", "q_motor")
 _MIN_SAMPLES = 8  # below this, medians and percentiles say nothing
 
 

@@ -26,8 +26,10 @@ __all__ = ["read_text_table", "read_parquet_table", "fields_from_frame", "numeri
 #: time column names (case-insensitive); %time: `rostopic echo -p` (ns), __time: PlotJuggler's CSV export;
 #: tick counters are time columns too (read with --time-unit tick)
 TIME_COLUMNS = FIELD_NAMES["t"] + TICK_NAMES
+#: what starts a comment line of a text table
+_COMMENTS = ("#", "%")
 #: words a header may use for each field, the first being the default (``q_{joint}``, ...)
-FIELD_WORDS = {f: FIELD_NAMES[f] for f in ("q", "v", "a", "tau", "current", "command")}
+FIELD_WORDS = {f: FIELD_NAMES[f] for f in ("q", "v", "a", "tau", "current", "command", "tau_out", "q_motor")}
 _SEPARATORS = ("_", ".", "/", ":")
 _RANGE = re.compile(r"^\s*(\d*)\s*:\s*(\d*)\s*$")
 
@@ -45,17 +47,22 @@ def is_number(tok: str) -> bool:
 
 def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
     """The table of a CSV or whitespace-separated text file and whether it has a header (no
-    header if the first row is all numbers); ``#`` starts a comment."""
+    header if the first row is all numbers); ``#`` or ``%`` starts a comment line. A ``%`` line just
+    before the data with as many names as the first row has fields is the header (``%time,field.…`` of
+    ``rostopic echo -p``, the last ``%`` line of MATLAB-style loggers)."""
     import pandas as pd
 
     src = str(path)
-    first = None
+    first, last_comment, skip = None, None, 0
     try:
         with open(path, encoding="utf-8-sig", errors="replace") as fh:
             for line in fh:
-                if line.strip() and not line.lstrip().startswith("#"):
+                if line.strip() and not line.lstrip().startswith(_COMMENTS):
                     first = line
                     break
+                skip += 1
+                if line.strip():
+                    last_comment = line.lstrip()[1:] if line.lstrip().startswith("%") else None
     except OSError as exc:
         raise DataError(f"cannot open: {exc.strerror or exc}", src) from None
     if first is None:
@@ -63,13 +70,23 @@ def read_text_table(path: Path) -> tuple["pd.DataFrame", bool]:
     sep = next((s for s in (",", ";", "\t") if s in first), r"\s+")
     if sep == "\t" and "\t\t" in first.rstrip("\r\n"):
         sep = r"\t+"  # tick<TAB><TAB>value: runs of tabs are one separator (no empty column between them)
-    tokens = [tok.strip().strip("\"'") for tok in (first.split(sep) if sep not in (r"\s+", r"\t+")
-                                                    else re.split(sep, first.strip()))]
+    split = lambda ln: [tok.strip().strip("\"'") for tok in (ln.split(sep) if sep not in (r"\s+", r"\t+")  # noqa: E731
+                                                           else re.split(sep, ln.strip()))]
+    tokens = split(first)
     header = any(tok and not is_number(tok) for tok in tokens)
+    names = None
+    if last_comment is not None:
+        cand = split(last_comment)
+        if len(cand) == len(tokens) and all(cand) and not all(is_number(c) for c in cand):
+            names, header = cand, True
     try:
-        df = pd.read_csv(
-            path, sep=sep, header=0 if header else None, comment="#", skipinitialspace=True, encoding="utf-8-sig",
-            **({"engine": "python"} if sep == r"\t+" else {}))
+        engine = {"engine": "python"} if sep == r"\t+" else {}
+        if names is not None:
+            df = pd.read_csv(path, sep=sep, header=None, names=names, skiprows=skip, skipinitialspace=True,
+                             encoding="utf-8-sig", **engine)
+        else:
+            df = pd.read_csv(path, sep=sep, header=0 if header else None, skiprows=skip, comment="#",
+                             skipinitialspace=True, encoding="utf-8-sig", **engine)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError) as exc:
         raise DataError(f"cannot parse as CSV: {str(exc).strip()}", src) from None
     if header:

@@ -181,7 +181,7 @@ def read_signal_folder(path: Path, columns: Mapping | None) -> RawLog:
                         "every signal file needs the same time/tick column", src)
     n = read["q"][2].shape[1]
     wrong = [f"{r[0].name} ({r[2].shape[1]})" for fld, r in read.items() if fld != "q" and r[2].shape[1] != n
-             and fld in ("v", "a", "tau", "current", "command")]
+             and fld in ("v", "a", "tau", "current", "command", "tau_out", "q_motor")]
     if wrong:
         raise ShapeMismatchError(f"{read['q'][0].name} has {n} joint columns but {', '.join(wrong)}", src)
     if timed:

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 __all__ = ["validate_trajectory", "JOINT_EXTRAS", "MAX_ABS_VALUE"]
 
 #: ``extras`` keys holding one column per joint; they are reordered with the joints.
-JOINT_EXTRAS = ("current", "command")
+JOINT_EXTRAS = ("current", "command", "tau_out", "q_motor")
 
 _JOINT_FIELDS = ("q", "v", "a", "tau")
 _BASE_COLS = {"base_q": 7, "base_v": 6, "base_a": 6}

@@ -33,6 +33,11 @@ class FrictionDynamics:
         self.model = model
         self.names = tuple(model.joint_names_)
         laws = [model.laws_[j] for j in self.names]
+        drives = [j for j, law in zip(self.names, laws) if law.is_drive]
+        if drives:
+            raise DataError(f"the friction model of {drives} is a drive's (its gain fitted from the current and the "
+                            "output torque): it predicts the output torque, and the momentum observer does not take "
+                            "such a model; predict it with `sensorless predict`")
         self.inertia = np.array([law.coef.get("inertia", 0.0) for law in laws])
         self._laws = [dataclasses.replace(law, coef={k: v for k, v in law.coef.items() if k != "inertia"})
                       for law in laws]

@@ -1,7 +1,10 @@
 """A friction-only model of one or more joints (no body model), for test-bench logs.
 
 Each joint gets its own law, static or with a state (:mod:`.friction_fit`), fitted on the
-joint's samples of every training log. :class:`FrictionModel` has the estimator interface of the
+joint's samples of every training log. On a log with an output torque (``extras["tau_out"]``) and a
+drive input (the current, or τ) a law is a drive law: it predicts the output torque from the drive
+input (:meth:`~sensorless.regressor.friction_state.FrictionLaw.output_torque`), and that is what is
+measured (:func:`measured_torque`). :class:`FrictionModel` has the estimator interface of the
 package (``fit(trajectories) -> self``, ``predict(trajectory) -> τ̂``); a prediction integrates
 each state law along the log from the zero state (:meth:`~sensorless.regressor.friction_state.FrictionLaw.torque`),
 and :meth:`FrictionModel.integrator` does the same one sample at a time (an observer).
@@ -22,10 +25,11 @@ import numpy as np
 from ..data.rest import REST_SIGMAS, signal_noise
 from ..data.trajectory import Trajectory
 from ..errors import DataError, JointNameError, OptionError, setting
-from .friction_fit import DEFAULT_TERMS, STATE_MODES, JointFit, fit_joint_friction, joint_series
+from .friction_fit import CHOICES, DEFAULT_TERMS, STATE_MODES, JointFit, fit_joint_friction, joint_series
 from ..regressor.friction_state import FrictionLaw, FrictionStateIntegrator
 
-__all__ = ["DEFAULT_REVERSAL_WINDOW", "FrictionModel", "friction_errors", "reversal_mask", "reversal_threshold"]
+__all__ = ["DEFAULT_REVERSAL_WINDOW", "FrictionModel", "friction_errors", "measured_torque", "reversal_mask",
+           "reversal_threshold"]
 
 #: seconds on each side of a reversal counted as "near" it
 DEFAULT_REVERSAL_WINDOW = 1.0
@@ -37,23 +41,27 @@ class FrictionModel:
     ``terms``: the linear terms (:data:`~.friction_fit.DEFAULT_TERMS`; ``stribeck`` and the
     state are kept only where BIC supports them); ``state``: "auto" | "on" | "off";
     ``coulomb_smoothing``: "auto" (3 velocity-noise stds) or ε; ``joints``: the joints to fit
-    (default: every joint of the first log). Fitted: ``laws_`` / ``static_laws_`` {joint: law},
+    (default: every joint of the first log); ``choice``: how optional terms and the state are chosen,
+    "held-out" (blocked held-out error across logs) or "bic". Fitted: ``laws_`` / ``static_laws_`` {joint: law},
     ``fits_`` {joint: :class:`~.friction_fit.JointFit`}, ``joint_names_``.
     """
 
     def __init__(self, terms: Sequence[str] = DEFAULT_TERMS, state: str = "auto",
-                 coulomb_smoothing: "str | float" = "auto", joints: "Sequence[str] | None" = None) -> None:
+                 coulomb_smoothing: "str | float" = "auto", joints: "Sequence[str] | None" = None,
+                 choice: str = "held-out") -> None:
         if state not in STATE_MODES:
             raise OptionError(f"{setting('state')} must be one of {', '.join(STATE_MODES)}, got {state!r}")
         if not (coulomb_smoothing == "auto" or (isinstance(coulomb_smoothing, (int, float))
                                                 and np.isfinite(coulomb_smoothing) and coulomb_smoothing >= 0)):
             raise OptionError(f"{setting('coulomb_smoothing')} must be 'auto' or a number >= 0, got {coulomb_smoothing!r}")
-        self.terms, self.state, self.coulomb_smoothing = tuple(terms), state, coulomb_smoothing
+        if choice not in CHOICES:
+            raise OptionError(f"the choice must be one of {', '.join(CHOICES)}, got {choice!r}")
+        self.terms, self.state, self.coulomb_smoothing, self.choice = tuple(terms), state, coulomb_smoothing, choice
         self.joints = None if joints is None else tuple(joints)
 
     def get_params(self) -> dict:
         return {"terms": list(self.terms), "state": self.state, "coulomb_smoothing": self.coulomb_smoothing,
-                "joints": None if self.joints is None else list(self.joints)}
+                "joints": None if self.joints is None else list(self.joints), "choice": self.choice}
 
     def fit(self, trajectories: Iterable[Trajectory], progress: Callable[[int, int], None] | None = None
             ) -> "FrictionModel":
@@ -73,7 +81,8 @@ class FrictionModel:
         with one_blas_thread():
             for k, j in enumerate(joints):
                 self.fits_[j] = fit_joint_friction([joint_series(tr, j) for tr in logs], joint=j, terms=self.terms,
-                                                   state=self.state, coulomb_smoothing=self.coulomb_smoothing)
+                                                   state=self.state, coulomb_smoothing=self.coulomb_smoothing,
+                                                   choice=self.choice)
                 if progress is not None:
                     progress(k + 1, len(joints))
         self.joint_names_ = tuple(joints)
@@ -104,7 +113,8 @@ class FrictionModel:
         return [list(traj.joint_names).index(j) for j in self.joint_names_]
 
     def predict(self, traj: Trajectory, *, static: bool = False) -> np.ndarray:
-        """τ̂ (N, n_joints) in ``joint_names_`` order, states from 0; ``static``: the best static laws."""
+        """τ̂ (N, n_joints) in ``joint_names_`` order, states from 0; ``static``: the best static laws. A
+        drive law's τ̂ is the output torque from the drive input alone (never from the logged output)."""
         cols = self._check(traj)
         laws = self.static_laws_ if static else self.laws_
         out = np.empty((len(traj), len(cols)))
@@ -113,8 +123,38 @@ class FrictionModel:
             a = None if traj.a is None else traj.a[:, c]
             if "inertia" in law.coef and a is None:
                 raise DataError(f"the friction law of '{j}' has an inertia term; the log needs v̇", traj.source)
-            out[:, k] = law.torque(traj.q[:, c], traj.v[:, c], a)
+            if law.is_drive:
+                u = traj.extras.get("current", traj.tau)
+                if u is None:
+                    raise DataError(f"the friction law of '{j}' maps a drive input to the output torque; the log "
+                                    f"needs the current (or input torque) of '{j}'", traj.source)
+                qm = traj.extras.get("q_motor")
+                if "stiffness_motor" in law.coef and qm is None:
+                    raise DataError(f"the friction law of '{j}' has a transmission stiffness; the log needs the "
+                                    f"motor-side position (q_motor) of '{j}'", traj.source)
+                out[:, k] = law.output_torque(traj.q[:, c], traj.v[:, c], a, drive=np.asarray(u, dtype=float)[:, c],
+                                              motor=None if qm is None else np.asarray(qm, dtype=float)[:, c])
+            else:
+                out[:, k] = law.torque(traj.q[:, c], traj.v[:, c], a)
         return out
+
+    def friction_pair(self, traj: Trajectory, *, static: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """(measured, modelled) friction (N, n_joints): τ and τ̂ of a plain law; of a drive law what its
+        drive terms deliver minus the measured and the predicted output torque (the friction the
+        transmission takes)."""
+        pred = self.predict(traj, static=static)
+        cols = self._check(traj)
+        meas = np.column_stack([measured_torque(traj, j) for j in self.joint_names_])
+        laws = self.static_laws_ if static else self.laws_
+        for k, (j, c) in enumerate(zip(self.joint_names_, cols)):
+            law = laws[j]
+            if law.is_drive:
+                u = np.asarray(traj.extras.get("current", traj.tau), dtype=float)[:, c]
+                qm = traj.extras.get("q_motor")
+                d = law.drive_torque(traj.q[:, c], traj.v[:, c], drive=u,
+                                     motor=None if qm is None else np.asarray(qm, dtype=float)[:, c])
+                meas[:, k], pred[:, k] = d - meas[:, k], d - pred[:, k]
+        return meas, pred
 
     def integrator(self) -> FrictionStateIntegrator:
         """A streaming evaluator of the laws (states from 0), in ``joint_names_`` order."""
@@ -123,6 +163,18 @@ class FrictionModel:
     @property
     def has_state(self) -> bool:
         return any(law.kind == "state" for law in self.laws_.values())
+
+
+def measured_torque(traj: Trajectory, joint: str) -> np.ndarray:
+    """The torque a friction model predicts for ``joint`` of ``traj``: its output torque
+    (``extras["tau_out"]``) when logged, else its τ."""
+    c = list(traj.joint_names).index(joint)
+    out = traj.extras.get("tau_out")
+    if out is not None:
+        return np.asarray(out, dtype=float)[:, c]
+    if traj.tau is None:
+        raise DataError(f"the log has no torque of '{joint}'", traj.source)
+    return traj.tau[:, c]
 
 
 def reversal_threshold(v: np.ndarray) -> float:

@@ -31,6 +31,24 @@ where the data support a finite presliding distance.
 
 The static law (``kind="static"``) is the one of :mod:`sensorless.regressor.terms`:
 τ_f = fc tanh(v/ε) + (fs − fc) e^{−(v/vs)²} tanh(v/ε) + fv v + o (+ J v̇).
+
+**Drives** (a bench that logs the drive input u, a motor current or an input torque, *and* the output
+torque τ_out; :mod:`sensorless.identification.friction_fit`): the input drives the output through the
+friction, K u = τ_out + τ_f, with the gain K among the amplitudes. Three terms of a law say so:
+
+* ``gain`` K, column −u (the law's sum is τ_f − K u = −τ_out);
+* ``gain_back`` ΔK, column −u·w, w = max(0, −sgn(u) s_c) (max(0, −sgn(u) T) in a static law): the gain
+  while the output drives the motor back (direction-dependent efficiency: K when driving, K + ΔK when
+  back-driven; w is 0 at rest and 1 once sliding against u, with the Coulomb term's transition);
+* ``load`` μ, column |τ_load| s_c (|τ_load| T in a static law): Coulomb friction that grows with the
+  transmitted torque, (fc + μ |τ_load|) s;
+* ``stiffness_motor``, ``stiffness_out`` (a pair, where the motor-side position q_m is logged too):
+  columns −q_m and −q, so τ_out gains k_m q_m + k_o q: an elastic transmission (a cable, a strain-wave
+  gear) whose twist r q_m − q carries torque (k_m = k r, k_o = −k; its rest twist is in the offset).
+
+A prediction of τ_out without τ_load takes τ_load = τ_out and solves τ_out = r − μ |τ_out| s for it
+(r the rest of K u − τ_f): τ_out = r / (1 + μ s sgn r), one value for |μ s| < 1
+(:meth:`FrictionLaw.output_torque`).
 """
 
 from __future__ import annotations
@@ -43,13 +61,16 @@ import numpy as np
 
 from ..errors import DataError, ParameterError
 
-__all__ = ["FrictionLaw", "FrictionStateIntegrator", "LAW_KINDS", "LAW_TERMS", "STATE_BLOCK", "dahl_state_blocks",
+__all__ = ["DRIVE_TERMS", "FrictionLaw", "FrictionStateIntegrator", "LAW_KINDS", "LAW_TERMS", "STATE_BLOCK", "dahl_state_blocks",
            "dahl_states", "play",
            "presliding_states"]
 
 LAW_KINDS = ("static", "state")
 #: linear terms of a law, in column order (``damping`` only with a state; ``inertia`` = J v̇)
-LAW_TERMS = ("fc", "stribeck", "damping", "fv", "offset", "inertia")
+LAW_TERMS = ("fc", "stribeck", "damping", "fv", "offset", "inertia", "gain", "gain_back", "load", "stiffness_motor",
+             "stiffness_out")
+#: terms of a drive (module docstring: u and τ_out logged)
+DRIVE_TERMS = ("gain", "gain_back", "load", "stiffness_motor", "stiffness_out")
 
 
 def play(q: np.ndarray, h: float, start: float | None = None) -> np.ndarray:
@@ -158,13 +179,26 @@ class FrictionLaw:
         """1/k [rad or m] of a state law (None for a static law)."""
         return 1.0 / self.k if self.kind == "state" else None
 
+    @property
+    def is_drive(self) -> bool:
+        """Whether the law has a gain: it maps a drive input u to the output torque (module docstring)."""
+        return "gain" in self.coef
+
     def columns(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None, *,
-                states: "np.ndarray | None" = None) -> np.ndarray:
+                states: "np.ndarray | None" = None, drive: "np.ndarray | None" = None,
+                load: "np.ndarray | None" = None, motor: "np.ndarray | None" = None) -> np.ndarray:
         """Regressor (N, len(terms)) along a log from the zero state (``states``: precomputed
-        (N, 2) [s_c, s_s] of this law, e.g. from :func:`dahl_states`)."""
+        (N, 2) [s_c, s_s] of this law, e.g. from :func:`dahl_states`; ``drive`` u, ``load`` τ_load and
+        ``motor`` the motor-side position q_m for the drive terms, module docstring)."""
         v = np.asarray(v, dtype=float)
         if "inertia" in self.coef and a is None:
             raise DataError("the friction law has an inertia term and needs the acceleration v̇")
+        if ("gain" in self.coef or "gain_back" in self.coef) and drive is None:
+            raise DataError("the friction law has a drive gain and needs the drive input (current or input torque)")
+        if "load" in self.coef and load is None:
+            raise DataError("the friction law has a load-dependent term and needs the load torque")
+        if "stiffness_motor" in self.coef and motor is None:
+            raise DataError("the friction law has a transmission stiffness and needs the motor-side position q_motor")
         if self.kind == "state":
             if states is None:
                 states = dahl_states(play(q, self.play), v, [self.k], [self.vs or 1.0])[:, 0, :]
@@ -174,11 +208,45 @@ class FrictionLaw:
             ss = np.exp(-((v / (self.vs or 1.0)) ** 2)) * sc
         cols = {"fc": sc, "stribeck": ss, "damping": v - np.abs(v) * sc, "fv": v, "offset": np.ones_like(v),
                 "inertia": None if a is None else np.asarray(a, dtype=float)}
+        if drive is not None:
+            u = np.asarray(drive, dtype=float)
+            cols["gain"], cols["gain_back"] = -u, -u * np.maximum(0.0, -np.sign(u) * sc)
+        if load is not None:
+            cols["load"] = np.abs(np.asarray(load, dtype=float)) * sc
+        if motor is not None:
+            cols["stiffness_motor"] = -np.asarray(motor, dtype=float)
+        cols["stiffness_out"] = -np.asarray(q, dtype=float)
         return np.column_stack([cols[t] for t in self.terms]) if self.terms else np.zeros((v.size, 0))
 
-    def torque(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None) -> np.ndarray:
-        """τ_f (+ J v̇) along a log, the state starting at 0 (N,)."""
-        return self.columns(q, v, a) @ np.array(list(self.coef.values()))
+    def torque(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None, *,
+               drive: "np.ndarray | None" = None, load: "np.ndarray | None" = None,
+               motor: "np.ndarray | None" = None) -> np.ndarray:
+        """τ_f (+ J v̇) along a log, the state starting at 0 (N,); a drive law's τ_f − K u = −τ_out."""
+        return self.columns(q, v, a, drive=drive, load=load, motor=motor) @ np.array(list(self.coef.values()))
+
+    def drive_torque(self, q: np.ndarray, v: np.ndarray, *, drive: np.ndarray,
+                     motor: "np.ndarray | None" = None) -> np.ndarray:
+        """The torque a drive law's drive terms deliver (K u + ΔK u w + k_m q_m + k_o q; N,): minus the
+        output torque, the friction (0 for a law without drive terms)."""
+        terms = [t for t in self.terms if t in ("gain", "gain_back", "stiffness_motor", "stiffness_out")]
+        if not terms:
+            return np.zeros(np.shape(v))
+        cols = self.columns(q, v, np.zeros(np.shape(v)), drive=drive, load=np.zeros(np.shape(v)), motor=motor)
+        return -cols[:, [self.terms.index(t) for t in terms]] @ np.array([self.coef[t] for t in terms])
+
+    def output_torque(self, q: np.ndarray, v: np.ndarray, a: "np.ndarray | None" = None, *,
+                      drive: np.ndarray, motor: "np.ndarray | None" = None) -> np.ndarray:
+        """A drive law's output torque τ_out from the drive input u alone (N,): with a ``load`` term
+        τ_load = τ_out, solved in closed form (module docstring)."""
+        mu = self.coef.get("load", 0.0)
+        rest = FrictionLaw(self.kind, {t: c for t, c in self.coef.items() if t != "load"}, self.eps, self.vs, self.k,
+                           self.play)
+        r = -rest.torque(q, v, a, drive=drive, motor=motor)
+        if mu == 0.0:
+            return r
+        s = self.columns(q, v, None if "inertia" not in self.coef else a, drive=drive, motor=motor,
+                         load=np.ones_like(np.asarray(v, dtype=float)))[:, self.terms.index("load")]
+        return r / np.maximum(1.0 + mu * s * np.sign(r), 1e-6)
 
     def steady(self, v: np.ndarray) -> np.ndarray:
         """The friction in steady sliding at velocities ``v`` (states at their bounds; no inertia)."""

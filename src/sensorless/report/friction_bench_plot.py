@@ -9,6 +9,8 @@ Per joint of a :class:`~sensorless.identification.friction_model.FrictionModel`,
 * τ against time around the first reversal of the first log: measured, chosen law and static law.
 
 Below each, the residual of the first log: measured − chosen law (and − static law on the right).
+A drive's friction is what its drive terms deliver minus the output torque
+(:meth:`~sensorless.identification.friction_model.FrictionModel.friction_pair`).
 Units as the command's (N·m, rad/s; a linear axis reads N, m/s); one legend above the axes.
 """
 
@@ -40,24 +42,25 @@ def bench_friction_figure(model, logs: Sequence, *, window: float = 1.0, max_poi
                           share_all=False, by_rows=True)
     rng = np.random.default_rng(0)
     first = logs[0]
-    pred = model.predict(first)
-    stat = model.predict(first, static=True) if model.static_laws_ else None
+    meas1, pred = model.friction_pair(first)
+    stat = model.friction_pair(first, static=True)[1] if model.static_laws_ else None
+    measured = [model.friction_pair(tr)[0] for tr in logs]
     any_static = False
     for k, j in enumerate(joints):
         law = model.laws_[j]
         J = law.coef.get("inertia", 0.0)
         V, F = [], []
-        for tr in logs:
+        for tr, mf in zip(logs, measured):
             c = list(tr.joint_names).index(j)
             V.append(tr.v[:, c])
-            F.append(tr.tau[:, c] - (J * tr.a[:, c] if J and tr.a is not None else 0.0))
+            F.append(mf[:, k] - (J * tr.a[:, c] if J and tr.a is not None else 0.0))
         V, F = np.concatenate(V), np.concatenate(F)
         pick = rng.choice(V.size, min(V.size, max_points), replace=False)
         c = list(first.joint_names).index(j)
         v1 = first.v[:, c]
         inertial = J * first.a[:, c] if J and first.a is not None else 0.0
         own = pred[:, k] - inertial
-        f1 = first.tau[:, c] - inertial
+        f1 = meas1[:, k] - inertial
         pick1 = rng.choice(v1.size, min(v1.size, max_points), replace=False)
         speed = float(np.percentile(np.abs(V), 95)) or 1.0
         for col, lim in ((0, 1.05 * float(np.max(np.abs(V)))), (1, 0.05 * speed)):
@@ -85,13 +88,13 @@ def bench_friction_figure(model, logs: Sequence, *, window: float = 1.0, max_poi
             i1 = i0 + int(np.flatnonzero(~m[i0:])[0]) if (~m[i0:]).any() else m.size
             sl = slice(i0, i1)
             ts = first.t[sl] - first.t[0]
-            ax.plot(ts, first.tau[sl, c], color="0.5", lw=1.0, zorder=2)
+            ax.plot(ts, meas1[sl, k], color="0.5", lw=1.0, zorder=2)
             ax.plot(ts, pred[sl, k], color="C0", lw=1.0, zorder=3)
             res.axhline(0.0, color="0.5", lw=0.8, zorder=1)
-            res.plot(ts, first.tau[sl, c] - pred[sl, k], color="C0", lw=0.9, zorder=3)
+            res.plot(ts, meas1[sl, k] - pred[sl, k], color="C0", lw=0.9, zorder=3)
             if stat is not None and law.kind == "state":
                 ax.plot(ts, stat[sl, k], "--", color="C3", lw=1.0, zorder=4)
-                res.plot(ts, first.tau[sl, c] - stat[sl, k], "--", color="C3", lw=0.9, zorder=4)
+                res.plot(ts, meas1[sl, k] - stat[sl, k], "--", color="C3", lw=0.9, zorder=4)
         else:
             ax.text(0.5, 0.5, "no reversal in the log", transform=ax.transAxes, ha="center", va="center", fontsize=8)
         ax.set_ylabel(f"τ [{TU}]", fontsize=7)

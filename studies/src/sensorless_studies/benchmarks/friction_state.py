@@ -5,7 +5,8 @@ presliding stiffnesses and micro-dampings, and a static joint without the effect
 and a held-out log with another random velocity profile are simulated (irregular steps, noise),
 a :class:`~sensorless.identification.friction_model.FrictionModel` is fitted (``state="auto"``),
 and the held-out RMSE near reversals (:func:`~sensorless.identification.friction_model.reversal_mask`,
-± 1 s) of the chosen law and of the best static law are recorded with the BIC choice.
+± 1 s) of the chosen law and of the best static law are recorded with the choice (blocked held-out
+error; the BIC of both is kept).
 """
 
 from __future__ import annotations

@@ -247,7 +247,7 @@ def bench_friction_state(
     seeds: int = typer.Option(10, help="random velocity profiles (and noise) per simulated joint"),
 ) -> dict:
     """Simulated bench joints (LuGre with three stiffness/damping settings, and a static joint): held-out RMSE
-    near reversals of the chosen law vs the best static law, and the BIC choice."""
+    near reversals of the chosen law vs the best static law, and the held-out choice."""
     from ..benchmarks.friction_state import bench_friction_state as run
 
     if seeds < 1:

@@ -19,6 +19,7 @@ __all__ = ["EXAMPLES", "example_names", "example_summary", "write_example"]
 EXAMPLES: dict[str, str] = {
     "arm": "arm",
     "current-arm": "current_arm",
+    "drive-bench": "drive_bench",
     "drive-gains": "drive_gains",
     "dvrk-psm": "dvrk_psm",
     "fleet-logs": "fleet_logs",
