@@ -23,8 +23,12 @@ def _signals(seed: int = 0) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(seed)
     t = np.arange(N) / 100.0
     q = 0.5 * np.sin(t[:, None] * [1.0, 1.7])
-    return {"t": t, "q": q, "v": rng.normal(size=(N, 2)), "a": rng.normal(size=(N, 2)),
-            "tau": rng.normal(size=(N, 2)), "current": rng.normal(size=(N, 2))}
+    w = np.array([1.0, 1.7])
+    noise = lambda: 1e-3 * rng.normal(size=(N, 2))  # noqa: E731
+    # a consistent log (v = dq/dt, smooth torques): the readers' integrity checks pass it
+    return {"t": t, "q": q, "v": 0.5 * w * np.cos(t[:, None] * w) + noise(),
+            "a": -0.5 * w**2 * np.sin(t[:, None] * w) + noise(),
+            "tau": np.cos(t[:, None] * w + 0.3) + noise(), "current": np.sin(t[:, None] * w + 0.7) + noise()}
 
 
 def _write(fmt: str, path, named: dict[str, np.ndarray]):

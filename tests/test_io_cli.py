@@ -227,7 +227,7 @@ def test_predict_out_directory_is_a_clear_error_without_stray_files(log, ran, tm
     assert data.read_bytes() == before
     r = _run("predict", *ROBOT, "--model", model, "--data", log, "--out", d / "p.npz")
     assert r.exit_code == 0, r.output
-    assert sorted(p.name for p in d.iterdir()) == ["canary.txt", "p.npz"]
+    assert sorted(p.name for p in d.iterdir()) == ["canary.txt", "p.html", "p.npz", "p.png"]  # the fit drawn beside it
 
 
 def test_estimate_force_out_directory_is_a_clear_error(log, tmp_path):

@@ -72,7 +72,7 @@ def test_predict_never_overwrites_without_force(log, model, tmp_path):
     assert out.read_bytes() == b"previous"
     r = _run("predict", *ROBOT, "--model", model, "--data", log, "--out", out, "--force")
     assert r.exit_code == 0, r.output
-    assert "tau_pred" in np.load(out) and sorted(p.name for p in tmp_path.iterdir()) == ["p.npz"]
+    assert "tau_pred" in np.load(out) and sorted(p.name for p in tmp_path.iterdir()) == ["p.html", "p.npz", "p.png"]
 
 
 @pytest.mark.parametrize("cmd", ["predict", "estimate-force"])

@@ -10,10 +10,11 @@ has no lag or gain of its own, and the derivative of a noisy, quantized or round
 a mismatch. A joint that barely moves (range of q under
 :data:`MIN_RANGE`) is not judged.
 
-The verdicts (:class:`VelocityCheck`): ``refuse`` when v cannot be dq/dt (correlation under
-:data:`MIN_CORRELATION` at every lag, a scale outside [1/:data:`MAX_SCALE`, :data:`MAX_SCALE`] (a
-negative one included), or v matching another joint's dq/dt far better than its own); ``warn`` when
-v is dq/dt delayed by more than :data:`MAX_LAG_WARN` s (a delay that explains at least half of what lag 0
+The verdicts (:class:`VelocityCheck`): ``refuse`` when v cannot be dq/dt (a correlation at zero lag
+of −:data:`MIN_CORRELATION` or below, a correlated v at a scale outside [1/:data:`MAX_SCALE`,
+:data:`MAX_SCALE`], or v matching another joint's dq/dt far better than its own);
+``warn`` when the correlation stays under :data:`MIN_CORRELATION` at every lag (evidence a joint
+moving in a short part of the log cannot make certain), or when v is dq/dt delayed by more than :data:`MAX_LAG_WARN` s (a delay that explains at least half of what lag 0
 leaves unexplained) or scaled by more than :data:`SCALE_WARN`.
 """
 
@@ -127,22 +128,27 @@ def _band(v: np.ndarray, dt: float) -> float:
 
 
 def _lowpass(x: np.ndarray, cutoff: float, dt: float) -> np.ndarray:
-    from scipy.signal import butter, sosfiltfilt
-
-    sos = butter(2, cutoff, fs=1.0 / dt, output="sos")
-    return sosfiltfilt(sos, x, axis=0)
+    """Zero-phase low-pass with the gain of a 2nd-order Butterworth run forward and backward,
+    |H(f)|² = 1 / (1 + (f/f_c)⁴), applied in the frequency domain (NumPy only: no SciPy import on the
+    identify path) to the log reflected at both ends."""
+    pad = min(len(x) - 1, max(1, int(round(2.0 / (cutoff * dt)))))
+    xp = np.concatenate([2 * x[:1] - x[pad:0:-1], x, 2 * x[-1:] - x[-2:-pad - 2:-1]], axis=0)
+    f = np.fft.rfftfreq(len(xp), dt)
+    gain = 1.0 / (1.0 + (f / cutoff) ** 4)
+    y = np.fft.irfft(np.fft.rfft(xp, axis=0) * gain[:, None] if xp.ndim == 2 else np.fft.rfft(xp) * gain,
+                     n=len(xp), axis=0)
+    return y[pad:pad + len(x)]
 
 
 def _xcorr(a: np.ndarray, b: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
     """Pearson correlation of ``a[n]`` with ``b[n − k]`` over their overlap, at lags k = −max_lag …
     max_lag (k > 0: ``a`` is ``b`` delayed by k samples); the products by FFT, the overlap's sums by
     cumulative sums, so each lag's correlation is exact."""
-    from scipy.signal import correlate
-
     n = len(a)
-    full = correlate(a, b, mode="full", method="fft")
+    nfft = 1 << int(np.ceil(np.log2(2 * n)))
+    circ = np.fft.irfft(np.fft.rfft(a, nfft) * np.conj(np.fft.rfft(b, nfft)), nfft)  # Σ a[m + k] b[m], k mod nfft
     lags = np.arange(-max_lag, max_lag + 1)
-    sab = full[n - 1 + lags]
+    sab = circ[lags % nfft]
     ca, cb = np.concatenate([[0.0], np.cumsum(a)]), np.concatenate([[0.0], np.cumsum(b)])
     caa, cbb = np.concatenate([[0.0], np.cumsum(a * a)]), np.concatenate([[0.0], np.cumsum(b * b)])
     lo_a, hi_a = np.maximum(lags, 0), n + np.minimum(lags, 0)   # a[lo_a:hi_a] meets b[lo_a - k: hi_a - k]
@@ -196,9 +202,11 @@ def check_velocity(t: np.ndarray, q: np.ndarray, v: np.ndarray, joint_names) -> 
         jv = JointVelocity(names[k], c0, float(c[best]), lag * dt, scale,
                            names[other[1]] if match else None, other[0] if match else None)
         out.append(jv)
-        if (match or float(c[best]) < MIN_CORRELATION or not np.isfinite(scale)
-                or not 1 / MAX_SCALE <= scale <= MAX_SCALE):
-            refused.append(jv.joint)
+        off_scale = not np.isfinite(scale) or not 1 / MAX_SCALE <= scale <= MAX_SCALE
+        if match or c0 <= -MIN_CORRELATION or (off_scale and float(c[best]) >= MIN_CORRELATION):
+            refused.append(jv.joint)  # another joint's, against the motion, or the motion in other units
+        elif float(c[best]) < MIN_CORRELATION or off_scale:  # weak evidence on its own: warned
+            warned.append(jv.joint)
         elif (abs(lag * dt) > MAX_LAG_WARN and 1 - float(c[best]) ** 2 < LAG_GAIN * (1 - c0 ** 2)) or abs(scale - 1) > SCALE_WARN:
             warned.append(jv.joint)
     return VelocityCheck(tuple(out), tuple(refused), tuple(warned), still)
