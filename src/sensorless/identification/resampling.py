@@ -37,7 +37,7 @@ import numpy as np
 
 from ..regressor.normal_equations import NormalEquations
 
-__all__ = ["N_BLOCKS", "MIN_PARTS", "MEMORY_BUDGET", "Resampling", "block_index", "n_blocks_for",
+__all__ = ["pinv_parts", "N_BLOCKS", "MIN_PARTS", "MEMORY_BUDGET", "Resampling", "block_index", "n_blocks_for",
            "compress_blocks", "linear_estimates", "option_spread", "t_quantile"]
 
 N_BLOCKS = 16  #: contiguous time blocks over all logs (at most; fewer for short logs or large models)
@@ -116,8 +116,9 @@ def t_quantile(dof: int) -> float:
     return z + (z**3 + z) / (4 * nu) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * nu**2)
 
 
-def _solve(A: np.ndarray, b: np.ndarray, Q: np.ndarray, null_cutoff: float, null_fraction: float) -> np.ndarray:
-    """``Q A⁺ b`` per row of ``Q`` (equilibrated pseudo-inverse), inf where a row reaches ``A``'s null space."""
+def pinv_parts(A: np.ndarray, null_cutoff: float):
+    """Equilibration ``d``, the kept eigenpairs (λ > ``null_cutoff`` × λ_max) and the null basis of
+    ``D⁻¹AD⁻¹`` (D = diag(√A_ii); a zero diagonal entry is a dead direction)."""
     diag = np.diag(A).copy()
     top = max(float(diag.max()) if diag.size else 0.0, 1e-300)
     dead = diag <= 1e-14 * top
@@ -126,10 +127,15 @@ def _solve(A: np.ndarray, b: np.ndarray, Q: np.ndarray, null_cutoff: float, null
     Ah[dead, :] = Ah[:, dead] = 0.0
     lam, V = np.linalg.eigh(0.5 * (Ah + Ah.T))
     keep = lam > null_cutoff * max(float(lam[-1]) if lam.size else 0.0, 1e-300)
+    return d, lam[keep], V[:, keep], V[:, ~keep]
+
+
+def _solve(A: np.ndarray, b: np.ndarray, Q: np.ndarray, null_cutoff: float, null_fraction: float) -> np.ndarray:
+    """``Q A⁺ b`` per row of ``Q`` (equilibrated pseudo-inverse), inf where a row reaches ``A``'s null space."""
+    d, lam, Vk, N0 = pinv_parts(A, null_cutoff)
     Qh = Q / d
-    Vk = V[:, keep]
-    est = (Qh @ Vk) @ ((Vk.T @ (b / d)) / lam[keep])
-    null = np.linalg.norm(Qh @ V[:, ~keep], axis=1) if (~keep).any() else np.zeros(len(Q))
+    est = (Qh @ Vk) @ ((Vk.T @ (b / d)) / lam)
+    null = np.linalg.norm(Qh @ N0, axis=1) if N0.shape[1] else np.zeros(len(Q))
     return np.where(null > null_fraction * np.linalg.norm(Qh, axis=1), np.inf, est)
 
 

@@ -50,19 +50,6 @@ JOINT_UNIT = 0.1  # a joint term's unit: this × the value that alone explains t
 INERTIA = ("ixx", "ixy", "iyy", "ixz", "iyz", "izz")
 
 
-def _pinv_parts(A: np.ndarray):
-    """Equilibration ``d``, kept eigenpairs and the null basis of ``D⁻¹AD⁻¹``."""
-    diag = np.diag(A).copy()
-    top = max(float(diag.max()) if diag.size else 0.0, 1e-300)
-    dead = diag <= 1e-14 * top
-    d = np.sqrt(np.where(dead, 1.0, diag))
-    Ah = A / np.outer(d, d)
-    Ah[dead, :] = Ah[:, dead] = 0.0
-    lam, V = np.linalg.eigh(0.5 * (Ah + Ah.T))
-    keep = lam > NULL_CUTOFF * max(float(lam[-1]) if lam.size else 0.0, 1e-300)
-    return d, lam[keep], V[:, keep], V[:, ~keep]
-
-
 def linear_split(A: np.ndarray, b: np.ndarray, H: np.ndarray, pi0: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(aᵀ(A+H)⁺b, aᵀ(A+H)⁺Hπ0)`` for the rows of ``a`` (k, p): the data and prior parts of the
     minimiser of ``πᵀAπ − 2bᵀπ + (π−π0)ᵀH(π−π0)`` (equilibrated pseudo-inverse)."""
@@ -178,7 +165,9 @@ def compute_verdicts(structure: ModelStructure, ne: NormalEquations, params: np.
     prior = structure.prior() if prior is None else np.asarray(prior, dtype=float)
     A, b, c = ne.total(None if row_weights is None else np.asarray(row_weights, dtype=float))
     w = np.ones(ne.A.shape[0]) if row_weights is None else np.asarray(row_weights, dtype=float)
-    d, lam, V, N0 = _pinv_parts(A)
+    from .resampling import pinv_parts
+
+    d, lam, V, N0 = pinv_parts(A, NULL_CUTOFF)
     n_eq = max(ne.n_samples, 1) * max(ne.A.shape[0], 1)
     s2 = float(w @ ne.residual_ss(params)) / max(n_eq - (len(lam) if rank is None else rank), 1)
     nb = structure.n_body_params
